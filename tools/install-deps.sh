@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages that the build, the tests and the main job need.
+# Run as root on a fresh machine:  tools/install-deps.sh
+set -euo pipefail
+if [ "$(id -u)" -ne 0 ]; then
+  echo "install-deps.sh: run as root (it calls apt-get)" >&2; exit 1
+fi
+export DEBIAN_FRONTEND=noninteractive
+PKGS=(
+  # build
+  build-essential cmake ninja-build pkg-config git
+  # core libraries
+  libeigen3-dev libtomlplusplus-dev libcli11-dev libsodium-dev
+  # devices
+  libusb-1.0-0-dev libhidapi-dev umockdev libumockdev-dev
+  # platform: GPIO, tracing, jitter reference
+  libgpiod-dev gpiod liblttng-ust-dev lttng-tools babeltrace2 python3-bt2 rt-tests
+  # tests, benchmarks, fuzzing
+  cpputest libbenchmark-dev clang libclang-rt-14-dev
+  # network tests and wire inspection
+  iproute2 tshark
+  # plots and reports (Debian's python3, /usr/bin/python3)
+  python3 python3-matplotlib python3-numpy
+)
+apt-get update -qq
+apt-get install -y -qq --no-install-recommends "${PKGS[@]}"
+echo "install-deps.sh: installed ${#PKGS[@]} packages"

@@ -4,6 +4,7 @@
 // while the commanded device force is held (zero-order hold over one tick).
 // Pure computation, no allocation after construction: RT-safe.
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <cstddef>
 

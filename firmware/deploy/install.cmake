@@ -1,0 +1,20 @@
+# Install rules of the deployment files; the top level includes this file:
+#   include(firmware/deploy/install.cmake)
+# then `cmake --install build --prefix /usr/local` (station binaries come from their own
+# install(TARGETS)). Directories follow the GNU layout; systemd and udev want their files
+# under /usr/lib or /etc regardless of the prefix, so those two paths are absolute by default.
+include(GNUInstallDirs)
+set(_deploy "${CMAKE_CURRENT_LIST_DIR}")
+set(HAPTIC_SYSTEMD_UNIT_DIR "/etc/systemd/system" CACHE PATH "Where haptic-station@.service is installed")
+set(HAPTIC_UDEV_RULES_DIR "/etc/udev/rules.d" CACHE PATH "Where 99-haptic.rules is installed")
+set(HAPTIC_SYSCTL_DIR "/etc/sysctl.d" CACHE PATH "Where 90-haptic.conf is installed")
+set(HAPTIC_INSTALL_BINDIR "${CMAKE_INSTALL_FULL_BINDIR}")
+set(HAPTIC_INSTALL_DOCDIR "${CMAKE_INSTALL_FULL_DOCDIR}")
+configure_file("${_deploy}/haptic-station@.service.in" "${PROJECT_BINARY_DIR}/deploy/haptic-station@.service" @ONLY)
+install(FILES "${PROJECT_BINARY_DIR}/deploy/haptic-station@.service" DESTINATION "${HAPTIC_SYSTEMD_UNIT_DIR}" COMPONENT deploy)
+install(FILES "${_deploy}/99-haptic.rules" DESTINATION "${HAPTIC_UDEV_RULES_DIR}" COMPONENT deploy)
+install(FILES "${_deploy}/sysctl-haptic.conf" DESTINATION "${HAPTIC_SYSCTL_DIR}" RENAME 90-haptic.conf COMPONENT deploy)
+install(DIRECTORY "${_deploy}/lab-4-stations" DESTINATION "${CMAKE_INSTALL_DATADIR}/haptic/examples" COMPONENT deploy)
+install(FILES "${_deploy}/README.md" DESTINATION "${CMAKE_INSTALL_DOCDIR}" RENAME deploy-README.md COMPONENT deploy)
+install(PROGRAMS "${_deploy}/../../tools/trace/record.sh" "${_deploy}/../../tools/trace/analyze.py"
+        DESTINATION "${CMAKE_INSTALL_DATADIR}/haptic/tools/trace" COMPONENT deploy)

@@ -1,0 +1,263 @@
+#include "firmware/scenario.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace haptic::firmware {
+
+namespace {
+[[noreturn]] void bad(const std::string& msg) { throw std::invalid_argument(msg); }
+std::string trim(const std::string& s) {
+  const auto a = s.find_first_not_of(" \t");
+  const auto b = s.find_last_not_of(" \t");
+  return a == std::string::npos ? "" : s.substr(a, b - a + 1);
+}
+double to_double(const std::string& tok, const std::string& what) {
+  try {
+    std::size_t used = 0;
+    const double v = std::stod(trim(tok), &used);
+    if (used != trim(tok).size()) throw std::invalid_argument("trailing");
+    if (!std::isfinite(v)) throw std::invalid_argument("not finite");
+    return v;
+  } catch (const std::exception&) {
+    bad(what + ": '" + tok + "' is not a number");
+  }
+}
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, sep)) out.push_back(item);
+  return out;
+}
+}  // namespace
+
+Eigen::MatrixXd paper_delay_matrix_ms() {
+  Eigen::MatrixXd D(4, 4);
+  D << 0, 4, 4, 4, 8, 0, 80, 200, 4, 100, 0, 200, 6, 240, 200, 0;
+  return D;
+}
+
+std::vector<std::string> scenario_names() { return {"paper-best", "paper-worst", "paper-unstable"}; }
+
+ScenarioSpec make_scenario(const std::string& name) {
+  ScenarioSpec s;
+  s.name = name;
+  s.delay_ms = paper_delay_matrix_ms();
+  if (name == "paper-best") {
+    // Fig. 7 best: the star on user 1 (our optimizer's ranking agrees; see tools/topology).
+    s.topology = {{0, 1}, {0, 2}, {0, 3}};
+    s.duration_s = 20.0;
+    s.script.release_s = 12.0;
+  } else if (name == "paper-worst") {
+    // Fig. 7 worst: the path 1-2-4-3 through the two slowest links.
+    s.topology = {{0, 1}, {1, 3}, {2, 3}};
+    s.duration_s = 80.0;
+    s.script.release_s = 64.0;
+  } else if (name == "paper-unstable") {
+    // Fig. 10: best topology with B_i = (14, 5, 4, 5) N s/m, below eq. (18); users hold light
+    // contact and user 1 gives a small perturbation at 2.5 s.
+    s.topology = {{0, 1}, {0, 2}, {0, 3}};
+    s.damping_Ns_per_m = std::vector<double>{14.0, 5.0, 4.0, 5.0};
+    s.duration_s = 10.0;
+    s.script.kind = UserScriptSpec::Kind::kPerturb;
+  } else {
+    std::string list;
+    for (const auto& n : scenario_names()) list += (list.empty() ? "" : ", ") + n;
+    bad("unknown scenario '" + name + "' (valid: " + list + ")");
+  }
+  return s;
+}
+
+void ScenarioSpec::validate() const {
+  if (users < 2 || users > 64) bad("users must be in [2, 64]");
+  if (!(period_s >= 1e-4 && period_s <= 0.05)) bad("period_s must be in [0.0001, 0.05]");
+  if (!(duration_s > 0 && duration_s <= 3600)) bad("--duration must be in (0, 3600] s");
+  if (delay_ms.rows() != users || delay_ms.cols() != users) bad("--delay-matrix must be users x users");
+  for (int i = 0; i < users; ++i)
+    for (int j = 0; j < users; ++j)
+      if (!(delay_ms(i, j) >= 0 && delay_ms(i, j) <= 10000)) bad("--delay-matrix entries must be in [0, 10000] ms");
+  if (topology.empty()) bad("--topology needs at least one link");
+  std::vector<int> parent(static_cast<std::size_t>(users));
+  for (int i = 0; i < users; ++i) parent[static_cast<std::size_t>(i)] = i;
+  auto find = [&](int a) {
+    while (parent[static_cast<std::size_t>(a)] != a) a = parent[static_cast<std::size_t>(a)];
+    return a;
+  };
+  for (std::size_t e = 0; e < topology.size(); ++e) {
+    const auto& l = topology[e];
+    if (l[0] < 0 || l[1] < 0 || l[0] >= users || l[1] >= users || l[0] == l[1])
+      bad("--topology: link " + std::to_string(l[0] + 1) + "-" + std::to_string(l[1] + 1) + " is not between two different users 1.." + std::to_string(users));
+    for (std::size_t f = 0; f < e; ++f)
+      if ((topology[f][0] == l[0] && topology[f][1] == l[1]) || (topology[f][0] == l[1] && topology[f][1] == l[0]))
+        bad("--topology: link " + std::to_string(l[0] + 1) + "-" + std::to_string(l[1] + 1) + " is listed twice");
+    parent[static_cast<std::size_t>(find(l[0]))] = find(l[1]);
+  }
+  for (int i = 1; i < users; ++i)
+    if (find(i) != find(0)) bad("--topology must connect all users (Theorem 1 needs a connected graph)");
+  if (damping_Ns_per_m) {
+    if (static_cast<int>(damping_Ns_per_m->size()) != users) bad("--damping needs one value per user");
+    for (double b : *damping_Ns_per_m)
+      if (!(b >= 0)) bad("--damping values must be >= 0 N s/m");
+  }
+  if (!(jitter_fraction >= 0 && jitter_fraction <= 1)) bad("jitter_fraction must be in [0, 1]");
+  if (!(loss_probability >= 0 && loss_probability < 1)) bad("loss_probability must be in [0, 1)");
+  if (!(duplicate_probability >= 0 && duplicate_probability <= 1)) bad("duplicate_probability must be in [0, 1]");
+  if (scene_nodes < 7 || scene_nodes > 20000) bad("--nodes must be in [7, 20000]");
+  if (!(damping_margin >= 0 && damping_margin <= 10)) bad("damping margin must be in [0, 10]");
+  if (loss_allowance_ticks < 0 || loss_allowance_ticks > 1000) bad("loss allowance must be in [0, 1000] ticks");
+  scene.validate();
+}
+
+std::vector<std::array<int, 2>> parse_topology(const std::string& text, int users) {
+  std::vector<std::array<int, 2>> out;
+  for (const auto& tok : split(text, ',')) {
+    const auto parts = split(trim(tok), '-');
+    if (parts.size() != 2) bad("--topology: '" + tok + "' is not a link like 1-2");
+    const double a = to_double(parts[0], "--topology"), b = to_double(parts[1], "--topology");
+    if (a != std::floor(a) || b != std::floor(b) || a < 1 || b < 1 || a > users || b > users)
+      bad("--topology: '" + tok + "' must join users numbered 1.." + std::to_string(users));
+    out.push_back({static_cast<int>(a) - 1, static_cast<int>(b) - 1});
+  }
+  if (out.empty()) bad("--topology is empty");
+  return out;
+}
+
+Eigen::MatrixXd parse_delay_matrix(const std::string& text, int users) {
+  const auto rows = split(text, ';');
+  if (static_cast<int>(rows.size()) != users)
+    bad("--delay-matrix needs " + std::to_string(users) + " rows separated by ';' (got " + std::to_string(rows.size()) + ")");
+  Eigen::MatrixXd D(users, users);
+  for (int i = 0; i < users; ++i) {
+    const auto cols = split(rows[static_cast<std::size_t>(i)], ',');
+    if (static_cast<int>(cols.size()) != users)
+      bad("--delay-matrix row " + std::to_string(i + 1) + " needs " + std::to_string(users) + " values");
+    for (int j = 0; j < users; ++j) D(i, j) = to_double(cols[static_cast<std::size_t>(j)], "--delay-matrix");
+  }
+  return D;
+}
+
+std::vector<double> parse_list(const std::string& text, const std::string& what) {
+  std::vector<double> out;
+  for (const auto& tok : split(text, ',')) out.push_back(to_double(tok, what));
+  return out;
+}
+
+BuiltScenario build_scenario(const ScenarioSpec& spec) {
+  spec.validate();
+  BuiltScenario b;
+  b.spec = spec;
+  const int N = spec.users;
+  const double T = spec.period_s;
+  const rt::TetMesh mesh = spec.scene_nodes == 33 ? rt::make_paper_ball(spec.ball_radius_m)
+                                                  : rt::make_lattice_ball(spec.scene_nodes, spec.ball_radius_m);
+  b.scene = rt::build_scene(mesh, spec.scene);
+  b.gains.reserve(spec.topology.size());
+  for (std::size_t e = 0; e < spec.topology.size(); ++e)
+    b.gains.push_back(e == 0 ? rt::paper_edge_gains(b.scene, spec.p_gain_N_per_m, spec.d_gain_Ns_per_m) : b.gains[0]);
+  b.neighbors.assign(static_cast<std::size_t>(N), {});
+  b.neighbor_edge.assign(static_cast<std::size_t>(N), {});
+  for (std::size_t e = 0; e < spec.topology.size(); ++e) {
+    const auto& l = spec.topology[e];
+    b.neighbors[static_cast<std::size_t>(l[0])].push_back(l[1]);
+    b.neighbor_edge[static_cast<std::size_t>(l[0])].push_back(static_cast<int>(e));
+    b.neighbors[static_cast<std::size_t>(l[1])].push_back(l[0]);
+    b.neighbor_edge[static_cast<std::size_t>(l[1])].push_back(static_cast<int>(e));
+  }
+  for (int i = 0; i < N; ++i)
+    if (static_cast<int>(b.neighbors[static_cast<std::size_t>(i)].size()) > rt::kMaxNeighbors)
+      bad("--topology: user " + std::to_string(i + 1) + " has more than 6 links");
+  b.nbar_ticks = Eigen::MatrixXi::Zero(N, N);
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j)
+      if (i != j) {
+        const double max_delay_s = spec.delay_ms(i, j) * 1e-3 * (1.0 + spec.jitter_fraction);
+        b.nbar_ticks(i, j) = static_cast<int>(std::ceil(max_delay_s / T - 1e-9)) + spec.loss_allowance_ticks;
+      }
+  b.round_trip_sum_ms.assign(static_cast<std::size_t>(N), 0.0);
+  b.damping_min.assign(static_cast<std::size_t>(N), 0.0);
+  b.damping.assign(static_cast<std::size_t>(N), 0.0);
+  b.passivity_condition_met = true;
+  for (int i = 0; i < N; ++i) {
+    std::vector<rt::Eq18Neighbor> nb;
+    for (std::size_t n = 0; n < b.neighbors[static_cast<std::size_t>(i)].size(); ++n) {
+      const int j = b.neighbors[static_cast<std::size_t>(i)][n];
+      const double rt_ticks = b.nbar_ticks(i, j) + b.nbar_ticks(j, i);
+      b.round_trip_sum_ms[static_cast<std::size_t>(i)] += rt_ticks * T / 2.0 * 1e3;
+      nb.push_back({rt_ticks, T, &b.gains[static_cast<std::size_t>(b.neighbor_edge[static_cast<std::size_t>(i)][n])]});
+    }
+    b.damping_min[static_cast<std::size_t>(i)] = rt::damping_min_eq18(T, nb);
+    b.damping[static_cast<std::size_t>(i)] = spec.damping_Ns_per_m ? (*spec.damping_Ns_per_m)[static_cast<std::size_t>(i)]
+                                                                   : (1.0 + spec.damping_margin) * b.damping_min[static_cast<std::size_t>(i)];
+    if (b.damping[static_cast<std::size_t>(i)] < b.damping_min[static_cast<std::size_t>(i)] * (1 - 1e-12))
+      b.passivity_condition_met = false;
+  }
+  // Contact meshes: user 1 takes the boundary face towards (1,1,1); users 2-4 the images of that
+  // face under the three half-turns about the coordinate axes (symmetries of both built-in
+  // balls), so the four pushes sum to zero, span space positively, and a steady collaborative
+  // hold exists for the floating ball. Users beyond 4 reuse the pattern rotated about z.
+  const std::array<Eigen::Vector3d, 4> flips = {Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(1, -1, -1),
+                                                Eigen::Vector3d(-1, 1, -1), Eigen::Vector3d(-1, -1, 1)};
+  const Eigen::Vector3d c0 = b.scene.mesh.face_center(b.scene.mesh.face_towards(Eigen::Vector3d(1, 1, 1))) - b.scene.mesh.centroid();
+  for (int i = 0; i < N; ++i) {
+    Eigen::Vector3d d = flips[static_cast<std::size_t>(i % 4)].cwiseProduct(c0);
+    if (i >= 4) d = Eigen::AngleAxisd(0.7 * (i / 4), Eigen::Vector3d::UnitZ()) * d;
+    const int f = b.scene.mesh.face_towards(d);
+    const auto& face = b.scene.mesh.surface[static_cast<std::size_t>(f)];
+    b.contact_nodes.push_back({face[0], face[1], face[2]});
+    b.push_direction.push_back(-b.scene.mesh.face_normal(f));
+    b.vp_start.push_back(b.scene.mesh.face_center(f));
+  }
+  b.trace_node = spec.trace_node >= 0 ? spec.trace_node : b.contact_nodes[std::min(1, N - 1)][0];
+  if (b.trace_node >= b.scene.nodes) bad("--trace-node must be below the node count " + std::to_string(b.scene.nodes));
+  return b;
+}
+
+rt::StationConfig BuiltScenario::station_config(int i) const {
+  rt::StationConfig c;
+  c.station_id = i;
+  c.users = spec.users;
+  c.period_s = spec.period_s;
+  c.scene = &scene;
+  c.damping_Ns_per_m = damping[static_cast<std::size_t>(i)];
+  for (std::size_t n = 0; n < neighbors[static_cast<std::size_t>(i)].size(); ++n) {
+    rt::NeighborConfig nc;
+    nc.peer_id = neighbors[static_cast<std::size_t>(i)][n];
+    nc.gains = &gains[static_cast<std::size_t>(neighbor_edge[static_cast<std::size_t>(i)][n])];
+    nc.index_delay_bound_ticks = nbar_ticks(i, nc.peer_id);
+    c.neighbors.push_back(nc);
+  }
+  c.vp = spec.vp;
+  c.contact_nodes = contact_nodes[static_cast<std::size_t>(i)];
+  c.vp_initial_position_m = vp_start[static_cast<std::size_t>(i)];
+  c.device_damping_Ns_per_m = spec.device.damping_Ns_per_m;
+  return c;
+}
+
+rt::GoalScript BuiltScenario::goal_script(int i) const {
+  const auto& s = spec.script;
+  const Eigen::Vector3d p0 = vp_start[static_cast<std::size_t>(i)];
+  const Eigen::Vector3d in = push_direction[static_cast<std::size_t>(i)];
+  rt::GoalScript g(p0);
+  switch (s.kind) {
+    case UserScriptSpec::Kind::kPushHoldRelease:
+      g.add(s.push_start_s, p0);
+      g.add(s.push_end_s, p0 + s.push_depth_m * in);
+      g.add(s.release_s, p0 + s.push_depth_m * in);
+      g.add(s.release_s + s.retract_s, p0 - s.retract_depth_m * in);
+      break;
+    case UserScriptSpec::Kind::kPerturb:
+      if (i == s.perturb_user) {
+        g.add(s.perturb_at_s, p0);
+        g.add(s.perturb_at_s + s.perturb_duration_s / 2, p0 + s.perturb_depth_m * in);
+        g.add(s.perturb_at_s + s.perturb_duration_s, p0);
+      }
+      break;
+    case UserScriptSpec::Kind::kHold:
+      break;
+  }
+  return g;
+}
+
+}  // namespace haptic::firmware

@@ -1,0 +1,96 @@
+#pragma once
+// Scenarios: the paper's experiment (Section V) and its variants, as data. Shared by the
+// deterministic simulator and the real-time station so both run the same scene and gains.
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "rt/gains.hpp"
+#include "rt/scene.hpp"
+#include "rt/station.hpp"
+#include "rt/user_model.hpp"
+
+namespace haptic::firmware {
+
+struct UserScriptSpec {
+  enum class Kind { kPushHoldRelease, kPerturb, kHold } kind = Kind::kPushHoldRelease;
+  double push_start_s = 0.5;
+  double push_end_s = 3.0;
+  double release_s = 12.0;       // the hands retract from here
+  double retract_s = 0.5;        // duration of the retraction
+  double push_depth_m = 0.03;    // hand goal travel into the object
+  double retract_depth_m = 0.03; // hand goal travel out past the start point
+  int perturb_user = 0;          // kPerturb: which user (0-based) perturbs
+  double perturb_at_s = 2.5;
+  double perturb_depth_m = 0.005;
+  double perturb_duration_s = 0.2;
+};
+
+struct ScenarioSpec {
+  std::string name = "paper-best";
+  int users = 4;
+  double period_s = 0.002;
+  double duration_s = 20.0;
+  std::uint64_t seed = 1;
+  std::vector<std::array<int, 2>> topology;  // undirected links, 0-based
+  Eigen::MatrixXd delay_ms;                  // mean one-way delay, row i receives from column j
+  double jitter_fraction = 0.5;
+  double loss_probability = 0.05;
+  double duplicate_probability = 0.01;
+  int scene_nodes = 33;                      // 33: the paper's ball; otherwise a lattice ball
+  double ball_radius_m = 0.05;
+  rt::SceneParams scene{};
+  double p_gain_N_per_m = 1000.0;
+  double d_gain_Ns_per_m = 5.0;
+  rt::VirtualProxyParams vp{};
+  rt::DeviceModelParams device{};
+  rt::HandParams hand{};
+  std::optional<std::vector<double>> damping_Ns_per_m;  // B_i override (one per user)
+  double damping_margin = 0.05;          // B_i = (1 + margin) * eq. (18) minimum
+  int loss_allowance_ticks = 1;          // Nbar_ij = ceil(max one-way delay / T) + this
+  UserScriptSpec script{};
+  int trace_node = -1;                   // -1: first node of user 2's contact mesh (paper: node 19)
+
+  void validate() const;  // throws std::invalid_argument naming the option
+};
+
+// Names of the built-in scenarios, and the spec for one (throws std::invalid_argument listing
+// the valid names when unknown).
+std::vector<std::string> scenario_names();
+ScenarioSpec make_scenario(const std::string& name);
+Eigen::MatrixXd paper_delay_matrix_ms();
+
+// Parsers for command-line overrides (throw std::invalid_argument with a clear message).
+std::vector<std::array<int, 2>> parse_topology(const std::string& text, int users);  // "1-2,1-3,1-4"
+Eigen::MatrixXd parse_delay_matrix(const std::string& text, int users);            // "0,4;8,0" rows by ';'
+std::vector<double> parse_list(const std::string& text, const std::string& what);  // "1,2,3"
+
+// Everything built from a spec: the scene, one gain set per edge, per-user bounds and dampings.
+struct BuiltScenario {
+  ScenarioSpec spec;
+  rt::Scene scene;
+  std::vector<rt::EdgeGains> gains;             // one per link in spec.topology
+  std::vector<std::vector<int>> neighbors;      // neighbors[i] = peers of i (0-based)
+  std::vector<std::vector<int>> neighbor_edge;  // edge index of neighbors[i][n]
+  Eigen::MatrixXi nbar_ticks;                   // Nbar_ij bound used by eq. (18) and the guard
+  std::vector<double> round_trip_sum_ms;        // sum_j (Nbar_ij + Nbar_ji) T / 2, per user
+  std::vector<double> damping_min;              // eq. (18), per user
+  std::vector<double> damping;                  // B_i used
+  std::vector<std::vector<int>> contact_nodes;  // contact mesh per user
+  std::vector<Eigen::Vector3d> push_direction;  // inward, per user
+  std::vector<Eigen::Vector3d> vp_start;        // light contact point per user
+  int trace_node = 0;
+  bool passivity_condition_met = false;
+
+  rt::StationConfig station_config(int user) const;
+  rt::GoalScript goal_script(int user) const;
+};
+
+BuiltScenario build_scenario(const ScenarioSpec& spec);
+
+}  // namespace haptic::firmware

@@ -1,0 +1,107 @@
+#include "rt/gains.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace haptic::rt {
+
+namespace {
+void check_symmetric(const SpatialMatrix& A, const char* what) {
+  const SparseRowMajor T = A.S.transpose();
+  if ((A.S - T).norm() > 1e-9 * std::max(1.0, A.S.norm()))
+    throw std::invalid_argument(std::string(what) + " must be symmetric");
+}
+double lambda_min_dense_or_gersh(const SpatialMatrix& A) {
+  // Lower bound on the smallest eigenvalue: -lambda_max(-A).
+  SpatialMatrix neg = A;
+  neg.S *= -1.0;
+  return -lambda_max(neg);
+}
+}  // namespace
+
+EdgeGains matrix_edge_gains(const SpatialMatrix& P, const SpatialMatrix& D) {
+  check_symmetric(P, "P_ij");
+  check_symmetric(D, "D_ij");
+  if (P.dofs() != D.dofs()) throw std::invalid_argument("P_ij and D_ij must have the same size");
+  EdgeGains g;
+  g.P = P;
+  g.D = D;
+  g.lambda_max_P = lambda_max(P);
+  g.lambda_max_D = lambda_max(D);
+  if (!(lambda_min_dense_or_gersh(P) > 0)) throw std::invalid_argument("P_ij must be positive definite");
+  if (lambda_min_dense_or_gersh(D) < -1e-9 * std::max(1.0, g.lambda_max_D))
+    throw std::invalid_argument("D_ij must be positive semidefinite");
+  g.description = "matrix gains";
+  return g;
+}
+
+EdgeGains paper_edge_gains(const Scene& scene, double p, double d) {
+  if (!(p > 0)) throw std::invalid_argument("consensus.p_N_per_m must be > 0");
+  if (!(d >= 0)) throw std::invalid_argument("consensus.d_Ns_per_m must be >= 0");
+  const SpatialMatrix I = SpatialMatrix::identity(scene.nodes);
+  EdgeGains g = matrix_edge_gains(linear_combination({{p / 2, &I}, {p / (2 * scene.lambda_max_K_int), &scene.K_int}}),
+                                  SpatialMatrix::identity(scene.nodes, d));
+  std::ostringstream os;
+  os << "P = " << p << "[I/2 + K_int/(2 lambda_max)], D = " << d << " I";
+  g.description = os.str();
+  return g;
+}
+
+EdgeGains scalar_edge_gains(int nodes, double p, double d) {
+  if (!(p > 0)) throw std::invalid_argument("consensus.p_N_per_m must be > 0");
+  if (!(d >= 0)) throw std::invalid_argument("consensus.d_Ns_per_m must be >= 0");
+  EdgeGains g;
+  g.P = SpatialMatrix::identity(nodes, p);
+  g.D = SpatialMatrix::identity(nodes, d);
+  g.lambda_max_P = p;
+  g.lambda_max_D = d;
+  std::ostringstream os;
+  os << "P = " << p << " I, D = " << d << " I";
+  g.description = os.str();
+  return g;
+}
+
+double damping_min_eq18(double t_min_i, std::span<const Eq18Neighbor> nb) {
+  if (!(t_min_i > 0)) throw std::invalid_argument("eq. (18): T_i^min must be > 0");
+  if (nb.empty()) return 0.0;
+  // Build sum_j c_P P_ij + c_D D_ij and take its largest eigenvalue (exact PSD bound for B_i = beta I).
+  SpatialMatrix acc;
+  bool first = true;
+  for (const auto& n : nb) {
+    if (!n.gains) throw std::invalid_argument("eq. (18): neighbour without gains");
+    if (!(n.round_trip_ticks >= 0)) throw std::invalid_argument("eq. (18): round trip must be >= 0");
+    if (!(n.t_max_j_s >= t_min_i * 0 && n.t_max_j_s > 0)) throw std::invalid_argument("eq. (18): T_j^max must be > 0");
+    const double cP = n.round_trip_ticks / 2.0 * n.t_max_j_s;
+    const double cD = 0.5 * (n.t_max_j_s / t_min_i - 1.0);
+    SpatialMatrix term = linear_combination({{cP, &n.gains->P}, {std::max(0.0, cD), &n.gains->D}});
+    acc = first ? term : linear_combination({{1.0, &acc}, {1.0, &term}});
+    first = false;
+  }
+  return std::max(0.0, lambda_max(acc));
+}
+
+void check_eq26(const VirtualCouplingGains& g, double b_d, double T, double ratio) {
+  auto fail = [](const std::string& s) { throw std::invalid_argument(s); };
+  if (!(T > 0)) fail("period_s must be > 0");
+  if (!(ratio >= 1.0)) fail("max_period_ratio must be >= 1");
+  if (!(g.K_vc_N_per_m > 0)) fail("virtual_coupling.K_vc_N_per_m must be > 0");
+  if (!(g.B_vc_Ns_per_m >= 0)) fail("virtual_coupling.B_vc_Ns_per_m must be >= 0");
+  if (!(g.b_v_Ns_per_m >= 0)) fail("virtual_coupling.b_v_Ns_per_m must be >= 0");
+  const double need_bd = g.B_vc_Ns_per_m * (ratio + 1.0) + g.K_vc_N_per_m * T;
+  const double need_bv = g.B_vc_Ns_per_m / 2.0 * (ratio - 1.0) + g.K_vc_N_per_m * T / 2.0;
+  if (b_d < need_bd) {
+    std::ostringstream os;
+    os << "eq. (26) violated: device damping b_d = " << b_d << " N s/m < B_vc (T_k/T_k-1 + 1) + K_vc T = " << need_bd
+       << " N s/m; lower virtual_coupling.K_vc_N_per_m or B_vc_Ns_per_m, or use a device with more damping";
+    fail(os.str());
+  }
+  if (g.b_v_Ns_per_m < need_bv) {
+    std::ostringstream os;
+    os << "eq. (26) violated: virtual_coupling.b_v_Ns_per_m = " << g.b_v_Ns_per_m << " < B_vc/2 (T_k/T_k-1 - 1) + K_vc T/2 = "
+       << need_bv;
+    fail(os.str());
+  }
+}
+
+}  // namespace haptic::rt

@@ -1,0 +1,189 @@
+#include "rt/mesh.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <set>
+#include <stdexcept>
+
+namespace haptic::rt {
+
+Eigen::Vector3d TetMesh::centroid() const {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : nodes) c += p;
+  return nodes.empty() ? c : Eigen::Vector3d(c / static_cast<double>(nodes.size()));
+}
+
+Eigen::Vector3d TetMesh::face_normal(int f) const {
+  const auto& t = surface.at(static_cast<std::size_t>(f));
+  const Eigen::Vector3d n = (nodes[t[1]] - nodes[t[0]]).cross(nodes[t[2]] - nodes[t[0]]);
+  return n.normalized();
+}
+
+Eigen::Vector3d TetMesh::face_center(int f) const {
+  const auto& t = surface.at(static_cast<std::size_t>(f));
+  return (nodes[t[0]] + nodes[t[1]] + nodes[t[2]]) / 3.0;
+}
+
+int TetMesh::face_towards(const Eigen::Vector3d& direction) const {
+  const Eigen::Vector3d d = direction.normalized();
+  int best = -1;
+  double best_dot = -2;
+  const Eigen::Vector3d c = centroid();
+  for (int f = 0; f < static_cast<int>(surface.size()); ++f) {
+    // Prefer the face the ray from the centre actually exits through: score by the face centre's
+    // direction, tie-broken by the normal.
+    const double s = (face_center(f) - c).normalized().dot(d) + 1e-3 * face_normal(f).dot(d);
+    if (s > best_dot) {
+      best_dot = s;
+      best = f;
+    }
+  }
+  if (best < 0) throw std::runtime_error("mesh has no surface");
+  return best;
+}
+
+void finish_mesh(TetMesh& m) {
+  std::set<std::array<int, 2>> edges;
+  std::map<std::array<int, 3>, std::pair<int, std::array<int, 3>>> faces;  // sorted -> (count, oriented)
+  for (const auto& t : m.tets) {
+    for (int a = 0; a < 4; ++a)
+      for (int b = a + 1; b < 4; ++b) edges.insert({std::min(t[a], t[b]), std::max(t[a], t[b])});
+    const std::array<std::array<int, 3>, 4> fs = {{{t[0], t[1], t[2]}, {t[0], t[1], t[3]}, {t[0], t[2], t[3]}, {t[1], t[2], t[3]}}};
+    for (const auto& f : fs) {
+      auto key = f;
+      std::sort(key.begin(), key.end());
+      auto& e = faces[key];
+      e.first++;
+      e.second = f;
+    }
+  }
+  m.edges.assign(edges.begin(), edges.end());
+  m.surface.clear();
+  const Eigen::Vector3d c = m.centroid();
+  for (const auto& [key, val] : faces) {
+    if (val.first != 1) continue;
+    auto f = val.second;
+    const Eigen::Vector3d n = (m.nodes[f[1]] - m.nodes[f[0]]).cross(m.nodes[f[2]] - m.nodes[f[0]]);
+    const Eigen::Vector3d fc = (m.nodes[f[0]] + m.nodes[f[1]] + m.nodes[f[2]]) / 3.0;
+    if (n.dot(fc - c) < 0) std::swap(f[1], f[2]);
+    m.surface.push_back(f);
+  }
+}
+
+TetMesh make_paper_ball(double radius_m) {
+  if (!(radius_m > 0)) throw std::invalid_argument("ball radius must be > 0");
+  const double phi = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Eigen::Vector3d> s;
+  for (int a : {-1, 1})
+    for (int b : {-1, 1}) {
+      s.emplace_back(0, a, b * phi);
+      s.emplace_back(a, b * phi, 0);
+      s.emplace_back(b * phi, 0, a);
+    }
+  for (int a : {-1, 1})
+    for (int b : {-1, 1})
+      for (int c : {-1, 1}) s.emplace_back(a, b, c);
+  for (int a : {-1, 1})
+    for (int b : {-1, 1}) {
+      s.emplace_back(0, a / phi, b * phi);
+      s.emplace_back(a / phi, b * phi, 0);
+      s.emplace_back(b * phi, 0, a / phi);
+    }
+  TetMesh m;
+  m.nodes.push_back(Eigen::Vector3d::Zero());
+  for (auto& p : s) m.nodes.push_back(radius_m * p.normalized());
+  // Convex hull of the 32 sphere points by brute force (no four of them are coplanar on a hull
+  // face), then cone every hull triangle to the centre node 0.
+  const int ns = static_cast<int>(m.nodes.size());
+  for (int i = 1; i < ns; ++i)
+    for (int j = i + 1; j < ns; ++j)
+      for (int k = j + 1; k < ns; ++k) {
+        const Eigen::Vector3d n = (m.nodes[j] - m.nodes[i]).cross(m.nodes[k] - m.nodes[i]);
+        int pos = 0, neg = 0;
+        for (int l = 1; l < ns; ++l) {
+          if (l == i || l == j || l == k) continue;
+          const double d = n.dot(m.nodes[l] - m.nodes[i]);
+          if (d > 1e-12 * radius_m * radius_m * radius_m) ++pos;
+          else if (d < -1e-12 * radius_m * radius_m * radius_m) ++neg;
+        }
+        if (pos == 0 || neg == 0) m.tets.push_back({0, i, j, k});
+      }
+  finish_mesh(m);
+  m.description = "paper ball: pentakis dodecahedron coned to its centre (33 nodes)";
+  if (m.node_count() != 33 || m.tets.size() != 60 || m.edges.size() != 122)
+    throw std::logic_error("make_paper_ball: unexpected mesh size");
+  return m;
+}
+
+namespace {
+TetMesh lattice_ball_with_spacing(double h, double R) {
+  const int K = static_cast<int>(std::ceil(R / h)) + 1;
+  auto inside = [&](int i, int j, int k) {
+    return std::sqrt(double(i * i + j * j + k * k)) * h <= R * (1 + 1e-9);
+  };
+  std::map<std::array<int, 3>, int> index;
+  TetMesh m;
+  auto node = [&](int i, int j, int k) {
+    auto [it, fresh] = index.try_emplace({i, j, k}, static_cast<int>(m.nodes.size()));
+    if (fresh) m.nodes.emplace_back(i * h, j * h, k * h);
+    return it->second;
+  };
+  // Kuhn split of the unit cube along the main diagonal 0 -> 7: six tetrahedra, one per
+  // permutation of the axes; identical on shared faces of neighbouring cubes.
+  static const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int i = -K; i < K; ++i)
+    for (int j = -K; j < K; ++j)
+      for (int k = -K; k < K; ++k) {
+        bool all = true;
+        for (int c = 0; c < 8 && all; ++c) all = inside(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
+        if (!all) continue;
+        for (const auto& p : perms) {
+          std::array<int, 3> v = {i, j, k};
+          std::array<int, 4> t{};
+          t[0] = node(v[0], v[1], v[2]);
+          for (int s = 0; s < 3; ++s) {
+            v[static_cast<std::size_t>(p[s])] += 1;
+            t[static_cast<std::size_t>(s) + 1] = node(v[0], v[1], v[2]);
+          }
+          m.tets.push_back(t);
+        }
+      }
+  finish_mesh(m);
+  // Project boundary nodes radially onto the sphere (springs only depend on connectivity and
+  // rest offsets, so this changes the shape, not the validity of the model).
+  std::set<int> boundary;
+  for (const auto& f : m.surface)
+    for (int v : f) boundary.insert(v);
+  for (int v : boundary)
+    if (m.nodes[static_cast<std::size_t>(v)].norm() > 0) m.nodes[static_cast<std::size_t>(v)] = R * m.nodes[static_cast<std::size_t>(v)].normalized();
+  finish_mesh(m);  // re-orient faces after projection
+  return m;
+}
+}  // namespace
+
+TetMesh make_lattice_ball(int target_nodes, double radius_m) {
+  if (target_nodes < 7 || target_nodes > 200000)
+    throw std::invalid_argument("lattice ball: nodes must be in [7, 200000]");
+  if (!(radius_m > 0)) throw std::invalid_argument("ball radius must be > 0");
+  // Node count grows like (4/3) pi (R/h)^3; scan a bracket of spacings around that estimate.
+  const double h0 = radius_m * std::cbrt(4.0 * std::numbers::pi / (3.0 * target_nodes));
+  TetMesh best;
+  long best_err = -1;
+  for (int s = -12; s <= 12; ++s) {
+    const double h = h0 * (1.0 + 0.025 * s);
+    TetMesh m = lattice_ball_with_spacing(h, radius_m);
+    if (m.tets.empty()) continue;
+    const long err = std::labs(static_cast<long>(m.node_count()) - target_nodes);
+    if (best_err < 0 || err < best_err) {
+      best_err = err;
+      best = std::move(m);
+    }
+  }
+  if (best_err < 0) throw std::runtime_error("lattice ball: no mesh for that target");
+  best.description = "lattice ball (Kuhn-split cubes, boundary projected), " + std::to_string(best.node_count()) + " nodes";
+  return best;
+}
+
+}  // namespace haptic::rt

@@ -1,0 +1,57 @@
+#pragma once
+// Receive-side bookkeeping for one neighbour j of station i (Section III-B, Fig. 4, eq. 17).
+// A pure object fed with (sequence, send time, payload) by whoever delivers packets (the
+// deterministic simulator or the real network), so both feed the same code.
+//  - keeps the newest packet by sequence number; older ones arriving late (data swapping) and
+//    repeats of the newest (duplication) are counted and dropped;
+//  - at each tick k: if nothing newer arrived the previous packet is held (packet sustainment)
+//    and the indexing delay N_ij^k = k - seq grows;
+//  - delta_ij^k = 1 only the first tick a velocity sample is used (duplication avoidance, eq. 17).
+// offer() and begin_tick() never allocate: RT-safe.
+#include <cstdint>
+#include <vector>
+
+namespace haptic::rt {
+
+enum class RxVerdict : std::uint8_t { kAccepted, kStale, kDuplicate, kBadSize };
+
+struct RxCounters {
+  std::uint64_t accepted = 0;
+  std::uint64_t stale = 0;       // older than the newest held (swapped/late)
+  std::uint64_t duplicate = 0;   // same sequence as the newest held
+  std::uint64_t bad_size = 0;
+  std::uint64_t sustained_ticks = 0;  // ticks that held the previous packet
+  std::int64_t max_index_delay = 0;   // max N_ij^k seen
+};
+
+class RxLink {
+ public:
+  struct TickView {
+    std::int64_t index_delay = 0;  // N_ij^k
+    bool fresh = false;            // delta_ij^k (eq. 17)
+    const double* x_hat = nullptr; // x_hat_j(k - N_ij^k)
+    const double* v_hat = nullptr; // v_hat_j(k - N_ij^k)
+    double send_time_s = 0;
+  };
+
+  RxLink() = default;
+  // Start-up: payload size and the state assumed before the first packet (all copies start
+  // from the same configuration at rest, v_j(k) = 0 for k <= 0). Allocates.
+  void init(int dofs, const double* x_hat0, const double* v_hat0, std::int64_t initial_sequence = -1);
+  RxVerdict offer(std::int64_t sequence, double send_time_s, const double* x_hat, const double* v_hat, int dofs);
+  TickView begin_tick(std::int64_t k);
+  std::int64_t newest_sequence() const { return newest_seq_; }
+  const RxCounters& counters() const { return counters_; }
+  int dofs() const { return dofs_; }
+
+ private:
+  int dofs_ = 0;
+  std::vector<double> x_hat_, v_hat_;
+  std::int64_t newest_seq_ = -1;
+  double newest_send_time_ = 0;
+  bool unused_ = false;  // newest velocity sample not yet used by a tick
+  std::int64_t last_tick_ = INT64_MIN;
+  RxCounters counters_{};
+};
+
+}  // namespace haptic::rt

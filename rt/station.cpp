@@ -1,0 +1,340 @@
+#include "rt/station.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace haptic::rt {
+
+namespace {
+[[noreturn]] void bad(const std::string& key, const std::string& range) {
+  throw std::invalid_argument("station." + key + " must be " + range);
+}
+SpatialMatrix combine(const std::vector<std::pair<double, const SpatialMatrix*>>& terms) {
+  SpatialMatrix acc = linear_combination({terms[0]});
+  for (std::size_t i = 1; i < terms.size(); ++i) acc = linear_combination({{1.0, &acc}, terms[i]});
+  return acc;
+}
+}  // namespace
+
+void StationConfig::validate() const {
+  if (!scene) bad("scene", "set");
+  if (users < 1) bad("users", ">= 1");
+  if (!(period_s > 0 && period_s < 1)) bad("period_s", "in (0, 1)");
+  if (!(damping_Ns_per_m >= 0 && std::isfinite(damping_Ns_per_m))) bad("damping_Ns_per_m", ">= 0");
+  if (static_cast<int>(neighbors.size()) > kMaxNeighbors) bad("neighbors", "at most 6");
+  for (const auto& n : neighbors) {
+    if (!n.gains) bad("neighbors[].gains", "set");
+    if (n.gains->P.dofs() != scene->dofs) bad("neighbors[].gains", "sized like the scene");
+    if (n.index_delay_bound_ticks < 0) bad("neighbors[].index_delay_bound_ticks", ">= 0");
+  }
+  if (!(vp.mass_kg > 0)) bad("vp.mass_kg", "> 0");
+  if (!(vp.contact_damping_Ns_per_m >= 0)) bad("vp.contact_damping_Ns_per_m", ">= 0");
+  if (!(vp.contact_stiffness_N_per_m >= 0)) bad("vp.contact_stiffness_N_per_m", ">= 0");
+  if (!(vp.contact_damping_Ns_per_m + vp.contact_stiffness_N_per_m > 0)) bad("vp.contact_stiffness_N_per_m", "> 0 when b_c = 0");
+  if (contact_nodes.size() < 3 || contact_nodes.size() > static_cast<std::size_t>(kMaxContactNodes))
+    bad("contact_nodes", "3 to 8 node indices (the contact mesh)");
+  for (int p : contact_nodes)
+    if (p < 0 || p >= scene->nodes) bad("contact_nodes[]", "valid node indices");
+  if (!(max_device_force_N > 0)) bad("max_device_force_N", "> 0");
+  if (!vp_initial_position_m.allFinite()) bad("vp_initial_position_m", "finite");
+  check_eq26(vp.coupling, device_damping_Ns_per_m, period_s);
+}
+
+StationCore::StationCore(const StationConfig& config)
+    : cfg_(config), scene_((config.validate(), *config.scene)), T_(config.period_s) {
+  n_ = scene_.nodes;
+  dofs_ = scene_.dofs;
+  const double N = cfg_.users;
+  const int nn = neighbor_count();
+  // Constant part: (1/N)(2M/T + B + T/2 K) + B_i
+  const SpatialMatrix I = SpatialMatrix::identity(n_);
+  std::vector<std::pair<double, const SpatialMatrix*>> base = {
+      {2.0 / (N * T_), &scene_.M}, {1.0 / N, &scene_.B}, {T_ / (2.0 * N), &scene_.K}, {cfg_.damping_Ns_per_m, &I}};
+  bool iso = scene_.M.is_isotropic() && scene_.B.is_isotropic() && scene_.K.is_isotropic();
+  for (const auto& nb : cfg_.neighbors) iso = iso && nb.gains->P.is_isotropic() && nb.gains->D.is_isotropic();
+  w_ = iso ? 3 : 1;
+  nf_ = iso ? n_ : dofs_;
+  factors_.reserve(std::size_t{1} << nn);
+  for (unsigned mask = 0; mask < (1u << nn); ++mask) {
+    auto terms = base;
+    for (int j = 0; j < nn; ++j)
+      if (mask & (1u << j)) {
+        terms.emplace_back(1.0, &cfg_.neighbors[static_cast<std::size_t>(j)].gains->D);
+        terms.emplace_back(T_ / 2.0, &cfg_.neighbors[static_cast<std::size_t>(j)].gains->P);
+      }
+    SpatialMatrix A = combine(terms);
+    SparseColMajor Af = iso ? SparseColMajor(A.S) : SparseColMajor(A.as_full());
+    factors_.emplace_back(Af);
+  }
+  x_ = scene_.x_d;
+  v_ = Eigen::VectorXd::Zero(dofs_);
+  x_hat_ = x_;
+  v_hat_ = v_;
+  rhs_.resize(dofs_);
+  tmp_.resize(dofs_);
+  tmp2_.resize(dofs_);
+  scratch_.resize(dofs_);
+  rx_.resize(static_cast<std::size_t>(nn));
+  for (auto& r : rx_) r.init(dofs_, x_.data(), v_.data());
+  views_.resize(static_cast<std::size_t>(nn));
+  active_.assign(static_cast<std::size_t>(nn), 0);
+  edge_was_dropped_.assign(static_cast<std::size_t>(nn), 0);
+  edge_drops_.assign(static_cast<std::size_t>(nn), 0);
+  y_ = cfg_.vp_initial_position_m;
+  q_prev_ = y_;
+  anchor_.assign(cfg_.contact_nodes.size(), Vec3::Zero());
+  // Contact units: isotropic -> one unit per node (3 columns); else three units per node.
+  const int C = static_cast<int>(cfg_.contact_nodes.size());
+  vp_units_ = iso ? 1 : 3;
+  m_units_ = iso ? C : 3 * C;
+  for (int a = 0; a < C; ++a) {
+    const int p = cfg_.contact_nodes[static_cast<std::size_t>(a)];
+    if (iso) {
+      unit_row_.push_back(p);
+      unit_vp_.push_back(0);
+    } else {
+      for (int d = 0; d < 3; ++d) {
+        unit_row_.push_back(3 * p + d);
+        unit_vp_.push_back(d);
+      }
+    }
+  }
+  Z_.resize(nf_, m_units_);
+  G_.resize(m_units_ + vp_units_, m_units_ + vp_units_);
+  R_.resize(m_units_ + vp_units_, w_);
+  X_.resize(m_units_ + vp_units_, w_);
+  const auto& g = cfg_.vp.coupling;
+  a_w_ = 2.0 * cfg_.vp.mass_kg / T_ + g.b_v_Ns_per_m + g.B_vc_Ns_per_m + g.K_vc_N_per_m * T_ / 2.0;
+  // Orientation of the contact face normal: outward at rest.
+  const auto& cn = cfg_.contact_nodes;
+  const Vec3 p0 = x_.segment<3>(3 * cn[0]), p1 = x_.segment<3>(3 * cn[1]), p2 = x_.segment<3>(3 * cn[2]);
+  Vec3 c = Vec3::Zero();
+  for (int p : cn) c += x_.segment<3>(3 * p);
+  c /= static_cast<double>(cn.size());
+  const Vec3 n = (p1 - p0).cross(p2 - p0);
+  normal_sign_ = n.dot(c - scene_.mesh.centroid()) >= 0 ? 1.0 : -1.0;
+  // Warm the LU once so its internal buffers exist before the first tick.
+  G_.setIdentity();
+  lu_.compute(G_);
+}
+
+void StationCore::set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
+  if (x.size() != dofs_ || v.size() != dofs_) throw std::invalid_argument("set_state: size mismatch");
+  x_ = x;
+  v_ = v;
+}
+
+void StationCore::engage_contact() {
+  for (std::size_t a = 0; a < cfg_.contact_nodes.size(); ++a)
+    anchor_[a] = x_.segment<3>(3 * cfg_.contact_nodes[a]) - y_;
+  in_contact_ = true;
+  ++contact_epoch_;
+}
+
+void StationCore::prepare_contact_solve(unsigned mask) {
+  const SparseLdlt& F = factors_[mask];
+  const double c = cfg_.vp.contact_damping_Ns_per_m + cfg_.vp.contact_stiffness_N_per_m * T_ / 2.0;
+  for (int a = 0; a < m_units_; ++a) {
+    double* z = Z_.col(a).data();
+    std::fill(z, z + nf_, 0.0);
+    z[unit_row_[static_cast<std::size_t>(a)]] = 1.0;
+    F.solve_in_place(z, 1, scratch_.data());
+  }
+  const int m = m_units_;
+  G_.setZero();
+  for (int a = 0; a < m; ++a) {
+    for (int b = 0; b < m; ++b) {
+      const double W = Z_(unit_row_[static_cast<std::size_t>(a)], b);
+      G_(a, b) = (a == b ? 1.0 : 0.0) + c * W;
+      G_(a, m + unit_vp_[static_cast<std::size_t>(b)]) -= c * W;
+    }
+    G_(m + unit_vp_[static_cast<std::size_t>(a)], a) = -c;
+  }
+  const int per_vp = m / vp_units_;
+  for (int e = 0; e < vp_units_; ++e) G_(m + e, m + e) = a_w_ + c * per_vp;
+  lu_.compute(G_);
+  contact_mask_ = mask;
+  prepared_epoch_ = contact_epoch_;
+}
+
+StationCore::TickOutput StationCore::tick(const Vec3& q) {
+  TickOutput out;
+  const double N = cfg_.users;
+  const auto& g = cfg_.vp.coupling;
+  const double kc = cfg_.vp.contact_stiffness_N_per_m, bc = cfg_.vp.contact_damping_Ns_per_m;
+  const double c = bc + kc * T_ / 2.0;
+  const int nn = neighbor_count();
+  const auto& cn = cfg_.contact_nodes;
+
+  // --- 1. device sample and the device force u_i(t) (Section III-C) ---
+  Vec3 qk = q;
+  if (!qk.allFinite()) {
+    out.flags |= kBadDeviceSample | kSafeState;
+    qk = q_prev_;
+  }
+  const Vec3 vq = (k_ == 0) ? Vec3::Zero() : Vec3((qk - q_prev_) / T_);
+  Vec3 f_dev = -g.B_vc_Ns_per_m * (vq - w_hat_prev_) - g.K_vc_N_per_m * (qk - y_);
+  // Energy the station put into the device over the last hold interval: F(k-1) . (q_k - q_{k-1}).
+  if (k_ > 0) energy_.device_port_J += f_dev_prev_.dot(qk - q_prev_);
+  const double fn = f_dev.norm();
+  if (fn > cfg_.max_device_force_N) {
+    f_dev *= cfg_.max_device_force_N / fn;
+    out.flags |= kForceClamped;
+  }
+
+  // --- 2. neighbours: newest packet, indexing delay, duplication avoidance, delay bound ---
+  unsigned mask = 0;
+  for (int j = 0; j < nn; ++j) {
+    views_[j] = rx_[j].begin_tick(k_);
+    const bool ok = views_[j].index_delay <= cfg_.neighbors[j].index_delay_bound_ticks;
+    active_[j] = ok ? 1 : 0;
+    if (ok) {
+      mask |= 1u << j;
+      edge_was_dropped_[j] = 0;
+    } else {
+      out.flags |= kEdgeDropped;
+      if (!edge_was_dropped_[j]) {
+        ++edge_drop_events_;
+        ++edge_drops_[j];
+      }
+      edge_was_dropped_[j] = 1;
+    }
+  }
+
+  // --- 3. contact set (decided from the state at the start of the tick) ---
+  {
+    Vec3 xc = Vec3::Zero();
+    for (int p : cn) xc += x_.segment<3>(3 * p);
+    xc /= static_cast<double>(cn.size());
+    const Vec3 p0 = x_.segment<3>(3 * cn[0]), p1 = x_.segment<3>(3 * cn[1]), p2 = x_.segment<3>(3 * cn[2]);
+    Vec3 nrm = normal_sign_ * (p1 - p0).cross(p2 - p0);
+    const double len = nrm.norm();
+    if (len > 0) nrm /= len;
+    if (in_contact_) {
+      // Release when the contact pulls the VP into the object (tension): a passive switch,
+      // it only removes the stored contact-spring energy.
+      if (f_contact_vp_.dot(nrm) < 0.0) {
+        in_contact_ = false;
+        out.flags |= kContactRelease;
+      }
+    } else if (nrm.dot(y_ - xc) <= 0.0) {
+      engage_contact();  // anchored at the current offsets: zero force, zero energy at onset
+      out.flags |= kContactOnset;
+    }
+  }
+
+  // --- 4. right-hand side b (DESIGN.md) ---
+  double* b = rhs_.data();
+  rhs_.setZero();
+  scene_.M.multiply_add(2.0 / (N * T_), v_.data(), b);
+  tmp_ = x_ - scene_.x_d;
+  scene_.K.multiply_add(-1.0 / N, tmp_.data(), b);
+  // VO energy E_i(k) at the start of the tick (uses K(x - x_d) = -(N) * (b part); recompute cheaply)
+  {
+    tmp2_.setZero();
+    scene_.K.multiply_add(1.0, tmp_.data(), tmp2_.data());
+    double ek = 0.5 * tmp_.dot(tmp2_);
+    tmp2_.setZero();
+    scene_.M.multiply_add(1.0, v_.data(), tmp2_.data());
+    ek += 0.5 * v_.dot(tmp2_);
+    energy_.vo_J = ek / N;
+  }
+  for (int j = 0; j < nn; ++j) {
+    if (!active_[j]) continue;
+    const EdgeGains& eg = *cfg_.neighbors[j].gains;
+    if (views_[j].fresh) eg.D.multiply_add(1.0, views_[j].v_hat, b);
+    for (int i = 0; i < dofs_; ++i) tmp_[i] = x_[i] - views_[j].x_hat[i];
+    eg.P.multiply_add(-1.0, tmp_.data(), b);
+  }
+  Vec3 bw = (2.0 * cfg_.vp.mass_kg / T_) * w_vp_ + g.B_vc_Ns_per_m * vq - g.K_vc_N_per_m * (y_ - qk);
+  if (in_contact_) {
+    for (std::size_t a = 0; a < cn.size(); ++a) {
+      const Vec3 s = kc * (y_ + anchor_[a] - x_.segment<3>(3 * cn[a]));
+      rhs_.segment<3>(3 * cn[a]) += s;
+      bw -= s;
+    }
+  }
+
+  // --- 5. solve: A_S y0 = b, then the contact/VP Schur complement ---
+  v_hat_ = rhs_;
+  factors_[mask].solve_in_place(v_hat_.data(), w_, scratch_.data());
+  Vec3 w_hat;
+  if (in_contact_) {
+    if (prepared_epoch_ != contact_epoch_ || contact_mask_ != mask) prepare_contact_solve(mask);
+    const int m = m_units_;
+    for (int a = 0; a < m; ++a)
+      for (int col = 0; col < w_; ++col) R_(a, col) = v_hat_[unit_row_[a] * w_ + col];
+    for (int e = 0; e < vp_units_; ++e)
+      for (int col = 0; col < w_; ++col) R_(m + e, col) = (w_ == 3) ? bw[col] : bw[e];
+    X_.noalias() = lu_.solve(R_);
+    for (int a = 0; a < m; ++a) {
+      const double* za = Z_.col(a).data();
+      for (int col = 0; col < w_; ++col) {
+        const double coef = c * (X_(m + unit_vp_[a], col) - X_(a, col));
+        if (coef == 0.0) continue;
+        for (int r = 0; r < nf_; ++r) v_hat_[r * w_ + col] += za[r] * coef;
+      }
+    }
+    for (int d = 0; d < 3; ++d) w_hat[d] = (w_ == 3) ? X_(m, d) : X_(m + d, 0);
+  } else {
+    w_hat = bw / a_w_;
+  }
+
+  // --- 6. predicted states, contact force, energies (13), (14) ---
+  x_hat_ = x_ + (T_ / 2.0) * v_hat_;
+  const Vec3 y_hat = y_ + (T_ / 2.0) * w_hat;
+  double port_power = 0;
+  f_contact_vp_.setZero();
+  if (in_contact_) {
+    for (std::size_t a = 0; a < cn.size(); ++a) {
+      const Vec3 vp = v_hat_.segment<3>(3 * cn[a]);
+      const Vec3 f = kc * (y_hat + anchor_[a] - x_hat_.segment<3>(3 * cn[a])) + bc * (w_hat - vp);  // on the VO node
+      port_power += vp.dot(f);
+      f_contact_vp_ -= f;
+    }
+  }
+  energy_.port_J += port_power * T_;
+  // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)
+  double ctrl = -cfg_.damping_Ns_per_m * v_hat_.squaredNorm();
+  for (int j = 0; j < nn; ++j) {
+    if (!active_[j]) continue;
+    const EdgeGains& eg = *cfg_.neighbors[j].gains;
+    const double delta = views_[j].fresh ? 1.0 : 0.0;
+    for (int i = 0; i < dofs_; ++i) tmp_[i] = v_hat_[i] - delta * views_[j].v_hat[i];
+    for (int i = 0; i < dofs_; ++i) tmp2_[i] = x_hat_[i] - views_[j].x_hat[i];
+    scratch_.setZero();
+    eg.D.multiply_add(1.0, tmp_.data(), scratch_.data());
+    eg.P.multiply_add(1.0, tmp2_.data(), scratch_.data());
+    ctrl -= v_hat_.dot(scratch_);
+  }
+  energy_.controller_J += ctrl * T_;
+
+  // --- 7. advance the state (eq. 9, eq. 21) ---
+  x_ += T_ * v_hat_;
+  v_ = 2.0 * v_hat_ - v_;
+  y_ += T_ * w_hat;
+  w_vp_ = 2.0 * w_hat - w_vp_;
+  w_hat_prev_ = w_hat;
+  q_prev_ = qk;
+  ++k_;
+
+  // --- 8. safety: divergence -> safe state (zero force), reported through flags ---
+  const double vmax = cfg_.divergence_speed_m_per_s;
+  bool finite = x_.allFinite() && v_.allFinite() && y_.allFinite();
+  if (!finite || v_.cwiseAbs().maxCoeff() > vmax) safe_state_ = true;
+  if (safe_state_) {
+    out.flags |= kDiverged | kSafeState;
+    f_dev.setZero();
+  }
+  if (out.flags & kSafeState) {
+    ++safe_state_ticks_;
+    f_dev.setZero();
+  }
+  out.device_force_N = f_dev;
+  f_dev_prev_ = f_dev;
+  return out;
+}
+
+}  // namespace haptic::rt

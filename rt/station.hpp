@@ -1,0 +1,177 @@
+#pragma once
+// One station's real-time core: its local copy of the virtual object (NPMI, eq. 9), the PD
+// consensus law (15) towards its neighbours' copies, the virtual proxy (21) in contact with the
+// contact mesh (22) and the virtual coupling to the device (Section III-C), solved together in
+// one non-iterative linear step per tick (DESIGN.md, "The linear step"):
+//
+//   A_S v_hat = b,   A_S = (1/N)(2M/T + B + T/2 K) + B_i + sum_{j in S} (D_ij + T/2 P_ij)
+//
+// with S the set of neighbours whose coupling is active. A_S is factored once per subset S at
+// start-up. Contact adds c = b_c + k_c T/2 on the contact nodes and couples them to the VP's
+// unknown w_hat; that is solved by a Schur complement on top of A_S^{-1} (a small dense system of
+// at most 3*kMaxContactNodes + 3 unknowns), so a change of contact or neighbour set never
+// refactors A in the tick. Worst-case tick cost: one sparse solve, plus (on the tick a contact
+// or neighbour set changes) one more sparse solve per contact unknown.
+//
+// tick() never allocates, locks or blocks, and never throws: it returns status flags.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "rt/gains.hpp"
+#include "rt/rx_link.hpp"
+#include "rt/scene.hpp"
+#include "rt/sparse_ldlt.hpp"
+
+namespace haptic::rt {
+
+using Vec3 = Eigen::Vector3d;
+
+inline constexpr int kMaxContactNodes = 8;
+inline constexpr int kMaxNeighbors = 6;
+
+struct VirtualProxyParams {
+  double mass_kg = 0.001;                    // m_i (eq. 21)
+  double contact_damping_Ns_per_m = 0.0;     // b_c (eq. 22)
+  double contact_stiffness_N_per_m = 200.0;  // k_c (eq. 22)
+  VirtualCouplingGains coupling{};           // b_v, B_vc, K_vc (Section III-C)
+};
+
+struct NeighborConfig {
+  int peer_id = -1;
+  const EdgeGains* gains = nullptr;
+  // Bound on the indexing delay N_ij^k assumed by eq. (18). A packet older than this is acted on
+  // passively: the edge's coupling is dropped at this station until a fresh packet within the
+  // bound arrives (counted as a bound violation).
+  std::int64_t index_delay_bound_ticks = 1 << 30;
+};
+
+struct StationConfig {
+  int station_id = 0;
+  int users = 1;                 // N (the VO is scaled by 1/N, eq. 9)
+  double period_s = 0.002;       // T
+  const Scene* scene = nullptr;
+  double damping_Ns_per_m = 0;   // B_i = beta I (eq. 15), set from eq. (18)
+  std::vector<NeighborConfig> neighbors;
+  VirtualProxyParams vp{};
+  std::vector<int> contact_nodes;     // the contact mesh C_i (node indices)
+  Vec3 vp_initial_position_m = Vec3::Zero();
+  double device_damping_Ns_per_m = 0.5;  // b_d of the device (eq. 26)
+  double max_device_force_N = 10.0;      // output limit
+  double divergence_speed_m_per_s = 50;  // any node faster than this: diverged, safe state
+  void validate() const;                 // throws std::invalid_argument naming the key
+};
+
+// Status flags of one tick.
+enum TickFlags : std::uint32_t {
+  kTickOk = 0,
+  kContactOnset = 1u << 0,
+  kContactRelease = 1u << 1,
+  kEdgeDropped = 1u << 2,      // a neighbour's packet exceeded its index-delay bound
+  kForceClamped = 1u << 3,
+  kDiverged = 1u << 4,         // state not finite or too fast: safe state entered
+  kBadDeviceSample = 1u << 5,  // non-finite device position: safe state for this tick
+  kSafeState = 1u << 6,
+};
+
+// Cumulative energies (J) for the passivity monitor.
+struct EnergyMonitor {
+  double port_J = 0;        // sum_k v_hat^T f T: energy into the VO through the contact port (13)
+  double controller_J = 0;  // sum_k v_hat^T tau T: energy from the consensus control port (14)
+  double vo_J = 0;          // E_i(k) = 1/N (|v|_M^2/2 + |x-x_d|_K^2/2) at the start of the last tick
+  double device_port_J = 0; // sum_k F_dev . (q_k - q_{k-1}): energy the station put into the device
+};
+
+class StationCore {
+ public:
+  explicit StationCore(const StationConfig& config);  // factorizes; throws on bad configuration
+  StationCore(const StationCore&) = delete;
+  StationCore& operator=(const StationCore&) = delete;
+  StationCore(StationCore&&) = default;
+
+  struct TickOutput {
+    Vec3 device_force_N = Vec3::Zero();  // u_i(t), held over this tick
+    std::uint32_t flags = kTickOk;
+  };
+
+  // Neighbour n's receive-side bookkeeping (feed it packets before calling tick()).
+  RxLink& rx(int neighbor_index) { return rx_[static_cast<std::size_t>(neighbor_index)]; }
+  int neighbor_count() const { return static_cast<int>(cfg_.neighbors.size()); }
+  const NeighborConfig& neighbor(int n) const { return cfg_.neighbors[static_cast<std::size_t>(n)]; }
+
+  // One step k with the device position sampled at t_k. RT-safe.
+  TickOutput tick(const Vec3& device_position_m);
+
+  // State after the last tick.
+  std::int64_t sequence() const { return k_ - 1; }  // k of the last tick (the x_hat/v_hat below)
+  const double* x_hat() const { return x_hat_.data(); }
+  const double* v_hat() const { return v_hat_.data(); }
+  const Eigen::VectorXd& x() const { return x_; }
+  const Eigen::VectorXd& v() const { return v_; }
+  const Vec3& vp_position_m() const { return y_; }
+  const Vec3& contact_force_on_vp_N() const { return f_contact_vp_; }
+  bool in_contact() const { return in_contact_; }
+  const EnergyMonitor& energy() const { return energy_; }
+  const StationConfig& config() const { return cfg_; }
+  std::uint64_t edge_drop_events() const { return edge_drop_events_; }
+  std::uint64_t edge_drop_events(int n) const { return edge_drops_[static_cast<std::size_t>(n)]; }
+  std::uint64_t safe_state_ticks() const { return safe_state_ticks_; }
+  int factorizations() const { return static_cast<int>(factors_.size()); }
+  long factor_nonzeros() const { return factors_.empty() ? 0 : factors_[0].factor_nonzeros(); }
+  // Start-up / tests: overwrite the state (allocates nothing; sizes must match).
+  void set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v);
+
+ private:
+  void prepare_contact_solve(unsigned mask);
+  void engage_contact();
+
+  StationConfig cfg_;
+  const Scene& scene_;
+  double T_;
+  int n_;        // nodes
+  int dofs_;     // 3n
+  int w_;        // 3 when the system is isotropic (factor n x n, 3 RHS), else 1 (factor 3n x 3n)
+  int nf_;       // factor dimension
+  std::vector<SparseLdlt> factors_;  // one per subset mask of active neighbours
+  std::vector<RxLink> rx_;
+
+  // State
+  Eigen::VectorXd x_, v_, x_hat_, v_hat_;
+  Vec3 y_ = Vec3::Zero(), w_vp_ = Vec3::Zero(), w_hat_prev_ = Vec3::Zero();
+  Vec3 q_prev_ = Vec3::Zero();
+  Vec3 f_dev_prev_ = Vec3::Zero();
+  Vec3 f_contact_vp_ = Vec3::Zero();
+  std::int64_t k_ = 0;
+  bool in_contact_ = false;
+  bool safe_state_ = false;
+  std::vector<Vec3> anchor_;  // r_p: contact node offset from the VP at onset
+  double normal_sign_ = 1.0;
+  EnergyMonitor energy_{};
+  std::uint64_t edge_drop_events_ = 0, safe_state_ticks_ = 0;
+  std::vector<unsigned char> edge_was_dropped_;
+  std::vector<std::uint64_t> edge_drops_;
+
+  // Scratch (sized at start-up)
+  Eigen::VectorXd rhs_, tmp_, tmp2_, scratch_;
+  std::vector<RxLink::TickView> views_;
+  std::vector<unsigned char> active_;
+
+  // Contact Schur data, valid for (contact_mask_, contact_epoch_)
+  using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxContactNodes + 3, 3 * kMaxContactNodes + 3>;
+  using SmallRhs = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxContactNodes + 3, 3>;
+  int m_units_ = 0, vp_units_ = 0;
+  std::vector<int> unit_row_;     // factor row of contact unit a
+  std::vector<int> unit_vp_;      // VP unit that contact unit a couples to
+  Eigen::MatrixXd Z_;             // nf x m: A_S^{-1} e_unit
+  Small G_;
+  Eigen::PartialPivLU<Small> lu_;
+  SmallRhs R_, X_;
+  unsigned contact_mask_ = ~0u;
+  std::uint64_t contact_epoch_ = 0, prepared_epoch_ = ~0ull;
+  double a_w_ = 0;  // VP diagonal without contact
+};
+
+}  // namespace haptic::rt

@@ -1,0 +1,300 @@
+// The station step: the precomputed sparse factorization + Schur complement equals the dense
+// solve of the same equations; NPMI energy conservation and passivity (12); (26) checks; bad
+// configuration; zero heap allocations in the tick.
+#include <CppUTest/TestHarness.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+
+#include "rt/dense_reference.hpp"
+#include "rt/sparse_ldlt.hpp"
+#include "rt/station.hpp"
+#include "tests/rt/fixtures.hpp"
+#include "tests/support/alloc_counter.hpp"
+
+using namespace haptic;
+using namespace haptic::rt;
+using haptic::test::PaperWorld;
+
+TEST_GROUP(SparseLdlt){};
+
+TEST(SparseLdlt, solves_like_eigen_for_one_and_three_interleaved_rhs) {
+  const auto& w = PaperWorld::get();
+  const SpatialMatrix I = SpatialMatrix::identity(w.scene.nodes);
+  SpatialMatrix A = linear_combination({{50.0, &I}, {0.001, &w.scene.K_int}, {0.001, &w.gains.P}});
+  SparseColMajor As(A.S);
+  SparseLdlt F(As);
+  const int n = w.scene.nodes;
+  Eigen::MatrixXd B = Eigen::MatrixXd::Random(n, 3);
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> X = B;
+  Eigen::VectorXd scratch(3 * n);
+  F.solve_in_place(X.data(), 3, scratch.data());
+  Eigen::MatrixXd dense = Eigen::MatrixXd(As);
+  CHECK_TRUE((dense * Eigen::MatrixXd(X) - B).norm() < 1e-10 * B.norm());
+  Eigen::VectorXd b1 = Eigen::VectorXd::Random(n), x1 = b1;
+  F.solve_in_place(x1.data(), 1, scratch.data());
+  CHECK_TRUE((dense * x1 - b1).norm() < 1e-10 * b1.norm());
+}
+
+TEST(SparseLdlt, refuses_an_indefinite_matrix) {
+  SparseColMajor A(2, 2);
+  A.insert(0, 0) = 1;
+  A.insert(1, 1) = -1;
+  CHECK_THROWS(std::runtime_error, SparseLdlt{A});
+}
+
+TEST_GROUP(Mesh){};
+
+TEST(Mesh, paper_ball_and_lattice_balls_are_closed_and_oriented) {
+  const auto m = make_paper_ball(0.05);
+  CHECK_EQUAL(33, m.node_count());
+  CHECK_EQUAL(60u, m.surface.size());
+  for (int target : {100, 500, 3000}) {
+    const auto L = make_lattice_ball(target, 0.05);
+    CHECK_TRUE(std::abs(L.node_count() - target) < target / 5);
+    // closed surface: every surface edge shared by exactly two boundary triangles (Euler: E = 3F/2)
+    std::map<std::pair<int, int>, int> count;
+    for (const auto& f : L.surface)
+      for (int e = 0; e < 3; ++e) count[{std::min(f[e], f[(e + 1) % 3]), std::max(f[e], f[(e + 1) % 3])}]++;
+    for (const auto& [k, c] : count) CHECK_EQUAL(2, c);
+    // outward orientation: normals point away from the centroid on average
+    double s = 0;
+    for (int f = 0; f < static_cast<int>(L.surface.size()); ++f) s += L.face_normal(f).dot(L.face_center(f) - L.centroid());
+    CHECK_TRUE(s > 0);
+  }
+}
+
+TEST_GROUP(Station){};
+
+namespace {
+// Drives a StationCore and its dense reference with the same device motion and the same random
+// neighbour packets; returns the max state difference.
+double compare_with_dense(bool impaired_neighbors, int ticks) {
+  const auto& w = PaperWorld::get();
+  const auto dir = test::tetra_dirs()[0];
+  auto cfg = w.station(0, 4, {1, 2}, 20.0, dir, impaired_neighbors ? 6 : (1 << 30));
+  StationCore st(cfg);
+  DenseStationReference ref(cfg);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::VectorXd xj = w.scene.x_d, vj = Eigen::VectorXd::Zero(w.scene.dofs);
+  const Eigen::Vector3d in = w.face_inward(dir), p0 = w.face_center(dir);
+  double maxdiff = 0;
+  std::int64_t seq[2] = {0, 0};
+  for (int k = 0; k < ticks; ++k) {
+    for (int n = 0; n < 2; ++n) {
+      if (u(rng) > (impaired_neighbors ? 0.3 : -2)) {  // impaired: ~35% of ticks without a packet
+        for (int i = 0; i < w.scene.dofs; ++i) {
+          xj[i] = w.scene.x_d[i] + 1e-3 * u(rng);
+          vj[i] = 1e-2 * u(rng);
+        }
+        std::int64_t s = seq[n] + (impaired_neighbors && u(rng) > 0.8 ? -1 : 1);
+        seq[n] = std::max(seq[n], s);
+        st.rx(n).offer(s, 0, xj.data(), vj.data(), w.scene.dofs);
+        ref.rx(n).offer(s, 0, xj.data(), vj.data(), w.scene.dofs);
+      }
+    }
+    // device pushes in, then pulls out (contact onset and release both happen)
+    const double t = k * 0.002;
+    const double depth = t < 0.3 ? 0.02 * t / 0.3 : 0.02 - 0.05 * (t - 0.3);
+    const Eigen::Vector3d q = p0 + depth * in;
+    const Eigen::Vector3d f1 = st.tick(q).device_force_N, f2 = ref.tick(q);
+    maxdiff = std::max({maxdiff, (st.x() - ref.x()).cwiseAbs().maxCoeff(), (st.v() - ref.v()).cwiseAbs().maxCoeff() * 1e-2,
+                        (st.vp_position_m() - ref.vp_position_m()).cwiseAbs().maxCoeff(), (f1 - f2).cwiseAbs().maxCoeff() * 1e-3});
+    CHECK_EQUAL(ref.in_contact(), st.in_contact());
+  }
+  return maxdiff;
+}
+}  // namespace
+
+TEST(Station, sparse_schur_step_matches_the_dense_solve_through_contact_onset_and_release) {
+  const double d = compare_with_dense(false, 400);
+  CHECK_TRUE(d < 1e-10);
+}
+
+TEST(Station, matches_the_dense_solve_with_lost_swapped_packets_and_dropped_edges) {
+  const double d = compare_with_dense(true, 400);
+  CHECK_TRUE(d < 1e-10);
+}
+
+TEST(Station, npmi_conserves_energy_over_100000_ticks_without_damping_or_input) {
+  const auto& w = PaperWorld::get();
+  auto cfg = w.station(0, 1, {}, 0.0, test::tetra_dirs()[0]);
+  cfg.vp_initial_position_m = Eigen::Vector3d(1, 1, 1);  // VP far away: no contact, f = 0
+  StationCore st(cfg);
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::VectorXd x = w.scene.x_d, v(w.scene.dofs);
+  for (int i = 0; i < w.scene.dofs; ++i) {
+    x[i] += 0.005 * u(rng);
+    v[i] = 0.1 * u(rng);
+  }
+  st.set_state(x, v);
+  const double E0 = w.scene.energy(x, v);
+  double maxdrift = 0;
+  for (int k = 0; k < 100000; ++k) {
+    st.tick(Eigen::Vector3d(1, 1, 1));
+    if (k % 1000 == 999) maxdrift = std::max(maxdrift, std::abs(w.scene.energy(st.x(), st.v()) - E0) / E0);
+  }
+  CHECK_FALSE(st.in_contact());
+  CHECK_TRUE(maxdrift < 1e-10);
+}
+
+TEST(Station, npmi_is_passive_eq12_energy_balance_holds_under_random_inputs) {
+  // With B = 0, E(k) - E(0) = sum (f + tau)^T v_hat T exactly; with B > 0 it is <= (eq. 12).
+  for (double b_vo : {0.0, 0.5}) {
+    const auto& w = PaperWorld::get();
+    SceneParams sp;
+    sp.damping_Ns_per_m = b_vo;
+    const Scene scene = build_scene(w.scene.mesh, sp);
+    const EdgeGains gains = paper_edge_gains(scene);
+    auto cfg = w.station(0, 3, {1, 2}, 12.0, test::tetra_dirs()[1]);
+    cfg.scene = &scene;
+    for (auto& n : cfg.neighbors) n.gains = &gains;
+    StationCore st(cfg);
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<double> u(-1, 1);
+    Eigen::VectorXd xj(scene.dofs), vj(scene.dofs);
+    const Eigen::Vector3d p0 = cfg.vp_initial_position_m, in = w.face_inward(test::tetra_dirs()[1]);
+    double worst = 0;
+    for (int k = 0; k < 5000; ++k) {
+      for (int n = 0; n < 2; ++n) {
+        if (u(rng) < 0) continue;
+        for (int i = 0; i < scene.dofs; ++i) {
+          xj[i] = scene.x_d[i] + 2e-3 * u(rng);
+          vj[i] = 0.05 * u(rng);
+        }
+        st.rx(n).offer(k, 0, xj.data(), vj.data(), scene.dofs);
+      }
+      const Eigen::Vector3d q = p0 + (0.01 + 0.01 * u(rng)) * in + 0.003 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+      st.tick(q);
+      const double E = st.energy().vo_J;  // energy at the start of this tick, scaled 1/N
+      (void)E;
+    }
+    // Energy at the end (scaled by 1/N like E_i of eq. 12)
+    const double Eend = scene.energy(st.x(), st.v()) / cfg.users;
+    const double supplied = st.energy().port_J + st.energy().controller_J;
+    if (b_vo == 0.0) {
+      worst = std::abs(Eend - supplied) / std::max(1e-12, std::abs(supplied));
+      CHECK_TRUE(worst < 1e-8);
+    } else {
+      CHECK_TRUE(Eend <= supplied + 1e-12);
+      CHECK_TRUE(supplied >= -0.0);  // (12) with E(0) = 0
+    }
+  }
+}
+
+TEST(Station, eq26_rejects_gains_and_names_the_gain) {
+  VirtualCouplingGains g;
+  g.K_vc_N_per_m = 400;  // K_vc T = 0.8 > b_d = 0.5
+  try {
+    check_eq26(g, 0.5, 0.002);
+    FAIL("expected eq. (26) to reject K_vc = 400 with b_d = 0.5");
+  } catch (const std::invalid_argument& e) {
+    STRCMP_CONTAINS("eq. (26)", e.what());
+    STRCMP_CONTAINS("K_vc", e.what());
+  }
+  g = VirtualCouplingGains{};
+  g.b_v_Ns_per_m = 0.1;  // below K_vc T / 2 = 0.2
+  try {
+    check_eq26(g, 0.5, 0.002);
+    FAIL("expected eq. (26) to reject b_v = 0.1");
+  } catch (const std::invalid_argument& e) {
+    STRCMP_CONTAINS("b_v", e.what());
+  }
+  check_eq26(VirtualCouplingGains{}, 0.5, 0.002);  // the paper's gains pass
+  // and the station refuses them at start-up
+  const auto& w = PaperWorld::get();
+  auto cfg = w.station(0, 4, {1}, 10, test::tetra_dirs()[0]);
+  cfg.device_damping_Ns_per_m = 0.3;
+  CHECK_THROWS(std::invalid_argument, StationCore{cfg});
+}
+
+TEST(Station, bad_configuration_is_refused_with_the_key_named) {
+  const auto& w = PaperWorld::get();
+  auto expect = [](StationConfig c, const char* key) {
+    try {
+      StationCore s(c);
+      FAIL("expected a configuration error");
+    } catch (const std::invalid_argument& e) {
+      STRCMP_CONTAINS(key, e.what());
+    }
+  };
+  auto c = w.station(0, 4, {1}, 10, test::tetra_dirs()[0]);
+  auto c1 = c;
+  c1.period_s = 0;
+  expect(c1, "period_s");
+  auto c2 = c;
+  c2.damping_Ns_per_m = -1;
+  expect(c2, "damping_Ns_per_m");
+  auto c3 = c;
+  c3.contact_nodes = {0, 1};
+  expect(c3, "contact_nodes");
+  auto c4 = c;
+  c4.contact_nodes = {0, 1, 999};
+  expect(c4, "contact_nodes");
+  auto c5 = c;
+  c5.users = 0;
+  expect(c5, "users");
+  auto c6 = c;
+  c6.neighbors[0].gains = nullptr;
+  expect(c6, "gains");
+}
+
+TEST(Station, eq18_damping_for_the_paper_star_is_round_trip_times_lambda_max_P) {
+  const auto& w = PaperWorld::get();
+  DOUBLES_EQUAL(1000.0, w.gains.lambda_max_P, 1e-6);
+  std::vector<Eq18Neighbor> nb = {{11, 0.002, &w.gains}, {8, 0.002, &w.gains}, {10, 0.002, &w.gains}};
+  // sum_j (Nbar_ij + Nbar_ji)/2 T lambda_max(P) = 29/2 * 0.002 * 1000 = 29 N s/m
+  DOUBLES_EQUAL(29.0, damping_min_eq18(0.002, nb), 1e-6);
+  // variable step adds the D term: 1/2 (Tmax/Tmin - 1) D
+  std::vector<Eq18Neighbor> nb2 = {{0, 0.003, &w.gains}};
+  DOUBLES_EQUAL(0.5 * (1.5 - 1) * 5.0, damping_min_eq18(0.002, nb2), 1e-9);
+}
+
+TEST(Station, tick_allocates_nothing_over_10000_ticks_of_four_users_with_contact) {
+  const auto& w = PaperWorld::get();
+  constexpr int N = 4;
+  std::vector<std::unique_ptr<StationCore>> st;
+  const std::vector<std::vector<int>> peers = {{1, 2, 3}, {0}, {0}, {0}};
+  for (int i = 0; i < N; ++i) st.push_back(std::make_unique<StationCore>(w.station(i, N, peers[static_cast<std::size_t>(i)], 30, test::tetra_dirs()[static_cast<std::size_t>(i)], 5)));
+  // A preallocated delay line stands in for the network: each station's x_hat/v_hat, delayed by
+  // 3 ticks, with every 7th packet lost (edge drops and sustainment happen too).
+  const int dofs = w.scene.dofs, D = 8;
+  std::vector<double> line(static_cast<std::size_t>(N * D * 2 * dofs), 0.0);
+  for (int i = 0; i < N; ++i)
+    for (int s = 0; s < D; ++s) {
+      std::copy(w.scene.x_d.data(), w.scene.x_d.data() + dofs, line.begin() + ((i * D + s) * 2) * dofs);
+    }
+  std::uint64_t onsets = 0, releases = 0, drops = 0;
+  haptic::test::AllocationCounter count;
+  for (int k = 0; k < 10000; ++k) {
+    const double t = k * 0.002;
+    for (int i = 0; i < N; ++i) {
+      auto& s = *st[static_cast<std::size_t>(i)];
+      for (int n = 0; n < s.neighbor_count(); ++n) {
+        const int j = s.neighbor(n).peer_id;
+        const int seq = k - 3;
+        if (seq >= 0 && (seq % 7 != 3) && (k % 2000 > 40 || k < 2000)) {
+          const double* p = line.data() + ((j * D + seq % D) * 2) * dofs;
+          s.rx(n).offer(seq, 0, p, p + dofs, dofs);
+        }
+      }
+      const double depth = 0.015 * std::sin(t * 3.0);  // in and out: contact on and off
+      const auto out = s.tick(w.face_center(test::tetra_dirs()[static_cast<std::size_t>(i)]) +
+                              depth * w.face_inward(test::tetra_dirs()[static_cast<std::size_t>(i)]));
+      onsets += (out.flags & kContactOnset) != 0;
+      releases += (out.flags & kContactRelease) != 0;
+      drops += (out.flags & kEdgeDropped) != 0;
+      double* dst = line.data() + ((i * D + k % D) * 2) * dofs;
+      std::copy(s.x_hat(), s.x_hat() + dofs, dst);
+      std::copy(s.v_hat(), s.v_hat() + dofs, dst + dofs);
+    }
+  }
+  const auto allocs = count.allocations();
+  CHECK_TRUE(onsets >= 8);
+  CHECK_TRUE(releases >= 4);
+  CHECK_TRUE(drops > 0);
+  CHECK_EQUAL(0u, allocs);
+}

@@ -1,5 +1,7 @@
 #include "firmware/scenario.hpp"
 
+#include "net/impairment.hpp"
+
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -256,6 +258,18 @@ rt::GoalScript BuiltScenario::goal_script(int i) const {
       break;
     case UserScriptSpec::Kind::kHold:
       break;
+    case UserScriptSpec::Kind::kRandom: {
+      // Passive users with arbitrary intent: random keyframes inside +-amplitude of the start.
+      net::Rng rng(s.random_seed * 7919ULL + static_cast<std::uint64_t>(i));
+      const double dt = spec.duration_s / (rt::GoalScript::kMaxKeys - 1);
+      for (std::size_t kf = 1; kf < rt::GoalScript::kMaxKeys; ++kf) {
+        Eigen::Vector3d off;
+        for (int d = 0; d < 3; ++d) off[d] = s.random_amplitude_m * (2 * rng.uniform01() - 1);
+        off += 0.5 * s.random_amplitude_m * in;  // lean into the object so contact happens
+        g.add(static_cast<double>(kf) * dt, p0 + off);
+      }
+      break;
+    }
   }
   return g;
 }

@@ -18,7 +18,7 @@
 namespace haptic::firmware {
 
 struct UserScriptSpec {
-  enum class Kind { kPushHoldRelease, kPerturb, kHold } kind = Kind::kPushHoldRelease;
+  enum class Kind { kPushHoldRelease, kPerturb, kHold, kRandom } kind = Kind::kPushHoldRelease;
   double push_start_s = 0.5;
   double push_end_s = 3.0;
   double release_s = 12.0;       // the hands retract from here
@@ -29,6 +29,8 @@ struct UserScriptSpec {
   double perturb_at_s = 2.5;
   double perturb_depth_m = 0.005;
   double perturb_duration_s = 0.2;
+  std::uint64_t random_seed = 1;  // kRandom: every user's goal wanders through random keyframes
+  double random_amplitude_m = 0.02;
 };
 
 struct ScenarioSpec {

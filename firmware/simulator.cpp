@@ -112,6 +112,7 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
       r.release_time_s = sc.perturb_at_s + sc.perturb_duration_s;
       break;
     case UserScriptSpec::Kind::kHold:
+    case UserScriptSpec::Kind::kRandom:
       r.release_time_s = 0;
       break;
   }
@@ -315,6 +316,7 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
   for (int i = 0; i < N; ++i) {
     r.final_port_J.push_back(st[static_cast<std::size_t>(i)]->energy().port_J);
     r.final_controller_J.push_back(st[static_cast<std::size_t>(i)]->energy().controller_J);
+    r.final_x.push_back(st[static_cast<std::size_t>(i)]->x());
   }
   r.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   if (!opt.out_dir.empty() && !snap_times.empty()) {

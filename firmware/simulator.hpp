@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "firmware/scenario.hpp"
 
 namespace haptic::firmware {
@@ -39,6 +41,7 @@ struct SimResult {
   std::uint64_t ticks = 0;
   double wall_time_s = 0;
   std::vector<double> final_port_J, final_controller_J;
+  std::vector<Eigen::VectorXd> final_x;  // every copy's configuration at the end
 };
 
 struct SimOptions {

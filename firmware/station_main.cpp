@@ -1,6 +1,9 @@
 // haptic-station: one station of the consensus-based P2P multi-user haptics runtime.
 //   haptic-station sim --scenario NAME --out DIR [overrides]   deterministic N-station simulation
+//   haptic-station run --config FILE.toml [--start-at S] [--out DIR] one real-time station process
 #include <CLI/CLI.hpp>
+#include <atomic>
+#include <csignal>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -10,6 +13,8 @@
 
 #include "firmware/scenario.hpp"
 #include "firmware/simulator.hpp"
+#include "firmware/station_config.hpp"
+#include "firmware/station_run.hpp"
 
 namespace fs = std::filesystem;
 using namespace haptic::firmware;
@@ -41,6 +46,9 @@ bool make_plots(const std::string& dir) {
   return true;
 }
 
+std::atomic<bool> g_stop{false};
+void on_stop_signal(int) { g_stop.store(true, std::memory_order_release); }
+
 std::string fmt(double v, int prec = 3) {
   char b[64];
   std::snprintf(b, sizeof b, "%.*f", prec, v);
@@ -53,12 +61,13 @@ int main(int argc, char** argv) {
   CLI::App app{
       "haptic-station: a station of the consensus-based peer-to-peer multi-user haptics runtime\n"
       "(Huang & Lee, IEEE T-RO 2013). Subcommands:\n"
-      "  sim  run N stations in one process in simulated time over the paper's stochastic network"};
+      "  sim  run N stations in one process in simulated time over the paper's stochastic network\n"
+      "  run  run one station in real time over real sockets (--config FILE.toml)"};
   app.require_subcommand(1);
 
   auto* sim = app.add_subcommand("sim", "Deterministic simulation of all stations (simulated users, impaired network)");
   std::string scenario, out, topology, damping, delay_matrix;
-  double duration = -1, loss = -1, dup = -1, margin = -1;
+  double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1;
   std::uint64_t seed = 1;
   int nodes = -1, trace_every = 1, allowance = -1, trace_node = -1;
   bool no_plots = false, quiet = false;
@@ -75,13 +84,29 @@ int main(int argc, char** argv) {
                   "(default: the paper's 0,4,4,4;8,0,80,200;4,100,0,200;6,240,200,0)");
   sim->add_option("--loss", loss, "Packet loss probability per packet (default 0.05)");
   sim->add_option("--duplication", dup, "Packet duplication probability (default 0.01)");
+  sim->add_option("--p-gain", p_gain, "Consensus stiffness scale p in P_ij = p[I/2 + K_int/(2 lambda_max)], N/m (default 1000)");
+  sim->add_option("--d-gain", d_gain, "Consensus damping D_ij = d I, N s/m (default 5)");
   sim->add_option("--nodes", nodes, "Scene size: 33 is the paper's ball, other values a lattice ball of about that many nodes (default 33)");
   sim->add_option("--damping-margin", margin, "B_i = (1 + margin) x eq. (18) minimum (default 0.05)");
   sim->add_option("--loss-allowance", allowance, "Ticks added to ceil(max delay / T) for the bound Nbar_ij (default 1)");
   sim->add_option("--trace-every", trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
   sim->add_option("--trace-node", trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)");
+  double push_end = -1, release = -1;
+  sim->add_option("--push-end", push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)");
+  sim->add_option("--release", release, "Push-hold-release script: release time in s (default: the scenario's, 12 for paper-best)");
   sim->add_flag("--no-plots", no_plots, "Do not draw the PNG figures");
   sim->add_flag("--quiet", quiet, "No progress lines");
+
+  auto* run = app.add_subcommand("run", "One station in real time: its device, its neighbours over UDP or raw Ethernet (see firmware/README.md)");
+  std::string run_config, run_out;
+  double run_start_at = -1, run_duration = -1;
+  bool run_quiet = false, run_check = false;
+  run->add_option("--config", run_config, "Station file (TOML): [station], [device], [net], [rt], [loop], [gpio], [telemetry]")->required();
+  run->add_option("--start-at", run_start_at, "Common epoch of tick k = 0 in seconds on station.start_clock (default: station.start_at, else now + start_delay_s)");
+  run->add_option("--out", run_out, "Output directory for station-<id>.json/-trace.csv/-state.csv (default: station.out_dir)");
+  run->add_option("--duration", run_duration, "Run time in s after probing (default: station.duration_s, else the scenario's)");
+  run->add_flag("--check-config", run_check, "Parse and validate the file (and the scenario), print a summary and exit");
+  run->add_flag("--quiet", run_quiet, "Only the final line");
 
   try {
     app.parse(argc, argv);
@@ -89,12 +114,47 @@ int main(int argc, char** argv) {
     return app.exit(e);
   }
 
+  if (run->parsed()) {
+    StationFile file;
+    RunOverrides ov;
+    ov.start_at = run_start_at;
+    ov.out_dir = run_out;
+    ov.duration_s = run_duration;
+    ov.quiet = run_quiet;
+    try {
+      file = load_station_file(run_config);
+      const ScenarioSpec spec = station_scenario_spec(file, ov);
+      if (run_check) {
+        const BuiltScenario built = build_scenario(spec);
+        (void)haptic::net::parse_net_config(file.text, static_cast<std::uint32_t>(built.scene.dofs));
+        std::cout << "config ok: station " << file.station.id << " of " << spec.users << ", scenario " << spec.name << ", " << built.scene.nodes
+                  << " nodes, duration " << spec.duration_s << " s, release " << spec.script.release_s << " s\n";
+        return 0;
+      }
+    } catch (const std::exception& e) {
+      std::cerr << "haptic-station run: error: " << e.what() << "\n";
+      return 2;
+    }
+    std::signal(SIGINT, on_stop_signal);
+    std::signal(SIGTERM, on_stop_signal);
+    try {
+      return run_station(file, ov, g_stop);
+    } catch (const std::invalid_argument& e) {
+      std::cerr << "haptic-station run: error: " << e.what() << "\n";
+      return 2;
+    } catch (const std::exception& e) {
+      std::cerr << "haptic-station run: error: " << e.what() << "\n";
+      return 3;
+    }
+  }
   if (sim->parsed()) {
     try {
       ScenarioSpec spec = make_scenario(scenario);
       if (!delay_matrix.empty()) spec.delay_ms = parse_delay_matrix(delay_matrix, spec.users);
       if (!topology.empty()) spec.topology = parse_topology(topology, spec.users);
       if (!damping.empty()) spec.damping_Ns_per_m = parse_list(damping, "--damping");
+      if (push_end >= 0) spec.script.push_end_s = push_end;
+      if (release >= 0) spec.script.release_s = release;
       if (duration >= 0) {
         if (spec.script.kind == UserScriptSpec::Kind::kPushHoldRelease && duration <= spec.script.release_s)
           std::cerr << "haptic-station: note: --duration " << duration << " s ends before the release at " << spec.script.release_s << " s\n";
@@ -104,6 +164,8 @@ int main(int argc, char** argv) {
       if (loss >= 0) spec.loss_probability = loss;
       if (dup >= 0) spec.duplicate_probability = dup;
       if (nodes > 0) spec.scene_nodes = nodes;
+      if (p_gain >= 0) spec.p_gain_N_per_m = p_gain;
+      if (d_gain >= 0) spec.d_gain_Ns_per_m = d_gain;
       if (margin >= 0) spec.damping_margin = margin;
       if (allowance >= 0) spec.loss_allowance_ticks = allowance;
       spec.trace_node = trace_node;

@@ -3,7 +3,20 @@
 // netem, so impairment is ours to emulate). The paper's model (Section V) is a preset: each
 // packet's delay uniform in 50-150% of the link mean, independent loss, duplication where the
 // duplicate draws its own delay; reordering follows from the random delays.
+//
+// Extensions (all off by default; when off they draw no random numbers, so the paper preset
+// produces exactly the same sequence as before they existed):
+//  - burst loss: a two-state Gilbert-Elliott chain (good/bad) stepped once per packet;
+//  - reordering: with a probability, a packet is held back an extra delay so later ones pass it;
+//  - blackout: every packet sent in [blackout_start_s, blackout_start_s + blackout_length_s)
+//    is lost (needs the send time: next_packet_at());
+//  - delay trace: one-way delays replayed cyclically from a recorded trace instead of the
+//    uniform draw (load_delay_trace()).
 #include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
 
 namespace haptic::net {
 
@@ -20,15 +33,48 @@ class Rng {
 struct LinkImpairment {
   double mean_delay_s = 0.0;        // mean one-way delay
   double jitter_fraction = 0.5;     // delay uniform in mean*[1-j, 1+j]
-  double loss_probability = 0.0;    // independent loss per packet
+  double loss_probability = 0.0;    // independent loss per packet (in the good state)
   double duplicate_probability = 0.0;  // a duplicate draws its own delay
+  // Gilbert-Elliott burst loss (off when burst_enter_probability == 0).
+  double burst_enter_probability = 0.0;  // P(good -> bad) per packet
+  double burst_exit_probability = 1.0;   // P(bad -> good) per packet; mean burst = 1/exit
+  double burst_loss_probability = 1.0;   // loss probability while in the bad state
+  // Reordering (off when reorder_probability == 0): extra hold of a chosen packet.
+  double reorder_probability = 0.0;
+  double reorder_extra_delay_s = 0.0;
+  // Blackout of a given length (off when blackout_length_s == 0), by send time.
+  double blackout_start_s = 0.0;
+  double blackout_length_s = 0.0;
+  // Recorded one-way delays in seconds, replayed cyclically (replaces the uniform draw).
+  std::shared_ptr<const std::vector<double>> delay_trace;
+
   // The paper's Section V model for a link of the given mean delay.
   static LinkImpairment paper(double mean_delay_s) {
-    return LinkImpairment{mean_delay_s, 0.5, 0.05, 0.01};
+    LinkImpairment m;
+    m.mean_delay_s = mean_delay_s;
+    m.jitter_fraction = 0.5;
+    m.loss_probability = 0.05;
+    m.duplicate_probability = 0.01;
+    return m;
   }
+  // A perfect link (zero delay, no loss).
+  static LinkImpairment none() { return LinkImpairment{}; }
+  // The paper's model plus bursts of loss (mean burst 5 packets, 1% entry) and 1% reordering.
+  static LinkImpairment bursty(double mean_delay_s);
+  // The paper's model plus a total blackout of the given length starting at start_s.
+  static LinkImpairment blackout(double mean_delay_s, double start_s, double length_s);
+  // Preset by name: "none", "paper", "bursty"; throws std::invalid_argument naming the
+  // config key `key` and the allowed names.
+  static LinkImpairment preset(std::string_view name, double mean_delay_s,
+                               std::string_view key = "impairment.preset");
+
   // Largest one-way delay this model can produce.
-  double max_delay_s() const { return mean_delay_s * (1.0 + jitter_fraction); }
+  double max_delay_s() const;
 };
+
+// Reads a delay trace: one delay per line in milliseconds ('#' comments and blank lines
+// skipped). Throws naming the file and line on a bad value (negative, not a number) or if empty.
+std::shared_ptr<const std::vector<double>> load_delay_trace(const std::string& path);
 
 // Fate of one packet: 0, 1 or 2 deliveries (the second is a duplicate).
 struct PacketFate {
@@ -36,19 +82,30 @@ struct PacketFate {
   double delay_s[2] = {0.0, 0.0};
   bool lost = false;
   bool duplicated = false;
+  bool burst_lost = false;     // lost in the Gilbert-Elliott bad state
+  bool blackout_lost = false;  // lost in a blackout
+  bool reordered = false;      // held back by reorder_extra_delay_s
 };
 
 class ImpairedLink {
  public:
   ImpairedLink() = default;
   ImpairedLink(const LinkImpairment& model, std::uint64_t seed);  // throws on a bad model
-  PacketFate next_packet();  // draws the fate of the next packet sent on this link
+  // Draws the fate of the next packet sent on this link (blackout ignored: no send time).
+  // RT-safe (no allocation).
+  PacketFate next_packet();
+  // Same, for a packet sent at send_time_s (seconds on the caller's clock; blackout applies).
+  PacketFate next_packet_at(double send_time_s);
   const LinkImpairment& model() const { return model_; }
+  bool in_burst() const { return bad_state_; }
 
  private:
   double draw_delay();
+  PacketFate draw(bool blacked_out);
   LinkImpairment model_{};
   Rng rng_{1};
+  bool bad_state_ = false;
+  std::size_t trace_index_ = 0;
 };
 
 }  // namespace haptic::net

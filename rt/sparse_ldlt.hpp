@@ -23,8 +23,12 @@ class SparseLdlt {
 
  private:
   int n_ = 0;
+  template <int W>
+  void solve_fixed(double* x, double* y) const;
   std::vector<int> colptr_, rowidx_;
-  std::vector<double> Lval_;  // strictly lower part of unit-lower L, column-compressed
+  std::vector<double> Lval_;  // strictly lower part of unit-lower L, column-compressed (for L^T)
+  std::vector<int> rowptr_, colidx_;
+  std::vector<double> Lrow_;  // the same entries row-compressed (for L): both solves gather
   std::vector<double> dinv_;
   std::vector<int> perm_;  // y = P b  <=>  y[perm_[i]] = b[i]
 };

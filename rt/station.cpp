@@ -120,6 +120,12 @@ StationCore::StationCore(const StationConfig& config)
   lu_.compute(G_);
 }
 
+bool StationCore::first_of_gain(int j) const {
+  for (int i = 0; i < j; ++i)
+    if (active_[static_cast<std::size_t>(i)] && cfg_.neighbors[static_cast<std::size_t>(i)].gains == cfg_.neighbors[static_cast<std::size_t>(j)].gains) return false;
+  return true;
+}
+
 void StationCore::set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
   if (x.size() != dofs_ || v.size() != dofs_) throw std::invalid_argument("set_state: size mismatch");
   x_ = x;
@@ -226,27 +232,41 @@ StationCore::TickOutput StationCore::tick(const Vec3& q) {
   }
 
   // --- 4. right-hand side b (DESIGN.md) ---
+  // b = (1/N)((2M/T) v - K(x - x_d)) + sum_j delta_ij D_ij v_hat_j - sum_j P_ij (x - x_hat_j)
   double* b = rhs_.data();
   rhs_.setZero();
   scene_.M.multiply_add(2.0 / (N * T_), v_.data(), b);
   tmp_ = x_ - scene_.x_d;
-  scene_.K.multiply_add(-1.0 / N, tmp_.data(), b);
-  // VO energy E_i(k) at the start of the tick (uses K(x - x_d) = -(N) * (b part); recompute cheaply)
+  tmp2_.setZero();
+  scene_.K.multiply_add(1.0, tmp_.data(), tmp2_.data());  // K (x - x_d)
+  rhs_.noalias() -= tmp2_ / N;
   {
-    tmp2_.setZero();
-    scene_.K.multiply_add(1.0, tmp_.data(), tmp2_.data());
+    // E_i(k) = 1/N (|v|_M^2 / 2 + |x - x_d|_K^2 / 2) at the start of the tick (eq. 12)
     double ek = 0.5 * tmp_.dot(tmp2_);
-    tmp2_.setZero();
-    scene_.M.multiply_add(1.0, v_.data(), tmp2_.data());
-    ek += 0.5 * v_.dot(tmp2_);
+    scratch_.setZero();
+    scene_.M.multiply_add(1.0, v_.data(), scratch_.data());
+    ek += 0.5 * v_.dot(scratch_);
     energy_.vo_J = ek / N;
   }
+  // Edges sharing one gain object (the usual case) are summed first: one matvec per gain set.
   for (int j = 0; j < nn; ++j) {
-    if (!active_[j]) continue;
-    const EdgeGains& eg = *cfg_.neighbors[j].gains;
-    if (views_[j].fresh) eg.D.multiply_add(1.0, views_[j].v_hat, b);
-    for (int i = 0; i < dofs_; ++i) tmp_[i] = x_[i] - views_[j].x_hat[i];
-    eg.P.multiply_add(-1.0, tmp_.data(), b);
+    if (!active_[j] || !first_of_gain(j)) continue;
+    const EdgeGains* eg = cfg_.neighbors[j].gains;
+    tmp_.setZero();   // sum (x - x_hat_j)
+    tmp2_.setZero();  // sum delta v_hat_j
+    bool any_fresh = false;
+    for (int i2 = j; i2 < nn; ++i2) {
+      if (!active_[i2] || cfg_.neighbors[i2].gains != eg) continue;
+      const double* xj = views_[i2].x_hat;
+      for (int i = 0; i < dofs_; ++i) tmp_[i] += x_[i] - xj[i];
+      if (views_[i2].fresh) {
+        any_fresh = true;
+        const double* vj = views_[i2].v_hat;
+        for (int i = 0; i < dofs_; ++i) tmp2_[i] += vj[i];
+      }
+    }
+    eg->P.multiply_add(-1.0, tmp_.data(), b);
+    if (any_fresh) eg->D.multiply_add(1.0, tmp2_.data(), b);
   }
   Vec3 bw = (2.0 * cfg_.vp.mass_kg / T_) * w_vp_ + g.B_vc_Ns_per_m * vq - g.K_vc_N_per_m * (y_ - qk);
   if (in_contact_) {
@@ -296,17 +316,26 @@ StationCore::TickOutput StationCore::tick(const Vec3& q) {
     }
   }
   energy_.port_J += port_power * T_;
-  // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)
+  // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)   (eq. 15)
   double ctrl = -cfg_.damping_Ns_per_m * v_hat_.squaredNorm();
   for (int j = 0; j < nn; ++j) {
-    if (!active_[j]) continue;
-    const EdgeGains& eg = *cfg_.neighbors[j].gains;
-    const double delta = views_[j].fresh ? 1.0 : 0.0;
-    for (int i = 0; i < dofs_; ++i) tmp_[i] = v_hat_[i] - delta * views_[j].v_hat[i];
-    for (int i = 0; i < dofs_; ++i) tmp2_[i] = x_hat_[i] - views_[j].x_hat[i];
+    if (!active_[j] || !first_of_gain(j)) continue;
+    const EdgeGains* eg = cfg_.neighbors[j].gains;
+    tmp_.setZero();   // sum (v_hat - delta v_hat_j)
+    tmp2_.setZero();  // sum (x_hat - x_hat_j)
+    for (int i2 = j; i2 < nn; ++i2) {
+      if (!active_[i2] || cfg_.neighbors[i2].gains != eg) continue;
+      const double delta = views_[i2].fresh ? 1.0 : 0.0;
+      const double* vj = views_[i2].v_hat;
+      const double* xj = views_[i2].x_hat;
+      for (int i = 0; i < dofs_; ++i) {
+        tmp_[i] += v_hat_[i] - delta * vj[i];
+        tmp2_[i] += x_hat_[i] - xj[i];
+      }
+    }
     scratch_.setZero();
-    eg.D.multiply_add(1.0, tmp_.data(), scratch_.data());
-    eg.P.multiply_add(1.0, tmp2_.data(), scratch_.data());
+    eg->D.multiply_add(1.0, tmp_.data(), scratch_.data());
+    eg->P.multiply_add(1.0, tmp2_.data(), scratch_.data());
     ctrl -= v_hat_.dot(scratch_);
   }
   energy_.controller_J += ctrl * T_;

@@ -127,6 +127,7 @@ class StationCore {
  private:
   void prepare_contact_solve(unsigned mask);
   void engage_contact();
+  bool first_of_gain(int j) const;  // first active neighbour using this gain object
 
   StationConfig cfg_;
   const Scene& scene_;

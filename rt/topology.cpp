@@ -877,57 +877,91 @@ SearchResult search_topology(const Eigen::MatrixXd& mean_delay_ms, double period
   res.seed = res.best;
   res.seed_score = res.best_score;
   res.history.push_back(res.best_score.lambda_next_abs);
-  // local search by edge swaps, first improvement
-  bool improved = true;
-  while (improved && res.evaluations < search.max_evaluations) {
-    improved = false;
-    Graph cur = res.best;
-    std::vector<int> rem(cur.size());
-    std::iota(rem.begin(), rem.end(), 0);
-    std::sort(rem.begin(), rem.end(), [&](int x, int y) { return r(cur[x].a, cur[x].b) > r(cur[y].a, cur[y].b); });
-    if (static_cast<int>(rem.size()) > search.remove_candidates) rem.resize(search.remove_candidates);
-    for (int ri : rem) {
-      Graph base = cur;
-      const Edge removed = base[ri];
-      base.erase(base.begin() + ri);
-      UnionFind uf(n);
-      std::vector<int> deg(n, 0);
-      Eigen::MatrixXi used = Eigen::MatrixXi::Zero(n, n);
-      for (const Edge& e : base) {
-        uf.unite(e.a, e.b);
-        ++deg[e.a];
-        ++deg[e.b];
-        used(e.a, e.b) = used(e.b, e.a) = 1;
-      }
-      const bool still_connected = is_connected(base, n);
-      std::vector<Edge> adds;
-      for (int a = 0; a < n; ++a) {
-        for (int b = a + 1; b < n; ++b) {
-          if (used(a, b) || (a == removed.a && b == removed.b) || !std::isfinite(r(a, b))) continue;
-          if (search.degree_cap > 0 && (deg[a] >= search.degree_cap || deg[b] >= search.degree_cap)) continue;
-          if (!still_connected && uf.find(a) == uf.find(b)) continue;
-          adds.push_back({a, b});
-        }
-      }
-      std::sort(adds.begin(), adds.end(), [&](const Edge& x, const Edge& y) { return r(x.a, x.b) < r(y.a, y.b); });
-      if (static_cast<int>(adds.size()) > search.add_candidates) adds.resize(search.add_candidates);
-      for (const Edge& f : adds) {
-        if (res.evaluations >= search.max_evaluations) break;
-        Graph cand = base;
-        cand.push_back(f);
-        cand = normalized(cand);
-        const GraphScore sc = eval(cand);
-        if (sc.lambda_next_abs < res.best_score.lambda_next_abs - 1e-12) {
-          res.best = cand;
-          res.best_score = sc;
-          ++res.improvements;
-          res.history.push_back(sc.lambda_next_abs);
-          improved = true;
-          break;
-        }
-      }
-      if (improved || res.evaluations >= search.max_evaluations) break;
+  // Swap neighbourhood of g: remove link ri, candidate links that keep g connected and capped.
+  auto swap_candidates = [&](const Graph& g, int ri, bool sorted_short_first) {
+    Graph base = g;
+    const Edge removed = base[ri];
+    base.erase(base.begin() + ri);
+    UnionFind uf(n);
+    std::vector<int> deg(n, 0);
+    Eigen::MatrixXi used = Eigen::MatrixXi::Zero(n, n);
+    for (const Edge& e : base) {
+      uf.unite(e.a, e.b);
+      ++deg[e.a];
+      ++deg[e.b];
+      used(e.a, e.b) = used(e.b, e.a) = 1;
     }
+    const bool still_connected = is_connected(base, n);
+    std::vector<Edge> adds;
+    for (int a = 0; a < n; ++a) {
+      for (int b = a + 1; b < n; ++b) {
+        if (used(a, b) || (a == removed.a && b == removed.b) || !std::isfinite(r(a, b))) continue;
+        if (search.degree_cap > 0 && (deg[a] >= search.degree_cap || deg[b] >= search.degree_cap)) continue;
+        if (!still_connected && uf.find(a) == uf.find(b)) continue;
+        adds.push_back({a, b});
+      }
+    }
+    if (sorted_short_first) {
+      std::sort(adds.begin(), adds.end(), [&](const Edge& x, const Edge& y) { return r(x.a, x.b) < r(y.a, y.b); });
+    }
+    return std::make_pair(base, adds);
+  };
+  // First-improvement local search from (cur, cur_sc); returns the local optimum.
+  auto local_search = [&](Graph cur, GraphScore cur_sc) {
+    bool improved = true;
+    while (improved && res.evaluations < search.max_evaluations) {
+      improved = false;
+      std::vector<int> rem(cur.size());
+      std::iota(rem.begin(), rem.end(), 0);
+      std::sort(rem.begin(), rem.end(), [&](int x, int y) { return r(cur[x].a, cur[x].b) > r(cur[y].a, cur[y].b); });
+      if (static_cast<int>(rem.size()) > search.remove_candidates) rem.resize(search.remove_candidates);
+      for (int ri : rem) {
+        auto [base, adds] = swap_candidates(cur, ri, true);
+        if (static_cast<int>(adds.size()) > search.add_candidates) adds.resize(search.add_candidates);
+        for (const Edge& f : adds) {
+          if (res.evaluations >= search.max_evaluations) break;
+          Graph cand = base;
+          cand.push_back(f);
+          cand = normalized(cand);
+          const GraphScore sc = eval(cand);
+          if (sc.lambda_next_abs < cur_sc.lambda_next_abs - 1e-12) {
+            cur = cand;
+            cur_sc = sc;
+            improved = true;
+            break;
+          }
+        }
+        if (improved || res.evaluations >= search.max_evaluations) break;
+      }
+    }
+    return std::make_pair(cur, cur_sc);
+  };
+  auto accept = [&](const Graph& g, const GraphScore& sc) {
+    if (sc.lambda_next_abs < res.best_score.lambda_next_abs - 1e-12) {
+      res.best = g;
+      res.best_score = sc;
+      ++res.improvements;
+      res.history.push_back(sc.lambda_next_abs);
+    }
+  };
+  {
+    auto [g, sc] = local_search(res.best, res.best_score);
+    accept(g, sc);
+  }
+  // Iterated local search: kick the best graph by `kick_swaps` random swaps and descend again.
+  SplitMix rng{search.seed};
+  for (int kick = 0; kick < search.kicks && res.evaluations < search.max_evaluations; ++kick) {
+    Graph g = res.best;
+    for (int k = 0; k < search.kick_swaps; ++k) {
+      const int ri = static_cast<int>(rng.next() * static_cast<double>(g.size()));
+      auto [base, adds] = swap_candidates(g, ri, false);
+      if (adds.empty()) continue;
+      base.push_back(adds[static_cast<std::size_t>(rng.next() * static_cast<double>(adds.size()))]);
+      g = normalized(base);
+    }
+    const GraphScore sc = eval(g);
+    auto [lg, lsc] = local_search(g, sc);
+    accept(lg, lsc);
   }
   return res;
 }

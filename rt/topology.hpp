@@ -25,6 +25,9 @@
 //    is renormalized, and |lambda_{n+1}| = exp(slope of log ||x_k||) fitted over doubling windows
 //    until two windows agree within power_tol. Only the modulus is needed, so rings of eigenvalues
 //    of equal modulus (typical of long delays) do not slow it, unlike Krylov methods.
+//    Accuracy is about power_tol in |lambda| (window-fit error ~ 1/steps); the projection every
+//    16 steps assumes |lambda_{n+1}|^16 >> 1e-16, i.e. |lambda_{n+1}| > ~0.2 (consensus problems
+//    of interest sit near 1; use Dense for fast-mixing toy cases).
 //  * Arnoldi: Krylov-Schur restarted Arnoldi (complex arithmetic) on J - 1 u^T. Kept for
 //    comparison: on long-delay problems the outer spectrum is a dense ring and it can converge to
 //    Ritz values inside it (tests and README show where).
@@ -153,14 +156,19 @@ std::vector<Graph> enumerate_connected_graphs(int users, int links, int degree_c
 //     are added cheapest round trip first; the best seed by eq. (27) is kept;
 //  2. local search by edge swaps (remove a link, add a link that keeps the graph connected and
 //     within the cap), candidates ordered by round trip, first improvement, until no swap
-//     improves or max_evaluations is spent.
+//     improves;
+//  3. iterated local search: `kicks` times, apply `kick_swaps` seeded random swaps to the best
+//     graph and descend again, keeping the best; everything stops when max_evaluations is spent.
 struct SearchOptions {
   int links = 0;                 // 0: N-1 (a tree)
   int degree_cap = 0;            // 0: none
   int hub_seeds = 3;
   int remove_candidates = 8;     // links tried for removal per pass (longest round trip first)
   int add_candidates = 6;        // reconnecting links tried per removal (shortest first)
-  int max_evaluations = 200;
+  int kicks = 10;                // iterated-local-search restarts
+  int kick_swaps = 2;            // random swaps per kick
+  std::uint64_t seed = 1;        // of the kicks (deterministic)
+  int max_evaluations = 500;
 };
 struct SearchResult {
   Graph best;

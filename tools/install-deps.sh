@@ -21,6 +21,10 @@ PKGS=(
   iproute2 tshark
   # plots and reports (Debian's python3, /usr/bin/python3)
   python3 python3-matplotlib python3-numpy
+  # topology optimizer: JSON in/out (tools/topology)
+  nlohmann-json3-dev
+  # network namespace reachability check (tools/netns/netns.sh check)
+  iputils-ping
 )
 apt-get update -qq
 apt-get install -y -qq --no-install-recommends "${PKGS[@]}"

@@ -1,0 +1,46 @@
+#pragma once
+// Picks, opens and starts the station's device from the [device] config table, and explains
+// every choice (what was found, why a backend could not be used). Non-RT, start-up only.
+//   kind = "auto"       : first Touch whose HD library starts, else first SpaceMouse, else simulated
+//   kind = "touch"      : PhantomDevice (OpenHaptics HD library) or an error saying what is missing
+//   kind = "spacemouse" : SpaceMouseDevice (position input only, NO force feedback)
+//   kind = "simulated"  : SimulatedDevice (owner-stepped: the station must call service())
+// A started Touch or SpaceMouse that has a USB identity is watched by a UsbMonitor (hotplug or
+// re-enumeration), so unplugging it puts the device in the safe state.
+#include "drivers/device.hpp"
+#include "drivers/phantom_device.hpp"
+#include "drivers/simulated_device.hpp"
+#include "drivers/spacemouse.hpp"
+#include "drivers/usb_monitor.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace haptic::drivers {
+
+struct DeviceSelection {
+  std::string kind = "auto";  // drivers key device.kind: "auto" | "touch" | "spacemouse" | "simulated"
+  PhantomConfig touch{};
+  SpaceMouseConfig spacemouse{};
+  SimulatedDeviceConfig simulated{};
+  SafetyLimits safety{};
+  UsbMonitorConfig usb{};
+};
+
+struct OpenedDevice {
+  std::unique_ptr<UsbMonitor> monitor;   // declared first: destroyed after the device stops
+  std::unique_ptr<HapticDevice> device;  // started
+  SimulatedDevice* simulated = nullptr;  // non-null when the owner must call service() per tick
+  std::string report;                    // one line per step: what was found and why it was (not) used
+  OpenedDevice() = default;
+  OpenedDevice(OpenedDevice&&) = default;
+  OpenedDevice& operator=(OpenedDevice&&) = default;
+  ~OpenedDevice();
+};
+
+// Throws std::invalid_argument for a bad kind (naming device.kind and the allowed values) and
+// std::runtime_error when an explicitly requested backend cannot start (with the reason).
+OpenedDevice open_device(const DeviceSelection& selection);
+
+}  // namespace haptic::drivers

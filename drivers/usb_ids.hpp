@@ -1,0 +1,32 @@
+#pragma once
+// The USB identities we recognise and which backend drives each. Sources (public, see README):
+//  - Phantom/Touch: 2988:0302 and 0301:2988 as reported publicly for 3D Systems/SensAble
+//    Touch devices; any other product under vendor 0x2988 is reported as "unlisted model".
+//    The newer Touch HID model shows up as a hidraw node with such an identity.
+//  - 3Dconnexion SpaceMouse family: vendor 0x256f (3Dconnexion) any product; vendor 0x046d
+//    (Logitech, older 3Dconnexion devices) only the product ids listed in usb_ids.cpp.
+#include <cstdint>
+
+namespace haptic::drivers {
+
+enum class DeviceKind : std::uint8_t {
+  kUnknown = 0,
+  kPhantomTouch,  // servo through the OpenHaptics HD library (PhantomDevice)
+  kSpaceMouse,    // position input through hidapi, no force feedback (SpaceMouseDevice)
+};
+
+struct KnownIdentity {
+  std::uint16_t vendor_id;
+  std::uint16_t product_id;  // 0xFFFF = any product of this vendor
+  DeviceKind kind;
+  const char* model;
+};
+
+// Identity lookup; nullptr when not one of ours. RT-safe (static table).
+const KnownIdentity* find_identity(std::uint16_t vendor_id, std::uint16_t product_id);
+// All identities (for udev rules); count in *n.
+const KnownIdentity* known_identities(int* n);
+// "OpenHaptics HD library (libHD.so)", "hidapi (position input only, no force feedback)", ...
+const char* backend_name(DeviceKind kind);
+
+}  // namespace haptic::drivers

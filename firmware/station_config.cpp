@@ -1,0 +1,214 @@
+#include "firmware/station_config.hpp"
+
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+namespace haptic::firmware {
+
+namespace {
+
+using View = toml::node_view<const toml::node>;
+
+[[noreturn]] void bad(const std::string& key, const std::string& range) {
+  throw std::invalid_argument("config: " + key + " must be " + range);
+}
+
+std::string num(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+long long integer(View n, const std::string& key, long long def, long long lo, long long hi) {
+  if (!n) return def;
+  const auto v = n.value<long long>();
+  if (!n.is_integer() || !v || *v < lo || *v > hi) bad(key, "an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  return *v;
+}
+
+double real(View n, const std::string& key, double def, double lo, double hi, const std::string& extra = "") {
+  if (!n) return def;
+  const auto v = n.value<double>();
+  if (!v || !std::isfinite(*v) || *v < lo || *v > hi) bad(key, "a number in [" + num(lo) + ", " + num(hi) + "]" + extra);
+  return *v;
+}
+
+std::string text(View n, const std::string& key, const std::string& def) {
+  if (!n) return def;
+  if (!n.is_string()) bad(key, "a string");
+  return *n.value<std::string>();
+}
+
+bool boolean(View n, const std::string& key, bool def) {
+  if (!n) return def;
+  if (!n.is_boolean()) bad(key, "true or false");
+  return *n.value<bool>();
+}
+
+// Rejects keys of table `t` that are not in `known`, naming the first unknown one.
+void only_keys(View t, const std::string& where, std::initializer_list<const char*> known) {
+  if (!t) return;
+  if (!t.is_table()) bad("[" + where + "]", "a table");
+  for (const auto& [k, v] : *t.as_table()) {
+    (void)v;
+    const std::string key(k.str());
+    if (std::none_of(known.begin(), known.end(), [&](const char* s) { return key == s; })) {
+      std::string list;
+      for (const char* s : known) {
+        if (!list.empty()) list += ", ";
+        list += s;
+      }
+      throw std::invalid_argument("config: unknown key " + (where.empty() ? key : where + "." + key) + " (known keys: " + list + ")");
+    }
+  }
+}
+
+}  // namespace
+
+StationFile parse_station_file(std::string_view toml_text) {
+  toml::table doc;
+  try {
+    doc = toml::parse(toml_text);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream os;
+    os << "config: TOML parse error: " << e.description() << " at line " << e.source().begin.line;
+    throw std::invalid_argument(os.str());
+  }
+  const toml::table& cd = doc;
+  const View root{cd};
+  only_keys(root, "", {"station", "device", "rt", "loop", "gpio", "telemetry", "trace", "net", "network"});
+  if (cd.contains("net") && cd.contains("network")) bad("[network]", "absent when [net] is present (one network section)");
+
+  StationFile f;
+  f.text = std::string(toml_text);
+
+  // [station]
+  const View st = root["station"];
+  if (!st) bad("[station]", "present (with at least id = 1..users)");
+  only_keys(st, "station", {"id", "scenario", "topology", "nodes", "duration_s", "seed", "push_start_s", "push_end_s", "release_s",
+                            "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
+                            "loss_allowance_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority", "out_dir", "trace_every", "state_every"});
+  StationSection& s = f.station;
+  if (!st["id"]) bad("station.id", "present: this station's user number, 1..users");
+  s.id = static_cast<int>(integer(st["id"], "station.id", 1, 1, 64));
+  s.scenario = text(st["scenario"], "station.scenario", s.scenario);
+  s.topology = text(st["topology"], "station.topology", "");
+  s.nodes = static_cast<int>(integer(st["nodes"], "station.nodes", 33, 4, 5000));
+  s.duration_s = real(st["duration_s"], "station.duration_s", 0.0, 0.0, 3600.0, " (0 = the scenario's)");
+  s.seed = static_cast<std::uint64_t>(integer(st["seed"], "station.seed", 1, 0, 1ll << 40));
+  s.push_start_s = real(st["push_start_s"], "station.push_start_s", -1, -1, 3600, " (-1 = the scenario's)");
+  s.push_end_s = real(st["push_end_s"], "station.push_end_s", -1, -1, 3600, " (-1 = the scenario's)");
+  s.release_s = real(st["release_s"], "station.release_s", -1, -1, 3600, " (-1 = the scenario's)");
+  s.start_clock = text(st["start_clock"], "station.start_clock", "monotonic");
+  if (s.start_clock != "monotonic" && s.start_clock != "realtime") bad("station.start_clock", "\"monotonic\" or \"realtime\"");
+  s.start_at = real(st["start_at"], "station.start_at", 0.0, 0.0, 1e12, " (0 = now + start_delay_s)");
+  s.start_delay_s = real(st["start_delay_s"], "station.start_delay_s", 2.0, 0.1, 600);
+  s.start_align_s = real(st["start_align_s"], "station.start_align_s", 0.0, 0.0, 3600);
+  s.probe_s = real(st["probe_s"], "station.probe_s", 1.5, 0.2, 60);
+  s.setup_gap_s = real(st["setup_gap_s"], "station.setup_gap_s", 0.5, 0.05, 10);
+  s.damping_margin = real(st["damping_margin"], "station.damping_margin", 0.05, 0, 10);
+  s.loss_allowance_ticks = static_cast<int>(integer(st["loss_allowance_ticks"], "station.loss_allowance_ticks", 1, 0, 1000));
+  s.agreement_ticks = static_cast<int>(integer(st["agreement_ticks"], "station.agreement_ticks", 1, 0, 1000));
+  s.damping_Ns_per_m = real(st["damping_Ns_per_m"], "station.damping_Ns_per_m", -1, -1, 1e6, " (-1 = from the measured bound)");
+  if (s.damping_Ns_per_m < 0 && s.damping_Ns_per_m != -1) bad("station.damping_Ns_per_m", "-1 or a number in [0, 1e6]");
+  s.io_priority = static_cast<int>(integer(st["io_priority"], "station.io_priority", 70, 0, 98));
+  s.out_dir = text(st["out_dir"], "station.out_dir", ".");
+  if (s.out_dir.empty()) bad("station.out_dir", "a non-empty directory path");
+  s.trace_every = static_cast<int>(integer(st["trace_every"], "station.trace_every", 1, 1, 100000));
+  s.state_every = static_cast<int>(integer(st["state_every"], "station.state_every", 5, 1, 100000));
+
+  // [device]
+  const View dv = root["device"];
+  only_keys(dv, "device", {"kind", "max_force_N", "max_power_W", "max_speed_m_per_s", "sim_max_force_N"});
+  DeviceSection& d = f.device;
+  d.kind = text(dv["kind"], "device.kind", "auto");
+  if (d.kind != "auto" && d.kind != "touch" && d.kind != "spacemouse" && d.kind != "simulated")
+    bad("device.kind", "\"auto\", \"touch\", \"spacemouse\" or \"simulated\"");
+  d.max_force_N = real(dv["max_force_N"], "device.max_force_N", 1e9, 1e-6, 1e12);
+  d.max_power_W = real(dv["max_power_W"], "device.max_power_W", 3.0, 0, 1000);
+  d.max_speed_m_per_s = real(dv["max_speed_m_per_s"], "device.max_speed_m_per_s", 3.0, 1e-6, 1000);
+  d.sim_max_force_N = real(dv["sim_max_force_N"], "device.sim_max_force_N", 3.3, 1e-6, 1000);
+
+  // [rt]
+  const View rtv = root["rt"];
+  only_keys(rtv, "rt", {"priority", "cpu", "lock_memory", "hold_dma_latency", "require_rt"});
+  f.rt.priority = static_cast<int>(integer(rtv["priority"], "rt.priority", 80, 1, 98));
+  f.rt.cpu = static_cast<int>(integer(rtv["cpu"], "rt.cpu", -1, -1, 4095));
+  f.rt.lock_memory = boolean(rtv["lock_memory"], "rt.lock_memory", true);
+  f.rt.hold_dma_latency = boolean(rtv["hold_dma_latency"], "rt.hold_dma_latency", false);
+  f.rt.require_rt = boolean(rtv["require_rt"], "rt.require_rt", false);
+  platform::validate(f.rt);
+
+  // [loop]
+  const View lp = root["loop"];
+  only_keys(lp, "loop", {"period_ns", "overrun_storm_count", "report_interval_ns"});
+  f.loop.period_ns = integer(lp["period_ns"], "loop.period_ns", 2'000'000, 10'000, 1'000'000'000);
+  f.loop.overrun_storm_count = static_cast<std::uint32_t>(integer(lp["overrun_storm_count"], "loop.overrun_storm_count", 10, 1, 1'000'000));
+  f.loop.report_interval_ns = integer(lp["report_interval_ns"], "loop.report_interval_ns", 1'000'000'000, 1'000'000'000, 3'600'000'000'000);
+  platform::validate(f.loop);
+
+  // [gpio]
+  const View gp = root["gpio"];
+  only_keys(gp, "gpio", {"enabled", "chip", "tick_line", "packet_line", "consumer"});
+  f.gpio.enabled = boolean(gp["enabled"], "gpio.enabled", false);
+  f.gpio.chip = text(gp["chip"], "gpio.chip", "");
+  f.gpio.tick_line = static_cast<int>(integer(gp["tick_line"], "gpio.tick_line", -1, -1, 65535));
+  f.gpio.packet_line = static_cast<int>(integer(gp["packet_line"], "gpio.packet_line", -1, -1, 65535));
+  f.gpio.consumer = text(gp["consumer"], "gpio.consumer", "haptic-station");
+
+  // [telemetry]
+  const View tm = root["telemetry"];
+  only_keys(tm, "telemetry", {"path", "postmortem_dir", "postmortem_s", "max_dumps"});
+  f.telemetry.path = text(tm["path"], "telemetry.path", "");
+  f.telemetry.postmortem_dir = text(tm["postmortem_dir"], "telemetry.postmortem_dir", ".");
+  f.telemetry.postmortem_s = real(tm["postmortem_s"], "telemetry.postmortem_s", 5.0, 0.1, 600);
+  f.telemetry.max_dumps = static_cast<std::uint32_t>(integer(tm["max_dumps"], "telemetry.max_dumps", 8, 1, 100000));
+
+  only_keys(root["trace"], "trace", {});
+
+  // [net] / [network]: only key names here; values are net/'s (net/config.hpp).
+  const std::string P = cd.contains("network") ? "network" : "net";
+  const View nt = root[P];
+  if (!nt) bad("[net]", "present (transport, addresses, session key, peers: see net/config.hpp)");
+  only_keys(nt, P, {"station_id", "transport", "bind", "listen", "interface", "session_id", "session_key", "encoding",
+                    "max_datagram_bytes", "io_busy_poll", "delay_queue_datagrams", "rtt_margin_fraction", "rtt_margin_s",
+                    "rtt_min_probe_samples", "impairment", "peers"});
+  only_keys(nt["impairment"], P + ".impairment", {"preset", "seed", "trace_file", "blackout_start_s", "blackout_length_s"});
+  f.net_station_id_set = static_cast<bool>(nt["station_id"]);
+  f.impairment_seed_set = static_cast<bool>(nt["impairment"]["seed"]);
+  f.impairment_preset = text(nt["impairment"]["preset"], P + ".impairment.preset", "none");
+  if (nt["peers"] && nt["peers"].is_array()) {
+    std::size_t i = 0;
+    for (const auto& node : *nt["peers"].as_array()) {
+      const std::string k = P + ".peers[" + std::to_string(i++) + "]";
+      if (!node.is_table()) bad(k, "a table");
+      const View p{node};
+      only_keys(p, k, {"id", "station", "address", "mac", "mean_delay_ms"});
+      const View idv = p["id"] ? p["id"] : p["station"];
+      const int id = static_cast<int>(integer(idv, k + ".id", -1, 0, 65534));
+      f.peer_mean_delay_set.emplace_back(id, static_cast<bool>(p["mean_delay_ms"]));
+    }
+  }
+  if (f.net_station_id_set && integer(nt["station_id"], P + ".station_id", 0, 0, 65534) != s.id)
+    bad(P + ".station_id", "absent or equal to station.id (" + std::to_string(s.id) + "): wire ids are the user numbers");
+  return f;
+}
+
+StationFile load_station_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::invalid_argument("config: cannot open " + path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  StationFile f = parse_station_file(ss.str());
+  f.path = path;
+  return f;
+}
+
+}  // namespace haptic::firmware

@@ -1,0 +1,113 @@
+#pragma once
+// The station file of `haptic-station run --config FILE.toml` (toml++). Start-up only (not
+// RT-safe). Every key has a documented default; a bad value or an unknown key throws
+// std::invalid_argument naming the key and the allowed range.
+//
+//   [station]                        (firmware/)
+//   id = 1                           # this station's user number, 1..users of the scenario (required)
+//   scenario = "paper-best"          # built-in scene, gains, topology, delays, user scripts
+//   topology = ""                    # "" = the scenario's; else e.g. "1-2,1-3,1-4" (same on all stations)
+//   nodes = 33                       # scene size (33 = the paper's ball), 4..5000
+//   duration_s = 0                   # run time from the run start, (0, 3600]; 0 = the scenario's
+//   seed = 1                         # run seed: impairment link seeds as the simulator's
+//   push_start_s = -1                # user script times (s from the run start); -1 = scenario's
+//   push_end_s = -1
+//   release_s = -1
+//   start_clock = "monotonic"        # clock of start_at: "monotonic" (one host) | "realtime" (NTP/PTP-synced hosts)
+//   start_at = 0.0                   # common epoch (s on start_clock) of tick k = 0 (probing starts); 0 = now + start_delay_s
+//   start_delay_s = 2.0              # [0.1, 600]
+//   start_align_s = 0                # with start_at = 0 and > 0: the epoch is the next multiple of this on
+//                                    # start_clock after now + start_delay_s (stations started independently,
+//                                    # e.g. by systemd, meet on the same epoch), [0, 3600]
+//   probe_s = 1.5                    # probing phase with zero coupling, [0.2, 60]
+//   setup_gap_s = 0.5                # from the end of probing to the run start (StationCore built meanwhile), [0.05, 10]
+//   damping_margin = 0.05            # B_i = (1 + margin) x eq. (18) of the MEASURED bounds, [0, 10]
+//   loss_allowance_ticks = 1         # ticks added to the measured round-trip bound, [0, 1000]
+//   agreement_ticks = 1              # eq. (18) uses Nbar_ij + Nbar_ji = 2 ceil(R_ij/2) + this: covers the peer's
+//                                    # guard ceil(R_ji/2) while the two ends' measured R differ by <= 2x this, [0, 1000]
+//   damping_Ns_per_m = -1            # >= 0: fixed B_i (experiments below eq. 18); -1: from the measurement
+//   io_priority = 70                 # SCHED_FIFO priority of the endpoint's I/O thread (inherited at its start),
+//                                    # 0 = leave it SCHED_OTHER; [0, 98]; falls back with a warning without privileges
+//   out_dir = "."                    # per-station outputs station-<id>.json, -trace.csv, -state.csv
+//   trace_every = 1                  # every k-th tick into station-<id>-trace.csv, [1, 100000]
+//   state_every = 5                  # every k-th tick the whole x into station-<id>-state.csv, [1, 100000]
+//   [device]                         (drivers/: device_factory.hpp)
+//   kind = "auto"                    # "auto" | "touch" | "spacemouse" | "simulated" (simulated user of the scenario script)
+//   max_force_N = 1e9                # extra output clamp, > 0
+//   max_power_W = 3.0                # cap on F.v into the hand, [0, 1000], 0 disables
+//   max_speed_m_per_s = 3.0          # (0, 1000]
+//   sim_max_force_N = 3.3            # simulated device capability, (0, 1000]
+//   [rt]       priority = 80 (1..98), cpu = -1, lock_memory = true, hold_dma_latency = false, require_rt = false
+//   [loop]     period_ns = 2000000 (must equal the scenario's T), overrun_storm_count = 10 (>= 1),
+//              report_interval_ns = 1000000000 (>= 1e9)
+//   [gpio]     enabled = false, chip = "", tick_line = -1, packet_line = -1, consumer = "haptic-station"
+//   [telemetry] path = "" (no file), postmortem_dir = ".", postmortem_s = 5.0, max_dumps = 8
+//   [trace]    (no keys: LTTng-UST events are recorded while a session is active)
+//   [net] or [network]               (net/config.hpp: keys, defaults and ranges there)
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+#include "drivers/device_factory.hpp"
+#include "net/config.hpp"
+#include "platform/gpio.hpp"
+#include "platform/periodic_loop.hpp"
+#include "platform/rt_thread.hpp"
+#include "platform/telemetry.hpp"
+
+namespace haptic::firmware {
+
+struct StationSection {
+  int id = 1;
+  std::string scenario = "paper-best";
+  std::string topology;
+  int nodes = 33;
+  double duration_s = 0.0;
+  std::uint64_t seed = 1;
+  double push_start_s = -1, push_end_s = -1, release_s = -1;
+  std::string start_clock = "monotonic";
+  double start_at = 0.0;
+  double start_delay_s = 2.0;
+  double start_align_s = 0.0;
+  double probe_s = 1.5;
+  double setup_gap_s = 0.5;
+  double damping_margin = 0.05;
+  int loss_allowance_ticks = 1;
+  int agreement_ticks = 1;
+  double damping_Ns_per_m = -1.0;
+  int io_priority = 70;
+  std::string out_dir = ".";
+  int trace_every = 1;
+  int state_every = 5;
+};
+
+struct DeviceSection {
+  std::string kind = "auto";
+  double max_force_N = 1e9;
+  double max_power_W = 3.0;
+  double max_speed_m_per_s = 3.0;
+  double sim_max_force_N = 3.3;
+};
+
+struct StationFile {
+  std::string path;           // where it came from ("" for text)
+  std::string text;           // the whole TOML text (net/ parses its section from it)
+  StationSection station;
+  DeviceSection device;
+  platform::RtConfig rt{};
+  platform::LoopConfig loop{};
+  platform::GpioConfig gpio{};
+  platform::TelemetryConfig telemetry{};
+  // [net]/[network] facts the station needs before net/ parses the section.
+  bool net_station_id_set = false;
+  bool impairment_seed_set = false;
+  std::string impairment_preset = "none";
+  std::vector<std::pair<int, bool>> peer_mean_delay_set;  // (peer wire id, mean_delay_ms given)
+};
+
+// Parses and validates everything except the [net] section's values (net/ does those, with the
+// scene size, in parse_net()). Throws std::invalid_argument naming the key and the range.
+StationFile parse_station_file(std::string_view toml_text);
+StationFile load_station_file(const std::string& path);
+
+}  // namespace haptic::firmware

@@ -1,0 +1,163 @@
+#include "net/config.hpp"
+
+#include <toml++/toml.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace haptic::net {
+
+namespace {
+
+[[noreturn]] void bad(const std::string& key, const std::string& range) {
+  throw std::invalid_argument("config: " + key + " must be " + range);
+}
+
+template <class T>
+T integer(const toml::node_view<const toml::node>& n, const std::string& key, T def, long long lo, long long hi) {
+  if (!n) return def;
+  const auto v = n.value<long long>();
+  if (!v || !n.is_integer() || *v < lo || *v > hi) bad(key, "an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  return static_cast<T>(*v);
+}
+
+double real(const toml::node_view<const toml::node>& n, const std::string& key, double def, double lo, double hi) {
+  if (!n) return def;
+  const auto v = n.value<double>();  // accepts integers too
+  if (!v || !std::isfinite(*v) || *v < lo || *v > hi)
+    bad(key, "a number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  return *v;
+}
+
+std::string text(const toml::node_view<const toml::node>& n, const std::string& key, const std::string& def) {
+  if (!n) return def;
+  const auto v = n.value<std::string>();
+  if (!v || !n.is_string()) bad(key, "a string");
+  return *v;
+}
+
+bool boolean(const toml::node_view<const toml::node>& n, const std::string& key, bool def) {
+  if (!n) return def;
+  if (!n.is_boolean()) bad(key, "true or false");
+  return *n.value<bool>();
+}
+
+}  // namespace
+
+NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count) {
+  toml::table doc;
+  try {
+    doc = toml::parse(toml_text);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream os;
+    os << "config: TOML parse error: " << e.description() << " at line " << e.source().begin.line;
+    throw std::invalid_argument(os.str());
+  }
+  // The section is [net]; [network] (firmware/deploy's lab configs) is accepted as an alias,
+  // with `listen` for `bind` and peers' `station` for `id`.
+  const bool alias = !std::as_const(doc)["net"] && std::as_const(doc)["network"];
+  const std::string P = alias ? "network." : "net.";
+  const toml::node_view<const toml::node> net = std::as_const(doc)[alias ? "network" : "net"];
+  if (!net.is_table()) bad("[net]", "a table");
+  NetConfig c;
+  EndpointConfig& e = c.endpoint;
+  e.value_count = value_count;
+  if (net["station_id"]) e.wire.station_id = integer<std::uint16_t>(net["station_id"], P + "station_id", 0, 0, 65534);
+  else e.wire.station_id = integer<std::uint16_t>(std::as_const(doc)["station"]["id"], "station.id", 0, 0, 65534);
+  const std::uint16_t self = e.wire.station_id;
+
+  c.transport = text(net["transport"], P + "transport", "udp");
+  if (c.transport != "udp" && c.transport != "raw") bad(P + "transport", "\"udp\" or \"raw\"");
+  e.wire.session_id = integer<std::uint32_t>(net["session_id"], P + "session_id", 1, 0, 0xFFFFFFFFll);
+  if (!net["session_key"]) bad(P + "session_key", "present: 64 hexadecimal digits (a 32-byte key)");
+  e.wire.key = SessionKey::from_hex(text(net["session_key"], P + "session_key", ""), P + "session_key");
+  const std::string enc = text(net["encoding"], P + "encoding", "float64");
+  if (enc == "float64") e.wire.encoding = ValueEncoding::float64;
+  else if (enc == "float32") e.wire.encoding = ValueEncoding::float32;
+  else bad(P + "encoding", "\"float64\" or \"float32\"");
+  e.wire.max_datagram_bytes = integer<std::size_t>(net["max_datagram_bytes"], P + "max_datagram_bytes",
+                                                   kDefaultDatagramBytes, kMinDatagramBytes + 8, kMaxDatagramBytes);
+  e.io_busy_poll = boolean(net["io_busy_poll"], P + "io_busy_poll", false);
+  e.delay_queue_datagrams = integer<std::size_t>(net["delay_queue_datagrams"], P + "delay_queue_datagrams", 8192, 16, 1 << 20);
+  e.rtt.margin_fraction = real(net["rtt_margin_fraction"], P + "rtt_margin_fraction", 0.25, 0.0, 10.0);
+  e.rtt.margin_s = real(net["rtt_margin_s"], P + "rtt_margin_s", 0.004, 0.0, 10.0);
+  e.rtt.min_probe_samples = integer<std::uint64_t>(net["rtt_min_probe_samples"], P + "rtt_min_probe_samples", 20, 1, 1000000);
+
+  if (c.transport == "udp")
+    c.bind = net["bind"] ? text(net["bind"], P + "bind", "") : text(net["listen"], P + "listen", "");
+  if (c.transport == "udp" && c.bind.empty()) bad(P + "bind", "set for transport = \"udp\" (\"a.b.c.d:port\" or \"[v6]:port\")");
+  if (c.transport == "raw") c.interface = text(net["interface"], P + "interface", "");
+  if (c.transport == "raw" && c.interface.empty()) bad(P + "interface", "set for transport = \"raw\"");
+
+  const auto imp = net["impairment"];
+  std::string preset = "none";
+  std::uint64_t seed = 1;
+  std::shared_ptr<const std::vector<double>> trace;
+  double bo_start = 0.0, bo_len = 0.0;
+  if (imp) {
+    if (!imp.is_table()) bad("[" + P + "impairment]", "a table");
+    preset = text(imp["preset"], P + "impairment.preset", "none");
+    LinkImpairment::preset(preset, 0.0, P + "impairment.preset");  // validates the name
+    seed = integer<std::uint64_t>(imp["seed"], P + "impairment.seed", 1, 0, (1ll << 62));
+    const std::string tf = text(imp["trace_file"], P + "impairment.trace_file", "");
+    if (!tf.empty()) trace = load_delay_trace(tf);
+    bo_start = real(imp["blackout_start_s"], P + "impairment.blackout_start_s", 0.0, 0.0, 1e6);
+    bo_len = real(imp["blackout_length_s"], P + "impairment.blackout_length_s", 0.0, 0.0, 1e6);
+  }
+
+  const auto peers = net["peers"];
+  if (!peers.is_array() || peers.as_array()->empty()) bad(P + "peers", "an array of one or more tables");
+  std::size_t idx = 0;
+  for (const auto& node : *peers.as_array()) {
+    if (!node.is_table()) bad(P + "peers", "an array of tables");
+    const toml::node_view<const toml::node> p{node};
+    const std::string k = P + "peers[" + std::to_string(idx++) + "]";
+    PeerLink l;
+    const char* id_key = p["id"] ? "id" : "station";
+    if (!p[id_key]) bad(k + ".id", "present");
+    l.station_id = integer<std::uint16_t>(p[id_key], k + "." + id_key, 0, 0, 65534);
+    if (l.station_id == self) bad(k + ".id", "different from this station's id " + std::to_string(self));
+    const double mean_ms = real(p["mean_delay_ms"], k + ".mean_delay_ms", 0.0, 0.0, 1e5);
+    if (preset != "none" || trace || bo_len > 0.0) {
+      l.impaired = true;
+      l.impairment = LinkImpairment::preset(preset, mean_ms * 1e-3, P + "impairment.preset");
+      l.impairment.delay_trace = trace;
+      l.impairment.blackout_start_s = bo_start;
+      l.impairment.blackout_length_s = bo_len;
+      // Same seed scheme as the deterministic simulator (receiver*64 + sender).
+      l.seed = seed * 1000003ULL + static_cast<std::uint64_t>(l.station_id) * 64 + self;
+      ImpairedLink check(l.impairment, l.seed);  // validates the model now, naming the key
+      (void)check;
+    }
+    e.peers.push_back(l);
+    if (c.transport == "udp") {
+      if (!p["address"]) bad(k + ".address", "set for transport = \"udp\"");
+      c.udp_peers.push_back({l.station_id, text(p["address"], k + ".address", "")});
+      socklen_t len = 0;
+      parse_udp_address(c.udp_peers.back().address, k + ".address", len);
+    } else {
+      if (!p["mac"]) bad(k + ".mac", "set for transport = \"raw\"");
+      c.raw_peers.push_back({l.station_id, parse_mac(text(p["mac"], k + ".mac", ""), k + ".mac")});
+    }
+  }
+  e.wire.validate();
+  e.rtt.validate();
+  return c;
+}
+
+NetConfig load_net_config(const std::string& path, std::uint32_t value_count) {
+  std::ifstream in(path);
+  if (!in) throw std::invalid_argument("config: cannot open " + path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_net_config(ss.str(), value_count);
+}
+
+std::unique_ptr<Transport> NetConfig::make_transport() const {
+  if (transport == "raw") return std::make_unique<RawEthernetTransport>(interface, raw_peers);
+  return std::make_unique<UdpTransport>(bind, udp_peers);
+}
+
+}  // namespace haptic::net

@@ -1,0 +1,58 @@
+#pragma once
+// The [net] section of a station's TOML configuration -> EndpointConfig + transport.
+// Start-up only (not RT-safe). Every bad value throws std::invalid_argument naming the key
+// and the allowed range. Keys (defaults in parentheses):
+//
+//   [net]
+//   station_id = 0                 # this station, 0-based (else [station].id); 0..65534
+//   transport = "udp"              # "udp" | "raw"
+//   bind = "127.0.0.1:7000"        # udp: numeric address:port, IPv6 as "[::1]:7000"
+//   interface = "hpn0"             # raw: interface name
+//   session_id = 1                 # 0..2^32-1; use a new one per run
+//   session_key = "<64 hex>"       # 32-byte MAC key (required)
+//   encoding = "float64"           # "float64" | "float32"
+//   max_datagram_bytes = 1400      # 96..65507 and <= the transport's MTU
+//   io_busy_poll = false
+//   delay_queue_datagrams = 8192   # 16..1048576
+//   rtt_margin_fraction = 0.25     # 0..10
+//   rtt_margin_s = 0.004           # 0..10
+//   rtt_min_probe_samples = 20     # >= 1
+//   [net.impairment]               # optional: emulate the link in our send path
+//   preset = "none"                # "none" | "paper" | "bursty"
+//   seed = 1                       # link seed = seed*1000003 + peer*64 + self (as the simulator)
+//   trace_file = ""                # optional recorded delays (ms per line), replaces the uniform draw
+//   blackout_start_s = 0.0         # with blackout_length_s > 0: total loss in that window
+//   blackout_length_s = 0.0
+//   [[net.peers]]
+//   id = 1                         # neighbor station id
+//   address = "127.0.0.1:7001"     # udp
+//   mac = "02:48:50:00:00:02"      # raw
+//   mean_delay_ms = 4.0            # impairment mean for the directed link self -> id (>= 0)
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "net/endpoint.hpp"
+#include "net/transport_raw.hpp"
+#include "net/transport_udp.hpp"
+
+namespace haptic::net {
+
+struct NetConfig {
+  EndpointConfig endpoint;
+  std::string transport = "udp";
+  std::string bind;
+  std::string interface;
+  std::vector<UdpPeer> udp_peers;
+  std::vector<RawPeer> raw_peers;
+  // Opens the socket (throws std::system_error, e.g. without CAP_NET_RAW for "raw").
+  std::unique_ptr<Transport> make_transport() const;
+};
+
+// Parses the whole TOML document text; value_count is the scene's 3n.
+NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count);
+NetConfig load_net_config(const std::string& path, std::uint32_t value_count);
+
+}  // namespace haptic::net

@@ -1,0 +1,113 @@
+// haptic-net-peer: one station's network layer alone, from a station TOML file ([net]):
+// probes round trips, then sends a synthetic 3n-value state every period and checks every
+// received state bit for bit, for a bounded time (or until SIGINT/SIGTERM). Prints one JSON
+// object with per-link delay, loss, round trip, bound and drop counters. For exercising the
+// transports and the impairment across processes/namespaces before the real station runs.
+//   haptic-net-peer --config FILE [--nodes 33] [--seconds 5] [--period-ms 2] [--probe-s 1]
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "net/config.hpp"
+
+using namespace haptic::net;
+
+namespace {
+volatile std::sig_atomic_t g_stop = 0;
+void on_signal(int) { g_stop = 1; }
+
+double value(std::uint16_t station, std::uint64_t k, std::size_t i) {
+  return 1000.0 * station + static_cast<double>(k) * 1e-3 + 1e-7 * static_cast<double>(i);
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string config;
+  int nodes = 33;
+  double seconds = 5.0, period_ms = 2.0, probe_s = 1.0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> const char* {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "%s needs a value\n", a.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--config") config = next();
+    else if (a == "--nodes") nodes = std::atoi(next());
+    else if (a == "--seconds") seconds = std::atof(next());
+    else if (a == "--period-ms") period_ms = std::atof(next());
+    else if (a == "--probe-s") probe_s = std::atof(next());
+    else {
+      std::fprintf(stderr, "usage: %s --config FILE [--nodes N] [--seconds S] [--period-ms P] [--probe-s S]\n", argv[0]);
+      return 2;
+    }
+  }
+  if (config.empty() || nodes < 1 || nodes > 3000 || !(seconds > 0 && seconds <= 3600) ||
+      !(period_ms >= 0.1 && period_ms <= 1000) || !(probe_s >= 0 && probe_s < seconds)) {
+    std::fprintf(stderr, "haptic-net-peer: need --config; --nodes in [1,3000], --seconds in (0,3600], "
+                         "--period-ms in [0.1,1000], --probe-s in [0, seconds)\n");
+    return 2;
+  }
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  try {
+    const std::uint32_t n = static_cast<std::uint32_t>(3 * nodes);
+    NetConfig cfg = load_net_config(config, n);
+    const std::uint16_t self = cfg.endpoint.wire.station_id;
+    Endpoint ep(cfg.endpoint, cfg.make_transport());
+    std::vector<double> x(n), v(n);
+    std::uint64_t received = 0, corrupt = 0, k = 0;
+    bool probing = true;
+    ep.start();
+    ep.begin_probing();
+    const double t0 = monotonic_s();
+    double next = t0;
+    while (!g_stop) {
+      const double now = monotonic_s();
+      if (now - t0 >= seconds) break;
+      if (probing && now - t0 >= probe_s && ep.finish_probing()) probing = false;
+      ++k;
+      for (std::uint32_t i = 0; i < n; ++i) x[i] = value(self, k, i), v[i] = -x[i];
+      ep.push_state(k, now, x.data(), v.data());
+      ep.drain([&](std::uint16_t s, std::uint64_t seq, double, const double* xh, const double* vh, std::uint32_t c) {
+        ++received;
+        bool ok = c == n;
+        for (std::uint32_t i = 0; ok && i < n; ++i) ok = xh[i] == value(s, seq, i) && vh[i] == -xh[i];
+        if (!ok) ++corrupt;
+      });
+      next += period_ms * 1e-3;
+      const double sleep = next - monotonic_s();
+      if (sleep > 0) std::this_thread::sleep_for(std::chrono::duration<double>(sleep));
+    }
+    ep.stop();
+    const EndpointStats st = ep.stats();
+    std::printf("{\"station\": %u, \"transport\": \"%s\", \"sent\": %llu, \"received\": %llu, \"corrupt\": %llu, "
+                "\"probing_done\": %s, \"drops\": %llu, \"tx_overruns\": %llu, \"rx_ring_full\": %llu, \"links\": [",
+                self, ep.transport().name(), static_cast<unsigned long long>(k),
+                static_cast<unsigned long long>(received), static_cast<unsigned long long>(corrupt),
+                probing ? "false" : "true", static_cast<unsigned long long>(st.drops.total()),
+                static_cast<unsigned long long>(st.tx_overruns), static_cast<unsigned long long>(st.rx_ring_full));
+    for (std::size_t i = 0; i < st.peers.size(); ++i) {
+      const PeerStats& p = st.peers[i];
+      std::printf("%s{\"from\": %u, \"received\": %llu, \"loss\": %.4f, \"one_way_mean_ms\": %.3f, "
+                  "\"one_way_max_ms\": %.3f, \"rtt_samples\": %llu, \"rtt_mean_ms\": %.3f, \"rtt_max_ms\": %.3f, "
+                  "\"rtt_bound_ms\": %.3f, \"over_bound_events\": %llu, \"impair_lost_to\": %llu}",
+                  i ? ", " : "", p.station_id, static_cast<unsigned long long>(p.packets_received), p.loss_fraction,
+                  p.one_way_mean_s * 1e3, p.one_way_max_s * 1e3, static_cast<unsigned long long>(p.rtt_samples),
+                  p.rtt_mean_s * 1e3, p.rtt_max_s * 1e3, p.rtt_bound_s * 1e3,
+                  static_cast<unsigned long long>(p.rtt_over_bound_events),
+                  static_cast<unsigned long long>(p.impair_lost));
+    }
+    std::printf("]}\n");
+    return (corrupt == 0 && received > 0 && !probing) ? 0 : 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "haptic-net-peer: %s\n", e.what());
+    return 1;
+  }
+}

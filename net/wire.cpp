@@ -1,0 +1,391 @@
+#include "net/wire.hpp"
+
+#include <sodium.h>
+
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+namespace haptic::net {
+
+namespace {
+
+template <class T>
+void put(std::uint8_t* p, std::size_t off, T v) {
+  std::memcpy(p + off, &v, sizeof(T));
+}
+template <class T>
+T get(const std::uint8_t* p, std::size_t off) {
+  T v;
+  std::memcpy(&v, p + off, sizeof(T));
+  return v;
+}
+
+void init_sodium() {
+  if (sodium_init() < 0) throw std::runtime_error("net: libsodium failed to initialize");
+}
+
+void mac(const std::uint8_t* data, std::size_t len, const SessionKey& key, std::uint8_t* tag) {
+  crypto_generichash(tag, kMacBytes, data, len, key.bytes.data(), key.bytes.size());
+}
+
+}  // namespace
+
+const char* to_string(DropReason r) {
+  switch (r) {
+    case DropReason::truncated: return "truncated";
+    case DropReason::oversized: return "oversized";
+    case DropReason::garbled: return "garbled";
+    case DropReason::wrong_version: return "wrong_version";
+    case DropReason::wrong_session: return "wrong_session";
+    case DropReason::unknown_sender: return "unknown_sender";
+    case DropReason::wrong_destination: return "wrong_destination";
+    case DropReason::bad_mac: return "bad_mac";
+    case DropReason::replayed: return "replayed";
+    case DropReason::stale: return "stale";
+    case DropReason::too_large: return "too_large";
+    case DropReason::reassembly_evicted: return "reassembly_evicted";
+    case DropReason::count_: break;
+  }
+  return "?";
+}
+
+std::uint64_t DropCounters::total() const {
+  std::uint64_t t = 0;
+  for (auto c : by_reason) t += c;
+  return t;
+}
+
+SessionKey SessionKey::from_hex(std::string_view hex, std::string_view config_key) {
+  SessionKey k;
+  auto nib = [](char c) -> int {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+  };
+  bool ok = hex.size() == 2 * kKeyBytes;
+  for (std::size_t i = 0; ok && i < kKeyBytes; ++i) {
+    const int hi = nib(hex[2 * i]), lo = nib(hex[2 * i + 1]);
+    if (hi < 0 || lo < 0) ok = false;
+    else k.bytes[i] = static_cast<std::uint8_t>(hi * 16 + lo);
+  }
+  if (!ok)
+    throw std::invalid_argument(std::string(config_key) + " must be 64 hexadecimal digits (a 32-byte key)");
+  return k;
+}
+
+void WireConfig::validate() const {
+  if (max_datagram_bytes < kMinDatagramBytes + 8 || max_datagram_bytes > kMaxDatagramBytes)
+    throw std::invalid_argument("net.max_datagram_bytes must be in [" + std::to_string(kMinDatagramBytes + 8) +
+                                ", " + std::to_string(kMaxDatagramBytes) + "]");
+  if (station_id == kNoStation) throw std::invalid_argument("station id must be in [0, 65534]");
+}
+
+// ---------------------------------------------------------------- encoder
+
+Encoder::Encoder(const WireConfig& cfg) : cfg_(cfg) {
+  cfg_.validate();
+  init_sodium();
+  value_bytes_ = cfg_.encoding == ValueEncoding::float32 ? 4 : 8;
+  // Stride: whole values per fragment, so no value straddles two datagrams.
+  const std::size_t room = std::min<std::size_t>(cfg_.max_datagram_bytes - kHeaderBytes - kMacBytes, 0xFFFF);
+  stride_ = room / value_bytes_ * value_bytes_;
+}
+
+std::size_t Encoder::fragment_count(std::uint32_t value_count) const {
+  const std::size_t bytes = payload_bytes(value_count);
+  const std::size_t n = bytes == 0 ? 1 : (bytes + stride_ - 1) / stride_;
+  return n > kMaxFragments ? 0 : n;
+}
+
+std::size_t Encoder::encode_fragment(const OutgoingState& s, std::size_t index, std::uint8_t* out,
+                                     std::size_t cap) const {
+  const std::size_t nfrag = fragment_count(s.value_count);
+  if (nfrag == 0 || index >= nfrag) return 0;
+  const std::size_t total = payload_bytes(s.value_count);
+  const std::size_t offset = index * stride_;
+  const std::size_t len = std::min(stride_, total - offset);
+  const std::size_t size = kHeaderBytes + len + kMacBytes;
+  if (cap < size) return 0;
+
+  std::uint8_t flags = 0;
+  if (cfg_.encoding == ValueEncoding::float32) flags |= kFlagFloat32;
+  if (s.has_echo) flags |= kFlagHasEcho;
+  namespace o = wire_offset;
+  put<std::uint32_t>(out, o::magic, kWireMagic);
+  put<std::uint8_t>(out, o::version, kWireVersion);
+  put<std::uint8_t>(out, o::kind, static_cast<std::uint8_t>(PayloadKind::state));
+  put<std::uint8_t>(out, o::flags, flags);
+  put<std::uint8_t>(out, o::header_len, static_cast<std::uint8_t>(kHeaderBytes));
+  put<std::uint32_t>(out, o::session, cfg_.session_id);
+  put<std::uint16_t>(out, o::sender, cfg_.station_id);
+  put<std::uint16_t>(out, o::dest, s.dest);
+  put<std::uint64_t>(out, o::seq, s.seq);
+  put<std::int64_t>(out, o::send_time, s.send_time_ns);
+  put<std::uint64_t>(out, o::echo_seq, s.has_echo ? s.echo_seq : 0);
+  put<std::int64_t>(out, o::echo_time, s.has_echo ? s.echo_time_ns : 0);
+  put<std::uint32_t>(out, o::value_count, s.value_count);
+  put<std::uint16_t>(out, o::frag_index, static_cast<std::uint16_t>(index));
+  put<std::uint16_t>(out, o::frag_count, static_cast<std::uint16_t>(nfrag));
+  put<std::uint32_t>(out, o::frag_offset, static_cast<std::uint32_t>(offset));
+  put<std::uint16_t>(out, o::frag_len, static_cast<std::uint16_t>(len));
+  put<std::uint16_t>(out, o::frag_stride, static_cast<std::uint16_t>(stride_));
+
+  // Payload slice: values [offset/vb, (offset+len)/vb) of the concatenation x_hat ++ v_hat.
+  std::uint8_t* p = out + kHeaderBytes;
+  const std::size_t first = offset / value_bytes_;
+  const std::size_t n = len / value_bytes_;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t idx = first + i;
+    const double v = idx < s.value_count ? s.x_hat[idx] : s.v_hat[idx - s.value_count];
+    if (value_bytes_ == 8) {
+      std::memcpy(p + 8 * i, &v, 8);
+    } else {
+      const float f = static_cast<float>(v);
+      std::memcpy(p + 4 * i, &f, 4);
+    }
+  }
+  mac(out, kHeaderBytes + len, cfg_.key, out + kHeaderBytes + len);
+  return size;
+}
+
+// ---------------------------------------------------------------- decoded state
+
+void DecodedState::copy_out(double* x_hat, double* v_hat) const {
+  const std::size_t n = value_count;
+  if (encoding == ValueEncoding::float64) {
+    std::memcpy(x_hat, payload, 8 * n);
+    std::memcpy(v_hat, payload + 8 * n, 8 * n);
+  } else {
+    for (std::size_t i = 0; i < n; ++i) {
+      float f;
+      std::memcpy(&f, payload + 4 * i, 4);
+      x_hat[i] = f;
+      std::memcpy(&f, payload + 4 * (n + i), 4);
+      v_hat[i] = f;
+    }
+  }
+}
+
+bool peek_header(const std::uint8_t* d, std::size_t len, HeaderView& h) {
+  if (len < kHeaderBytes) return false;
+  namespace o = wire_offset;
+  h.magic = get<std::uint32_t>(d, o::magic);
+  h.version = get<std::uint8_t>(d, o::version);
+  h.kind = get<std::uint8_t>(d, o::kind);
+  h.flags = get<std::uint8_t>(d, o::flags);
+  h.header_len = get<std::uint8_t>(d, o::header_len);
+  h.session = get<std::uint32_t>(d, o::session);
+  h.sender = get<std::uint16_t>(d, o::sender);
+  h.dest = get<std::uint16_t>(d, o::dest);
+  h.seq = get<std::uint64_t>(d, o::seq);
+  h.send_time_ns = get<std::int64_t>(d, o::send_time);
+  h.echo_seq = get<std::uint64_t>(d, o::echo_seq);
+  h.echo_time_ns = get<std::int64_t>(d, o::echo_time);
+  h.value_count = get<std::uint32_t>(d, o::value_count);
+  h.frag_index = get<std::uint16_t>(d, o::frag_index);
+  h.frag_count = get<std::uint16_t>(d, o::frag_count);
+  h.frag_offset = get<std::uint32_t>(d, o::frag_offset);
+  h.frag_len = get<std::uint16_t>(d, o::frag_len);
+  h.frag_stride = get<std::uint16_t>(d, o::frag_stride);
+  return true;
+}
+
+// ---------------------------------------------------------------- decoder
+
+Decoder::Decoder(const WireConfig& cfg, std::span<const std::uint16_t> peers, std::uint32_t max_value_count,
+                 std::size_t slots_per_peer)
+    : cfg_(cfg), max_value_count_(max_value_count), slots_per_peer_(slots_per_peer) {
+  cfg_.validate();
+  init_sodium();
+  if (slots_per_peer_ < 1 || slots_per_peer_ > 64)
+    throw std::invalid_argument("net.reassembly_slots must be in [1, 64]");
+  if (max_value_count == 0) throw std::invalid_argument("decoder: scene value count must be > 0");
+  max_payload_bytes_ = 2ull * max_value_count * 8;  // room for float64 (float32 fits too)
+  for (auto id : peers) {
+    if (id == kNoStation || id == cfg_.station_id)
+      throw std::invalid_argument("net.peers: station id " + std::to_string(id) +
+                                  " is invalid or this station's own id");
+    for (auto& p : peers_)
+      if (p.id == id) throw std::invalid_argument("net.peers: station id " + std::to_string(id) + " listed twice");
+    Peer p;
+    p.id = id;
+    p.first_slot = peers_.size() * slots_per_peer_;
+    peers_.push_back(p);
+  }
+  slots_.resize(peers_.size() * slots_per_peer_);
+  storage_.resize(slots_.size() * max_payload_bytes_);
+  for (std::size_t i = 0; i < slots_.size(); ++i) slots_[i].buffer = storage_.data() + i * max_payload_bytes_;
+}
+
+int Decoder::peer_index(std::uint16_t id) const {
+  for (std::size_t i = 0; i < peers_.size(); ++i)
+    if (peers_[i].id == id) return static_cast<int>(i);
+  return -1;
+}
+
+bool Decoder::seen(const Peer& p, std::uint64_t seq, DropReason& why) const {
+  if (!p.any || seq > p.newest) return false;
+  const std::uint64_t back = p.newest - seq;
+  if (back >= kReplayWindow) {
+    why = DropReason::stale;
+    return true;
+  }
+  if ((p.window[back / 64] >> (back % 64)) & 1u) {
+    why = DropReason::replayed;
+    return true;
+  }
+  return false;
+}
+
+void Decoder::mark(Peer& p, std::uint64_t seq) {
+  if (!p.any) {
+    p.any = true;
+    p.newest = seq;
+    p.window = {};
+    p.window[0] = 1;
+    return;
+  }
+  if (seq > p.newest) {
+    const std::uint64_t shift = seq - p.newest;
+    if (shift >= kReplayWindow) {
+      p.window = {};
+    } else {
+      // Shift the bitmap "up" by `shift` bits (bit b means newest - b).
+      const std::size_t words = shift / 64, bits = shift % 64;
+      constexpr std::size_t W = kReplayWindow / 64;
+      for (std::size_t i = W; i-- > 0;) {
+        std::uint64_t v = 0;
+        if (i >= words) {
+          v = p.window[i - words] << bits;
+          if (bits != 0 && i >= words + 1) v |= p.window[i - words - 1] >> (64 - bits);
+        }
+        p.window[i] = v;
+      }
+    }
+    p.newest = seq;
+    p.window[0] |= 1;
+  } else {
+    const std::uint64_t back = p.newest - seq;
+    p.window[back / 64] |= (std::uint64_t{1} << (back % 64));
+  }
+}
+
+DecodeStatus Decoder::drop(DropReason r) {
+  ++drops_.by_reason[static_cast<std::size_t>(r)];
+  return DecodeStatus::dropped;
+}
+
+DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedState& out) {
+  namespace o = wire_offset;
+  if (d == nullptr || len < kHeaderBytes + kMacBytes) return drop(DropReason::truncated);
+  if (len > cfg_.max_datagram_bytes) return drop(DropReason::oversized);
+  HeaderView h;
+  peek_header(d, len, h);
+  if (h.magic != kWireMagic) return drop(DropReason::garbled);
+  if (h.version != kWireVersion) return drop(DropReason::wrong_version);
+  if (h.header_len != kHeaderBytes) return drop(DropReason::garbled);
+  // The MAC position follows from frag_len: check it lies inside the datagram first.
+  if (kHeaderBytes + std::size_t{h.frag_len} + kMacBytes != len) {
+    return drop(kHeaderBytes + std::size_t{h.frag_len} + kMacBytes > len ? DropReason::truncated
+                                                                          : DropReason::garbled);
+  }
+  if (h.session != cfg_.session_id) return drop(DropReason::wrong_session);
+  const int pi = peer_index(h.sender);
+  if (pi < 0) return drop(DropReason::unknown_sender);
+  if (h.dest != cfg_.station_id) return drop(DropReason::wrong_destination);
+  std::uint8_t tag[kMacBytes];
+  mac(d, kHeaderBytes + h.frag_len, cfg_.key, tag);
+  if (sodium_memcmp(tag, d + kHeaderBytes + h.frag_len, kMacBytes) != 0) return drop(DropReason::bad_mac);
+
+  // Authenticated from here on; still validate every field before touching state.
+  if (h.kind != static_cast<std::uint8_t>(PayloadKind::state)) return drop(DropReason::garbled);
+  if ((h.flags & ~(kFlagFloat32 | kFlagHasEcho)) != 0) return drop(DropReason::garbled);
+  const std::size_t vb = (h.flags & kFlagFloat32) ? 4 : 8;
+  if (h.value_count == 0) return drop(DropReason::garbled);
+  if (h.value_count > max_value_count_) return drop(DropReason::too_large);
+  const std::size_t total = 2ull * h.value_count * vb;
+  if (h.frag_count == 0 || h.frag_count > kMaxFragments || h.frag_index >= h.frag_count)
+    return drop(DropReason::garbled);
+  if (h.frag_stride == 0 || h.frag_stride % vb != 0) return drop(DropReason::garbled);
+  if (std::size_t{h.frag_count} != (total + h.frag_stride - 1) / h.frag_stride) return drop(DropReason::garbled);
+  const std::size_t expect_off = std::size_t{h.frag_index} * h.frag_stride;
+  const std::size_t expect_len = std::min<std::size_t>(h.frag_stride, total - expect_off);
+  if (h.frag_offset != expect_off || h.frag_len != expect_len) return drop(DropReason::garbled);
+
+  Peer& peer = peers_[static_cast<std::size_t>(pi)];
+  DropReason why{};
+  if (seen(peer, h.seq, why)) return drop(why);
+
+  auto fill = [&](const std::uint8_t* payload) {
+    out.sender = h.sender;
+    out.seq = h.seq;
+    out.send_time_ns = h.send_time_ns;
+    out.has_echo = (h.flags & kFlagHasEcho) != 0;
+    out.echo_seq = h.echo_seq;
+    out.echo_time_ns = h.echo_time_ns;
+    out.value_count = h.value_count;
+    out.encoding = vb == 4 ? ValueEncoding::float32 : ValueEncoding::float64;
+    out.payload = payload;
+  };
+
+  if (h.frag_count == 1) {
+    mark(peer, h.seq);
+    ++accepted_datagrams_;
+    ++completed_;
+    fill(d + kHeaderBytes);
+    return DecodeStatus::complete;
+  }
+
+  // Reassembly: find this sequence's slot, else a free one, else evict the oldest partial.
+  Slot* slots = slots_.data() + peer.first_slot;
+  Slot* slot = nullptr;
+  for (std::size_t i = 0; i < slots_per_peer_; ++i)
+    if (slots[i].used && slots[i].seq == h.seq) slot = &slots[i];
+  if (slot != nullptr) {
+    if (slot->frag_count != h.frag_count || slot->value_count != h.value_count || slot->stride != h.frag_stride ||
+        slot->flags != h.flags)
+      return drop(DropReason::garbled);
+    if ((slot->bitmap[h.frag_index / 64] >> (h.frag_index % 64)) & 1u) return drop(DropReason::replayed);
+  } else {
+    for (std::size_t i = 0; i < slots_per_peer_ && slot == nullptr; ++i)
+      if (!slots[i].used) slot = &slots[i];
+    if (slot == nullptr) {
+      slot = &slots[0];
+      for (std::size_t i = 1; i < slots_per_peer_; ++i)
+        if (slots[i].age < slot->age) slot = &slots[i];
+      ++drops_.by_reason[static_cast<std::size_t>(DropReason::reassembly_evicted)];
+    }
+    slot->used = true;
+    slot->seq = h.seq;
+    slot->age = ++age_clock_;
+    slot->frag_count = h.frag_count;
+    slot->received = 0;
+    slot->stride = h.frag_stride;
+    slot->flags = h.flags;
+    slot->value_count = h.value_count;
+    slot->bitmap = {};
+    slot->send_time_ns = h.send_time_ns;
+    slot->echo_seq = h.echo_seq;
+    slot->echo_time_ns = h.echo_time_ns;
+  }
+  std::memcpy(slot->buffer + h.frag_offset, d + kHeaderBytes, h.frag_len);
+  slot->bitmap[h.frag_index / 64] |= std::uint64_t{1} << (h.frag_index % 64);
+  ++slot->received;
+  ++accepted_datagrams_;
+  if (slot->received < slot->frag_count) return DecodeStatus::fragment_stored;
+
+  slot->used = false;
+  mark(peer, h.seq);
+  // Report the header fields stored with the slot (from its first fragment) and its buffer.
+  ++completed_;
+  fill(slot->buffer);
+  out.send_time_ns = slot->send_time_ns;
+  out.echo_seq = slot->echo_seq;
+  out.echo_time_ns = slot->echo_time_ns;
+  return DecodeStatus::complete;
+}
+
+}  // namespace haptic::net

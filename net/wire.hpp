@@ -1,0 +1,220 @@
+#pragma once
+// Wire format v1 of the station-to-station state packet (spec: net/README.md).
+//
+// One state packet (x_hat_i(k), v_hat_i(k)) is sent as 1..kMaxFragments datagrams. Every
+// datagram is self-contained and authenticated: a 64-byte little-endian header, a slice of
+// the payload, and a 16-byte keyed BLAKE2b MAC (libsodium crypto_generichash with the session
+// key) over header + slice. The decoder validates everything before it changes any state and
+// counts every dropped datagram by reason; reassembly uses slots preallocated at construction.
+#include <array>
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string_view>
+#include <vector>
+
+namespace haptic::net {
+
+static_assert(std::endian::native == std::endian::little, "wire codec assumes a little-endian host");
+
+inline constexpr std::uint32_t kWireMagic = 0x4E504148u;  // bytes "HAPN" on the wire
+inline constexpr std::uint8_t kWireVersion = 1;
+inline constexpr std::size_t kHeaderBytes = 64;
+inline constexpr std::size_t kMacBytes = 16;
+inline constexpr std::size_t kKeyBytes = 32;
+inline constexpr std::size_t kMinDatagramBytes = kHeaderBytes + kMacBytes + 8;
+inline constexpr std::size_t kMaxDatagramBytes = 65507;  // largest UDP/IPv4 payload
+inline constexpr std::size_t kDefaultDatagramBytes = 1400;  // fits UDP/IPv4, UDP/IPv6 and raw Ethernet
+inline constexpr std::size_t kMaxFragments = 256;
+inline constexpr std::uint16_t kNoStation = 0xFFFF;
+
+enum class PayloadKind : std::uint8_t { state = 1 };
+enum class ValueEncoding : std::uint8_t { float64 = 0, float32 = 1 };
+
+// Header flag bits.
+inline constexpr std::uint8_t kFlagFloat32 = 0x01;
+inline constexpr std::uint8_t kFlagHasEcho = 0x02;
+
+// Byte offsets of the header fields (little-endian).
+namespace wire_offset {
+inline constexpr std::size_t magic = 0;          // u32
+inline constexpr std::size_t version = 4;        // u8
+inline constexpr std::size_t kind = 5;           // u8
+inline constexpr std::size_t flags = 6;          // u8
+inline constexpr std::size_t header_len = 7;     // u8 (= 64)
+inline constexpr std::size_t session = 8;        // u32
+inline constexpr std::size_t sender = 12;        // u16
+inline constexpr std::size_t dest = 14;          // u16
+inline constexpr std::size_t seq = 16;           // u64
+inline constexpr std::size_t send_time = 24;     // i64 ns, sender's CLOCK_MONOTONIC
+inline constexpr std::size_t echo_seq = 32;      // u64
+inline constexpr std::size_t echo_time = 40;     // i64 ns, destination's clock (its own stamp)
+inline constexpr std::size_t value_count = 48;   // u32, values per vector (3n)
+inline constexpr std::size_t frag_index = 52;    // u16
+inline constexpr std::size_t frag_count = 54;    // u16
+inline constexpr std::size_t frag_offset = 56;   // u32, byte offset of this slice in the payload
+inline constexpr std::size_t frag_len = 60;      // u16, bytes of payload in this datagram
+inline constexpr std::size_t frag_stride = 62;   // u16, payload bytes of every non-last fragment
+}  // namespace wire_offset
+
+enum class DropReason : std::uint8_t {
+  truncated,          // shorter than header + MAC
+  oversized,          // longer than the configured maximum
+  garbled,            // bad magic, header_len, kind, or inconsistent lengths/fragment fields
+  wrong_version,
+  wrong_session,
+  unknown_sender,
+  wrong_destination,
+  bad_mac,            // forged or corrupted
+  replayed,           // sequence (or fragment) already delivered: replay or duplicate
+  stale,              // sequence older than the anti-replay window
+  too_large,          // value_count above this station's scene size
+  reassembly_evicted, // partial packet evicted (counted per evicted packet, not per datagram)
+  count_
+};
+inline constexpr std::size_t kDropReasonCount = static_cast<std::size_t>(DropReason::count_);
+const char* to_string(DropReason r);
+
+struct DropCounters {
+  std::array<std::uint64_t, kDropReasonCount> by_reason{};
+  std::uint64_t operator[](DropReason r) const { return by_reason[static_cast<std::size_t>(r)]; }
+  std::uint64_t total() const;
+};
+
+struct SessionKey {
+  std::array<std::uint8_t, kKeyBytes> bytes{};
+  // 64 hex digits; throws std::invalid_argument naming `config_key` otherwise.
+  static SessionKey from_hex(std::string_view hex, std::string_view config_key = "net.session_key");
+};
+
+struct WireConfig {
+  std::uint32_t session_id = 1;
+  std::uint16_t station_id = 0;              // this station
+  std::size_t max_datagram_bytes = kDefaultDatagramBytes;
+  ValueEncoding encoding = ValueEncoding::float64;
+  SessionKey key{};
+  // Throws std::invalid_argument naming the key (net.max_datagram_bytes, ...) and the range.
+  void validate() const;
+};
+
+// One state packet to encode (x_hat and v_hat, value_count values each).
+struct OutgoingState {
+  std::uint16_t dest = 0;
+  std::uint64_t seq = 0;
+  std::int64_t send_time_ns = 0;
+  bool has_echo = false;
+  std::uint64_t echo_seq = 0;
+  std::int64_t echo_time_ns = 0;
+  std::uint32_t value_count = 0;
+  const double* x_hat = nullptr;
+  const double* v_hat = nullptr;
+};
+
+class Encoder {
+ public:
+  explicit Encoder(const WireConfig& cfg);  // validates cfg (throws)
+  std::size_t value_bytes() const { return value_bytes_; }
+  std::size_t payload_bytes(std::uint32_t value_count) const { return 2u * value_count * value_bytes_; }
+  // Payload bytes per full fragment (the stride).
+  std::size_t stride() const { return stride_; }
+  // Number of datagrams one state packet of value_count values needs (0 if above kMaxFragments).
+  std::size_t fragment_count(std::uint32_t value_count) const;
+  // Writes datagram `index` of the packet into out[0..cap). Returns its size, or 0 when
+  // cap is too small or index is out of range. RT-safe (no allocation, no syscall).
+  std::size_t encode_fragment(const OutgoingState& s, std::size_t index, std::uint8_t* out,
+                              std::size_t cap) const;
+  const WireConfig& config() const { return cfg_; }
+
+ private:
+  WireConfig cfg_;
+  std::size_t value_bytes_;
+  std::size_t stride_;
+};
+
+// A fully received and validated state packet. `payload` holds x_hat then v_hat in the wire
+// encoding; it points into the decoder (valid until the next decode call).
+struct DecodedState {
+  std::uint16_t sender = 0;
+  std::uint64_t seq = 0;
+  std::int64_t send_time_ns = 0;
+  bool has_echo = false;
+  std::uint64_t echo_seq = 0;
+  std::int64_t echo_time_ns = 0;
+  std::uint32_t value_count = 0;
+  ValueEncoding encoding = ValueEncoding::float64;
+  const std::uint8_t* payload = nullptr;
+  // Converts the payload to doubles (value_count each). RT-safe.
+  void copy_out(double* x_hat, double* v_hat) const;
+};
+
+enum class DecodeStatus : std::uint8_t { dropped, fragment_stored, complete };
+
+class Decoder {
+ public:
+  static constexpr std::size_t kReplayWindow = 1024;  // sequences tracked behind the newest
+  // peers: the station ids we accept from; max_value_count: the scene's 3n. Allocates the
+  // reassembly slots (slots_per_peer each, sized for max_value_count) here, never later.
+  Decoder(const WireConfig& cfg, std::span<const std::uint16_t> peers, std::uint32_t max_value_count,
+          std::size_t slots_per_peer = 4);
+  // Validates one datagram. On `complete`, `out` describes the packet. Bad input is dropped
+  // and counted, and leaves every state unchanged. RT-safe (no allocation, no syscall).
+  DecodeStatus decode(const std::uint8_t* data, std::size_t len, DecodedState& out);
+  const DropCounters& drops() const { return drops_; }
+  std::uint64_t accepted_datagrams() const { return accepted_datagrams_; }
+  std::uint64_t completed_packets() const { return completed_; }
+
+ private:
+  struct Slot {
+    bool used = false;
+    std::uint64_t seq = 0;
+    std::uint64_t age = 0;  // insertion stamp, for eviction of the oldest
+    std::uint16_t frag_count = 0;
+    std::uint16_t received = 0;
+    std::uint16_t stride = 0;
+    std::uint8_t flags = 0;
+    std::uint32_t value_count = 0;
+    std::array<std::uint64_t, kMaxFragments / 64> bitmap{};
+    std::int64_t send_time_ns = 0;
+    std::uint64_t echo_seq = 0;
+    std::int64_t echo_time_ns = 0;
+    std::uint8_t* buffer = nullptr;  // into storage_
+  };
+  struct Peer {
+    std::uint16_t id = kNoStation;
+    bool any = false;
+    std::uint64_t newest = 0;  // newest delivered sequence
+    std::array<std::uint64_t, kReplayWindow / 64> window{};  // bit (newest - seq) set = seen
+    std::size_t first_slot = 0;
+  };
+  int peer_index(std::uint16_t id) const;
+  bool seen(const Peer& p, std::uint64_t seq, DropReason& why) const;
+  void mark(Peer& p, std::uint64_t seq);
+  DecodeStatus drop(DropReason r);
+
+  WireConfig cfg_;
+  std::uint32_t max_value_count_;
+  std::size_t slots_per_peer_;
+  std::size_t max_payload_bytes_;
+  std::vector<Peer> peers_;
+  std::vector<Slot> slots_;
+  std::vector<std::uint8_t> storage_;
+  std::uint64_t age_clock_ = 0;
+  DropCounters drops_{};
+  std::uint64_t accepted_datagrams_ = 0;
+  std::uint64_t completed_ = 0;
+};
+
+// Reads the header fields of a datagram without validation (tools, tests). Returns false if
+// shorter than a header.
+struct HeaderView {
+  std::uint32_t magic, session;
+  std::uint8_t version, kind, flags, header_len;
+  std::uint16_t sender, dest, frag_index, frag_count, frag_len, frag_stride;
+  std::uint64_t seq, echo_seq;
+  std::int64_t send_time_ns, echo_time_ns;
+  std::uint32_t value_count, frag_offset;
+};
+bool peek_header(const std::uint8_t* data, std::size_t len, HeaderView& out);
+
+}  // namespace haptic::net

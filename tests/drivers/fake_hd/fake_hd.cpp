@@ -1,0 +1,258 @@
+// Fake OpenHaptics HD library: a test fixture that implements the subset of the libHD.so C ABI
+// that drivers/hd_library.hpp binds, with the public signatures and constant values, plus a few
+// fakehd_* control functions the tests reach through dlsym on the same handle.
+// It is NOT a device emulation: positions are whatever the test sets, forces are recorded.
+// Scheduler: in manual mode (default) nothing runs until fakehd_run_frames(n) calls the
+// scheduled callbacks n times on the caller's thread (deterministic tests and benchmarks);
+// in automatic mode hdStartScheduler starts a 1 kHz thread like the real library.
+#include <atomic>
+#include <chrono>
+#include <cstring>
+#include <mutex>
+#include <thread>
+
+extern "C" {
+typedef unsigned int HHD;
+typedef unsigned int HDenum;
+typedef unsigned int HDerror;
+typedef unsigned short HDushort;
+typedef int HDint;
+typedef double HDdouble;
+typedef const char* HDstring;
+typedef unsigned int HDCallbackCode;
+typedef unsigned long HDSchedulerHandle;
+typedef HDCallbackCode (*HDSchedulerCallback)(void*);
+typedef struct {
+  HDerror errorCode;
+  int internalErrorCode;
+  HHD hHD;
+} HDErrorInfo;
+}
+
+namespace {
+constexpr HDerror kSuccess = 0;
+constexpr HDerror kInvalidOperation = 0x0102;
+constexpr HDerror kIllegalBegin = 0x0400;
+constexpr HDenum kCurrentButtons = 0x2000, kCurrentPosition = 0x2050, kCurrentVelocity = 0x2051,
+                 kUsableWorkspace = 0x2551, kNominalMaxStiffness = 0x2602, kNominalMaxForce = 0x2603,
+                 kCurrentForce = 0x2700, kForceOutput = 0x4000, kCalibrationOk = 0x5000;
+constexpr HHD kInvalidHandle = 0xFFFFFFFFu;
+
+struct State {
+  std::mutex mu;  // guards configuration; frames run under it too (a fixture, not RT code)
+  HDerror init_error = kSuccess;
+  HDenum calibration = kCalibrationOk;
+  unsigned long fail_frame = 0;  // 1-based frame whose end raises fail_code; 0 = never
+  HDerror fail_code = 0;
+  bool manual = true;
+  double position_mm[3] = {0, 0, 0};
+  double velocity_mm_s[3] = {0, 0, 0};
+  int buttons = 0;
+  double max_force_N = 3.3;
+  double last_force[3] = {0, 0, 0};
+  unsigned long frames = 0;
+  bool initialized = false;
+  bool in_frame = false;
+  bool force_output = false;
+  HDSchedulerCallback cb = nullptr;
+  void* cb_data = nullptr;
+  HDerror errors[16] = {};
+  int error_count = 0;
+  std::atomic<bool> running{false};
+  std::thread thread;
+};
+State& g() {
+  static State s;
+  return s;
+}
+void push_error(State& s, HDerror e) {
+  if (s.error_count < 16) s.errors[s.error_count++] = e;
+}
+int run_frames_locked(State& s, int n) {
+  int ran = 0;
+  for (int i = 0; i < n && s.cb != nullptr; ++i) {
+    HDSchedulerCallback cb = s.cb;
+    void* d = s.cb_data;
+    s.mu.unlock();
+    const HDCallbackCode code = cb(d);
+    s.mu.lock();
+    ++ran;
+    if (code == 0) s.cb = nullptr;  // HD_CALLBACK_DONE
+  }
+  return ran;
+}
+}  // namespace
+
+extern "C" {
+// ---- HD subset ------------------------------------------------------------------------------
+HHD hdInitDevice(HDstring) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  if (s.init_error != kSuccess) {
+    push_error(s, s.init_error);
+    return kInvalidHandle;
+  }
+  s.initialized = true;
+  return 1;
+}
+HDErrorInfo hdGetError() {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  HDErrorInfo e{kSuccess, 0, 1};
+  if (s.error_count > 0) {
+    e.errorCode = s.errors[0];
+    e.internalErrorCode = -static_cast<int>(s.errors[0]);
+    std::memmove(s.errors, s.errors + 1, sizeof(HDerror) * static_cast<unsigned>(s.error_count - 1));
+    --s.error_count;
+  }
+  return e;
+}
+void hdEnable(HDenum cap) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  if (cap == kForceOutput) s.force_output = true;
+}
+void hdDisable(HDenum cap) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  if (cap == kForceOutput) s.force_output = false;
+}
+HDSchedulerHandle hdScheduleAsynchronous(HDSchedulerCallback cb, void* data, HDushort) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  s.cb = cb;
+  s.cb_data = data;
+  return 7;
+}
+void hdUnschedule(HDSchedulerHandle) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  s.cb = nullptr;
+}
+void hdStartScheduler() {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  if (!s.initialized) {
+    push_error(s, kInvalidOperation);
+    return;
+  }
+  if (s.manual || s.running.load()) return;
+  s.running.store(true);
+  s.thread = std::thread([&s] {
+    auto next = std::chrono::steady_clock::now();
+    while (s.running.load()) {
+      {
+        std::lock_guard<std::mutex> l2(s.mu);
+        run_frames_locked(s, 1);
+      }
+      next += std::chrono::milliseconds(1);
+      std::this_thread::sleep_until(next);
+    }
+  });
+}
+void hdStopScheduler() {
+  State& s = g();
+  if (s.running.exchange(false) && s.thread.joinable()) s.thread.join();
+}
+void hdBeginFrame(HHD) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  if (s.in_frame) push_error(s, kIllegalBegin);
+  s.in_frame = true;
+}
+void hdEndFrame(HHD) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  s.in_frame = false;
+  ++s.frames;
+  if (s.fail_frame != 0 && s.frames == s.fail_frame) push_error(s, s.fail_code);
+}
+void hdGetDoublev(HDenum pname, HDdouble* out) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  switch (pname) {
+    case kCurrentPosition: std::memcpy(out, s.position_mm, sizeof s.position_mm); break;
+    case kCurrentVelocity: std::memcpy(out, s.velocity_mm_s, sizeof s.velocity_mm_s); break;
+    case kNominalMaxForce: out[0] = s.max_force_N; break;
+    case kNominalMaxStiffness: out[0] = 1.26; break;
+    case kUsableWorkspace: {
+      const double box[6] = {-80, -60, -35, 80, 60, 35};
+      std::memcpy(out, box, sizeof box);
+      break;
+    }
+    default: push_error(s, 0x0100); break;  // HD_INVALID_ENUM
+  }
+}
+void hdGetIntegerv(HDenum pname, HDint* out) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  if (pname == kCurrentButtons) out[0] = s.buttons;
+}
+void hdSetDoublev(HDenum pname, const HDdouble* in) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  if (pname == kCurrentForce) {
+    if (!s.in_frame) push_error(s, kInvalidOperation);
+    std::memcpy(s.last_force, in, sizeof s.last_force);
+  }
+}
+HDenum hdCheckCalibration() {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  return s.calibration;
+}
+void hdDisableDevice(HHD) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  s.initialized = false;
+}
+
+// ---- test controls ---------------------------------------------------------------------------
+void fakehd_reset() {
+  hdStopScheduler();
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  s.init_error = kSuccess;
+  s.calibration = kCalibrationOk;
+  s.fail_frame = 0;
+  s.fail_code = 0;
+  s.manual = true;
+  for (int i = 0; i < 3; ++i) s.position_mm[i] = s.velocity_mm_s[i] = s.last_force[i] = 0.0;
+  s.buttons = 0;
+  s.max_force_N = 3.3;
+  s.frames = 0;
+  s.initialized = s.in_frame = s.force_output = false;
+  s.cb = nullptr;
+  s.cb_data = nullptr;
+  s.error_count = 0;
+}
+void fakehd_set_init_error(unsigned code) { std::lock_guard<std::mutex> l(g().mu); g().init_error = code; }
+void fakehd_set_calibration(unsigned state) { std::lock_guard<std::mutex> l(g().mu); g().calibration = state; }
+void fakehd_fail_at_frame(unsigned long frame, unsigned code) {
+  std::lock_guard<std::mutex> l(g().mu);
+  g().fail_frame = frame;
+  g().fail_code = code;
+}
+void fakehd_set_manual(int manual) { std::lock_guard<std::mutex> l(g().mu); g().manual = manual != 0; }
+void fakehd_set_max_force(double f) { std::lock_guard<std::mutex> l(g().mu); g().max_force_N = f; }
+void fakehd_set_state(const double position_mm[3], const double velocity_mm_s[3], int buttons) {
+  std::lock_guard<std::mutex> l(g().mu);
+  for (int i = 0; i < 3; ++i) {
+    g().position_mm[i] = position_mm[i];
+    g().velocity_mm_s[i] = velocity_mm_s[i];
+  }
+  g().buttons = buttons;
+}
+int fakehd_run_frames(int n) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  return run_frames_locked(s, n);
+}
+void fakehd_last_force(double out[3]) {
+  std::lock_guard<std::mutex> l(g().mu);
+  std::memcpy(out, g().last_force, sizeof g().last_force);
+}
+unsigned long fakehd_frames() { std::lock_guard<std::mutex> l(g().mu); return g().frames; }
+int fakehd_force_output_enabled() { std::lock_guard<std::mutex> l(g().mu); return g().force_output ? 1 : 0; }
+int fakehd_initialized() { std::lock_guard<std::mutex> l(g().mu); return g().initialized ? 1 : 0; }
+}

@@ -1,0 +1,271 @@
+// The libusb and hidraw paths against umockdev stand-ins (hand-written device descriptions in
+// tests/drivers/umockdev/). umockdev redirects /sys and /dev through its preload library, which
+// must be in the process: CTest runs this binary with LD_PRELOAD=libumockdev-preload.so.0.
+// Without it every test here FAILS with a message saying so (never a silent pass); the CMake
+// file registers a separate "skipped" marker when umockdev is not installed at all.
+#include "drivers/device_factory.hpp"
+#include "drivers/phantom_device.hpp"
+#include "drivers/spacemouse.hpp"
+#include "drivers/usb_monitor.hpp"
+
+#include <dlfcn.h>
+#include <linux/hidraw.h>
+#include <sys/ioctl.h>
+#include <umockdev.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <thread>
+
+#include <CppUTest/TestHarness.h>
+
+using namespace haptic::drivers;
+
+namespace {
+const char* const kTouchSyspath = "/sys/devices/pci0000:00/0000:00:14.0/usb1/1-3";
+
+bool preload_active() {
+  void* h = dlopen("libumockdev-preload.so.0", RTLD_NOW | RTLD_NOLOAD);
+  if (h != nullptr) dlclose(h);
+  return h != nullptr;
+}
+
+struct Testbed {
+  UMockdevTestbed* tb = nullptr;
+  Testbed() {
+    if (!preload_active())
+      FAIL("umockdev is NOT active in this process: run with LD_PRELOAD=libumockdev-preload.so.0 "
+           "(ctest does). The libusb/hidraw stand-in tests did not run.");
+    tb = umockdev_testbed_new();
+  }
+  ~Testbed() {
+    if (tb != nullptr) g_object_unref(tb);
+  }
+  void add(const char* file) {
+    GError* err = nullptr;
+    const std::string path = std::string(HAPTIC_UMOCKDEV_DIR) + "/" + file;
+    if (!umockdev_testbed_add_from_file(tb, path.c_str(), &err)) {
+      const std::string msg = "umockdev_testbed_add_from_file(" + path + "): " + (err ? err->message : "?");
+      if (err) g_error_free(err);
+      FAIL(msg.c_str());
+    }
+  }
+};
+
+// Bounded wait for an asynchronous event (not a timing assertion): up to 5 s.
+template <class Pred>
+bool eventually(Pred pred) {
+  for (int i = 0; i < 5000; ++i) {
+    if (pred()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return pred();
+}
+
+struct FakeHd {
+  void* h = nullptr;
+  int (*run_frames)(int) = nullptr;
+  void (*last_force)(double*) = nullptr;
+  FakeHd() {
+    h = dlopen(HAPTIC_FAKE_HD_PATH, RTLD_NOW | RTLD_LOCAL);
+    if (h == nullptr) FAIL(dlerror());
+    reinterpret_cast<void (*)()>(dlsym(h, "fakehd_reset"))();
+    run_frames = reinterpret_cast<int (*)(int)>(dlsym(h, "fakehd_run_frames"));
+    last_force = reinterpret_cast<void (*)(double*)>(dlsym(h, "fakehd_last_force"));
+  }
+  ~FakeHd() {
+    reinterpret_cast<void (*)()>(dlsym(h, "fakehd_reset"))();
+    dlclose(h);
+  }
+};
+
+// Answers hidapi's HIDIOCGRDESCSIZE probe on an emulated hidraw node (umockdev has no built-in
+// hidraw ioctls); everything else gets ENOTTY, as from a real node that does not support it.
+gboolean on_hidraw_ioctl(UMockdevIoctlBase*, UMockdevIoctlClient* client, gpointer) {
+  if (umockdev_ioctl_client_get_request(client) == HIDIOCGRDESCSIZE) {
+    UMockdevIoctlData* arg = umockdev_ioctl_client_get_arg(client);
+    GError* err = nullptr;
+    UMockdevIoctlData* d = umockdev_ioctl_data_resolve(arg, 0, sizeof(int), &err);
+    if (d == nullptr) {
+      if (err) g_error_free(err);
+      umockdev_ioctl_client_complete(client, -1, EFAULT);
+      return TRUE;
+    }
+    *reinterpret_cast<int*>(d->data) = 62;
+    umockdev_ioctl_client_complete(client, 0, 0);
+    return TRUE;
+  }
+  umockdev_ioctl_client_complete(client, -1, ENOTTY);
+  return TRUE;
+}
+
+void run_unplug_scenario(bool prefer_hotplug) {
+  Testbed bed;
+  bed.add("touch_usb.umockdev");
+  FakeHd fake;
+  UsbMonitorConfig mc;
+  mc.prefer_hotplug = prefer_hotplug;
+  mc.rescan_period_s = 0.02;
+  UsbMonitor monitor(mc);
+  auto known = monitor.enumerate(true);
+  LONGS_EQUAL(1, known.size());
+
+  PhantomConfig pc;
+  pc.hd_library_path = HAPTIC_FAKE_HD_PATH;
+  PhantomDevice touch(pc);
+  touch.start();
+  monitor.watch(known[0], &touch);
+  monitor.start();
+  CHECK_EQUAL(prefer_hotplug, monitor.using_hotplug());
+
+  // Station ticks with a force on the device.
+  const double f[3] = {0.4, 0.0, 0.0};
+  DeviceSample s{};
+  double out[3];
+  fake.run_frames(1);
+  for (int k = 0; k < 3; ++k) {
+    CHECK(touch.read_newest(s));
+    touch.command_force(f);
+    fake.run_frames(1);
+  }
+  fake.last_force(out);
+  DOUBLES_EQUAL(0.4, out[0], 0.0);
+
+  // Unplug: kernel "remove" uevent, then the device disappears from /sys and /dev.
+  umockdev_testbed_uevent(bed.tb, kTouchSyspath, "remove");
+  umockdev_testbed_remove_device(bed.tb, kTouchSyspath);
+  CHECK_TEXT(eventually([&] { return monitor.removals() >= 1; }),
+             prefer_hotplug ? "libusb hotplug never reported the removal"
+                            : "re-enumeration never noticed the removal");
+
+  // The first tick after the monitor saw it: safe state in that tick.
+  CHECK_FALSE(touch.read_newest(s));
+  CHECK(touch.fault() == DeviceFault::kUnplugged);
+  touch.command_force(f);
+  fake.run_frames(1);  // the servo frame of that tick
+  fake.last_force(out);
+  DOUBLES_EQUAL(0.0, out[0], 0.0);
+  monitor.stop();
+  LONGS_EQUAL(0, monitor.enumerate(true).size());
+}
+}  // namespace
+
+TEST_GROUP(UmockdevUsb) {};
+
+TEST(UmockdevUsb, EnumerationFindsTheTouchWithItsSerialAndSkipsOtherDevices) {
+  Testbed bed;
+  bed.add("touch_usb.umockdev");
+  UsbMonitor monitor;
+  auto all = monitor.enumerate(false);
+  LONGS_EQUAL(2, all.size());
+  auto known = monitor.enumerate(true);
+  LONGS_EQUAL(1, known.size());
+  LONGS_EQUAL(0x2988, known[0].vendor_id);
+  LONGS_EQUAL(0x0302, known[0].product_id);
+  LONGS_EQUAL(1, known[0].bus);
+  LONGS_EQUAL(5, known[0].address);
+  STRCMP_EQUAL("1-3", known[0].port_path.c_str());
+  STRCMP_EQUAL("TOUCH-0001", known[0].serial.c_str());
+  STRCMP_EQUAL("/dev/bus/usb/001/005", known[0].devnode.c_str());
+  CHECK(known[0].kind == DeviceKind::kPhantomTouch);
+}
+
+TEST(UmockdevUsb, HotplugRemovalPutsTheTouchInTheSafeStateWithinOneTick) { run_unplug_scenario(true); }
+
+TEST(UmockdevUsb, ReEnumerationFallbackAlsoDetectsTheRemoval) { run_unplug_scenario(false); }
+
+TEST(UmockdevUsb, AutoSelectionPicksThePluggedTouchAndWatchesItForUnplug) {
+  Testbed bed;
+  bed.add("touch_usb.umockdev");
+  FakeHd fake;
+  DeviceSelection sel;  // kind "auto"
+  sel.touch.hd_library_path = HAPTIC_FAKE_HD_PATH;
+  OpenedDevice d = open_device(sel);
+  CHECK(dynamic_cast<PhantomDevice*>(d.device.get()) != nullptr);
+  CHECK_TEXT(d.report.find("serial \"TOUCH-0001\"") != std::string::npos, d.report.c_str());
+  CHECK_TEXT(d.report.find("touch: unplug detection on 2988:0302") != std::string::npos, d.report.c_str());
+  umockdev_testbed_uevent(bed.tb, kTouchSyspath, "remove");
+  umockdev_testbed_remove_device(bed.tb, kTouchSyspath);
+  CHECK(eventually([&] { return d.device->fault() == DeviceFault::kUnplugged; }));
+}
+
+TEST(UmockdevUsb, HotplugReportsAnArrival) {
+  Testbed bed;
+  UsbMonitor monitor;
+  monitor.start();
+  CHECK(monitor.using_hotplug());
+  bed.add("touch_usb.umockdev");
+  umockdev_testbed_uevent(bed.tb, kTouchSyspath, "add");
+  CHECK_TEXT(eventually([&] { return monitor.arrivals() >= 1; }), "libusb hotplug never reported the arrival");
+  monitor.stop();
+}
+
+TEST_GROUP(UmockdevHidraw) {};
+
+TEST(UmockdevHidraw, EnumerationFindsTheSpaceMouseAndTheTouchHidModel) {
+  Testbed bed;
+  bed.add("hid_devices.umockdev");
+  auto hids = list_hid_devices(true);
+  LONGS_EQUAL(2, hids.size());
+  const HidDeviceInfo* sm = nullptr;
+  const HidDeviceInfo* touch = nullptr;
+  for (const auto& h : hids) {
+    if (h.kind == DeviceKind::kSpaceMouse) sm = &h;
+    if (h.kind == DeviceKind::kPhantomTouch) touch = &h;
+  }
+  CHECK(sm != nullptr);
+  CHECK(touch != nullptr);
+  STRCMP_EQUAL("/dev/hidraw0", sm->path.c_str());
+  LONGS_EQUAL(0x256f, sm->vendor_id);
+  LONGS_EQUAL(0xc635, sm->product_id);
+  STRCMP_EQUAL("/dev/hidraw1", touch->path.c_str());
+  LONGS_EQUAL(0x0302, touch->product_id);
+}
+
+TEST(UmockdevHidraw, SpaceMouseReportsAreDecodedThroughHidapiIntoSamples) {
+  Testbed bed;
+  bed.add("hid_devices.umockdev");
+  UMockdevIoctlBase* handler = umockdev_ioctl_base_new();
+  g_signal_connect(handler, "handle-ioctl", G_CALLBACK(on_hidraw_ioctl), nullptr);
+  GError* err = nullptr;
+  CHECK_TEXT(umockdev_testbed_attach_ioctl(bed.tb, "/dev/hidraw0", handler, &err), "attach_ioctl failed");
+  const int master = umockdev_testbed_get_dev_fd(bed.tb, "/dev/hidraw0");
+  CHECK(master >= 0);
+
+  SpaceMouseConfig c;  // empty path: the first SpaceMouse found
+  c.mode = SpaceMouseMode::kOwnerPolled;
+  c.range_m = 0.05;
+  SpaceMouseDevice sm(c);
+  sm.start();
+  STRCMP_EQUAL("/dev/hidraw0", sm.path().c_str());
+
+  // One report at a time: the emulated node is a stream, a real hidraw node returns one
+  // report per read().
+  double t = 0.0;
+  auto send = [&](const unsigned char* rep, std::size_t n) {
+    const std::uint64_t before = sm.state().reports;
+    CHECK(write(master, rep, n) == static_cast<ssize_t>(n));
+    CHECK_TEXT(eventually([&] {
+                 sm.poll(t += 0.002);
+                 return sm.state().reports > before;
+               }),
+               "report never reached hidapi");
+  };
+  const unsigned char translation[7] = {1, 0x5E, 0x01, 0x00, 0x00, 0xA2, 0xFE};  // +350, 0, -350
+  const unsigned char buttons[3] = {3, 0x02, 0x00};
+  send(translation, sizeof translation);
+  send(buttons, sizeof buttons);
+  DeviceSample s{};
+  CHECK(sm.read_newest(s));
+  DOUBLES_EQUAL(0.05, s.position_m[0], 1e-12);
+  DOUBLES_EQUAL(0.0, s.position_m[1], 1e-12);
+  DOUBLES_EQUAL(-0.05, s.position_m[2], 1e-12);
+  LONGS_EQUAL(2, s.buttons);
+  const double f[3] = {1.0, 1.0, 1.0};
+  sm.command_force(f);  // accepted, and clamped to zero: no force feedback
+  sm.stop();
+  umockdev_testbed_detach_ioctl(bed.tb, "/dev/hidraw0", nullptr);
+  g_object_unref(handler);
+}

@@ -1,0 +1,95 @@
+// [net] configuration: a full UDP config parses into the endpoint config with the simulator's
+// seed scheme; every bad value is rejected naming its key.
+#include <CppUTest/TestHarness.h>
+
+#include <stdexcept>
+#include <string>
+
+#include "net/config.hpp"
+
+using namespace haptic::net;
+
+namespace {
+const std::string kKey = "000102030405060708090a0b0c0d0e0f101112131415161718191a1b1c1d1e1f";
+
+std::string udp_doc(const std::string& extra_net = "", const std::string& peer_extra = "") {
+  return "[station]\nid = 2\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:7002\"\nsession_id = 9\n"
+         "session_key = \"" + kKey + "\"\n" + extra_net +
+         "[net.impairment]\npreset = \"paper\"\nseed = 5\n"
+         "[[net.peers]]\nid = 0\naddress = \"127.0.0.1:7000\"\nmean_delay_ms = 4\n" + peer_extra +
+         "[[net.peers]]\nid = 3\naddress = \"127.0.0.1:7003\"\nmean_delay_ms = 200\n";
+}
+
+std::string error_of(const std::string& doc) {
+  try {
+    parse_net_config(doc, 99);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST_GROUP(NetConfig){};
+
+TEST(NetConfig, UdpConfigParsesWithPaperImpairmentAndSimulatorSeeds) {
+  const NetConfig c = parse_net_config(udp_doc(), 99);
+  CHECK_EQUAL(2, c.endpoint.wire.station_id);
+  CHECK_EQUAL(9u, c.endpoint.wire.session_id);
+  CHECK_EQUAL(0x1f, c.endpoint.wire.key.bytes[31]);
+  CHECK_EQUAL(2u, c.endpoint.peers.size());
+  CHECK(c.endpoint.peers[1].impaired);
+  DOUBLES_EQUAL(0.200, c.endpoint.peers[1].impairment.mean_delay_s, 1e-12);
+  DOUBLES_EQUAL(0.05, c.endpoint.peers[1].impairment.loss_probability, 1e-12);
+  // Link 2 -> 3 is the simulator's (receiver 3, sender 2).
+  CHECK_EQUAL(5ull * 1000003ull + 3 * 64 + 2, c.endpoint.peers[1].seed);
+  CHECK_EQUAL(std::string("127.0.0.1:7003"), c.udp_peers[1].address);
+  auto t = c.make_transport();
+  CHECK_EQUAL(std::string("udp4"), t->name());
+}
+
+TEST(NetConfig, RawConfigNeedsInterfaceAndMacs) {
+  const std::string doc = "[net]\nstation_id = 0\ntransport = \"raw\"\ninterface = \"hpn0\"\nsession_key = \"" + kKey +
+                          "\"\n[[net.peers]]\nid = 1\nmac = \"02:48:50:00:00:02\"\n";
+  const NetConfig c = parse_net_config(doc, 99);
+  CHECK_EQUAL(std::string("hpn0"), c.interface);
+  CHECK_EQUAL(0x02, c.raw_peers[0].mac[5]);
+  CHECK_FALSE(c.endpoint.peers[0].impaired);
+  CHECK(error_of("[net]\ntransport = \"raw\"\nsession_key = \"" + kKey + "\"\n[[net.peers]]\nid = 1\n")
+            .find("net.interface") != std::string::npos);
+}
+
+TEST(NetConfig, BadValuesNameTheirKey) {
+  CHECK(error_of(udp_doc("encoding = \"float16\"\n")).find("net.encoding") != std::string::npos);
+  CHECK(error_of(udp_doc("max_datagram_bytes = 20\n")).find("net.max_datagram_bytes") != std::string::npos);
+  CHECK(error_of(udp_doc("rtt_margin_fraction = -1\n")).find("net.rtt_margin_fraction") != std::string::npos);
+  std::string bad_transport = udp_doc();
+  bad_transport.replace(bad_transport.find("\"udp\""), 5, "\"tcp\"");
+  CHECK(error_of(bad_transport).find("net.transport") != std::string::npos);
+  std::string bad_delay = udp_doc();
+  bad_delay.replace(bad_delay.find("mean_delay_ms = 4"), 17, "mean_delay_ms = -3");
+  CHECK(error_of(bad_delay).find("net.peers[0].mean_delay_ms") != std::string::npos);
+  std::string bad_addr = udp_doc();
+  bad_addr.replace(bad_addr.find("127.0.0.1:7003"), 14, "localhost:7003");
+  CHECK(error_of(bad_addr).find("net.peers[1].address") != std::string::npos);
+  std::string bad_key = udp_doc();
+  bad_key.replace(bad_key.find(kKey), 4, "zzzz");
+  CHECK(error_of(bad_key).find("net.session_key") != std::string::npos);
+  std::string bad_preset = udp_doc();
+  bad_preset.replace(bad_preset.find("\"paper\""), 7, "\"awful\"");
+  CHECK(error_of(bad_preset).find("net.impairment.preset") != std::string::npos);
+  CHECK(error_of("[net\n").find("TOML parse error") != std::string::npos);
+  CHECK(error_of("[station]\nid = 1\n").find("[net]") != std::string::npos);
+}
+
+TEST(NetConfig, DeployStyleNetworkSectionIsAccepted) {
+  const std::string doc = "[station]\nid = 1\n[network]\ntransport = \"udp\"\nlisten = \"0.0.0.0:47000\"\nsession_key = \"" +
+                          kKey + "\"\npeers = [{ station = 2, address = \"192.168.10.12:47000\" }]\n";
+  const NetConfig c = parse_net_config(doc, 99);
+  CHECK_EQUAL(1, c.endpoint.wire.station_id);
+  CHECK_EQUAL(std::string("0.0.0.0:47000"), c.bind);
+  CHECK_EQUAL(2, c.endpoint.peers[0].station_id);
+  CHECK(error_of("[network]\ntransport = \"udp\"\nlisten = \"0.0.0.0:1\"\nsession_key = \"" + kKey +
+                 "\"\npeers = [{ station = 2, address = \"nowhere\" }]\n")
+            .find("network.peers[0].address") != std::string::npos);
+}

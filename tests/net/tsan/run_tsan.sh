@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# Builds tests/net/tsan with -fsanitize=thread in its own build dir and runs it (bounded:
+# fixed item counts, ~10-30 s). Usage: run_tsan.sh BUILD_DIR
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+build="${1:-/tmp/haptic-net-tsan}"
+cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Debug >/dev/null
+cmake --build "$build" >/dev/null
+# halt_on_error: any data race report fails the test.
+TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1" "$build/ring_stress_tsan"

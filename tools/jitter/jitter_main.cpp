@@ -1,0 +1,106 @@
+// haptic-jitter: cyclictest-style wake-up latency check of the station's periodic loop
+// (platform/periodic_loop.hpp) at given periods, with and without a synthetic tick workload.
+#include <signal.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "platform/rt_thread.hpp"
+#include "platform/trace.hpp"
+#include "tools/jitter/jitter.hpp"
+
+namespace {
+std::atomic<bool> g_stop{false};  // set by SIGINT/SIGTERM (lock-free atomic: async-signal-safe)
+void on_signal(int) { g_stop.store(true, std::memory_order_release); }
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace haptic;
+  CLI::App app{
+      "haptic-jitter: wake-up latency of the station's periodic loop (absolute CLOCK_MONOTONIC deadlines,\n"
+      "clock_nanosleep TIMER_ABSTIME), measured like cyclictest: latency = actual wake-up - deadline.\n"
+      "Runs every combination of --period-us x --workload-us one after the other on one real-time thread\n"
+      "and prints min/avg/max, P99/P99.9/P99.99 and optionally the histogram. Without a PREEMPT_RT kernel,\n"
+      "CAP_SYS_NICE or mlockall it says so and measures anyway (unless --require-rt)."};
+  std::vector<double> periods_us{1000, 2000};
+  std::vector<double> workloads_us{0, 500};
+  double duration_s = 10.0;
+  std::uint64_t loops = 0;
+  std::uint64_t overrun_every = 0;
+  double histogram_bin_us = 1.0;
+  bool histogram = false;
+  bool quiet = false;
+  bool no_mlock = false;
+  std::string json_path;
+  platform::RtConfig rt;
+  rt.prefault_heap_bytes = 1u << 20;
+  app.add_option("-i,--period-us", periods_us, "loop periods to measure, microseconds")->default_str("1000 2000")->check(CLI::Range(10.0, 1e6));
+  app.add_option("-w,--workload-us", workloads_us, "busy-loop workload per tick, microseconds (0 = none)")->default_str("0 500")->check(CLI::Range(0.0, 1e6));
+  app.add_option("-D,--duration-s", duration_s, "duration of each run, seconds (ticks = duration / period)")->capture_default_str()->check(CLI::Range(0.001, 86400.0));
+  app.add_option("-l,--loops", loops, "ticks per run; overrides --duration-s (0 = use --duration-s)")->capture_default_str();
+  app.add_option("--overrun-every", overrun_every, "make every Nth tick's workload last 1.5 periods to provoke overruns (0 = never)")->capture_default_str();
+  app.add_option("-p,--priority", rt.priority, "SCHED_FIFO priority, 1..98")->capture_default_str()->check(CLI::Range(1, 98));
+  app.add_option("-a,--cpu", rt.cpu, "CPU to pin the measuring thread to (-1 = don't pin)")->capture_default_str();
+  app.add_flag("--no-mlock", no_mlock, "don't mlockall/prefault (default: lock memory like cyclictest -m)");
+  app.add_flag("--dma-latency", rt.hold_dma_latency, "hold /dev/cpu_dma_latency at 0 us during the runs");
+  app.add_flag("--require-rt", rt.require_rt, "refuse to run without PREEMPT_RT, SCHED_FIFO and locked memory");
+  app.add_option("--histogram-bin-us", histogram_bin_us, "histogram bin width, microseconds (10000 bins)")->capture_default_str()->check(CLI::Range(0.001, 1000.0));
+  app.add_flag("-H,--histogram", histogram, "print the non-empty histogram bins");
+  app.add_option("--json", json_path, "also write all results as JSON to this file ('-' = stdout)");
+  app.add_flag("-q,--quiet", quiet, "print only the per-run summary (no RT set-up lines)");
+  CLI11_PARSE(app, argc, argv);
+  rt.lock_memory = !no_mlock;
+
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  std::vector<tools::JitterResult> results;
+  std::string json;
+  try {
+    platform::RtThread thread(rt, [&](const platform::RtReport& report) {
+      for (double period_us : periods_us) {
+        for (double workload_us : workloads_us) {
+          if (g_stop.load(std::memory_order_acquire)) break;
+          tools::JitterRunConfig run;
+          run.period_ns = static_cast<std::int64_t>(period_us * 1e3);
+          run.ticks = loops != 0 ? loops : static_cast<std::uint64_t>(duration_s * 1e6 / period_us);
+          run.histogram_bin_ns = static_cast<std::int64_t>(histogram_bin_us * 1e3);
+          tools::BusyLoopWorkload workload(static_cast<std::int64_t>(workload_us * 1e3), overrun_every, 1.5, run.period_ns);
+          results.push_back(tools::run_jitter(run, workload, g_stop));
+          std::fputs(tools::format_result(results.back(), histogram).c_str(), stdout);
+          std::fflush(stdout);
+        }
+      }
+      json = tools::to_json(results, report, rt);
+    });
+    if (!quiet) {
+      std::fputs(thread.setup_summary().c_str(), stdout);
+      std::printf("trace: LTTng tracepoints %s\n", platform::trace::kCompiledIn ? "compiled in (provider 'haptic')" : "compiled out");
+      std::fflush(stdout);
+    }
+    thread.join();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "haptic-jitter: %s\n", e.what());
+    return 2;
+  }
+  if (!json_path.empty()) {
+    if (json_path == "-") {
+      std::fputs(json.c_str(), stdout);
+    } else {
+      std::ofstream out(json_path);
+      out << json;
+      if (!out) {
+        std::fprintf(stderr, "haptic-jitter: cannot write %s\n", json_path.c_str());
+        return 1;
+      }
+    }
+  }
+  return g_stop.load() ? 130 : 0;
+}

@@ -1,0 +1,444 @@
+// haptic-study: the speed-against-accuracy study, stability maps and model selector (issue 6).
+// Subcommands: accuracy, energy, stability, consensus, select. See tools/study/README.md.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "firmware/scenario.hpp"
+#include "firmware/simulator.hpp"
+#include "rt/spatial_matrix.hpp"
+#include "tools/study/study.hpp"
+
+using namespace haptic;
+using json = nlohmann::json;
+
+namespace {
+
+struct Row {
+  std::string kind, integrator;
+  int nodes = 0, modes = 0;
+  double step_s = 0, force_self = 0, shape_self = 0, force_ref = 0, cost_s = 0;
+  double load() const { return cost_s / step_s; }  // CPU fraction at real time
+};
+
+std::string num(double v) {
+  if (std::isinf(v)) return "inf";
+  if (std::isnan(v)) return "nan";
+  std::ostringstream o;
+  o << std::setprecision(6) << v;
+  return o.str();
+}
+
+void write_rows_csv(const std::string& path, const std::vector<Row>& rows) {
+  std::ofstream f(path);
+  if (!f) throw std::runtime_error("cannot write " + path);
+  f << "kind,integrator,nodes,modes,step_s,force_error_self,shape_error_self,force_error_ref,cost_s_per_tick,cpu_load\n";
+  for (const auto& r : rows)
+    f << r.kind << ',' << r.integrator << ',' << r.nodes << ',' << r.modes << ',' << num(r.step_s) << ','
+      << num(r.force_self) << ',' << num(r.shape_self) << ',' << num(r.force_ref) << ',' << num(r.cost_s) << ','
+      << num(r.load()) << '\n';
+}
+
+std::vector<Row> read_rows_csv(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw std::runtime_error("--from: cannot read " + path + " (run `haptic-study accuracy` first)");
+  std::string line;
+  std::getline(f, line);
+  std::vector<Row> rows;
+  while (std::getline(f, line)) {
+    std::vector<std::string> c;
+    std::stringstream ss(line);
+    std::string it;
+    while (std::getline(ss, it, ',')) c.push_back(it);
+    if (c.size() < 9) continue;
+    Row r;
+    r.kind = c[0];
+    r.integrator = c[1];
+    r.nodes = std::stoi(c[2]);
+    r.modes = std::stoi(c[3]);
+    r.step_s = std::stod(c[4]);
+    r.force_self = std::stod(c[5]);
+    r.shape_self = std::stod(c[6]);
+    r.force_ref = std::stod(c[7]);
+    r.cost_s = std::stod(c[8]);
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+// Pareto front of (cpu load, error): indices of non-dominated finite rows, by increasing load.
+std::vector<std::size_t> pareto(const std::vector<Row>& rows, bool against_ref) {
+  std::vector<std::size_t> idx;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const double e = against_ref ? rows[i].force_ref : rows[i].force_self;
+    if (std::isfinite(e)) idx.push_back(i);
+  }
+  std::sort(idx.begin(), idx.end(), [&](auto a, auto b) { return rows[a].load() < rows[b].load(); });
+  std::vector<std::size_t> front;
+  double best = INFINITY;
+  for (auto i : idx) {
+    const double e = against_ref ? rows[i].force_ref : rows[i].force_self;
+    if (e < best) {
+      front.push_back(i);
+      best = e;
+    }
+  }
+  return front;
+}
+
+rt::PushProblemParams problem_params(double damping_per_s) {
+  rt::PushProblemParams p;
+  p.damping_per_s = damping_per_s;
+  return p;
+}
+
+json problem_json(const rt::PushProblemParams& p) {
+  return {{"radius_m", p.radius_m},
+          {"total_mass_kg", p.total_mass_kg},
+          {"reference_edge_stiffness_N_per_m", p.reference_edge_stiffness_N_per_m},
+          {"damping_per_s", p.damping_per_s},
+          {"contact_stiffness_N_per_m", p.contact_stiffness_N_per_m},
+          {"support_stiffness_N_per_m", p.support_stiffness_N_per_m},
+          {"cap_radius_m", p.cap_radius_m},
+          {"push_depth_m", p.push_depth_m},
+          {"push_frequency_Hz", p.push_frequency_Hz}};
+}
+
+// Candidates for the selector and the accuracy table: NPMI at `step` on every mesh, and the
+// reduced models of the reference mesh.
+struct Study {
+  std::vector<Row> rows;
+  json meta;
+};
+
+Study run_accuracy(const std::vector<int>& nodes_list, const std::vector<double>& steps_ms, const std::vector<int>& modes_list,
+                   double duration_s, double sample_ms, double damping, bool all_integrators, bool verbose) {
+  Study st;
+  const auto params = problem_params(damping);
+  const int ref_nodes = *std::max_element(nodes_list.begin(), nodes_list.end());
+  std::map<int, study::ExactCase> cases;
+  for (int n : nodes_list) {
+    if (verbose) std::cerr << "exact solution for " << n << " nodes..." << std::flush;
+    cases.emplace(n, study::make_exact_case(n, params, duration_s, sample_ms * 1e-3, true));
+    const auto& c = cases.at(n);
+    if (verbose)
+      std::cerr << " " << c.problem.model.nodes << " nodes, eig " << num(c.eig_seconds) << " s, omega_max "
+                << num(std::sqrt(c.basis.omega2.maxCoeff())) << " rad/s\n";
+    st.meta["meshes"].push_back({{"requested_nodes", n},
+                                 {"nodes", c.problem.model.nodes},
+                                 {"description", c.problem.mesh.description},
+                                 {"edge_stiffness_N_per_m", c.problem.edge_stiffness_N_per_m},
+                                 {"node_mass_kg", c.problem.model.node_mass_kg},
+                                 {"contact_nodes", c.problem.contact_nodes.size()},
+                                 {"support_nodes", c.problem.support_nodes.size()},
+                                 {"omega_max_rad_per_s", std::sqrt(c.basis.omega2.maxCoeff())},
+                                 {"eig_seconds", c.eig_seconds},
+                                 {"peak_force_N", c.force_scale}});
+  }
+  const auto& ref = cases.at(ref_nodes);
+  const auto methods = all_integrators ? rt::all_integrators() : std::vector<rt::Integrator>{rt::Integrator::kNpmi};
+  for (int n : nodes_list) {
+    const auto& c = cases.at(n);
+    for (auto m : methods) {
+      const double cost = study::time_full_step(c.problem, m, 0.002);
+      for (double hms : steps_ms) {
+        const auto e = study::run_full(c, m, hms * 1e-3, &ref);
+        Row r{"mesh", rt::integrator_name(m), n, 0, hms * 1e-3, e.force_error_self, e.shape_error_self, e.force_error_ref, cost};
+        if (verbose)
+          std::cerr << "  " << std::setw(5) << n << " " << std::setw(20) << r.integrator << " h " << std::setw(5) << hms
+                    << " ms: force err " << std::setw(11) << num(r.force_self) << " shape err " << std::setw(11)
+                    << num(r.shape_self) << " vs ref " << std::setw(11) << num(r.force_ref) << " cost "
+                    << num(cost * 1e6) << " us\n";
+        st.rows.push_back(r);
+      }
+    }
+  }
+  for (int r : modes_list) {
+    if (r > ref.basis.modes()) continue;
+    for (bool sc : {false, true}) {
+      const double cost = study::time_modal_step(ref.basis, ref.problem, r, sc, 0.002);
+      for (double hms : steps_ms) {
+        const auto e = study::run_modal(ref, r, sc, hms * 1e-3);
+        Row row{sc ? "modal+sc" : "modal", "npmi", ref_nodes, r, hms * 1e-3, e.force_error_self, e.shape_error_self, e.force_error_ref, cost};
+        st.rows.push_back(row);
+      }
+      if (verbose) std::cerr << "  modal r=" << r << (sc ? "+sc" : "") << " done (cost " << num(cost * 1e6) << " us)\n";
+    }
+  }
+  st.meta["problem"] = problem_json(params);
+  st.meta["reference_nodes"] = ref_nodes;
+  st.meta["duration_s"] = duration_s;
+  st.meta["sample_interval_s"] = sample_ms * 1e-3;
+  st.meta["cost_note"] =
+      "cost_s_per_tick: wall-clock seconds per step + felt-force output of the allocation-free loop, median of 5 "
+      "batches (steady_clock), measured at h = 2 ms (independent of h); not a Google Benchmark figure; shared 2-core "
+      "machine";
+  return st;
+}
+
+void print_front(const std::vector<Row>& rows, bool against_ref, std::ostream& o) {
+  o << (against_ref ? "Pareto front (felt-force error vs the reference mesh's exact solution, against CPU load at real time)\n"
+                    : "Pareto front (integration error vs each model's own exact solution)\n");
+  o << "  kind       integrator            nodes modes  h_ms   error        cost_us/tick  cpu_load\n";
+  for (auto i : pareto(rows, against_ref)) {
+    const auto& r = rows[i];
+    o << "  " << std::left << std::setw(10) << r.kind << " " << std::setw(20) << r.integrator << std::right << std::setw(6)
+      << r.nodes << std::setw(6) << r.modes << std::setw(6) << r.step_s * 1e3 << "   " << std::setw(11)
+      << num(against_ref ? r.force_ref : r.force_self) << "  " << std::setw(12) << num(r.cost_s * 1e6) << "  "
+      << num(r.load()) << "\n";
+  }
+}
+
+json rows_json(const std::vector<Row>& rows, const std::vector<std::size_t>& idx) {
+  json a = json::array();
+  for (auto i : idx) {
+    const auto& r = rows[i];
+    a.push_back({{"kind", r.kind}, {"integrator", r.integrator}, {"nodes", r.nodes}, {"modes", r.modes},
+                 {"step_s", r.step_s}, {"force_error_self", r.force_self}, {"force_error_ref", r.force_ref},
+                 {"cost_s_per_tick", r.cost_s}, {"cpu_load", r.load()}});
+  }
+  return a;
+}
+
+void write_json(const std::string& path, const json& j) {
+  std::ofstream f(path);
+  if (!f) throw std::runtime_error("cannot write " + path);
+  f << j.dump(1) << "\n";
+}
+
+std::vector<rt::ModelCandidate> candidates_from(const std::vector<Row>& rows, double step_s) {
+  std::vector<rt::ModelCandidate> c;
+  for (const auto& r : rows) {
+    if (r.integrator != "npmi" || std::abs(r.step_s - step_s) > 1e-12 || !std::isfinite(r.force_ref)) continue;
+    c.push_back({r.kind, r.nodes, r.modes, r.step_s, r.force_ref, r.cost_s});
+  }
+  return c;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"haptic-study: speed against accuracy, stability maps, model selector (issue 6)"};
+  app.require_subcommand(1);
+  std::string out = "tools/study/results";
+  app.add_option("--out", out, "Output folder for CSV/JSON (default tools/study/results)");
+
+  // accuracy
+  auto* acc = app.add_subcommand("accuracy", "Integrators x step sizes x scene sizes x reduced models against the exact solution");
+  std::string nodes_s = "33,100,300,1000,3000", steps_s = "0.25,0.5,1,2,4,8", modes_s = "3,6,12,25,50,100,200,400";
+  double duration = 2.0, sample_ms = 8.0, damping = 0.0;
+  acc->add_option("--nodes", nodes_s, "Mesh sizes (33 = paper ball, else lattice ball); the largest is the reference");
+  acc->add_option("--steps-ms", steps_s, "Step sizes (ms); each must divide --sample-ms");
+  acc->add_option("--modes", modes_s, "Modal truncations r of the reference mesh");
+  acc->add_option("--duration", duration, "Simulated seconds (default 2)");
+  acc->add_option("--sample-ms", sample_ms, "Error sampling interval (ms, default 8)");
+  acc->add_option("--damping-per-s", damping, "b/m of the VO (default 0: the paper's B = 0)");
+
+  // energy
+  auto* en = app.add_subcommand("energy", "Energy drift of each integrator, free vibration, B = 0");
+  int en_nodes = 33;
+  double en_duration = 10.0;
+  std::string en_steps = "2,0.5";
+  en->add_option("--nodes", en_nodes, "Mesh size (default 33, the paper ball)");
+  en->add_option("--duration", en_duration, "Seconds (default 10)");
+  en->add_option("--steps-ms", en_steps, "Step sizes (ms, default 2,0.5)");
+
+  // stability
+  auto* stab = app.add_subcommand("stability", "Where each integrator blows up: step x stiffness scale and step x scene size");
+  std::string st_scales = "0.25,1,4,16,64,256", st_sizes = "33,100,300,1000,3000", st_steps = "0.25,0.5,1,2,4,8";
+  double st_duration = 2.0;
+  stab->add_option("--stiffness-scales", st_scales, "Edge stiffness multipliers on the 33-node scene");
+  stab->add_option("--sizes", st_sizes, "Scene sizes");
+  stab->add_option("--steps-ms", st_steps, "Step sizes (ms)");
+  stab->add_option("--duration", st_duration, "Free-vibration seconds per cell (default 2)");
+
+  // consensus
+  auto* con = app.add_subcommand("consensus", "4-user consensus stability over damping scale x delay scale x loss (run_simulation)");
+  std::string c_damp = "0,0.1,0.25,0.5,0.75,1,1.5", c_delay = "0.25,0.5,1,2,4,8", c_loss = "0,0.05,0.2";
+  std::string c_gains = "1000:5,5000:0.5";
+  double c_duration = 8.0;
+  con->add_option("--damping-scales", c_damp, "B_i / eq. (18) value");
+  con->add_option("--delay-scales", c_delay, "x the paper's delay matrix");
+  con->add_option("--losses", c_loss, "Loss probabilities");
+  con->add_option("--gains", c_gains, "P:D gain sets (N/m : N s/m), comma-separated");
+  con->add_option("--duration", c_duration, "Seconds per run (default 8)");
+
+  // select
+  auto* sel = app.add_subcommand("select", "Smallest model meeting a felt-force accuracy; prints the --nodes for haptic-station sim");
+  double accuracy = 0.05;
+  std::string from, sel_nodes = "33,100,300,1000", sel_modes = "3,6,12,25,50,100,200";
+  sel->add_option("--accuracy", accuracy, "Requested max relative felt-force error (fraction, e.g. 0.05)")->required();
+  sel->add_option("--from", from, "Read candidates from an accuracy.csv instead of computing them");
+  sel->add_option("--nodes", sel_nodes, "Mesh family when computing (largest = reference)");
+  sel->add_option("--modes", sel_modes, "Modal truncations of the reference when computing");
+
+  CLI11_PARSE(app, argc, argv);
+  try {
+    std::filesystem::create_directories(out);
+    if (acc->parsed()) {
+      const auto t0 = std::chrono::steady_clock::now();
+      auto st = run_accuracy(study::parse_int_list(nodes_s, "--nodes"), study::parse_double_list(steps_s, "--steps-ms"),
+                             study::parse_int_list(modes_s, "--modes"), duration, sample_ms, damping, true, true);
+      write_rows_csv(out + "/accuracy.csv", st.rows);
+      st.meta["pareto_front_ref"] = rows_json(st.rows, pareto(st.rows, true));
+      st.meta["pareto_front_self"] = rows_json(st.rows, pareto(st.rows, false));
+      st.meta["wall_time_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      write_json(out + "/accuracy.json", st.meta);
+      print_front(st.rows, false, std::cout);
+      print_front(st.rows, true, std::cout);
+      std::cout << "wrote " << out << "/accuracy.csv, accuracy.json\n";
+    } else if (en->parsed()) {
+      const auto p = rt::make_push_problem(rt::make_ball_mesh(en_nodes, 0.05), problem_params(0));
+      std::ofstream f(out + "/energy.csv");
+      f << "integrator,step_s,t_s,energy_ratio\n";
+      json summary;
+      for (double hms : study::parse_double_list(en_steps, "--steps-ms")) {
+        const double h = hms * 1e-3;
+        const int every = std::max(1, static_cast<int>(std::lround(0.01 / h)));
+        for (auto m : rt::all_integrators()) {
+          const auto tr = study::energy_trace(p, m, h, en_duration, every);
+          for (std::size_t k = 0; k < tr.t_s.size(); ++k)
+            f << rt::integrator_name(m) << ',' << num(h) << ',' << num(tr.t_s[k]) << ',' << num(tr.energy_ratio[k]) << '\n';
+          summary.push_back({{"integrator", rt::integrator_name(m)}, {"step_s", h}, {"class", study::classify_energy(tr)},
+                             {"final_ratio", tr.energy_ratio.back()}, {"final_t_s", tr.t_s.back()},
+                             {"max_ratio", *std::max_element(tr.energy_ratio.begin(), tr.energy_ratio.end())}});
+          std::cout << std::setw(20) << rt::integrator_name(m) << " h " << hms << " ms: E(" << num(tr.t_s.back())
+                    << " s)/E0 = " << num(tr.energy_ratio.back()) << " (" << study::classify_energy(tr) << ")\n";
+        }
+      }
+      write_json(out + "/energy.json", {{"nodes", p.model.nodes}, {"runs", summary},
+                                        {"initial_state", "static deformation under the full push, v = 0, no input, B = 0"}});
+    } else if (stab->parsed()) {
+      std::ofstream f(out + "/stability.csv");
+      f << "axis,value,nodes,integrator,step_s,omega_max_h,class,max_energy_ratio\n";
+      json summary = json::array();
+      auto cell = [&](const std::string& axis, double value, const rt::PushProblem& p) {
+        const double wmax = std::sqrt(rt::lambda_max(rt::SpatialMatrix::isotropic(p.model.K)) / p.model.node_mass_kg);
+        for (auto m : rt::all_integrators()) {
+          double first_bad = -1;
+          for (double hms : study::parse_double_list(st_steps, "--steps-ms")) {
+            const double h = hms * 1e-3;
+            const auto tr = study::energy_trace(p, m, h, st_duration, 1);
+            const auto cls = study::classify_energy(tr);
+            double mx = 0;
+            for (double r : tr.energy_ratio) mx = std::isfinite(r) ? std::max(mx, r) : INFINITY;
+            f << axis << ',' << num(value) << ',' << p.model.nodes << ',' << rt::integrator_name(m) << ',' << num(h) << ','
+              << num(wmax * h) << ',' << cls << ',' << num(mx) << '\n';
+            if ((cls == "blows-up" || cls == "grows") && first_bad < 0) first_bad = h;
+          }
+          summary.push_back({{"axis", axis}, {"value", value}, {"nodes", p.model.nodes}, {"integrator", rt::integrator_name(m)},
+                             {"omega_max_rad_per_s", wmax}, {"smallest_unstable_step_s", first_bad}});
+          std::cout << axis << "=" << num(value) << " " << std::setw(20) << rt::integrator_name(m) << " omega_max "
+                    << num(wmax) << " rad/s: first growing/blowing step " << (first_bad < 0 ? std::string("none") : num(first_bad * 1e3) + " ms")
+                    << "\n";
+        }
+      };
+      for (double s : study::parse_double_list(st_scales, "--stiffness-scales")) {
+        auto params = problem_params(0);
+        params.reference_edge_stiffness_N_per_m *= s;
+        cell("stiffness_scale", s, rt::make_push_problem(rt::make_ball_mesh(33, 0.05), params));
+      }
+      for (int n : study::parse_int_list(st_sizes, "--sizes"))
+        cell("nodes", n, rt::make_push_problem(rt::make_ball_mesh(n, 0.05), problem_params(0)));
+      write_json(out + "/stability.json", {{"duration_s", st_duration}, {"cells", summary},
+                                           {"classes", "blows-up: max E/E0 > 100; grows: max > 1.01 and 2nd-half max > 1.1 x 1st-half max; dissipative: final < 0.99; bounded: oscillates above 1.01 without trend; stable: within 1%"}});
+    } else if (con->parsed()) {
+      const auto t0 = std::chrono::steady_clock::now();
+      std::ofstream f(out + "/consensus.csv");
+      f << "p_gain,d_gain,damping_scale,delay_scale,loss,damping_min_max,diverged,port_energy_min_J,passivity_bound_J,class,max_speed\n";
+      std::vector<std::pair<double, double>> gains;
+      {
+        std::stringstream ss(c_gains);
+        std::string it;
+        while (std::getline(ss, it, ',')) {
+          const auto colon = it.find(':');
+          if (colon == std::string::npos) throw std::invalid_argument("--gains: expected P:D pairs, got '" + it + "'");
+          gains.emplace_back(std::stod(it.substr(0, colon)), std::stod(it.substr(colon + 1)));
+        }
+      }
+      json summary = json::array();
+      for (auto [P, D] : gains) {
+        for (double loss : study::parse_double_list(c_loss, "--losses")) {
+          for (double ds : study::parse_double_list(c_delay, "--delay-scales")) {
+            for (double bs : study::parse_double_list(c_damp, "--damping-scales")) {
+              auto spec = firmware::make_scenario("paper-best");
+              spec.duration_s = c_duration;
+              spec.delay_ms = spec.delay_ms * ds;
+              spec.loss_probability = loss;
+              spec.p_gain_N_per_m = P;
+              spec.d_gain_Ns_per_m = D;
+              spec.script.kind = firmware::UserScriptSpec::Kind::kRandom;
+              spec.damping_margin = 0.0;
+              auto probe = firmware::build_scenario(spec);
+              std::vector<double> B(probe.damping_min.size());
+              for (std::size_t i = 0; i < B.size(); ++i) B[i] = bs * probe.damping_min[i];
+              spec.damping_Ns_per_m = B;
+              const auto built = firmware::build_scenario(spec);
+              const auto r = firmware::run_simulation(built, firmware::SimOptions{});
+              const std::string cls = r.diverged ? "diverged"
+                                      : r.port_energy_min_J < -r.passivity_bound_J ? "energy-generated"
+                                                                                  : "stable";
+              const double bmax = *std::max_element(probe.damping_min.begin(), probe.damping_min.end());
+              f << P << ',' << D << ',' << bs << ',' << ds << ',' << loss << ',' << num(bmax) << ',' << r.diverged << ','
+                << num(r.port_energy_min_J) << ',' << num(r.passivity_bound_J) << ',' << cls << ','
+                << num(r.max_node_speed_m_per_s) << '\n';
+              f.flush();
+              summary.push_back({{"P", P}, {"D", D}, {"damping_scale", bs}, {"delay_scale", ds}, {"loss", loss},
+                                 {"damping_min", probe.damping_min}, {"class", cls}});
+            }
+            std::cerr << "P " << P << " D " << D << " loss " << loss << " delay x" << ds << " done ("
+                      << num(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()) << " s)\n";
+          }
+        }
+      }
+      write_json(out + "/consensus.json",
+                 {{"duration_s", c_duration}, {"script", "random (every user's goal wanders through random keyframes)"},
+                  {"scenario", "paper-best topology and delays, scaled"}, {"cells", summary},
+                  {"wall_time_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
+    } else if (sel->parsed()) {
+      std::vector<Row> rows;
+      if (!from.empty()) {
+        rows = read_rows_csv(from);
+      } else {
+        rows = run_accuracy(study::parse_int_list(sel_nodes, "--nodes"), {2.0}, study::parse_int_list(sel_modes, "--modes"),
+                            2.0, 8.0, 0.0, false, false)
+                   .rows;
+      }
+      const auto cands = candidates_from(rows, 0.002);
+      const auto mesh = rt::select_model(cands, accuracy, {"mesh"});
+      const auto any = rt::select_model(cands, accuracy, {});
+      auto describe = [](const rt::ModelCandidate& c) {
+        std::ostringstream o;
+        o << c.kind << " " << c.nodes << " nodes";
+        if (c.modes) o << ", " << c.modes << " modes";
+        o << " (felt-force error " << num(c.force_error * 100) << " %, " << num(c.cost_s_per_tick * 1e6) << " us/tick)";
+        return o.str();
+      };
+      std::cerr << "requested felt-force accuracy " << num(accuracy * 100) << " % (NPMI, T = 2 ms, vs the "
+                << (mesh.reference.nodes ? std::to_string(mesh.reference.nodes) : std::string("?")) << "-node exact solution)\n";
+      if (any.found)
+        std::cerr << "  cheapest model of all kinds: " << describe(any.chosen) << ", saves x" << num(any.cost_saving_factor)
+                  << " against " << describe(any.reference) << "\n";
+      if (!mesh.found) {
+        std::cerr << "  no mesh of the family meets " << num(accuracy * 100) << " %; use the reference mesh\n";
+        std::cout << "--nodes " << mesh.reference.nodes << "\n";
+        return 2;
+      }
+      std::cerr << "  smallest mesh: " << describe(mesh.chosen) << ", saves x" << num(mesh.cost_saving_factor) << " against "
+                << describe(mesh.reference) << "\n";
+      std::cout << "--nodes " << mesh.chosen.nodes << "\n";
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "haptic-study: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

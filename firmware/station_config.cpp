@@ -115,7 +115,7 @@ StationFile parse_station_file(std::string_view toml_text) {
   s.setup_gap_s = real(st["setup_gap_s"], "station.setup_gap_s", 0.5, 0.05, 10);
   s.damping_margin = real(st["damping_margin"], "station.damping_margin", 0.05, 0, 10);
   s.loss_allowance_ticks = static_cast<int>(integer(st["loss_allowance_ticks"], "station.loss_allowance_ticks", 1, 0, 1000));
-  s.agreement_ticks = static_cast<int>(integer(st["agreement_ticks"], "station.agreement_ticks", 1, 0, 1000));
+  s.agreement_ticks = static_cast<int>(integer(st["agreement_ticks"], "station.agreement_ticks", 2, 0, 1000));
   s.damping_Ns_per_m = real(st["damping_Ns_per_m"], "station.damping_Ns_per_m", -1, -1, 1e6, " (-1 = from the measured bound)");
   if (s.damping_Ns_per_m < 0 && s.damping_Ns_per_m != -1) bad("station.damping_Ns_per_m", "-1 or a number in [0, 1e6]");
   s.io_priority = static_cast<int>(integer(st["io_priority"], "station.io_priority", 70, 0, 98));

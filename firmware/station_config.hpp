@@ -23,7 +23,7 @@
 //   setup_gap_s = 0.5                # from the end of probing to the run start (StationCore built meanwhile), [0.05, 10]
 //   damping_margin = 0.05            # B_i = (1 + margin) x eq. (18) of the MEASURED bounds, [0, 10]
 //   loss_allowance_ticks = 1         # ticks added to the measured round-trip bound, [0, 1000]
-//   agreement_ticks = 1              # eq. (18) uses Nbar_ij + Nbar_ji = 2 ceil(R_ij/2) + this: covers the peer's
+//   agreement_ticks = 2              # eq. (18) uses Nbar_ij + Nbar_ji = 2 ceil(R_ij/2) + this: covers the peer's
 //                                    # guard ceil(R_ji/2) while the two ends' measured R differ by <= 2x this, [0, 1000]
 //   damping_Ns_per_m = -1            # >= 0: fixed B_i (experiments below eq. 18); -1: from the measurement
 //   io_priority = 70                 # SCHED_FIFO priority of the endpoint's I/O thread (inherited at its start),
@@ -73,7 +73,7 @@ struct StationSection {
   double setup_gap_s = 0.5;
   double damping_margin = 0.05;
   int loss_allowance_ticks = 1;
-  int agreement_ticks = 1;
+  int agreement_ticks = 2;
   double damping_Ns_per_m = -1.0;
   int io_priority = 70;
   std::string out_dir = ".";

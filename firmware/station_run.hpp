@@ -51,7 +51,7 @@ struct MeasuredBounds {
 // eq. (18) for user `user` of `b` from measured endpoint bounds (ticks, one per neighbour).
 MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const std::vector<std::uint32_t>& rtt_bound_ticks,
                                        int loss_allowance_ticks, double damping_margin, double damping_override,
-                                       int agreement_ticks = 1);
+                                       int agreement_ticks = 2);
 
 // One row of station-<id>-trace.csv (flat, preallocated).
 struct TraceRec {

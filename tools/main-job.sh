@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The main job: the paper's 4-user experiment (Huang & Lee 2013, Section V) end to end.
 #   1. build (Release)
-#   2. topology choice from the delay matrix (eq. 27) with haptic-topology, when built
+#   2. topology choice from the delay matrix (eq. 27) with haptic-topology: best and worst
 #   3. damping from eq. (18) and the paper-best, paper-worst and paper-unstable runs
 #   4. a report (Markdown + PNG) with our numbers next to the paper's
 # Output: build/paper-report/ (report.md, figures, one folder per run).
@@ -18,23 +18,31 @@ while [ $# -gt 0 ]; do
     *) echo "main-job.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
   esac
 done
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
-cmake --build build -j"$(nproc)"
+BUILD=${HAPTIC_BUILD_DIR:-build}  # build directory (default build/)
+cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release
+cmake --build "$BUILD" -j"$(nproc)"
 mkdir -p "$OUT"
 DELAYS="0,4,4,4;8,0,80,200;4,100,0,200;6,240,200,0"
-if [ -x build/bin/haptic-topology ]; then
-  echo "== topology ranking (eq. 27), 3 undirected links =="
-  if build/bin/haptic-topology --help 2>/dev/null | grep -q -- "--json"; then
-    build/bin/haptic-topology --links 3 --json "$OUT/topology.json" | tee "$OUT/topology.txt" || echo "haptic-topology failed; continuing with the paper's Fig. 7 topologies" >&2
-  else
-    build/bin/haptic-topology --links 3 | tee "$OUT/topology.txt" || true
-  fi
-else
-  echo "haptic-topology not built: using the paper's Fig. 7 topologies" | tee "$OUT/topology.txt"
-fi
+# Topology choice (eq. 27) over all connected 3-link graphs of the paper's delay matrix.
+BEST="" ; WORST=""
+echo "== topology ranking (eq. 27), 3 undirected links =="
+"$BUILD"/bin/haptic-topology --paper --paper-scene --loss-allowance 1 --json "$OUT/topology.json" | tee "$OUT/topology.txt"
+BEST=$(/usr/bin/python3 -c "import json,sys; r=json.load(open(sys.argv[1]))['ranked']; print(','.join('%d-%d'%tuple(e) for e in r[0]['edges']))" "$OUT/topology.json")
+WORST=$(/usr/bin/python3 -c "import json,sys; r=json.load(open(sys.argv[1]))['ranked']; print(','.join('%d-%d'%tuple(e) for e in r[-1]['edges']))" "$OUT/topology.json")
+echo "best topology: $BEST   worst topology: $WORST"
 for s in paper-best paper-worst paper-unstable; do
   echo "== $s =="
-  build/bin/haptic-station sim --scenario "$s" --seed "$SEED" --delay-matrix "$DELAYS" --out "$OUT/$s" --trace-every 5
+  case "$s" in
+    paper-worst) TOPO="$WORST" ;;
+    *) TOPO="$BEST" ;;  # paper-unstable: the best topology with Fig. 10's damping
+  esac
+  "$BUILD"/bin/haptic-station sim --scenario "$s" --topology "$TOPO" --seed "$SEED" --delay-matrix "$DELAYS" \
+    --out "$OUT/$s" --trace-every 5
 done
+# Beyond the paper: the same best topology with no local damping and weak D-coupling, where the
+# consensus loop does lose passivity and stability (paper-unstable with Fig. 10's damping did not).
+echo "== no-damping (B_i = 0, D_ij = 1 I) =="
+"$BUILD"/bin/haptic-station sim --scenario paper-unstable --topology "$BEST" --damping 0,0,0,0 --d-gain 1 \
+  --seed "$SEED" --delay-matrix "$DELAYS" --out "$OUT/no-damping" --trace-every 5
 /usr/bin/python3 tools/report/make_report.py "$OUT"
 echo "report: $OUT/report.md"

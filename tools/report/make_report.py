@@ -97,7 +97,7 @@ def main(out):
                 name, fmt(r["hold_force_sum_N"]), fmt(r["hold_force_mean_N"]), fmt(r.get("hold_force_balance_ratio"))))
         w("| stability | %s | %s | %s |" % (name, pr["stable"], ("DIVERGED at %s s" % r["diverged_at_s"]) if r["diverged"] else
                                              "stable (max node speed %s m/s)" % fmt(r["max_node_speed_m_per_s"])))
-        w("| N-port passivity (13): min of cumulative port energy vs -d^2 | %s | | %s J vs -%s J |" % (name, fmt(r["port_energy_min_J"]), fmt(r["passivity_bound_J"])))
+        w("| N-port passivity (13): min of cumulative port energy vs -d^2 | %s | | %s J vs -d^2 = -%s J |" % (name, fmt(r["port_energy_min_J"]), fmt(abs(r["passivity_bound_J"]))))
         pk = r["packets"]
         w("| packets sent / lost / duplicated / reordered | %s | | %d / %d / %d / %d |" % (name, pk["sent"], pk["lost"], pk["duplicated"], pk["reordered"]))
     w("")
@@ -106,6 +106,23 @@ def main(out):
       " outcome and ours differ (see paper-unstable) we report ours as measured; eq. (18) is a sufficient condition, and the"
       " stability maps in tools/study/ show where the system does lose stability.")
     w("")
+    nd = os.path.join(out, "no-damping", "summary.json")
+    if os.path.exists(nd):
+        r = json.load(open(nd))
+        w("## Beyond the paper: where it does fail")
+        w("")
+        w("With Fig. 10's damping (14, 5, 4, 5) N s/m our simulated system stayed stable: eq. (18) is sufficient, not necessary,"
+          " and the undelayed local half of each D_ij coupling damps the copies too. Removing the local damping entirely and"
+          " weakening D_ij to %s I (`haptic-station sim --scenario paper-unstable --damping 0,0,0,0 --d-gain 1`) gives: %s;"
+          " minimum cumulative port energy %s J against the bound -%s J%s." % (
+              "1", ("DIVERGED at %s s" % r["diverged_at_s"]) if r["diverged"] else "stable",
+              fmt(r["port_energy_min_J"]), fmt(r["passivity_bound_J"]),
+              " (energy was generated: N-port passivity (13) broken)" if r["port_energy_min_J"] < -r["passivity_bound_J"] - 1e-12 else ""))
+        w("")
+        for fig in ("fig_node_position.png", "fig_energy.png"):
+            if os.path.exists(os.path.join(out, "no-damping", fig)):
+                w("![no-damping: %s](no-damping/%s)" % (fig, fig))
+                w("")
     for name in PAPER:
         if name not in runs:
             continue

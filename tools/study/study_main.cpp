@@ -306,7 +306,7 @@ int main(int argc, char** argv) {
         for (auto m : rt::all_integrators()) {
           const auto tr = study::energy_trace(p, m, h, en_duration, every);
           for (std::size_t k = 0; k < tr.t_s.size(); ++k)
-            f << rt::integrator_name(m) << ',' << num(h) << ',' << num(tr.t_s[k]) << ',' << num(tr.energy_ratio[k]) << '\n';
+            f << rt::integrator_name(m) << ',' << num(h) << ',' << num(tr.t_s[k]) << ',' << std::setprecision(16) << tr.energy_ratio[k] << '\n';
           summary.push_back({{"integrator", rt::integrator_name(m)}, {"step_s", h}, {"class", study::classify_energy(tr)},
                              {"final_ratio", tr.energy_ratio.back()}, {"final_t_s", tr.t_s.back()},
                              {"max_ratio", *std::max_element(tr.energy_ratio.begin(), tr.energy_ratio.end())}});
@@ -353,7 +353,7 @@ int main(int argc, char** argv) {
     } else if (con->parsed()) {
       const auto t0 = std::chrono::steady_clock::now();
       std::ofstream f(out + "/consensus.csv");
-      f << "p_gain,d_gain,damping_scale,delay_scale,loss,damping_min_max,diverged,port_energy_min_J,passivity_bound_J,class,max_speed\n";
+      f << "p_gain,d_gain,damping_scale,delay_scale,loss,damping_min_max,diverged,port_energy_min_J,passivity_bound_J,class,max_speed,bound_violations,edge_lost\n";
       std::vector<std::pair<double, double>> gains;
       {
         std::stringstream ss(c_gains);
@@ -386,10 +386,15 @@ int main(int argc, char** argv) {
               const std::string cls = r.diverged ? "diverged"
                                       : r.port_energy_min_J < -r.passivity_bound_J ? "energy-generated"
                                                                                   : "stable";
+              std::uint64_t violations = 0, lost = 0;
+              for (const auto& l : r.links) {
+                violations += l.bound_violations;
+                lost += l.lost;
+              }
               const double bmax = *std::max_element(probe.damping_min.begin(), probe.damping_min.end());
               f << P << ',' << D << ',' << bs << ',' << ds << ',' << loss << ',' << num(bmax) << ',' << r.diverged << ','
                 << num(r.port_energy_min_J) << ',' << num(r.passivity_bound_J) << ',' << cls << ','
-                << num(r.max_node_speed_m_per_s) << '\n';
+                << num(r.max_node_speed_m_per_s) << ',' << violations << ',' << lost << '\n';
               f.flush();
               summary.push_back({{"P", P}, {"D", D}, {"damping_scale", bs}, {"delay_scale", ds}, {"loss", loss},
                                  {"damping_min", probe.damping_min}, {"class", cls}});
@@ -434,6 +439,12 @@ int main(int argc, char** argv) {
       }
       std::cerr << "  smallest mesh: " << describe(mesh.chosen) << ", saves x" << num(mesh.cost_saving_factor) << " against "
                 << describe(mesh.reference) << "\n";
+      {
+        const auto chosen = rt::make_push_problem(rt::make_ball_mesh(mesh.chosen.nodes, 0.05), problem_params(0));
+        std::cerr << "  the study's physics for this mesh (same ball at every resolution): node_mass_kg "
+                  << num(chosen.model.node_mass_kg) << ", edge_stiffness_N_per_m " << num(chosen.edge_stiffness_N_per_m)
+                  << " (the station's --nodes keeps 0.04 kg / 100 N/m per node/edge; see tools/study/README.md)\n";
+      }
       std::cout << "--nodes " << mesh.chosen.nodes << "\n";
     }
   } catch (const std::exception& e) {

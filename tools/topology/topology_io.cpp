@@ -124,6 +124,9 @@ MeasuredLinks read_summary(const std::string& path, int users_hint) {
     if (to < 1 || from < 1 || to == from) {
       throw std::invalid_argument("--from-summary: link_stats to/from must be distinct users >= 1");
     }
+    if (e.contains("delivered") && e["delivered"].is_number() && e["delivered"].get<double>() <= 0) {
+      continue;  // nothing arrived on this link: no delay statistics (stays unavailable)
+    }
     const double mean = e.value("mean_delay_ms", -1.0);
     const double mx = e.value("max_delay_ms", mean);
     const double loss = e.value("loss_rate", 0.0);

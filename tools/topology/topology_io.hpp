@@ -16,7 +16,8 @@ Eigen::MatrixXd read_delay_file(const std::string& path);
 
 // Measured link statistics of a run: the simulator's summary.json key "link_stats", a list of
 // {"to": i, "from": j, "mean_delay_ms": x, "max_delay_ms": y, "loss_rate": z} (users from 1; row i
-// receives from j). Pairs without statistics are +inf (no measured link) in mean/max, 0 in loss.
+// receives from j). Pairs without statistics (absent, or "delivered": 0) are +inf (no measured
+// link) in mean/max, 0 in loss.
 struct MeasuredLinks {
   Eigen::MatrixXd mean_delay_ms;
   Eigen::MatrixXd max_delay_ms;

@@ -1,0 +1,50 @@
+#pragma once
+// The real station tick as a haptic-jitter workload (tools/jitter/jitter.hpp): user 1 of the
+// paper's scene (4 users, 33 nodes, 3 neighbours in the best topology), its neighbours' receive
+// links fed one synthetic packet each per tick (the neighbours' copies at rest, index delay 3),
+// the simulated user's device advanced by the commanded force. Header-only so the firmware
+// library does not depend on tools/: the jitter tool includes it and links haptic_firmware.
+// Construction builds and factors the scene (not RT-safe); tick() is RT-safe.
+#include <string>
+#include <vector>
+
+#include "firmware/scenario.hpp"
+#include "rt/station.hpp"
+#include "rt/user_model.hpp"
+#include "tools/jitter/jitter.hpp"
+
+namespace haptic::firmware {
+
+class StationJitterWorkload final : public tools::JitterWorkload {
+ public:
+  explicit StationJitterWorkload(const std::string& scenario = "paper-best")
+      : built_(build_scenario(make_scenario(scenario))),
+        core_(built_.station_config(0)),
+        user_(built_.spec.device, built_.spec.hand, built_.goal_script(0)),
+        x0_(built_.scene.x_d.data(), built_.scene.x_d.data() + built_.scene.dofs),
+        v0_(static_cast<std::size_t>(built_.scene.dofs), 0.0) {
+    user_.reset(built_.vp_start[0]);
+  }
+  // One station tick: synthetic packets into rx(n).offer, tick, device step. RT-safe.
+  void tick(const platform::TickInfo& info) override {
+    const auto k = static_cast<std::int64_t>(info.index);
+    const double T = built_.spec.period_s;
+    for (int n = 0; n < core_.neighbor_count(); ++n)
+      core_.rx(n).offer(k - 3, static_cast<double>(k - 3) * T, x0_.data(), v0_.data(), built_.scene.dofs);
+    const auto out = core_.tick(user_.position_m());
+    user_.advance(static_cast<double>(k) * T, T, out.device_force_N);
+    flags_ |= out.flags;
+  }
+  std::string name() const override { return "station (" + built_.spec.name + ", user 1, " + std::to_string(built_.scene.nodes) + " nodes, 3 neighbours)"; }
+  std::uint32_t flags_seen() const { return flags_; }
+  const rt::StationCore& core() const { return core_; }
+
+ private:
+  BuiltScenario built_;
+  rt::StationCore core_;
+  rt::SimulatedUser user_;
+  std::vector<double> x0_, v0_;
+  std::uint32_t flags_ = 0;
+};
+
+}  // namespace haptic::firmware

@@ -1,0 +1,122 @@
+// One iteration of the real station loop body (firmware::run_tick) with a real UDP endpoint, a
+// neighbour process stand-in (a second endpoint in this process) sending states, the simulated
+// device and the paper's 33-node core: it must not touch the heap, and it must use the packets.
+#include <CppUTest/TestHarness.h>
+
+#include <unistd.h>
+
+#include <chrono>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "drivers/device_factory.hpp"
+#include "firmware/scenario.hpp"
+#include "firmware/station_jitter_workload.hpp"
+#include "firmware/station_run.hpp"
+#include "net/config.hpp"
+#include "tests/support/alloc_counter.hpp"
+
+using namespace haptic;
+
+namespace {
+std::string net_toml(int self, int port_base, const std::vector<int>& peers) {
+  std::string t = "[station]\nid = " + std::to_string(self) + "\n[net]\ntransport = \"udp\"\nsession_id = 9\n";
+  t += "session_key = \"000102030405060708090a0b0c0d0e0f101112131415161718191a1b1c1d1e1f\"\n";
+  t += "bind = \"127.0.0.1:" + std::to_string(port_base + self) + "\"\n";
+  for (int p : peers) t += "[[net.peers]]\nid = " + std::to_string(p) + "\naddress = \"127.0.0.1:" + std::to_string(port_base + p) + "\"\n";
+  return t;
+}
+}  // namespace
+
+TEST_GROUP(RunTick){};
+
+TEST(RunTick, OneLoopIterationAllocatesNothingAndUsesTheNeighboursPackets) {
+  CHECK(test::allocation_counter_works());
+  const firmware::BuiltScenario b = firmware::build_scenario(firmware::make_scenario("paper-best"));
+  const int dofs = b.scene.dofs;
+  const int port_base = 48000 + static_cast<int>(getpid() % 400) * 5;
+  net::NetConfig c1 = net::parse_net_config(net_toml(1, port_base, {2, 3, 4}), static_cast<std::uint32_t>(dofs));
+  net::NetConfig c2 = net::parse_net_config(net_toml(2, port_base, {1}), static_cast<std::uint32_t>(dofs));
+  net::Endpoint ep1(c1.endpoint, c1.make_transport());
+  net::Endpoint ep2(c2.endpoint, c2.make_transport());
+  ep1.start();
+  ep2.start();
+
+  drivers::DeviceSelection sel;
+  sel.kind = "simulated";
+  sel.simulated.device = b.spec.device;
+  sel.simulated.hand = b.spec.hand;
+  sel.simulated.script = b.goal_script(0);
+  for (int a = 0; a < 3; ++a) sel.simulated.start_position_m[a] = b.vp_start[0][a];
+  drivers::OpenedDevice dev = drivers::open_device(sel);
+  CHECK(dev.simulated != nullptr);
+  rt::StationCore core(b.station_config(0));
+
+  std::vector<int> sender_to_nbr(65536, -1);
+  for (std::size_t n = 0; n < b.neighbors[0].size(); ++n) sender_to_nbr[static_cast<std::size_t>(b.neighbors[0][n] + 1)] = static_cast<int>(n);
+  const int ticks = 300;
+  std::vector<firmware::TraceRec> trace(ticks);
+  std::vector<std::int64_t> state_k(ticks);
+  std::vector<double> state_x(static_cast<std::size_t>(ticks) * static_cast<std::size_t>(dofs));
+  firmware::RunTick rtc;
+  rtc.core = &core;
+  rtc.ep = &ep1;
+  rtc.device = dev.device.get();
+  rtc.simulated = dev.simulated;
+  rtc.sender_to_nbr = sender_to_nbr.data();
+  rtc.dofs = dofs;
+  rtc.trace_node = b.trace_node;
+  rtc.T = b.spec.period_s;
+  rtc.trace = trace.data();
+  rtc.trace_cap = trace.size();
+  rtc.state_k = state_k.data();
+  rtc.state_x = state_x.data();
+  rtc.state_cap = state_k.size();
+
+  std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + dofs), v0(static_cast<std::size_t>(dofs), 0.0);
+  platform::TickInfo info;
+  auto step = [&](std::int64_t k) {
+    ep2.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data());
+    std::this_thread::sleep_for(std::chrono::microseconds(1500));  // let the I/O threads deliver
+    info.index = static_cast<std::uint64_t>(k);
+    firmware::run_tick(rtc, k, k, info);
+  };
+  for (std::int64_t k = 0; k < 50; ++k) step(k);  // warm-up: first contact solve, first packets
+  const std::uint64_t offered_before = rtc.rx_offered;
+  std::uint64_t allocations = 0;
+  {
+    test::AllocationCounter counter;
+    for (std::int64_t k = 50; k < ticks - 10; ++k) step(k);
+    allocations = counter.allocations();
+  }
+  ep1.stop();
+  ep2.stop();
+  LONGS_EQUAL(0, allocations);
+  CHECK(rtc.rx_offered - offered_before > 100);  // the neighbour's packets went into rx(n).offer
+  LONGS_EQUAL(ticks - 10, rtc.ticks_run);
+  CHECK_FALSE(rtc.diverged);
+  LONGS_EQUAL(0, rtc.device_fault_ticks);
+}
+
+TEST(RunTick, TheJitterWorkloadIsTheRealStationTickAndAllocatesNothing) {
+  firmware::StationJitterWorkload w;
+  LONGS_EQUAL(3, w.core().neighbor_count());
+  platform::TickInfo info;
+  for (std::uint64_t k = 0; k < 100; ++k) {
+    info.index = k;
+    w.tick(info);
+  }
+  std::uint64_t allocations = 0;
+  {
+    test::AllocationCounter counter;
+    for (std::uint64_t k = 100; k < 1500; ++k) {  // through the push (contact onset at 0.5 s)
+      info.index = k;
+      w.tick(info);
+    }
+    allocations = counter.allocations();
+  }
+  LONGS_EQUAL(0, allocations);
+  CHECK(w.core().in_contact());
+  CHECK((w.flags_seen() & rt::kDiverged) == 0);
+}

@@ -154,7 +154,18 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
   const double T = spec.period_s;
   const rt::TetMesh mesh = spec.scene_nodes == 33 ? rt::make_paper_ball(spec.ball_radius_m)
                                                   : rt::make_lattice_ball(spec.scene_nodes, spec.ball_radius_m);
-  b.scene = rt::build_scene(mesh, spec.scene);
+  rt::SceneParams sp = spec.scene;
+  if (spec.scene_nodes != 33 && spec.same_object_at_every_size) {
+    auto mean_edge = [](const rt::TetMesh& m) {
+      double s = 0;
+      for (const auto& e : m.edges) s += (m.nodes[static_cast<std::size_t>(e[0])] - m.nodes[static_cast<std::size_t>(e[1])]).norm();
+      return s / static_cast<double>(m.edges.size());
+    };
+    const rt::TetMesh paper = rt::make_paper_ball(spec.ball_radius_m);
+    sp.node_mass_kg = spec.scene.node_mass_kg * paper.node_count() / mesh.node_count();
+    sp.edge_stiffness_N_per_m = spec.scene.edge_stiffness_N_per_m * mean_edge(mesh) / mean_edge(paper);
+  }
+  b.scene = rt::build_scene(mesh, sp);
   b.gains.reserve(spec.topology.size());
   for (std::size_t e = 0; e < spec.topology.size(); ++e)
     b.gains.push_back(e == 0 ? rt::paper_edge_gains(b.scene, spec.p_gain_N_per_m, spec.d_gain_Ns_per_m) : b.gains[0]);

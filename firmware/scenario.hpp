@@ -45,6 +45,10 @@ struct ScenarioSpec {
   double loss_probability = 0.05;
   double duplicate_probability = 0.01;
   int scene_nodes = 33;                      // 33: the paper's ball; otherwise a lattice ball
+  // For a lattice ball, keep the same physical object as the paper's ball: total mass 33 x
+  // node_mass_kg shared by the nodes, and edge stiffness scaled by mean edge length (a spring
+  // network's modulus goes as k / h), so resolutions differ only in discretization.
+  bool same_object_at_every_size = true;
   double ball_radius_m = 0.05;
   rt::SceneParams scene{};
   double p_gain_N_per_m = 1000.0;

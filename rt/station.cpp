@@ -101,8 +101,6 @@ StationCore::StationCore(const StationConfig& config)
       }
     }
   }
-  Z_.resize(nf_, m_units_);
-  G_.resize(m_units_ + vp_units_, m_units_ + vp_units_);
   R_.resize(m_units_ + vp_units_, w_);
   X_.resize(m_units_ + vp_units_, w_);
   const auto& g = cfg_.vp.coupling;
@@ -115,9 +113,9 @@ StationCore::StationCore(const StationConfig& config)
   c /= static_cast<double>(cn.size());
   const Vec3 n = (p1 - p0).cross(p2 - p0);
   normal_sign_ = n.dot(c - scene_.mesh.centroid()) >= 0 ? 1.0 : -1.0;
-  // Warm the LU once so its internal buffers exist before the first tick.
-  G_.setIdentity();
-  lu_.compute(G_);
+  Z_.resize(factors_.size());
+  lu_.resize(factors_.size());
+  for (unsigned mask = 0; mask < factors_.size(); ++mask) prepare_contact_solve(mask);
 }
 
 bool StationCore::first_of_gain(int j) const {
@@ -136,33 +134,30 @@ void StationCore::engage_contact() {
   for (std::size_t a = 0; a < cfg_.contact_nodes.size(); ++a)
     anchor_[a] = x_.segment<3>(3 * cfg_.contact_nodes[a]) - y_;
   in_contact_ = true;
-  ++contact_epoch_;
 }
 
 void StationCore::prepare_contact_solve(unsigned mask) {
   const SparseLdlt& F = factors_[mask];
   const double c = cfg_.vp.contact_damping_Ns_per_m + cfg_.vp.contact_stiffness_N_per_m * T_ / 2.0;
+  Eigen::MatrixXd& Z = Z_[mask];
+  Z = Eigen::MatrixXd::Zero(nf_, m_units_);
   for (int a = 0; a < m_units_; ++a) {
-    double* z = Z_.col(a).data();
-    std::fill(z, z + nf_, 0.0);
-    z[unit_row_[static_cast<std::size_t>(a)]] = 1.0;
-    F.solve_in_place(z, 1, scratch_.data());
+    Z(unit_row_[static_cast<std::size_t>(a)], a) = 1.0;
+    F.solve_in_place(Z.col(a).data(), 1, scratch_.data());
   }
   const int m = m_units_;
-  G_.setZero();
+  Small G = Small::Zero(m + vp_units_, m + vp_units_);
   for (int a = 0; a < m; ++a) {
     for (int b = 0; b < m; ++b) {
-      const double W = Z_(unit_row_[static_cast<std::size_t>(a)], b);
-      G_(a, b) = (a == b ? 1.0 : 0.0) + c * W;
-      G_(a, m + unit_vp_[static_cast<std::size_t>(b)]) -= c * W;
+      const double W = Z(unit_row_[static_cast<std::size_t>(a)], b);
+      G(a, b) = (a == b ? 1.0 : 0.0) + c * W;
+      G(a, m + unit_vp_[static_cast<std::size_t>(b)]) -= c * W;
     }
-    G_(m + unit_vp_[static_cast<std::size_t>(a)], a) = -c;
+    G(m + unit_vp_[static_cast<std::size_t>(a)], a) = -c;
   }
   const int per_vp = m / vp_units_;
-  for (int e = 0; e < vp_units_; ++e) G_(m + e, m + e) = a_w_ + c * per_vp;
-  lu_.compute(G_);
-  contact_mask_ = mask;
-  prepared_epoch_ = contact_epoch_;
+  for (int e = 0; e < vp_units_; ++e) G(m + e, m + e) = a_w_ + c * per_vp;
+  lu_[mask].compute(G);
 }
 
 StationCore::TickOutput StationCore::tick(const Vec3& q) {
@@ -282,15 +277,14 @@ StationCore::TickOutput StationCore::tick(const Vec3& q) {
   factors_[mask].solve_in_place(v_hat_.data(), w_, scratch_.data());
   Vec3 w_hat;
   if (in_contact_) {
-    if (prepared_epoch_ != contact_epoch_ || contact_mask_ != mask) prepare_contact_solve(mask);
     const int m = m_units_;
     for (int a = 0; a < m; ++a)
       for (int col = 0; col < w_; ++col) R_(a, col) = v_hat_[unit_row_[a] * w_ + col];
     for (int e = 0; e < vp_units_; ++e)
       for (int col = 0; col < w_; ++col) R_(m + e, col) = (w_ == 3) ? bw[col] : bw[e];
-    X_.noalias() = lu_.solve(R_);
+    X_.noalias() = lu_[mask].solve(R_);
     for (int a = 0; a < m; ++a) {
-      const double* za = Z_.col(a).data();
+      const double* za = Z_[mask].col(a).data();
       for (int col = 0; col < w_; ++col) {
         const double coef = c * (X_(m + unit_vp_[a], col) - X_(a, col));
         if (coef == 0.0) continue;

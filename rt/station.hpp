@@ -9,9 +9,9 @@
 // with S the set of neighbours whose coupling is active. A_S is factored once per subset S at
 // start-up. Contact adds c = b_c + k_c T/2 on the contact nodes and couples them to the VP's
 // unknown w_hat; that is solved by a Schur complement on top of A_S^{-1} (a small dense system of
-// at most 3*kMaxContactNodes + 3 unknowns), so a change of contact or neighbour set never
-// refactors A in the tick. Worst-case tick cost: one sparse solve, plus (on the tick a contact
-// or neighbour set changes) one more sparse solve per contact unknown.
+// at most 3*kMaxContactNodes + 3 unknowns) whose data are precomputed at start-up for every
+// neighbour subset, so a change of contact or neighbour set costs nothing extra in the tick.
+// Worst-case tick cost: one sparse solve with 3 right-hand sides plus O(n * |C|) work.
 //
 // tick() never allocates, locks or blocks, and never throws: it returns status flags.
 #include <Eigen/Core>
@@ -125,7 +125,7 @@ class StationCore {
   void set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v);
 
  private:
-  void prepare_contact_solve(unsigned mask);
+  void prepare_contact_solve(unsigned mask);  // start-up: Z, G and its LU for one neighbour subset
   void engage_contact();
   bool first_of_gain(int j) const;  // first active neighbour using this gain object
 
@@ -160,18 +160,16 @@ class StationCore {
   std::vector<RxLink::TickView> views_;
   std::vector<unsigned char> active_;
 
-  // Contact Schur data, valid for (contact_mask_, contact_epoch_)
+  // Contact Schur data per neighbour subset, precomputed at start-up (the contact mesh is fixed
+  // per station): Z_[S] = A_S^{-1} U and the LU of the small bordered system.
   using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxContactNodes + 3, 3 * kMaxContactNodes + 3>;
   using SmallRhs = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxContactNodes + 3, 3>;
   int m_units_ = 0, vp_units_ = 0;
   std::vector<int> unit_row_;     // factor row of contact unit a
   std::vector<int> unit_vp_;      // VP unit that contact unit a couples to
-  Eigen::MatrixXd Z_;             // nf x m: A_S^{-1} e_unit
-  Small G_;
-  Eigen::PartialPivLU<Small> lu_;
+  std::vector<Eigen::MatrixXd> Z_;             // per subset, nf x m: A_S^{-1} e_unit
+  std::vector<Eigen::PartialPivLU<Small>> lu_;  // per subset
   SmallRhs R_, X_;
-  unsigned contact_mask_ = ~0u;
-  std::uint64_t contact_epoch_ = 0, prepared_epoch_ = ~0ull;
   double a_w_ = 0;  // VP diagonal without contact
 };
 

@@ -25,12 +25,8 @@ DenseStationReference::DenseStationReference(const StationConfig& c) : cfg_(c), 
   b_.resize(dofs_ + 3);
   sol_.resize(dofs_ + 3);
   ldlt_ = Eigen::LDLT<Eigen::MatrixXd>(dofs_ + 3);
-  const auto& cn = c.contact_nodes;
-  const Vec3 p0 = x_.segment<3>(3 * cn[0]), p1 = x_.segment<3>(3 * cn[1]), p2 = x_.segment<3>(3 * cn[2]);
-  Vec3 ctr = Vec3::Zero();
-  for (int p : cn) ctr += x_.segment<3>(3 * p);
-  ctr /= static_cast<double>(cn.size());
-  normal_sign_ = (p1 - p0).cross(p2 - p0).dot(ctr - s.mesh.centroid()) >= 0 ? 1.0 : -1.0;
+  const ContactFace rest = contact_face(x_, c.contact_nodes);
+  normal_sign_ = rest.normal.dot(rest.centroid - s.mesh.centroid()) >= 0 ? 1.0 : -1.0;
 }
 
 Vec3 DenseStationReference::tick(const Vec3& q) {
@@ -42,10 +38,9 @@ Vec3 DenseStationReference::tick(const Vec3& q) {
   Vec3 f_dev = -g.B_vc_Ns_per_m * (vq - w_hat_prev_) - g.K_vc_N_per_m * (q - y_);
   if (f_dev.norm() > cfg_.max_device_force_N) f_dev *= cfg_.max_device_force_N / f_dev.norm();
   // contact switching (same rule as StationCore)
-  Vec3 xc = Vec3::Zero();
-  for (int p : cn) xc += x_.segment<3>(3 * p);
-  xc /= static_cast<double>(cn.size());
-  Vec3 nrm = normal_sign_ * (x_.segment<3>(3 * cn[1]) - x_.segment<3>(3 * cn[0])).cross(x_.segment<3>(3 * cn[2]) - x_.segment<3>(3 * cn[0]));
+  const ContactFace face = contact_face(x_, cn);
+  const Vec3& xc = face.centroid;
+  Vec3 nrm = normal_sign_ * face.normal;
   if (nrm.norm() > 0) nrm.normalize();
   if (in_contact_) {
     if (f_vp_.dot(nrm) < 0) in_contact_ = false;

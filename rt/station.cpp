@@ -18,6 +18,15 @@ SpatialMatrix combine(const std::vector<std::pair<double, const SpatialMatrix*>>
 }
 }  // namespace
 
+ContactFace contact_face(const Eigen::VectorXd& x, const std::vector<int>& nodes) {
+  ContactFace f{Vec3::Zero(), Vec3::Zero()};
+  for (int p : nodes) f.centroid += x.segment<3>(3 * p);
+  f.centroid /= static_cast<double>(nodes.size());
+  const Vec3 p0 = x.segment<3>(3 * nodes[0]);
+  f.normal = (x.segment<3>(3 * nodes[1]) - p0).cross(x.segment<3>(3 * nodes[2]) - p0);
+  return f;
+}
+
 void StationConfig::validate() const {
   if (!scene) bad("scene", "set");
   if (users < 1) bad("users", ">= 1");
@@ -106,13 +115,8 @@ StationCore::StationCore(const StationConfig& config)
   const auto& g = cfg_.vp.coupling;
   a_w_ = 2.0 * cfg_.vp.mass_kg / T_ + g.b_v_Ns_per_m + g.B_vc_Ns_per_m + g.K_vc_N_per_m * T_ / 2.0;
   // Orientation of the contact face normal: outward at rest.
-  const auto& cn = cfg_.contact_nodes;
-  const Vec3 p0 = x_.segment<3>(3 * cn[0]), p1 = x_.segment<3>(3 * cn[1]), p2 = x_.segment<3>(3 * cn[2]);
-  Vec3 c = Vec3::Zero();
-  for (int p : cn) c += x_.segment<3>(3 * p);
-  c /= static_cast<double>(cn.size());
-  const Vec3 n = (p1 - p0).cross(p2 - p0);
-  normal_sign_ = n.dot(c - scene_.mesh.centroid()) >= 0 ? 1.0 : -1.0;
+  const ContactFace rest = contact_face(x_, cfg_.contact_nodes);
+  normal_sign_ = rest.normal.dot(rest.centroid - scene_.mesh.centroid()) >= 0 ? 1.0 : -1.0;
   Z_.resize(factors_.size());
   lu_.resize(factors_.size());
   for (unsigned mask = 0; mask < factors_.size(); ++mask) prepare_contact_solve(mask);
@@ -196,21 +200,16 @@ StationCore::TickOutput StationCore::tick(const Vec3& q) {
       edge_was_dropped_[j] = 0;
     } else {
       out.flags |= kEdgeDropped;
-      if (!edge_was_dropped_[j]) {
-        ++edge_drop_events_;
-        ++edge_drops_[j];
-      }
+      if (!edge_was_dropped_[j]) ++edge_drops_[j];
       edge_was_dropped_[j] = 1;
     }
   }
 
   // --- 3. contact set (decided from the state at the start of the tick) ---
   {
-    Vec3 xc = Vec3::Zero();
-    for (int p : cn) xc += x_.segment<3>(3 * p);
-    xc /= static_cast<double>(cn.size());
-    const Vec3 p0 = x_.segment<3>(3 * cn[0]), p1 = x_.segment<3>(3 * cn[1]), p2 = x_.segment<3>(3 * cn[2]);
-    Vec3 nrm = normal_sign_ * (p1 - p0).cross(p2 - p0);
+    const ContactFace face = contact_face(x_, cn);
+    const Vec3& xc = face.centroid;
+    Vec3 nrm = normal_sign_ * face.normal;
     const double len = nrm.norm();
     if (len > 0) nrm /= len;
     if (in_contact_) {
@@ -347,10 +346,7 @@ StationCore::TickOutput StationCore::tick(const Vec3& q) {
   const double vmax = cfg_.divergence_speed_m_per_s;
   bool finite = x_.allFinite() && v_.allFinite() && y_.allFinite();
   if (!finite || v_.cwiseAbs().maxCoeff() > vmax) safe_state_ = true;
-  if (safe_state_) {
-    out.flags |= kDiverged | kSafeState;
-    f_dev.setZero();
-  }
+  if (safe_state_) out.flags |= kDiverged | kSafeState;
   if (out.flags & kSafeState) {
     ++safe_state_ticks_;
     f_dev.setZero();

@@ -65,6 +65,14 @@ struct StationConfig {
   void validate() const;                 // throws std::invalid_argument naming the key
 };
 
+// Centroid and (unnormalized) normal, from the order of its first three nodes, of a contact mesh
+// in configuration x. RT-safe.
+struct ContactFace {
+  Vec3 centroid;
+  Vec3 normal;
+};
+ContactFace contact_face(const Eigen::VectorXd& x, const std::vector<int>& nodes);
+
 // Status flags of one tick.
 enum TickFlags : std::uint32_t {
   kTickOk = 0,
@@ -116,7 +124,11 @@ class StationCore {
   bool in_contact() const { return in_contact_; }
   const EnergyMonitor& energy() const { return energy_; }
   const StationConfig& config() const { return cfg_; }
-  std::uint64_t edge_drop_events() const { return edge_drop_events_; }
+  std::uint64_t edge_drop_events() const {
+    std::uint64_t total = 0;
+    for (auto d : edge_drops_) total += d;
+    return total;
+  }
   std::uint64_t edge_drop_events(int n) const { return edge_drops_[static_cast<std::size_t>(n)]; }
   std::uint64_t safe_state_ticks() const { return safe_state_ticks_; }
   int factorizations() const { return static_cast<int>(factors_.size()); }
@@ -151,7 +163,7 @@ class StationCore {
   std::vector<Vec3> anchor_;  // r_p: contact node offset from the VP at onset
   double normal_sign_ = 1.0;
   EnergyMonitor energy_{};
-  std::uint64_t edge_drop_events_ = 0, safe_state_ticks_ = 0;
+  std::uint64_t safe_state_ticks_ = 0;
   std::vector<unsigned char> edge_was_dropped_;
   std::vector<std::uint64_t> edge_drops_;
 

@@ -257,10 +257,9 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
     if (pi < 0) continue;  // cannot happen: the decoder knows the same peers
     PeerState& p = *peers_[static_cast<std::size_t>(pi)];
     // Echo bookkeeping: remember the newest packet of this peer to echo it back.
-    if (!p.have_echo || st.seq > p.echo_seq) {
-      p.have_echo = true;
-      p.echo_seq = st.seq;
-      p.echo_time_ns = st.send_time_ns;
+    if (!p.echo.valid || st.seq > p.echo.seq) {
+      p.previous_echo = p.echo;
+      p.echo = PeerState::EchoSlot{true, st.seq, st.send_time_ns, now_ns};
     }
     // Round trip: first time we see this echo of one of our own packets.
     if (st.has_echo && (!p.sampled_any || st.echo_seq > p.last_sampled_echo)) {
@@ -311,9 +310,10 @@ void Endpoint::handle_tx(std::int64_t now_ns) {
       o.dest = p.link.station_id;
       o.seq = m.seq;
       o.send_time_ns = stamp;
-      o.has_echo = p.have_echo;
-      o.echo_seq = p.echo_seq;
-      o.echo_time_ns = p.echo_time_ns;
+      const PeerState::EchoSlot* e = p.echo_as_of(stamp);
+      o.has_echo = e != nullptr;
+      o.echo_seq = e ? e->seq : 0;
+      o.echo_time_ns = e ? e->send_time_ns : 0;
       o.value_count = value_count_;
       o.x_hat = x;
       o.v_hat = x + value_count_;

@@ -194,9 +194,21 @@ class Endpoint {
     PeerLink link;
     ImpairedLink impaired;
     RttEstimator rtt;
-    bool have_echo = false;      // newest packet received from this peer (to echo back)
-    std::uint64_t echo_seq = 0;
-    std::int64_t echo_time_ns = 0;
+    // The newest packet received from this peer and the one before it, with their receive
+    // times. A state is echoed only with a packet received by its own send stamp, so the
+    // receiver's age bound (now - echoed send time) never understates the state's age.
+    struct EchoSlot {
+      bool valid = false;
+      std::uint64_t seq = 0;
+      std::int64_t send_time_ns = 0;
+      std::int64_t receive_time_ns = 0;
+    };
+    EchoSlot echo, previous_echo;
+    const EchoSlot* echo_as_of(std::int64_t stamp_ns) const {
+      if (echo.valid && echo.receive_time_ns <= stamp_ns) return &echo;
+      if (previous_echo.valid && previous_echo.receive_time_ns <= stamp_ns) return &previous_echo;
+      return nullptr;
+    }
     std::uint64_t last_sampled_echo = 0;
     bool sampled_any = false;
     PeerStats stats;

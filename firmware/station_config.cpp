@@ -138,12 +138,13 @@ StationFile parse_station_file(std::string_view toml_text) {
 
   // [rt]
   const View rtv = root["rt"];
-  only_keys(rtv, "rt", {"priority", "cpu", "lock_memory", "hold_dma_latency", "require_rt"});
+  only_keys(rtv, "rt", {"priority", "cpu", "lock_memory", "hold_dma_latency", "require_rt", "isolate_cpu"});
   f.rt.priority = static_cast<int>(integer(rtv["priority"], "rt.priority", 80, 1, 98));
   f.rt.cpu = static_cast<int>(integer(rtv["cpu"], "rt.cpu", -1, -1, 4095));
   f.rt.lock_memory = boolean(rtv["lock_memory"], "rt.lock_memory", true);
   f.rt.hold_dma_latency = boolean(rtv["hold_dma_latency"], "rt.hold_dma_latency", false);
   f.rt.require_rt = boolean(rtv["require_rt"], "rt.require_rt", false);
+  f.rt.isolate_cpu = boolean(rtv["isolate_cpu"], "rt.isolate_cpu", true);
   platform::validate(f.rt);
 
   // [loop]
@@ -178,7 +179,7 @@ StationFile parse_station_file(std::string_view toml_text) {
   const View nt = root[P];
   if (!nt) bad("[net]", "present (transport, addresses, session key, peers: see net/config.hpp)");
   only_keys(nt, P, {"station_id", "transport", "bind", "listen", "interface", "session_id", "session_key", "encoding",
-                    "max_datagram_bytes", "io_busy_poll", "delay_queue_datagrams", "rtt_margin_fraction", "rtt_margin_s",
+                    "max_datagram_bytes", "io_busy_poll", "io_cpu", "tx_spin", "tx_spin_lead_us", "tx_spin_tail_us", "delay_queue_datagrams", "rtt_margin_fraction", "rtt_margin_s",
                     "rtt_min_probe_samples", "impairment", "peers"});
   only_keys(nt["impairment"], P + ".impairment", {"preset", "seed", "trace_file", "blackout_start_s", "blackout_length_s"});
   f.net_station_id_set = static_cast<bool>(nt["station_id"]);

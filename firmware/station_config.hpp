@@ -37,7 +37,8 @@
 //   max_power_W = 3.0                # cap on F.v into the hand, [0, 1000], 0 disables
 //   max_speed_m_per_s = 3.0          # (0, 1000]
 //   sim_max_force_N = 3.3            # simulated device capability, (0, 1000]
-//   [rt]       priority = 80 (1..98), cpu = -1, lock_memory = true, hold_dma_latency = false, require_rt = false
+//   [rt]       priority = 80 (1..98), cpu = -1, lock_memory = true, hold_dma_latency = false, require_rt = false,
+//              isolate_cpu = true (with cpu >= 0: every other thread of the process moved off that cpu)
 //   [loop]     period_ns = 2000000 (must equal the scenario's T), overrun_storm_count = 10 (>= 1),
 //              report_interval_ns = 1000000000 (>= 1e9)
 //   [gpio]     enabled = false, chip = "", tick_line = -1, packet_line = -1, consumer = "haptic-station"

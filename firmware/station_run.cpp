@@ -53,18 +53,26 @@ constexpr std::size_t kMaxStateValues = 64'000'000;  // 512 MB of doubles: refus
 void run_tick(RunTick& c, std::int64_t k, std::int64_t kr, const platform::TickInfo& info) {
   // 1. GPIO high (the loop already emitted tick_begin)
   if (c.gpio) c.gpio->tick_high();
+  // Every step below is an LTTng stage (platform/trace.hpp), so tools/trace/analyze.py breaks
+  // the tick down: device_read, rx_drain, solve, publish (force out), tx, monitor, telemetry.
+  using platform::trace::Stage;
+  using platform::trace::StageScope;
   // 2. newest device sample
   drivers::DeviceSample ds{};
   rt::Vec3 q;
-  if (c.device->read_newest(ds)) {
-    q = rt::Vec3(ds.position_m[0], ds.position_m[1], ds.position_m[2]);
-  } else {
-    q = rt::Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  // safe state for this tick
-    ++c.device_fault_ticks;
+  {
+    StageScope stage(Stage::device_read);
+    if (c.device->read_newest(ds)) {
+      q = rt::Vec3(ds.position_m[0], ds.position_m[1], ds.position_m[2]);
+    } else {
+      q = rt::Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  // safe state for this tick
+      ++c.device_fault_ticks;
+    }
+    platform::trace::device_read(0, ds.sequence);
   }
-  platform::trace::device_read(0, ds.sequence);
   // 3. drain RX into the receive links; sequence numbers translated to the core's k
   const std::int64_t lag = kr - (c.core->sequence() + 1);  // cycles skipped by overruns
+  platform::trace::stage_begin(Stage::rx_drain);
   c.ep->drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double* x, const double* v, std::uint32_t count) {
     const int n = c.sender_to_nbr[sender];
     if (n < 0) {
@@ -79,17 +87,23 @@ void run_tick(RunTick& c, std::int64_t k, std::int64_t kr, const platform::TickI
     c.core->rx(n).offer(static_cast<std::int64_t>(seq) - c.run_k0 - lag, send_time_s, x, v, static_cast<int>(count));
     ++c.rx_offered;
   });
+  platform::trace::stage_end(Stage::rx_drain);
   // 4. the coupled VO + VP step
   platform::trace::solve_begin();
   const auto out = c.core->tick(q);
   platform::trace::solve_end();
   // 5. force to the device, state to the neighbours
   const double F[3] = {out.device_force_N[0], out.device_force_N[1], out.device_force_N[2]};
+  platform::trace::stage_begin(Stage::publish);
   c.device->command_force(F);
   platform::trace::device_write(0, static_cast<std::uint64_t>(kr));
   if (c.simulated) c.simulated->service(static_cast<double>(kr) * c.T, c.T);
+  platform::trace::stage_end(Stage::publish);
+  platform::trace::stage_begin(Stage::tx);
   if (!c.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), c.core->x_hat(), c.core->v_hat())) ++c.push_failures;
+  platform::trace::stage_end(Stage::tx);
   // 6. monitor, records, telemetry
+  platform::trace::stage_begin(Stage::monitor);
   const auto& e = c.core->energy();
   c.port_min = std::min(c.port_min, e.port_J);
   const auto& vv = c.core->v();
@@ -126,7 +140,9 @@ void run_tick(RunTick& c, std::int64_t k, std::int64_t kr, const platform::TickI
     std::copy(c.core->x().data(), c.core->x().data() + c.dofs, c.state_x + c.state_n * static_cast<std::size_t>(c.dofs));
     ++c.state_n;
   }
+  platform::trace::stage_end(Stage::monitor);
   if (c.telemetry) {
+    StageScope stage(Stage::telemetry);
     platform::TelemetryRecord tr;
     tr.tick = info.index;
     tr.scheduled_ns = info.scheduled_ns;
@@ -287,6 +303,7 @@ int run_station(const StationFile& f, const RunOverrides& o, std::atomic<bool>& 
     throw std::runtime_error("started " + std::to_string((mono_now - epoch_ns) * 1e-9) +
                              " s after the common epoch (station.start_at / --start-at), more than half the probing phase: start earlier");
   nc.endpoint.impairment_epoch_s = static_cast<double>(epoch_ns + run_k0 * period_ns) * 1e-9;
+  nc.endpoint.tx_period_s = T;  // tick-synchronous TX (net.tx_spin) needs the tick period
 
   // Device.
   drivers::DeviceSelection sel;

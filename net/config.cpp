@@ -1,5 +1,7 @@
 #include "net/config.hpp"
 
+#include <sched.h>
+
 #include <toml++/toml.h>
 
 #include <cmath>
@@ -73,13 +75,17 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
   e.wire.session_id = integer<std::uint32_t>(net["session_id"], P + "session_id", 1, 0, 0xFFFFFFFFll);
   if (!net["session_key"]) bad(P + "session_key", "present: 64 hexadecimal digits (a 32-byte key)");
   e.wire.key = SessionKey::from_hex(text(net["session_key"], P + "session_key", ""), P + "session_key");
-  const std::string enc = text(net["encoding"], P + "encoding", "float64");
+  const std::string enc = text(net["encoding"], P + "encoding", "float32");
   if (enc == "float64") e.wire.encoding = ValueEncoding::float64;
   else if (enc == "float32") e.wire.encoding = ValueEncoding::float32;
   else bad(P + "encoding", "\"float64\" or \"float32\"");
   e.wire.max_datagram_bytes = integer<std::size_t>(net["max_datagram_bytes"], P + "max_datagram_bytes",
                                                    kDefaultDatagramBytes, kMinDatagramBytes + 8, kMaxDatagramBytes);
   e.io_busy_poll = boolean(net["io_busy_poll"], P + "io_busy_poll", false);
+  e.tx_spin = boolean(net["tx_spin"], P + "tx_spin", true);
+  e.io_cpu = integer<int>(net["io_cpu"], P + "io_cpu", -1, -1, CPU_SETSIZE - 1);
+  e.tx_spin_lead_s = real(net["tx_spin_lead_us"], P + "tx_spin_lead_us", 100.0, 0.0, 1e6) * 1e-6;
+  e.tx_spin_tail_s = real(net["tx_spin_tail_us"], P + "tx_spin_tail_us", 300.0, 1.0, 1e6) * 1e-6;
   e.delay_queue_datagrams = integer<std::size_t>(net["delay_queue_datagrams"], P + "delay_queue_datagrams", 8192, 16, 1 << 20);
   e.rtt.margin_fraction = real(net["rtt_margin_fraction"], P + "rtt_margin_fraction", 0.25, 0.0, 10.0);
   e.rtt.margin_s = real(net["rtt_margin_s"], P + "rtt_margin_s", 0.004, 0.0, 10.0);

@@ -10,9 +10,13 @@
 //   interface = "hpn0"             # raw: interface name
 //   session_id = 1                 # 0..2^32-1; use a new one per run
 //   session_key = "<64 hex>"       # 32-byte MAC key (required)
-//   encoding = "float64"           # "float64" | "float32"
+//   encoding = "float32"           # "float32" | "float64" (float32: one datagram for 33 nodes; tools/bench/results/net_float32_consensus.json)
 //   max_datagram_bytes = 1400      # 96..65507 and <= the transport's MTU
 //   io_busy_poll = false
+//   io_cpu = -1                    # pin the I/O thread to this CPU (-1: unpinned)
+//   tx_spin = true                 # tick-synchronous TX (net/endpoint.hpp): the I/O thread spins
+//   tx_spin_lead_us = 100          #   from lead before the next push is due (0..1e6)
+//   tx_spin_tail_us = 300          #   to tail after it (1..1e6; lead + tail < the tick period)
 //   delay_queue_datagrams = 8192   # 16..1048576
 //   rtt_margin_fraction = 0.25     # 0..10
 //   rtt_margin_s = 0.004           # 0..10

@@ -1,7 +1,10 @@
 #include "net/endpoint.hpp"
 
 #include <poll.h>
+#include <pthread.h>
+#include <sched.h>
 #include <sys/eventfd.h>
+#include <sys/prctl.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -22,6 +25,13 @@ std::int64_t monotonic_ns() {
 double monotonic_s() { return static_cast<double>(monotonic_ns()) * 1e-9; }
 
 namespace {
+inline void cpu_relax() {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_ia32_pause();
+#elif defined(__aarch64__)
+  asm volatile("yield");
+#endif
+}
 std::vector<std::uint16_t> peer_ids(const EndpointConfig& cfg) {
   std::vector<std::uint16_t> ids;
   for (const auto& p : cfg.peers) ids.push_back(p.station_id);
@@ -34,6 +44,16 @@ const EndpointConfig& checked(const EndpointConfig& cfg, const Transport* t) {
   if (cfg.peers.empty()) throw std::invalid_argument("net.peers must list at least one neighbor");
   if (cfg.delay_queue_datagrams < 16 || cfg.delay_queue_datagrams > (1u << 20))
     throw std::invalid_argument("net.delay_queue_datagrams must be in [16, 1048576]");
+  if (cfg.io_cpu < -1 || cfg.io_cpu >= CPU_SETSIZE)
+    throw std::invalid_argument("net.io_cpu must be -1 (unpinned) or a CPU number; got " + std::to_string(cfg.io_cpu));
+  if (cfg.tx_spin) {
+    if (!(cfg.tx_period_s > 0.0 && cfg.tx_period_s <= 1.0))
+      throw std::invalid_argument("net.tx_spin needs the tick period (0, 1] s; got " + std::to_string(cfg.tx_period_s));
+    if (!(cfg.tx_spin_lead_s >= 0.0 && cfg.tx_spin_lead_s < cfg.tx_period_s))
+      throw std::invalid_argument("net.tx_spin_lead_us must be in [0, period)");
+    if (!(cfg.tx_spin_tail_s > 0.0 && cfg.tx_spin_lead_s + cfg.tx_spin_tail_s < cfg.tx_period_s))
+      throw std::invalid_argument("net.tx_spin_tail_us must be > 0 and lead + tail < period");
+  }
   if (cfg.wire.max_datagram_bytes > t->max_datagram_bytes())
     throw std::invalid_argument("net.max_datagram_bytes = " + std::to_string(cfg.wire.max_datagram_bytes) +
                                 " exceeds what transport " + t->name() + " carries (" +
@@ -52,7 +72,12 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
       decoder_(cfg.wire, peer_ids(cfg), cfg.value_count),
       frags_per_packet_(encoder_.fragment_count(cfg.value_count)),
       epoch_s_(cfg.impairment_epoch_s),
-      busy_poll_(cfg.io_busy_poll) {
+      busy_poll_(cfg.io_busy_poll),
+      tx_spin_(cfg.tx_spin),
+      io_cpu_(cfg.io_cpu),
+      tx_period_ns_(static_cast<std::int64_t>(std::llround(cfg.tx_period_s * 1e9))),
+      tx_lead_ns_(static_cast<std::int64_t>(std::llround(cfg.tx_spin_lead_s * 1e9))),
+      tx_tail_ns_(static_cast<std::int64_t>(std::llround(cfg.tx_spin_tail_s * 1e9))) {
   if (frags_per_packet_ == 0)
     throw std::invalid_argument("net: scene too large for " + std::to_string(kMaxFragments) +
                                 " fragments of net.max_datagram_bytes = " + std::to_string(cfg.wire.max_datagram_bytes));
@@ -84,7 +109,14 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
 }
 
 bool Endpoint::wait_rx(double timeout_s) {
-  if (rx_ready_.size() > 0) return true;
+  // Register first, then look: a delivery either is seen here or writes the eventfd (the I/O
+  // thread writes it only while someone waits, so the RT-polled path pays no syscall).
+  rx_waiters_.fetch_add(1, std::memory_order_seq_cst);
+  (void)rx_delivered_.load(std::memory_order_seq_cst);  // pairs with handle_rx (see there)
+  if (rx_ready_.size() > 0) {
+    rx_waiters_.fetch_sub(1, std::memory_order_relaxed);
+    return true;
+  }
   pollfd p{rx_wake_fd_, POLLIN, 0};
   const auto ns = static_cast<long long>(std::max(0.0, timeout_s) * 1e9);
   timespec t{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
@@ -92,6 +124,7 @@ bool Endpoint::wait_rx(double timeout_s) {
     std::uint64_t v;
     [[maybe_unused]] auto r = ::read(rx_wake_fd_, &v, sizeof v);
   }
+  rx_waiters_.fetch_sub(1, std::memory_order_relaxed);
   return rx_ready_.size() > 0;
 }
 
@@ -106,6 +139,17 @@ void Endpoint::start() {
   if (epoch_s_ < 0.0) epoch_s_ = monotonic_s();
   running_.store(true, std::memory_order_release);
   thread_ = std::thread([this] { run(); });
+  if (io_cpu_ >= 0) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(io_cpu_, &set);
+    const int e = ::pthread_setaffinity_np(thread_.native_handle(), sizeof set, &set);
+    if (e != 0) {
+      stop();
+      throw std::system_error(e, std::generic_category(),
+                              "net.io_cpu = " + std::to_string(io_cpu_) + ": cannot pin the I/O thread");
+    }
+  }
 }
 
 void Endpoint::stop() {
@@ -128,11 +172,15 @@ bool Endpoint::push_state(std::uint64_t seq, double send_time_s, const double* x
     tx_overruns_.fetch_add(1, std::memory_order_relaxed);
     return false;
   }
-  tx_meta_[idx] = TxMeta{seq, send_time_s};
   double* dst = tx_store_.data() + std::size_t{idx} * 2 * value_count_;
   std::memcpy(dst, x_hat, sizeof(double) * value_count_);
   std::memcpy(dst + value_count_, v_hat, sizeof(double) * value_count_);
+  tx_meta_[idx] = TxMeta{seq, send_time_s, monotonic_ns()};  // vDSO clock read, no syscall
   tx_ready_.try_push(idx);  // cannot fail: as many slots as buffers
+  // Dekker pair with spin_for_push() (seq_cst, no fences): if we see the I/O thread spinning,
+  // its end-of-window check sees this push; otherwise we wake it.
+  tx_pushed_.fetch_add(1, std::memory_order_seq_cst);
+  if (tx_spinning_.load(std::memory_order_seq_cst)) return true;  // the spin sees it
   const std::uint64_t one = 1;
   [[maybe_unused]] auto r = ::write(wake_fd_, &one, sizeof one);  // EFD_NONBLOCK: never blocks
   return true;
@@ -178,6 +226,11 @@ EndpointStats Endpoint::stats() const {
   s.rx_ring_full = rx_ring_full_;
   s.wrong_scene_size = wrong_scene_size_;
   s.tx_overruns = tx_overruns_.load(std::memory_order_relaxed);
+  s.tx_packets = tx_packets_;
+  s.tx_caught_spinning = tx_caught_spinning_;
+  s.tx_spin_windows = windows_;
+  s.tx_handoff_mean_s = tx_packets_ ? tx_handoff_sum_s_ / static_cast<double>(tx_packets_) : 0.0;
+  s.tx_handoff_max_s = tx_handoff_max_s_;
   for (const auto& p : peers_) {
     PeerStats ps = p->stats;
     ps.rtt_samples = p->rtt.samples();
@@ -202,6 +255,9 @@ EndpointStats Endpoint::stats() const {
 // ------------------------------------------------------------------ I/O thread
 
 void Endpoint::run() {
+  // The ppoll timeouts below schedule the TX spin window: a SCHED_OTHER thread's default
+  // 50 us timer slack would make it late, so ask for none (per thread; harmless otherwise).
+  if (tx_spin_) ::prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   pollfd fds[2] = {{transport_->fd(), POLLIN, 0}, {wake_fd_, POLLIN, 0}};
   while (running_.load(std::memory_order_acquire)) {
     if (busy_poll_) {
@@ -213,11 +269,35 @@ void Endpoint::run() {
       continue;
     }
     std::int64_t now = monotonic_ns();
-    timespec timeout{0, 100'000'000};  // bounded: re-check running_ at least every 100 ms
-    if (!delay_heap_.empty()) {
-      const std::int64_t wait = std::max<std::int64_t>(0, delay_heap_.front().release_ns - now);
-      if (wait < 100'000'000) timeout = timespec{0, static_cast<long>(wait)};
+    std::int64_t wake_at = now + 100'000'000;  // re-check running_ at least every 100 ms
+    if (!delay_heap_.empty()) wake_at = std::min(wake_at, delay_heap_.front().release_ns);
+    if (tx_spin_ && last_push_ns_ >= 0 && missed_windows_ < kMaxMissedWindows) {
+      // The next push is due one period after the previous one (the previous push's stamp,
+      // not our wake-up, so a late wake-up does not shift the window).
+      std::int64_t due = last_push_ns_ + tx_period_ns_;
+      while (due + tx_tail_ns_ < now) due += tx_period_ns_;  // missed pushes: next slot
+      const std::int64_t open = due - tx_lead_ns_;
+      if (now >= open - wake_late_ns_) {
+        // Our own timer wake-up is late by tens of us on some machines: learn by how much
+        // (the largest lateness of the last 64 windows) and go to sleep that much earlier.
+        const std::int64_t late = std::max<std::int64_t>(0, now - (open - wake_late_ns_));
+        window_late_max_ = std::max(window_late_max_, late);
+        std::uint64_t w;
+        {
+          std::lock_guard lock(stats_mutex_);
+          w = ++windows_;
+        }
+        if (w % 64 == 0) {
+          wake_late_ns_ = std::min<std::int64_t>(window_late_max_, tx_period_ns_ / 4);
+          window_late_max_ = 0;
+        }
+        spin_for_push(due + tx_tail_ns_);  // without a push, the loop moves on to the next slot
+        continue;
+      }
+      wake_at = std::min(wake_at, open - wake_late_ns_);
     }
+    const std::int64_t wait = std::max<std::int64_t>(0, wake_at - now);
+    timespec timeout{static_cast<time_t>(wait / 1'000'000'000), static_cast<long>(wait % 1'000'000'000)};
     const int r = ::ppoll(fds, 2, &timeout, nullptr);
     if (r < 0 && errno != EINTR) break;
     if (fds[1].revents & POLLIN) {
@@ -230,6 +310,40 @@ void Endpoint::run() {
     handle_tx(now);
     release_due(monotonic_ns());
   }
+}
+
+bool Endpoint::spin_for_push(std::int64_t until_ns) {
+  tx_spinning_.store(true, std::memory_order_seq_cst);
+  bool sent = false;
+  std::int64_t now = monotonic_ns();
+  while (running_.load(std::memory_order_relaxed) && now < until_ns) {
+    if (tx_ready_.size() > 0) {
+      std::lock_guard lock(stats_mutex_);
+      in_spin_ = true;
+      handle_tx(now);
+      in_spin_ = false;
+      release_due(monotonic_ns());
+      sent = true;
+      break;
+    }
+    {
+      std::lock_guard lock(stats_mutex_);
+      handle_rx(now);  // non-blocking: keep receiving while we wait
+      release_due(now);
+    }
+    cpu_relax();
+    now = monotonic_ns();
+  }
+  missed_windows_ = sent ? 0 : missed_windows_ + 1;  // the pusher stopped: stop spinning
+  tx_spinning_.store(false, std::memory_order_seq_cst);
+  (void)tx_pushed_.load(std::memory_order_seq_cst);  // pairs with push_state()
+  // A push that raced with the end of the window skipped its eventfd write: take it now.
+  if (!sent && tx_ready_.size() > 0) {
+    std::lock_guard lock(stats_mutex_);
+    handle_tx(monotonic_ns());
+    sent = true;
+  }
+  return sent;
 }
 
 void Endpoint::handle_rx(std::int64_t now_ns) {
@@ -282,13 +396,19 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
       ++rx_ring_full_;
       continue;
     }
-    rx_meta_[idx] = RxMeta{st.sender,   st.seq,      static_cast<double>(st.send_time_ns) * 1e-9,
-                           st.has_echo, st.echo_seq, static_cast<double>(st.echo_time_ns) * 1e-9};
     double* x = rx_store_.data() + std::size_t{idx} * 2 * value_count_;
     st.copy_out(x, x + value_count_);
+    rx_meta_[idx] = RxMeta{st.sender,   st.seq,      static_cast<double>(st.send_time_ns) * 1e-9,
+                           st.has_echo, st.echo_seq, static_cast<double>(st.echo_time_ns) * 1e-9,
+                           monotonic_ns()};
     rx_ready_.try_push(idx);
-    const std::uint64_t one = 1;
-    [[maybe_unused]] auto r = ::write(rx_wake_fd_, &one, sizeof one);
+    // Dekker pair with wait_rx(), seq_cst on both sides (no fences: ThreadSanitizer checks
+    // this code): either the waiter's ring check sees this packet or we see the waiter.
+    rx_delivered_.fetch_add(1, std::memory_order_seq_cst);
+    if (rx_waiters_.load(std::memory_order_seq_cst) > 0) {
+      const std::uint64_t one = 1;
+      [[maybe_unused]] auto r = ::write(rx_wake_fd_, &one, sizeof one);
+    }
   }
 }
 
@@ -302,6 +422,13 @@ void Endpoint::handle_tx(std::int64_t now_ns) {
   while (tx_ready_.try_pop(idx)) {
     const TxMeta m = tx_meta_[idx];
     const double* x = tx_store_.data() + std::size_t{idx} * 2 * value_count_;
+    last_push_ns_ = std::max(last_push_ns_, m.push_ns);
+    missed_windows_ = 0;
+    ++tx_packets_;
+    if (in_spin_) ++tx_caught_spinning_;
+    const double handoff = static_cast<double>(monotonic_ns() - m.push_ns) * 1e-9;
+    tx_handoff_sum_s_ += handoff;
+    tx_handoff_max_s_ = std::max(tx_handoff_max_s_, handoff);
     const std::int64_t stamp = m.send_time_s >= 0.0 ? static_cast<std::int64_t>(std::llround(m.send_time_s * 1e9))
                                                      : now_ns;
     for (auto& pp : peers_) {

@@ -12,7 +12,16 @@
 // The rings carry buffer indices; buffers (2*value_count doubles each) are allocated in the
 // constructor. The RT side never touches the socket, never allocates and never locks;
 // push_state() wakes the I/O thread through a non-blocking eventfd write (one syscall, never
-// blocks). Everything else here is non-RT (start-up, shutdown, statistics).
+// blocks) unless the I/O thread is spinning for it (tick-synchronous TX, below), in which
+// case the push is a ring write and nothing else. Everything else here is non-RT (start-up,
+// shutdown, statistics).
+//
+// Tick-synchronous TX (EndpointConfig::tx_spin): the RT tick pushes once per period, so the
+// I/O thread knows when the next push is due (previous push + period). It sleeps in ppoll
+// until `tx_spin_lead_s` before that instant and then spins, receiving as it goes, until the
+// push arrives or `tx_spin_tail_s` after the instant; the push is then sent within a ring
+// poll (~0.1 us) instead of after a thread wake-up (tens of us on a VM). A push outside the
+// window falls back to the eventfd wake-up: nothing is lost, it is only slower (counted).
 #include <atomic>
 #include <cstdint>
 #include <limits>
@@ -50,6 +59,14 @@ struct EndpointConfig {
   // The I/O thread spins on non-blocking receive instead of sleeping in ppoll (lowest latency,
   // burns one core: only with a core to spare; net.io_busy_poll, default false).
   bool io_busy_poll = false;
+  // Tick-synchronous TX (see above; net.tx_spin, net.tx_spin_lead_us, net.tx_spin_tail_us).
+  // tx_period_s is the RT tick's period (the station sets it). CPU cost: about
+  // (lead + the tick's wake-up lateness) per period on the I/O thread's core.
+  bool tx_spin = false;
+  double tx_period_s = 0.0;
+  int io_cpu = -1;  // pin the I/O thread to this CPU (net.io_cpu; -1 = let the scheduler place it)
+  double tx_spin_lead_s = 100e-6;
+  double tx_spin_tail_s = 300e-6;
   double impairment_epoch_s = -1.0;  // blackout times are relative to this (monotonic_s); <0: start()
 };
 
@@ -74,6 +91,10 @@ struct EndpointStats {
   DropCounters drops{};
   std::uint64_t datagrams_received = 0, receive_errors = 0, rx_ring_full = 0, tx_overruns = 0;
   std::uint64_t wrong_scene_size = 0;  // authentic packets whose 3n differs from ours (dropped)
+  // Push -> first datagram handed to the transport (I/O thread), per state packet.
+  std::uint64_t tx_packets = 0, tx_caught_spinning = 0;  // caught inside a spin window
+  std::uint64_t tx_spin_windows = 0;                     // spin windows opened (net.tx_spin)
+  double tx_handoff_mean_s = 0.0, tx_handoff_max_s = 0.0;
   std::vector<PeerStats> peers;
 };
 
@@ -88,6 +109,7 @@ struct RxPacket {
   const double* x_hat = nullptr;
   const double* v_hat = nullptr;
   std::uint32_t count = 0;
+  double delivered_s = 0.0;      // CLOCK_MONOTONIC when the I/O thread put it in the RX ring
   // Clock-free upper bound on this data's age at our time now_s: the sender sent it after it
   // received our packet stamped echo_time_s, so age <= now_s - echo_time_s (a round trip).
   // +inf without an echo. RT-safe.
@@ -141,6 +163,7 @@ class Endpoint {
       p.x_hat = rx_store_.data() + std::size_t{idx} * 2 * value_count_;
       p.v_hat = p.x_hat + value_count_;
       p.count = value_count_;
+      p.delivered_s = static_cast<double>(m.delivered_ns) * 1e-9;
       on_packet(static_cast<const RxPacket&>(p));
       rx_free_.try_push(idx);
       ++n;
@@ -178,10 +201,12 @@ class Endpoint {
     bool has_echo;
     std::uint64_t echo_seq;
     double echo_time_s;
+    std::int64_t delivered_ns;
   };
   struct TxMeta {
     std::uint64_t seq;
     double send_time_s;
+    std::int64_t push_ns;
   };
   struct Delayed {
     std::int64_t release_ns;
@@ -217,6 +242,7 @@ class Endpoint {
   };
 
   void run();
+  bool spin_for_push(std::int64_t until_ns);  // I/O thread: tick-synchronous TX window
   void handle_rx(std::int64_t now_ns);
   void handle_tx(std::int64_t now_ns);
   void release_due(std::int64_t now_ns);
@@ -232,6 +258,9 @@ class Endpoint {
   std::size_t frags_per_packet_;
   double epoch_s_;
   bool busy_poll_;
+  bool tx_spin_;
+  int io_cpu_;
+  std::int64_t tx_period_ns_, tx_lead_ns_, tx_tail_ns_;
 
   rt::SpscRing<std::uint32_t, kRxBuffers> rx_ready_, rx_free_;
   rt::SpscRing<std::uint32_t, kTxBuffers> tx_ready_, tx_free_;
@@ -240,6 +269,10 @@ class Endpoint {
   std::vector<TxMeta> tx_meta_;
   std::vector<double> tx_store_;
   std::atomic<std::uint64_t> tx_overruns_{0};
+  // true while the I/O thread spins on tx_ready_ (push_state() then skips the eventfd write;
+  // seq_cst on both sides: a push is either seen by the spin or wakes the thread).
+  std::atomic<bool> tx_spinning_{false};
+  std::atomic<std::uint64_t> tx_pushed_{0};
 
   // I/O thread only.
   std::vector<std::uint8_t> rx_buf_;
@@ -250,12 +283,24 @@ class Endpoint {
   std::uint64_t delay_order_ = 0;
   std::size_t max_datagram_;
   int wake_fd_ = -1;
-  int rx_wake_fd_ = -1;  // written by the I/O thread after each delivery (see wait_rx)
+  int rx_wake_fd_ = -1;  // written by the I/O thread after a delivery while wait_rx() waits
+  std::atomic<int> rx_waiters_{0};
+  std::atomic<std::uint64_t> rx_delivered_{0};
   std::atomic<bool> running_{false};
   std::thread thread_;
 
   mutable std::mutex stats_mutex_;  // guards PeerState::rtt/stats and the counters below
   std::uint64_t datagrams_received_ = 0, receive_errors_ = 0, rx_ring_full_ = 0, wrong_scene_size_ = 0;
+  std::uint64_t tx_packets_ = 0, tx_caught_spinning_ = 0;
+  double tx_handoff_sum_s_ = 0.0, tx_handoff_max_s_ = 0.0;
+  std::int64_t last_push_ns_ = -1;  // I/O thread: push stamp of the newest packet sent
+  bool in_spin_ = false;            // I/O thread: handle_tx is called from a spin window
+  // Consecutive windows without a push; at kMaxMissedWindows the thread stops spinning until
+  // the next push (which arrives through the eventfd) re-arms it.
+  static constexpr int kMaxMissedWindows = 4;
+  int missed_windows_ = 0;
+  std::int64_t wake_late_ns_ = 0, window_late_max_ = 0;  // learned timer lateness (run())
+  std::uint64_t windows_ = 0;  // guarded by stats_mutex_ for stats()
 };
 
 }  // namespace haptic::net

@@ -1,6 +1,8 @@
 #include "platform/rt_thread.hpp"
 
 #include <alloca.h>
+#include <dirent.h>
+#include <sys/syscall.h>
 #include <fcntl.h>
 #include <malloc.h>
 #include <pthread.h>
@@ -159,6 +161,7 @@ std::string RtReport::summary() const {
   os << "rt: kernel " << kernel.uname_release << (kernel.preempt_rt ? " (PREEMPT_RT)" : " (NOT PREEMPT_RT)") << "\n";
   os << "rt: scheduling " << (sched_fifo ? "SCHED_FIFO priority " + std::to_string(priority) : std::string("SCHED_OTHER"))
      << ", cpu " << (pinned ? std::to_string(cpu) : std::string("not pinned"))
+     << (threads_moved_off >= 0 ? " (" + std::to_string(threads_moved_off) + " other threads moved off it)" : std::string())
      << ", memory " << (memory_locked ? "locked" : "NOT locked")
      << ", stack " << (stack_prefaulted ? "prefaulted" : "not prefaulted")
      << ", heap " << (heap_prefaulted ? "prefaulted" : "not prefaulted")
@@ -166,6 +169,37 @@ std::string RtReport::summary() const {
   for (const auto& w : warnings) os << "rt: WARNING: " << w << "\n";
   return os.str();
 }
+
+namespace {
+// Every thread of this process but the caller: affinity = the process's allowed cpus minus
+// `cpu`. Returns "" or why it could not (the other threads then share the RT core).
+std::string move_other_threads_off(int cpu, int& moved) {
+  cpu_set_t allowed;
+  CPU_ZERO(&allowed);
+  if (sched_getaffinity(0, sizeof allowed, &allowed) != 0) return "rt.isolate_cpu: sched_getaffinity failed";
+  // The caller is pinned to `cpu` by now; the process-wide set is the main thread's.
+  cpu_set_t main_set;
+  CPU_ZERO(&main_set);
+  if (sched_getaffinity(getpid(), sizeof main_set, &main_set) == 0) CPU_OR(&allowed, &allowed, &main_set);
+  CPU_CLR(cpu, &allowed);
+  if (CPU_COUNT(&allowed) == 0)
+    return "rt.isolate_cpu: no other cpu is allowed to this process (systemd CPUAffinity / cpuset): housekeeping threads share cpu " +
+           std::to_string(cpu);
+  const pid_t self = static_cast<pid_t>(syscall(SYS_gettid));
+  moved = 0;
+  std::string errors;
+  DIR* d = opendir("/proc/self/task");
+  if (d == nullptr) return "rt.isolate_cpu: cannot list /proc/self/task";
+  while (const dirent* e = readdir(d)) {
+    const pid_t tid = static_cast<pid_t>(std::atoi(e->d_name));
+    if (tid <= 0 || tid == self) continue;
+    if (sched_setaffinity(tid, sizeof allowed, &allowed) == 0) ++moved;
+    else errors += (errors.empty() ? "" : ", ") + std::to_string(tid) + " (" + errno_text(errno) + ")";
+  }
+  closedir(d);
+  return errors.empty() ? "" : "rt.isolate_cpu: could not move threads " + errors + " off cpu " + std::to_string(cpu);
+}
+}  // namespace
 
 RtReport apply_rt_config(const RtConfig& config) {
   validate(config);
@@ -220,6 +254,10 @@ RtReport apply_rt_config(const RtConfig& config) {
     } else {
       fail("pinning to cpu " + std::to_string(config.cpu) + " failed: " + errno_text(rc) +
            " (is the cpu in this process's cpuset / systemd CPUAffinity?)");
+    }
+    if (report.pinned && config.isolate_cpu) {
+      const std::string why = move_other_threads_off(config.cpu, report.threads_moved_off);
+      if (!why.empty()) report.warnings.push_back(why);
     }
   }
 

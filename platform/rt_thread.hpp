@@ -17,6 +17,11 @@ struct RtConfig {
   bool lock_memory = true;    // rt.lock_memory: mlockall(MCL_CURRENT|MCL_FUTURE) + prefaulting
   bool hold_dma_latency = false;  // rt.hold_dma_latency: write 0 to /dev/cpu_dma_latency and keep it open
   bool require_rt = false;    // rt.require_rt: refuse (throw) instead of falling back
+  // rt.isolate_cpu: with cpu >= 0, move every other thread of this process (and so the threads
+  // they create later) off that cpu, onto the other cpus the process may use. The kernel here
+  // may not preempt kernel code (PREEMPT_NONE/VOLUNTARY): a housekeeping thread inside a
+  // syscall on the RT core delays the tick until it leaves the kernel.
+  bool isolate_cpu = true;
   std::size_t prefault_stack_bytes = 512 * 1024;  // rt.prefault_stack_bytes: 0..(stack size - 64 KiB)
   std::size_t prefault_heap_bytes = 8u << 20;     // rt.prefault_heap_bytes
 };
@@ -59,6 +64,7 @@ struct RtReport {
   int priority = 0;               // effective priority (0 when SCHED_OTHER)
   bool pinned = false;            // affinity set to the requested cpu
   int cpu = -1;
+  int threads_moved_off = -1;     // rt.isolate_cpu: other threads moved off `cpu` (-1: not done)
   bool memory_locked = false;     // mlockall succeeded
   bool stack_prefaulted = false;
   bool heap_prefaulted = false;

@@ -1,18 +1,35 @@
 // Network layer benchmarks (results kept in tools/bench/results/net_bench.json):
 //  - encode+authenticate and verify+decode cost per state packet, 33-node scene (float64 and
 //    float32) and the 3000-node scene;
-//  - one-way latency through our stack (push_state -> I/O thread -> UDP -> I/O thread ->
-//    drain) against a minimal UDP ping-pong of the same payload size between the same two
-//    processes in the same run (a forked echo process), as round trip / 2.
+//  - one-way latency through our stack against minimal UDP between the same two processes (a
+//    forked child) in the same run, two ways:
+//    (a) BM_OneWayPeriodic: what a station sees. A sender thread wakes every 2 ms on absolute
+//        deadlines (like the tick) and sends one 33-node state; the latency is CLOCK_MONOTONIC
+//        at the receiver (same host clock) minus the stamp taken just before the send:
+//          mode 0  minimal UDP: stamp, sendto() of the same payload size; the child's thread
+//                  blocked in recv() stamps when recv returns;
+//          mode 1  our stack, I/O thread woken by eventfd: stamp, push_state(); I/O thread:
+//                  encode + MAC + sendto; child's I/O thread: recv, verify, decode, RX ring,
+//                  stamped when the state is in the ring (what the tick polls);
+//          mode 2  as 1 with tick-synchronous TX (net.tx_spin): no wake-up on the send side.
+//        Second argument: 0 float64 (2 datagrams), 1 float32 (1 datagram).
+//    (b) round trip / 2 ping-pongs (BM_OneWayLatency_*): minimal UDP, the wire codec inline,
+//        and our stack echoed by a non-RT thread blocked in wait_rx() (one more thread
+//        wake-up per hop than a station, whose tick polls the ring).
 #include <benchmark/benchmark.h>
 #include <netinet/in.h>
+#include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <ctime>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -144,10 +161,10 @@ int udp_socket(std::uint16_t& port) {
 
 bool g_busy = false;  // --busy: I/O threads busy-poll (EndpointConfig::io_busy_poll)
 
-EndpointConfig stack_config(std::uint16_t self, std::uint16_t peer) {
+EndpointConfig stack_config(std::uint16_t self, std::uint16_t peer, ValueEncoding enc = ValueEncoding::float64) {
   EndpointConfig c;
   c.io_busy_poll = g_busy;
-  c.wire = wire(self);
+  c.wire = wire(self, enc);
   c.value_count = kValues;
   PeerLink l;
   l.station_id = peer;
@@ -190,7 +207,192 @@ void codec_echo(int s) {
   }
 }
 
-[[noreturn]] void echo_process(int udp, std::unique_ptr<UdpTransport> stack_transport, int codec) {
+
+// ------------------------------------------------ periodic one-way (same-host clock stamps)
+
+constexpr std::int64_t kPeriodNs = 2'000'000;  // the station's tick
+constexpr std::size_t kSlots = 8192;
+struct OneWaySlot {
+  std::atomic<std::uint64_t> seq{0};
+  std::atomic<std::int64_t> latency_ns{0};
+};
+// Shared with the child: [mode 0..2][encoding 0..1] sample slots indexed by sequence.
+struct PeriodicShared {
+  OneWaySlot slot[3][2][kSlots];
+};
+PeriodicShared* g_per = nullptr;
+int g_oneway_udp = -1;             // parent's socket for mode 0
+sockaddr_in g_oneway_addr{};       // child's mode-0 receiver
+std::unique_ptr<Endpoint> g_per_ep[3][2];  // parent's sending endpoints for modes 1 and 2
+
+// Placement (2+ CPUs): the sender ("tick") on CPU 1, the sending I/O threads on CPU 0, the
+// receiving I/O threads on CPU 1 and the minimal-UDP receiver on CPU 0. Every mode then has
+// exactly one cross-CPU wake-up on its receive side, as two stations on two hosts have one
+// (NIC interrupt -> receiving thread); only the eventfd mode adds a second on its send side.
+const bool g_pin = std::thread::hardware_concurrency() >= 2;
+void pin_self(int cpu) {
+  if (!g_pin) return;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  CPU_SET(cpu, &set);
+  ::pthread_setaffinity_np(::pthread_self(), sizeof set, &set);
+}
+
+void record(OneWaySlot& s, std::uint64_t seq, std::int64_t ns) {
+  s.latency_ns.store(ns, std::memory_order_relaxed);
+  s.seq.store(seq, std::memory_order_release);
+}
+
+// Child: receive side of every periodic mode, each on its own thread.
+void periodic_receivers(int oneway_udp, std::vector<std::unique_ptr<UdpTransport>> stack_t,
+                        std::vector<std::thread>& threads, std::vector<std::unique_ptr<Endpoint>>& eps) {
+  threads.emplace_back([oneway_udp] {
+    pin_self(0);
+    std::vector<std::uint8_t> b(65536);
+    for (;;) {
+      const ssize_t n = ::recv(oneway_udp, b.data(), b.size(), 0);
+      const std::int64_t now = monotonic_ns();
+      if (n == 1) break;
+      if (n < 16) continue;
+      std::uint64_t seq;
+      std::int64_t stamp;
+      std::memcpy(&seq, b.data(), 8);
+      std::memcpy(&stamp, b.data() + 8, 8);
+      const int enc = static_cast<int>(seq >> 62);
+      record(g_per->slot[0][enc][seq % kSlots], seq, now - stamp);
+    }
+  });
+  std::size_t t = 0;
+  for (int mode = 1; mode <= 2; ++mode)
+    for (int enc = 0; enc < 2; ++enc) {
+      EndpointConfig c = stack_config(1, 0, enc ? ValueEncoding::float32 : ValueEncoding::float64);
+      c.io_cpu = g_pin ? 1 : -1;
+      auto ep = std::make_unique<Endpoint>(c, std::move(stack_t[t++]));
+      ep->start();
+      Endpoint* e = ep.get();
+      eps.push_back(std::move(ep));
+      threads.emplace_back([e, mode, enc] {
+        while (g_phase->load(std::memory_order_acquire) != 2) {
+          if (!e->wait_rx(0.05)) continue;
+          e->drain_packets([&](const RxPacket& p) {
+            const auto ns = static_cast<std::int64_t>(std::llround((p.delivered_s - p.send_time_s) * 1e9));
+            record(g_per->slot[mode][enc][p.seq % kSlots], p.seq, ns);
+          });
+        }
+      });
+    }
+}
+
+void sleep_until_ns(std::int64_t t) {
+  timespec ts{static_cast<time_t>(t / 1'000'000'000), static_cast<long>(t % 1'000'000'000)};
+  while (::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+void start_echo_process();
+
+// One iteration = one 2 ms period. The three modes take turns period by period (0, 1, 2, 0,
+// ...) so that they see the same machine load; each endpoint therefore pushes every 3
+// periods (its tick-synchronous TX is configured with that period). A sample is read one
+// rotation after its send, so the sender never waits or polls (no interference).
+constexpr int kModes = 3;
+void BM_OneWayPeriodic(benchmark::State& st) {
+  start_echo_process();
+  const int enc = static_cast<int>(st.range(0));
+  static std::uint64_t seq_base[kModes][2] = {};
+  std::vector<double> x(kValues, 0.25), v(kValues, -0.5);
+  std::vector<std::uint8_t> payload(enc ? kUdpPayload / 2 : kUdpPayload, 0x5A);
+  std::vector<double> samples[kModes];
+  std::uint64_t lost[kModes] = {};
+  // The sender is the tick: SCHED_FIFO like the station's RT thread when we may (it preempts
+  // a spinning SCHED_OTHER I/O thread at once, as in a station); restored afterwards.
+  int old_policy = 0;
+  sched_param old_param{};
+  ::pthread_getschedparam(::pthread_self(), &old_policy, &old_param);
+  const sched_param fifo{80};
+  const bool rt = ::pthread_setschedparam(::pthread_self(), SCHED_FIFO, &fifo) == 0;
+  cpu_set_t old_affinity;
+  ::pthread_getaffinity_np(::pthread_self(), sizeof old_affinity, &old_affinity);
+  pin_self(1);
+  const std::uint64_t tag = std::uint64_t{static_cast<unsigned>(enc)} << 62;
+  auto send = [&](int mode, std::uint64_t seq) {
+    if (mode == 0) {
+      const std::int64_t stamp = monotonic_ns();
+      std::memcpy(payload.data(), &seq, 8);
+      std::memcpy(payload.data() + 8, &stamp, 8);
+      ::sendto(g_oneway_udp, payload.data(), payload.size(), 0, reinterpret_cast<sockaddr*>(&g_oneway_addr),
+               sizeof g_oneway_addr);
+    } else {
+      g_per_ep[mode][enc]->push_state(seq, monotonic_s(), x.data(), v.data());
+    }
+  };
+  std::uint64_t pending[kModes] = {};  // sequence sent in the previous rotation, per mode
+  auto collect = [&](int mode) {
+    const std::uint64_t seq = pending[mode];
+    if (seq == 0) return;
+    OneWaySlot& slot = g_per->slot[mode][enc][seq % kSlots];
+    if (slot.seq.load(std::memory_order_acquire) != seq) {
+      ++lost[mode];
+      return;
+    }
+    samples[mode].push_back(static_cast<double>(slot.latency_ns.load(std::memory_order_relaxed)) * 1e-9);
+  };
+  std::int64_t next = monotonic_ns() + kPeriodNs;
+  long k = 0;
+  for (int i = 0; i < 10 * kModes; ++i, ++k, next += kPeriodNs) {  // warm-up rotations
+    sleep_until_ns(next);
+    send(static_cast<int>(k % kModes), tag | ++seq_base[k % kModes][enc]);
+  }
+  for (auto _ : st) {
+    sleep_until_ns(next);
+    next += kPeriodNs;
+    const int mode = static_cast<int>(k++ % kModes);
+    collect(mode);
+    pending[mode] = tag | ++seq_base[mode][enc];
+    send(mode, pending[mode]);
+  }
+  if (rt) ::pthread_setschedparam(::pthread_self(), old_policy, &old_param);
+  ::pthread_setaffinity_np(::pthread_self(), sizeof old_affinity, &old_affinity);
+  st.counters["sender_sched_fifo"] = rt ? 1.0 : 0.0;
+  st.counters["pinned"] = g_pin ? 1.0 : 0.0;
+  static const char* names[kModes] = {"udp", "stack_wake", "stack_spin"};
+  double p50[kModes] = {}, p99[kModes] = {}, mean[kModes] = {};
+  for (int m = 0; m < kModes; ++m) {
+    auto& sm = samples[m];
+    std::sort(sm.begin(), sm.end());
+    auto q = [&](double f) { return sm.empty() ? 0.0 : sm[std::min(sm.size() - 1, static_cast<std::size_t>(f * static_cast<double>(sm.size())))] * 1e6; };
+    p50[m] = q(0.5);
+    p99[m] = q(0.99);
+    for (double x1 : sm) mean[m] += x1 * 1e6;
+    mean[m] = sm.empty() ? 0.0 : mean[m] / static_cast<double>(sm.size());
+    const std::string n = names[m];
+    st.counters[n + "_min_us"] = sm.empty() ? 0.0 : sm.front() * 1e6;
+    st.counters[n + "_p50_us"] = p50[m];
+    st.counters[n + "_mean_us"] = mean[m];
+    st.counters[n + "_p99_us"] = p99[m];
+    st.counters[n + "_max_us"] = sm.empty() ? 0.0 : sm.back() * 1e6;
+    st.counters[n + "_lost"] = static_cast<double>(lost[m]);
+  }
+  for (int m = 1; m < kModes; ++m) {
+    const std::string n = names[m];
+    st.counters["ratio_" + n + "_p50"] = p50[0] > 0 ? p50[m] / p50[0] : 0.0;
+    st.counters["ratio_" + n + "_mean"] = mean[0] > 0 ? mean[m] / mean[0] : 0.0;
+    st.counters["ratio_" + n + "_p99"] = p99[0] > 0 ? p99[m] / p99[0] : 0.0;
+  }
+  const EndpointStats es = g_per_ep[2][enc]->stats();
+  st.counters["spin_caught_fraction"] = static_cast<double>(es.tx_caught_spinning) / std::max<double>(1.0, static_cast<double>(es.tx_packets));
+  st.counters["spin_handoff_mean_us"] = es.tx_handoff_mean_s * 1e6;
+  st.counters["wake_handoff_mean_us"] = g_per_ep[1][enc]->stats().tx_handoff_mean_s * 1e6;
+  st.SetLabel(std::string(enc ? "float32" : "float64") +
+              " 33-node state; udp: stamp, sendto -> recv returns; stack: stamp, push_state -> in the receiver's RX ring");
+}
+BENCHMARK(BM_OneWayPeriodic)->Arg(0)->Arg(1)->ArgName("f32")->Iterations(4500)->Unit(benchmark::kMicrosecond);
+
+[[noreturn]] void echo_process(int udp, std::unique_ptr<UdpTransport> stack_transport, int codec, int oneway_udp,
+                               std::vector<std::unique_ptr<UdpTransport>> periodic_t) {
+  std::vector<std::thread> periodic_threads;
+  std::vector<std::unique_ptr<Endpoint>> periodic_eps;
+  periodic_receivers(oneway_udp, std::move(periodic_t), periodic_threads, periodic_eps);
   std::thread codec_thread([codec] { codec_echo(codec); });
   // UDP echo on its own thread (blocking recv), the stack echo in this thread when phase 1.
   std::thread udp_echo([udp] {
@@ -219,6 +421,8 @@ void codec_echo(int s) {
   ep.stop();
   udp_echo.join();
   codec_thread.join();
+  for (auto& t : periodic_threads) t.join();
+  for (auto& e : periodic_eps) e->stop();
   std::_Exit(0);
 }
 
@@ -226,6 +430,21 @@ void start_echo_process() {
   if (g_child > 0) return;
   void* mem = ::mmap(nullptr, sizeof(std::atomic<int>), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
   g_phase = new (mem) std::atomic<int>(0);
+  void* pm = ::mmap(nullptr, sizeof(PeriodicShared), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+  g_per = new (pm) PeriodicShared();
+  std::uint16_t parent_oneway_port = 0, child_oneway_port = 0;
+  g_oneway_udp = udp_socket(parent_oneway_port);
+  const int child_oneway = udp_socket(child_oneway_port);
+  g_oneway_addr.sin_family = AF_INET;
+  g_oneway_addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  g_oneway_addr.sin_port = htons(child_oneway_port);
+  std::vector<std::unique_ptr<UdpTransport>> per_parent, per_child;
+  for (int i = 0; i < 4; ++i) {
+    per_parent.push_back(std::make_unique<UdpTransport>("127.0.0.1:0", std::vector<UdpPeer>{}));
+    per_child.push_back(std::make_unique<UdpTransport>("127.0.0.1:0", std::vector<UdpPeer>{}));
+    per_parent.back()->set_peer({1, lo(per_child.back()->local_port())});
+    per_child.back()->set_peer({0, lo(per_parent.back()->local_port())});
+  }
   std::uint16_t parent_udp_port = 0;
   g_udp = udp_socket(parent_udp_port);
   int child_udp = udp_socket(g_port_child_udp);
@@ -239,7 +458,22 @@ void start_echo_process() {
   g_child = ::fork();
   if (g_child == 0) {
     parent_t.reset();
-    echo_process(child_udp, std::move(child_t), child_codec);
+    per_parent.clear();
+    echo_process(child_udp, std::move(child_t), child_codec, child_oneway, std::move(per_child));
+  }
+  ::close(child_oneway);
+  per_child.clear();
+  {
+    std::size_t t = 0;
+    for (int mode = 1; mode <= 2; ++mode)
+      for (int enc = 0; enc < 2; ++enc) {
+        EndpointConfig c = stack_config(0, 1, enc ? ValueEncoding::float32 : ValueEncoding::float64);
+        c.tx_spin = mode == 2;
+        c.io_cpu = g_pin ? 0 : -1;
+        c.tx_period_s = static_cast<double>(kModes * kPeriodNs) * 1e-9;  // it pushes every kModes periods
+        g_per_ep[mode][enc] = std::make_unique<Endpoint>(c, std::move(per_parent[t++]));
+        g_per_ep[mode][enc]->start();
+      }
   }
   ::close(child_udp);
   ::close(child_codec);
@@ -376,9 +610,13 @@ int main(int argc, char** argv) {
     const char quit = 'q';
     ::sendto(g_udp, &quit, 1, 0, reinterpret_cast<sockaddr*>(&g_echo_addr), sizeof g_echo_addr);
     ::sendto(g_codec, &quit, 1, 0, reinterpret_cast<sockaddr*>(&g_codec_addr), sizeof g_codec_addr);
+    ::sendto(g_oneway_udp, &quit, 1, 0, reinterpret_cast<sockaddr*>(&g_oneway_addr), sizeof g_oneway_addr);
     int status = 0;
     ::waitpid(g_child, &status, 0);
     g_ep->stop();
+    for (auto& row : g_per_ep)
+      for (auto& e : row)
+        if (e) e->stop();
   }
   return 0;
 }

@@ -59,6 +59,12 @@ int main(int argc, char** argv) {
   try {
     const std::uint32_t n = static_cast<std::uint32_t>(3 * nodes);
     NetConfig cfg = load_net_config(config, n);
+    cfg.endpoint.tx_period_s = period_ms * 1e-3;  // net.tx_spin (default on) needs the push period
+    if (cfg.endpoint.tx_spin && cfg.endpoint.tx_period_s <= cfg.endpoint.tx_spin_lead_s + cfg.endpoint.tx_spin_tail_s) {
+      std::fprintf(stderr, "haptic-net-peer: --period-ms %g is shorter than net.tx_spin's window (lead + tail): sending through the eventfd\n",
+                   period_ms);
+      cfg.endpoint.tx_spin = false;
+    }
     const std::uint16_t self = cfg.endpoint.wire.station_id;
     Endpoint ep(cfg.endpoint, cfg.make_transport());
     std::vector<double> x(n), v(n);
@@ -78,7 +84,12 @@ int main(int argc, char** argv) {
       ep.drain([&](std::uint16_t s, std::uint64_t seq, double, const double* xh, const double* vh, std::uint32_t c) {
         ++received;
         bool ok = c == n;
-        for (std::uint32_t i = 0; ok && i < n; ++i) ok = xh[i] == value(s, seq, i) && vh[i] == -xh[i];
+        // Exact in float64; in float32 the value must be the float32 rounding of what was sent.
+        const bool f32 = cfg.endpoint.wire.encoding == ValueEncoding::float32;
+        for (std::uint32_t i = 0; ok && i < n; ++i) {
+          const double want = value(s, seq, i);
+          ok = xh[i] == (f32 ? static_cast<double>(static_cast<float>(want)) : want) && vh[i] == -xh[i];
+        }
         if (!ok) ++corrupt;
       });
       next += period_ms * 1e-3;

@@ -63,6 +63,9 @@ TEST(NetConfig, BadValuesNameTheirKey) {
   CHECK(error_of(udp_doc("encoding = \"float16\"\n")).find("net.encoding") != std::string::npos);
   CHECK(error_of(udp_doc("max_datagram_bytes = 20\n")).find("net.max_datagram_bytes") != std::string::npos);
   CHECK(error_of(udp_doc("rtt_margin_fraction = -1\n")).find("net.rtt_margin_fraction") != std::string::npos);
+  CHECK(error_of(udp_doc("io_cpu = -2\n")).find("net.io_cpu") != std::string::npos);
+  CHECK(error_of(udp_doc("tx_spin = 1\n")).find("net.tx_spin") != std::string::npos);
+  CHECK(error_of(udp_doc("tx_spin_tail_us = 0\n")).find("net.tx_spin_tail_us") != std::string::npos);
   std::string bad_transport = udp_doc();
   bad_transport.replace(bad_transport.find("\"udp\""), 5, "\"tcp\"");
   CHECK(error_of(bad_transport).find("net.transport") != std::string::npos);
@@ -80,6 +83,17 @@ TEST(NetConfig, BadValuesNameTheirKey) {
   CHECK(error_of(bad_preset).find("net.impairment.preset") != std::string::npos);
   CHECK(error_of("[net\n").find("TOML parse error") != std::string::npos);
   CHECK(error_of("[station]\nid = 1\n").find("[net]") != std::string::npos);
+}
+
+TEST(NetConfig, Float32AndTickSynchronousTxAreTheDefaults) {
+  const NetConfig c = parse_net_config(udp_doc(), 99);
+  CHECK(c.endpoint.wire.encoding == ValueEncoding::float32);
+  CHECK(c.endpoint.tx_spin);
+  CHECK_EQUAL(-1, c.endpoint.io_cpu);
+  const NetConfig s = parse_net_config(udp_doc("tx_spin = false\nio_cpu = 0\ntx_spin_lead_us = 50\n"), 99);
+  CHECK_FALSE(s.endpoint.tx_spin);
+  CHECK_EQUAL(0, s.endpoint.io_cpu);
+  DOUBLES_EQUAL(50e-6, s.endpoint.tx_spin_lead_s, 1e-12);
 }
 
 TEST(NetConfig, DeployStyleNetworkSectionIsAccepted) {

@@ -7,6 +7,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -158,6 +160,52 @@ TEST(RtSetup, with_privileges_sched_fifo_and_pinning_take_effect) {
   CHECK_TEXT(fifo, summary.c_str());
   CHECK_TEXT(pinned, summary.c_str());
   STRCMP_CONTAINS("SCHED_FIFO priority 10, cpu 0", summary.c_str());
+}
+
+TEST(RtSetup, isolate_cpu_moves_the_other_threads_off_the_rt_core) {
+  cpu_set_t before;
+  CPU_ZERO(&before);
+  sched_getaffinity(0, sizeof before, &before);
+  if (CPU_COUNT(&before) < 2 || !CPU_ISSET(1, &before)) {
+    UT_PRINT("NOT CHECKED: needs cpus 0 and 1 allowed to this process");
+    return;
+  }
+  for (const bool isolate : {false, true}) {
+    // A bystander thread that exists before the RT set-up (like LTTng's listener threads).
+    std::atomic<bool> stop{false};
+    std::atomic<pid_t> bystander_tid{0};
+    std::thread bystander([&] {
+      bystander_tid = static_cast<pid_t>(syscall(SYS_gettid));
+      while (!stop) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    });
+    while (bystander_tid == 0) std::this_thread::yield();
+    int moved = -2;
+    std::thread t([&] {
+      RtConfig c;
+      c.priority = 10;
+      c.cpu = 1;
+      c.lock_memory = false;
+      c.isolate_cpu = isolate;
+      moved = apply_rt_config(c).threads_moved_off;
+    });
+    t.join();
+    cpu_set_t main_now, by_now;
+    sched_getaffinity(0, sizeof main_now, &main_now);
+    sched_getaffinity(bystander_tid, sizeof by_now, &by_now);
+    if (isolate) {
+      CHECK(moved >= 2);  // at least this thread and the bystander
+      CHECK_FALSE(CPU_ISSET(1, &main_now));
+      CHECK_FALSE(CPU_ISSET(1, &by_now));
+      CHECK(CPU_ISSET(0, &main_now));
+    } else {
+      LONGS_EQUAL(-1, moved);
+      CHECK(CPU_ISSET(1, &main_now));
+      CHECK(CPU_ISSET(1, &by_now));
+    }
+    stop = true;
+    bystander.join();
+    sched_setaffinity(0, sizeof before, &before);  // leave the test process as it was
+  }
 }
 
 TEST(RtSetup, rt_thread_rethrows_a_refusal_on_a_non_rt_kernel) {

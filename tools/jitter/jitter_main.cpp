@@ -5,6 +5,8 @@
 
 #include <CLI/CLI.hpp>
 #include <atomic>
+#include <chrono>
+#include <thread>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -37,6 +39,8 @@ int main(int argc, char** argv) {
   double histogram_bin_us = 1.0;
   bool histogram = false;
   bool quiet = false;
+  double main_wake_ms = 10.0;  // like cyclictest's main loop (usleep(10000))
+  bool no_isolate = false;
   bool no_mlock = false;
   bool station_workload = false;
   std::string json_path;
@@ -59,6 +63,12 @@ int main(int argc, char** argv) {
   app.add_flag("-H,--histogram", histogram, "print the non-empty histogram bins");
   app.add_option("--json", json_path, "also write all results as JSON to this file ('-' = stdout)");
   app.add_flag("-q,--quiet", quiet, "print only the per-run summary (no RT set-up lines)");
+  app.add_option("--main-wake-ms", main_wake_ms,
+                 "while the measuring thread runs, the main thread wakes every N ms (0 = it just blocks in join); "
+                 "cyclictest's main thread wakes every 10 ms, and on a VM that changes the tails (tools/jitter/README.md)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1000.0));
+  app.add_flag("--no-isolate", no_isolate, "leave the process's other threads on the measuring CPU (default: move them off, rt.isolate_cpu)");
   CLI11_PARSE(app, argc, argv);
   rt.lock_memory = !no_mlock;
 
@@ -73,6 +83,8 @@ int main(int argc, char** argv) {
     // Built (and factored) before the real-time thread starts: construction allocates.
     std::unique_ptr<firmware::StationJitterWorkload> station;
     if (station_workload) station = std::make_unique<firmware::StationJitterWorkload>("paper-best");
+    rt.isolate_cpu = !no_isolate;
+    std::atomic<bool> finished{false};
     platform::RtThread thread(rt, [&](const platform::RtReport& report) {
       for (double period_us : periods_us) {
         for (double workload_us : workloads_us) {
@@ -97,11 +109,16 @@ int main(int argc, char** argv) {
         }
       }
       json = tools::to_json(results, report, rt);
+      finished.store(true, std::memory_order_release);
     });
     if (!quiet) {
       std::fputs(thread.setup_summary().c_str(), stdout);
       std::printf("trace: LTTng tracepoints %s\n", platform::trace::kCompiledIn ? "compiled in (provider 'haptic')" : "compiled out");
       std::fflush(stdout);
+    }
+    if (main_wake_ms > 0) {
+      const auto step = std::chrono::duration<double, std::milli>(main_wake_ms);
+      while (!finished.load(std::memory_order_acquire)) std::this_thread::sleep_for(step);
     }
     thread.join();
   } catch (const std::exception& e) {

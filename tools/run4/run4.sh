@@ -8,6 +8,8 @@
 # Usage: run4.sh [--transport udp|raw] [--bin PATH] [--out DIR] [--scenario NAME] [--duration S]
 #                [--push-end S] [--release S] [--seed N] [--probe S] [--preset paper|none|bursty]
 #                [--port-base P] [--nodes N] [--state-every K] [--no-plots] [--rt-priority P]
+#                [--net KEY=VALUE]...   (extra [net] keys in every station, TOML values: e.g.
+#                                        --net tx_spin=true --net 'encoding="float64"')
 # Exit 0 when all four stations finished and the merge succeeded. Bounded: every process is
 # sent SIGTERM after its planned time + 15 s, SIGKILL 5 s later.
 set -euo pipefail
@@ -15,7 +17,7 @@ here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../.." && pwd)"
 transport=udp; bin="$repo/build/bin/haptic-station"; out=""; scenario=paper-best
 duration=8; push_end=2.5; release=5; seed=1; probe=1.5; preset=paper; port_base=47210
-nodes=33; state_every=5; plots=1; prio=80
+nodes=33; state_every=5; plots=1; prio=80; net_extra=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --transport) transport="$2"; shift 2 ;;
@@ -33,6 +35,7 @@ while [ $# -gt 0 ]; do
     --state-every) state_every="$2"; shift 2 ;;
     --rt-priority) prio="$2"; shift 2 ;;
     --no-plots) plots=0; shift ;;
+    --net) [[ "$2" == *=* ]] || { echo "run4.sh: --net needs KEY=VALUE, got '$2'" >&2; exit 2; }; net_extra+=("$2"); shift 2 ;;
     -h|--help) sed -n 2,14p "$0"; exit 0 ;;
     *) echo "run4.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
   esac
@@ -94,6 +97,7 @@ for i in 1 2 3 4; do
     echo "session_id = $session"
     echo "session_key = \"$key\""
     echo "rtt_min_probe_samples = 20"
+    for kv in "${net_extra[@]}"; do echo "${kv%%=*} = ${kv#*=}"; done
     if [ "$transport" = udp ]; then
       echo "transport = \"udp\""
       echo "bind = \"127.0.0.1:$((port_base + i))\""

@@ -56,26 +56,42 @@ int ring_stress(std::uint64_t count) {
   return failed ? 1 : 0;
 }
 
+// Two UDP transports on loopback that know each other as stations 0 and 1.
+struct LoopbackPair {
+  std::unique_ptr<haptic::net::UdpTransport> a, b;
+};
+LoopbackPair loopback_pair() {
+  using haptic::net::UdpPeer;
+  using haptic::net::UdpTransport;
+  LoopbackPair p{std::make_unique<UdpTransport>("127.0.0.1:0", std::vector<UdpPeer>{}),
+                 std::make_unique<UdpTransport>("127.0.0.1:0", std::vector<UdpPeer>{})};
+  p.a->set_peer({1, "127.0.0.1:" + std::to_string(p.b->local_port())});
+  p.b->set_peer({0, "127.0.0.1:" + std::to_string(p.a->local_port())});
+  return p;
+}
+// A 33-node endpoint config of station `self` with one neighbor `peer`.
+haptic::net::EndpointConfig stress_config(std::uint16_t self, std::uint16_t peer) {
+  haptic::net::EndpointConfig c;
+  c.wire.station_id = self;
+  c.value_count = 99;
+  haptic::net::PeerLink l;
+  l.station_id = peer;
+  c.peers.push_back(l);
+  return c;
+}
+
 int endpoint_stress(std::uint64_t count) {
   using namespace haptic::net;
-  auto ta = std::make_unique<UdpTransport>("127.0.0.1:0", std::vector<UdpPeer>{});
-  auto tb = std::make_unique<UdpTransport>("127.0.0.1:0", std::vector<UdpPeer>{});
-  ta->set_peer({1, "127.0.0.1:" + std::to_string(tb->local_port())});
-  tb->set_peer({0, "127.0.0.1:" + std::to_string(ta->local_port())});
+  LoopbackPair t = loopback_pair();
   auto cfg = [](std::uint16_t self, std::uint16_t peer) {
-    EndpointConfig c;
-    c.wire.station_id = self;
-    c.value_count = 99;
-    PeerLink l;
-    l.station_id = peer;
-    l.impaired = true;
-    l.impairment = LinkImpairment::paper(0.002);
-    l.seed = self + 1;
-    c.peers.push_back(l);
+    EndpointConfig c = stress_config(self, peer);
+    c.peers[0].impaired = true;
+    c.peers[0].impairment = LinkImpairment::paper(0.002);
+    c.peers[0].seed = self + 1;
     c.rtt.min_probe_samples = 1;
     return c;
   };
-  Endpoint a(cfg(0, 1), std::move(ta)), b(cfg(1, 0), std::move(tb));
+  Endpoint a(cfg(0, 1), std::move(t.a)), b(cfg(1, 0), std::move(t.b));
   a.start();
   b.start();
   a.begin_probing();
@@ -112,10 +128,57 @@ int endpoint_stress(std::uint64_t count) {
   return (bad == 0 && got > count / 2) ? 0 : 1;
 }
 
+// Tick-synchronous TX under TSan: pushes on and off the spin window's grid, with pauses that
+// make the I/O thread stop spinning and re-arm; every push must be handed to the transport.
+int spin_stress(std::uint64_t count) {
+  using namespace haptic::net;
+  LoopbackPair t = loopback_pair();
+  EndpointConfig ca = stress_config(0, 1);
+  ca.tx_spin = true;
+  ca.tx_period_s = 500e-6;
+  ca.tx_spin_lead_s = 100e-6;
+  ca.tx_spin_tail_s = 150e-6;
+  Endpoint a(ca, std::move(t.a)), b(stress_config(1, 0), std::move(t.b));
+  a.start();
+  b.start();
+  std::vector<double> x(99), v(99);
+  std::uint64_t got = 0, bad = 0;
+  std::atomic<bool> done{false};
+  std::thread rt_b([&] {
+    while (!done.load(std::memory_order_acquire)) {
+      b.drain([&](std::uint16_t, std::uint64_t seq, double, const double* xh, const double*, std::uint32_t) {
+        ++got;
+        if (xh[7] != static_cast<double>(seq)) ++bad;
+      });
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+  });
+  std::uint64_t lcg = 12345;
+  for (std::uint64_t k = 1; k <= count; ++k) {
+    for (auto& e : x) e = static_cast<double>(k);
+    a.push_state(k, monotonic_s(), x.data(), v.data());
+    lcg = lcg * 6364136223846793005ull + 1442695040888963407ull;
+    const auto jitter = static_cast<long>((lcg >> 33) % 400);  // 0..399 us around the period
+    std::this_thread::sleep_for(std::chrono::microseconds(k % 500 == 0 ? 5000 : 300 + jitter));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  done.store(true, std::memory_order_release);
+  rt_b.join();
+  const EndpointStats s = a.stats();
+  a.stop();
+  b.stop();
+  std::printf("spin stress: %llu pushed, %llu handed to the transport (%llu caught spinning, %llu windows), %llu delivered, %llu corrupt\n",
+              static_cast<unsigned long long>(count), static_cast<unsigned long long>(s.tx_packets),
+              static_cast<unsigned long long>(s.tx_caught_spinning), static_cast<unsigned long long>(s.tx_spin_windows),
+              static_cast<unsigned long long>(got), static_cast<unsigned long long>(bad));
+  return (s.tx_packets == count && bad == 0 && got > count / 2) ? 0 : 1;
+}
+
 }  // namespace
 
 int main() {
   int rc = ring_stress(2'000'000);
   rc |= endpoint_stress(2000);
+  rc |= spin_stress(2000);
   return rc;
 }

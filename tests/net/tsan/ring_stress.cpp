@@ -80,6 +80,28 @@ haptic::net::EndpointConfig stress_config(std::uint16_t self, std::uint16_t peer
   return c;
 }
 
+// The receiving station's "RT" side on its own thread: drains every 200 us and checks that
+// x_hat[check_index] carries the sequence number the sender wrote there.
+struct Drainer {
+  std::atomic<bool> done{false};
+  std::uint64_t got = 0, bad = 0;
+  std::thread thread;
+  Drainer(haptic::net::Endpoint& e, std::size_t check_index)
+      : thread([this, &e, check_index] {
+          while (!done.load(std::memory_order_acquire)) {
+            e.drain([&](std::uint16_t, std::uint64_t seq, double, const double* xh, const double*, std::uint32_t) {
+              ++got;
+              if (xh[check_index] != static_cast<double>(seq)) ++bad;
+            });
+            std::this_thread::sleep_for(std::chrono::microseconds(200));
+          }
+        }) {}
+  void stop() {
+    done.store(true, std::memory_order_release);
+    thread.join();
+  }
+};
+
 int endpoint_stress(std::uint64_t count) {
   using namespace haptic::net;
   LoopbackPair t = loopback_pair();
@@ -96,18 +118,8 @@ int endpoint_stress(std::uint64_t count) {
   b.start();
   a.begin_probing();
   std::vector<double> x(99), v(99);
-  std::uint64_t got = 0, bad = 0;
   // The "RT" side of b runs in its own thread, a's in this one.
-  std::atomic<bool> done{false};
-  std::thread rt_b([&] {
-    while (!done.load(std::memory_order_acquire)) {
-      b.drain([&](std::uint16_t, std::uint64_t seq, double, const double* xh, const double*, std::uint32_t) {
-        ++got;
-        if (xh[5] != static_cast<double>(seq)) ++bad;
-      });
-      std::this_thread::sleep_for(std::chrono::microseconds(200));
-    }
-  });
+  Drainer rt_b(b, 5);
   for (std::uint64_t k = 1; k <= count; ++k) {
     for (auto& e : x) e = static_cast<double>(k);
     a.push_state(k, monotonic_s(), x.data(), v.data());
@@ -118,8 +130,8 @@ int endpoint_stress(std::uint64_t count) {
     std::this_thread::sleep_for(std::chrono::microseconds(300));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  done.store(true, std::memory_order_release);
-  rt_b.join();
+  rt_b.stop();
+  const std::uint64_t got = rt_b.got, bad = rt_b.bad;
   a.stop();
   b.stop();
   std::printf("endpoint stress: %llu sent with paper impairment, %llu delivered, %llu corrupt\n",
@@ -142,17 +154,7 @@ int spin_stress(std::uint64_t count) {
   a.start();
   b.start();
   std::vector<double> x(99), v(99);
-  std::uint64_t got = 0, bad = 0;
-  std::atomic<bool> done{false};
-  std::thread rt_b([&] {
-    while (!done.load(std::memory_order_acquire)) {
-      b.drain([&](std::uint16_t, std::uint64_t seq, double, const double* xh, const double*, std::uint32_t) {
-        ++got;
-        if (xh[7] != static_cast<double>(seq)) ++bad;
-      });
-      std::this_thread::sleep_for(std::chrono::microseconds(200));
-    }
-  });
+  Drainer rt_b(b, 7);
   std::uint64_t lcg = 12345;
   for (std::uint64_t k = 1; k <= count; ++k) {
     for (auto& e : x) e = static_cast<double>(k);
@@ -162,8 +164,8 @@ int spin_stress(std::uint64_t count) {
     std::this_thread::sleep_for(std::chrono::microseconds(k % 500 == 0 ? 5000 : 300 + jitter));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  done.store(true, std::memory_order_release);
-  rt_b.join();
+  rt_b.stop();
+  const std::uint64_t got = rt_b.got, bad = rt_b.bad;
   const EndpointStats s = a.stats();
   a.stop();
   b.stop();

@@ -569,6 +569,13 @@ int run_station(const StationFile& f, const RunOverrides& o, std::atomic<bool>& 
   j["io_thread_scheduling"] = io_sched;
   j["drops"] = {{"datagrams_received", st.datagrams_received}, {"receive_errors", st.receive_errors}, {"rx_ring_full", st.rx_ring_full},
                 {"tx_overruns", st.tx_overruns}, {"wrong_scene_size", st.wrong_scene_size}};
+  j["io_thread"] = {{"cpu_s", st.io_thread_cpu_s},
+                    {"tx_spin", nc.endpoint.tx_spin},
+                    {"tx_packets", st.tx_packets},
+                    {"tx_caught_spinning", st.tx_caught_spinning},
+                    {"tx_spin_windows", st.tx_spin_windows},
+                    {"tx_handoff_mean_us", st.tx_handoff_mean_s * 1e6},
+                    {"tx_handoff_max_us", st.tx_handoff_max_s * 1e6}};
   json links = json::array();
   for (std::size_t n = 0; n < nbrs.size(); ++n) {
     const auto p = static_cast<std::size_t>(nbr_to_peer[n]);

@@ -152,8 +152,18 @@ void Endpoint::start() {
   }
 }
 
+double Endpoint::io_thread_cpu_s() const {
+  if (!thread_.joinable()) return io_cpu_at_stop_s_;
+  clockid_t cid{};
+  timespec ts{};
+  if (pthread_getcpuclockid(const_cast<std::thread&>(thread_).native_handle(), &cid) != 0 || clock_gettime(cid, &ts) != 0)
+    return 0.0;
+  return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
+}
+
 void Endpoint::stop() {
   if (!thread_.joinable()) return;
+  io_cpu_at_stop_s_ = io_thread_cpu_s();
   running_.store(false, std::memory_order_release);
   const std::uint64_t one = 1;
   [[maybe_unused]] auto r = ::write(wake_fd_, &one, sizeof one);
@@ -229,6 +239,7 @@ EndpointStats Endpoint::stats() const {
   s.tx_packets = tx_packets_;
   s.tx_caught_spinning = tx_caught_spinning_;
   s.tx_spin_windows = windows_;
+  s.io_thread_cpu_s = io_thread_cpu_s();
   s.tx_handoff_mean_s = tx_packets_ ? tx_handoff_sum_s_ / static_cast<double>(tx_packets_) : 0.0;
   s.tx_handoff_max_s = tx_handoff_max_s_;
   for (const auto& p : peers_) {

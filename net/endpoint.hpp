@@ -94,6 +94,7 @@ struct EndpointStats {
   // Push -> first datagram handed to the transport (I/O thread), per state packet.
   std::uint64_t tx_packets = 0, tx_caught_spinning = 0;  // caught inside a spin window
   std::uint64_t tx_spin_windows = 0;                     // spin windows opened (net.tx_spin)
+  double io_thread_cpu_s = 0.0;  // CPU time the I/O thread has used (spinning included)
   double tx_handoff_mean_s = 0.0, tx_handoff_max_s = 0.0;
   std::vector<PeerStats> peers;
 };
@@ -288,6 +289,8 @@ class Endpoint {
   std::atomic<std::uint64_t> rx_delivered_{0};
   std::atomic<bool> running_{false};
   std::thread thread_;
+  double io_cpu_at_stop_s_ = 0.0;
+  double io_thread_cpu_s() const;
 
   mutable std::mutex stats_mutex_;  // guards PeerState::rtt/stats and the counters below
   std::uint64_t datagrams_received_ = 0, receive_errors_ = 0, rx_ring_full_ = 0, wrong_scene_size_ = 0;

@@ -193,7 +193,15 @@ std::string move_other_threads_off(int cpu, int& moved) {
   while (const dirent* e = readdir(d)) {
     const pid_t tid = static_cast<pid_t>(std::atoi(e->d_name));
     if (tid <= 0 || tid == self) continue;
-    if (sched_setaffinity(tid, sizeof allowed, &allowed) == 0) ++moved;
+    // Keep a thread's own pinning (e.g. net.io_cpu) and only take the RT cpu out of it; a
+    // thread pinned to the RT cpu alone gets every other allowed cpu.
+    cpu_set_t mine;
+    CPU_ZERO(&mine);
+    if (sched_getaffinity(tid, sizeof mine, &mine) != 0) continue;  // the thread has exited
+    if (!CPU_ISSET(cpu, &mine)) continue;
+    CPU_CLR(cpu, &mine);
+    const cpu_set_t& target = CPU_COUNT(&mine) > 0 ? mine : allowed;
+    if (sched_setaffinity(tid, sizeof target, &target) == 0) ++moved;
     else errors += (errors.empty() ? "" : ", ") + std::to_string(tid) + " (" + errno_text(errno) + ")";
   }
   closedir(d);

@@ -18,7 +18,8 @@ struct RtConfig {
   bool hold_dma_latency = false;  // rt.hold_dma_latency: write 0 to /dev/cpu_dma_latency and keep it open
   bool require_rt = false;    // rt.require_rt: refuse (throw) instead of falling back
   // rt.isolate_cpu: with cpu >= 0, move every other thread of this process (and so the threads
-  // they create later) off that cpu, onto the other cpus the process may use. The kernel here
+  // they create later) off that cpu: a thread keeps its own pinning minus that cpu, or gets the
+  // other cpus the process may use when it was pinned to that cpu alone. The kernel here
   // may not preempt kernel code (PREEMPT_NONE/VOLUNTARY): a housekeeping thread inside a
   // syscall on the RT core delays the tick until it leaves the kernel.
   bool isolate_cpu = true;

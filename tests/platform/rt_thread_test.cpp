@@ -179,6 +179,17 @@ TEST(RtSetup, isolate_cpu_moves_the_other_threads_off_the_rt_core) {
       while (!stop) std::this_thread::sleep_for(std::chrono::milliseconds(1));
     });
     while (bystander_tid == 0) std::this_thread::yield();
+    // And one pinned to the RT cpu alone: it must get the other cpus, not an empty set.
+    std::atomic<pid_t> pinned_tid{0};
+    std::thread pinned_there([&] {
+      cpu_set_t one;
+      CPU_ZERO(&one);
+      CPU_SET(1, &one);
+      sched_setaffinity(0, sizeof one, &one);
+      pinned_tid = static_cast<pid_t>(syscall(SYS_gettid));
+      while (!stop) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    });
+    while (pinned_tid == 0) std::this_thread::yield();
     int moved = -2;
     std::thread t([&] {
       RtConfig c;
@@ -189,21 +200,26 @@ TEST(RtSetup, isolate_cpu_moves_the_other_threads_off_the_rt_core) {
       moved = apply_rt_config(c).threads_moved_off;
     });
     t.join();
-    cpu_set_t main_now, by_now;
+    cpu_set_t main_now, by_now, pinned_now;
     sched_getaffinity(0, sizeof main_now, &main_now);
     sched_getaffinity(bystander_tid, sizeof by_now, &by_now);
+    sched_getaffinity(pinned_tid, sizeof pinned_now, &pinned_now);
     if (isolate) {
-      CHECK(moved >= 2);  // at least this thread and the bystander
+      CHECK(moved >= 3);  // at least this thread, the bystander and the pinned one
       CHECK_FALSE(CPU_ISSET(1, &main_now));
       CHECK_FALSE(CPU_ISSET(1, &by_now));
       CHECK(CPU_ISSET(0, &main_now));
+      CHECK_FALSE(CPU_ISSET(1, &pinned_now));
+      CHECK(CPU_ISSET(0, &pinned_now));
     } else {
       LONGS_EQUAL(-1, moved);
       CHECK(CPU_ISSET(1, &main_now));
       CHECK(CPU_ISSET(1, &by_now));
+      CHECK(CPU_ISSET(1, &pinned_now) && CPU_COUNT(&pinned_now) == 1);
     }
     stop = true;
     bystander.join();
+    pinned_there.join();
     sched_setaffinity(0, sizeof before, &before);  // leave the test process as it was
   }
 }

@@ -25,6 +25,9 @@ std::int64_t monotonic_ns() {
 double monotonic_s() { return static_cast<double>(monotonic_ns()) * 1e-9; }
 
 namespace {
+timespec to_timespec(std::int64_t ns) {
+  return timespec{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
+}
 inline void cpu_relax() {
 #if defined(__x86_64__) || defined(__i386__)
   __builtin_ia32_pause();
@@ -118,8 +121,7 @@ bool Endpoint::wait_rx(double timeout_s) {
     return true;
   }
   pollfd p{rx_wake_fd_, POLLIN, 0};
-  const auto ns = static_cast<long long>(std::max(0.0, timeout_s) * 1e9);
-  timespec t{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
+  const timespec t = to_timespec(static_cast<std::int64_t>(std::max(0.0, timeout_s) * 1e9));
   if (::ppoll(&p, 1, &t, nullptr) > 0) {
     std::uint64_t v;
     [[maybe_unused]] auto r = ::read(rx_wake_fd_, &v, sizeof v);
@@ -307,8 +309,7 @@ void Endpoint::run() {
       }
       wake_at = std::min(wake_at, open - wake_late_ns_);
     }
-    const std::int64_t wait = std::max<std::int64_t>(0, wake_at - now);
-    timespec timeout{static_cast<time_t>(wait / 1'000'000'000), static_cast<long>(wait % 1'000'000'000)};
+    const timespec timeout = to_timespec(std::max<std::int64_t>(0, wake_at - now));
     const int r = ::ppoll(fds, 2, &timeout, nullptr);
     if (r < 0 && errno != EINTR) break;
     if (fds[1].revents & POLLIN) {
@@ -330,9 +331,7 @@ bool Endpoint::spin_for_push(std::int64_t until_ns) {
   while (running_.load(std::memory_order_relaxed) && now < until_ns) {
     if (tx_ready_.size() > 0) {
       std::lock_guard lock(stats_mutex_);
-      in_spin_ = true;
-      handle_tx(now);
-      in_spin_ = false;
+      handle_tx(now, /*caught_spinning=*/true);
       release_due(monotonic_ns());
       sent = true;
       break;
@@ -428,7 +427,7 @@ void Endpoint::send_now(std::uint16_t dest, const std::uint8_t* d, std::size_t l
   else ++p.stats.send_errors;
 }
 
-void Endpoint::handle_tx(std::int64_t now_ns) {
+void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
   std::uint32_t idx = 0;
   while (tx_ready_.try_pop(idx)) {
     const TxMeta m = tx_meta_[idx];
@@ -436,7 +435,7 @@ void Endpoint::handle_tx(std::int64_t now_ns) {
     last_push_ns_ = std::max(last_push_ns_, m.push_ns);
     missed_windows_ = 0;
     ++tx_packets_;
-    if (in_spin_) ++tx_caught_spinning_;
+    if (caught_spinning) ++tx_caught_spinning_;
     const double handoff = static_cast<double>(monotonic_ns() - m.push_ns) * 1e-9;
     tx_handoff_sum_s_ += handoff;
     tx_handoff_max_s_ = std::max(tx_handoff_max_s_, handoff);

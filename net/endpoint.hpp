@@ -245,7 +245,7 @@ class Endpoint {
   void run();
   bool spin_for_push(std::int64_t until_ns);  // I/O thread: tick-synchronous TX window
   void handle_rx(std::int64_t now_ns);
-  void handle_tx(std::int64_t now_ns);
+  void handle_tx(std::int64_t now_ns, bool caught_spinning = false);
   void release_due(std::int64_t now_ns);
   void send_now(std::uint16_t dest, const std::uint8_t* d, std::size_t len, PeerState& p);
   void publish_bound(PeerState& p);
@@ -297,7 +297,6 @@ class Endpoint {
   std::uint64_t tx_packets_ = 0, tx_caught_spinning_ = 0;
   double tx_handoff_sum_s_ = 0.0, tx_handoff_max_s_ = 0.0;
   std::int64_t last_push_ns_ = -1;  // I/O thread: push stamp of the newest packet sent
-  bool in_spin_ = false;            // I/O thread: handle_tx is called from a spin window
   // Consecutive windows without a push; at kMaxMissedWindows the thread stops spinning until
   // the next push (which arrives through the eventfd) re-arms it.
   static constexpr int kMaxMissedWindows = 4;

@@ -82,7 +82,7 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
   e.wire.max_datagram_bytes = integer<std::size_t>(net["max_datagram_bytes"], P + "max_datagram_bytes",
                                                    kDefaultDatagramBytes, kMinDatagramBytes + 8, kMaxDatagramBytes);
   e.io_busy_poll = boolean(net["io_busy_poll"], P + "io_busy_poll", false);
-  e.tx_spin = boolean(net["tx_spin"], P + "tx_spin", true);
+  e.tx_spin = boolean(net["tx_spin"], P + "tx_spin", false);
   e.io_cpu = integer<int>(net["io_cpu"], P + "io_cpu", -1, -1, CPU_SETSIZE - 1);
   e.tx_spin_lead_s = real(net["tx_spin_lead_us"], P + "tx_spin_lead_us", 100.0, 0.0, 1e6) * 1e-6;
   e.tx_spin_tail_s = real(net["tx_spin_tail_us"], P + "tx_spin_tail_us", 300.0, 1.0, 1e6) * 1e-6;

@@ -14,7 +14,7 @@
 //   max_datagram_bytes = 1400      # 96..65507 and <= the transport's MTU
 //   io_busy_poll = false
 //   io_cpu = -1                    # pin the I/O thread to this CPU (-1: unpinned)
-//   tx_spin = true                 # tick-synchronous TX (net/endpoint.hpp): the I/O thread spins
+//   tx_spin = false                # tick-synchronous TX (net/endpoint.hpp): the I/O thread spins
 //   tx_spin_lead_us = 100          #   from lead before the next push is due (0..1e6)
 //   tx_spin_tail_us = 300          #   to tail after it (1..1e6; lead + tail < the tick period)
 //   delay_queue_datagrams = 8192   # 16..1048576

@@ -59,7 +59,7 @@ int main(int argc, char** argv) {
   try {
     const std::uint32_t n = static_cast<std::uint32_t>(3 * nodes);
     NetConfig cfg = load_net_config(config, n);
-    cfg.endpoint.tx_period_s = period_ms * 1e-3;  // net.tx_spin (default on) needs the push period
+    cfg.endpoint.tx_period_s = period_ms * 1e-3;  // net.tx_spin needs the push period
     if (cfg.endpoint.tx_spin && cfg.endpoint.tx_period_s <= cfg.endpoint.tx_spin_lead_s + cfg.endpoint.tx_spin_tail_s) {
       std::fprintf(stderr, "haptic-net-peer: --period-ms %g is shorter than net.tx_spin's window (lead + tail): sending through the eventfd\n",
                    period_ms);

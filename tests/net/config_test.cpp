@@ -85,13 +85,13 @@ TEST(NetConfig, BadValuesNameTheirKey) {
   CHECK(error_of("[station]\nid = 1\n").find("[net]") != std::string::npos);
 }
 
-TEST(NetConfig, Float32AndTickSynchronousTxAreTheDefaults) {
+TEST(NetConfig, Float32IsTheDefaultAndTickSynchronousTxIsOptIn) {
   const NetConfig c = parse_net_config(udp_doc(), 99);
   CHECK(c.endpoint.wire.encoding == ValueEncoding::float32);
-  CHECK(c.endpoint.tx_spin);
+  CHECK_FALSE(c.endpoint.tx_spin);
   CHECK_EQUAL(-1, c.endpoint.io_cpu);
-  const NetConfig s = parse_net_config(udp_doc("tx_spin = false\nio_cpu = 0\ntx_spin_lead_us = 50\n"), 99);
-  CHECK_FALSE(s.endpoint.tx_spin);
+  const NetConfig s = parse_net_config(udp_doc("tx_spin = true\nio_cpu = 0\ntx_spin_lead_us = 50\n"), 99);
+  CHECK(s.endpoint.tx_spin);
   CHECK_EQUAL(0, s.endpoint.io_cpu);
   DOUBLES_EQUAL(50e-6, s.endpoint.tx_spin_lead_s, 1e-12);
 }

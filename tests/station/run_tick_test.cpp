@@ -38,7 +38,7 @@ TEST(RunTick, OneLoopIterationAllocatesNothingAndUsesTheNeighboursPackets) {
   const int port_base = 48000 + static_cast<int>(getpid() % 400) * 5;
   net::NetConfig c1 = net::parse_net_config(net_toml(1, port_base, {2, 3, 4}), static_cast<std::uint32_t>(dofs));
   net::NetConfig c2 = net::parse_net_config(net_toml(2, port_base, {1}), static_cast<std::uint32_t>(dofs));
-  // As the station does: tick-synchronous TX (the default) is told the tick period.
+  // As the station does: the endpoint is told the tick period (for net.tx_spin).
   c1.endpoint.tx_period_s = c2.endpoint.tx_period_s = b.spec.period_s;
   net::Endpoint ep1(c1.endpoint, c1.make_transport());
   net::Endpoint ep2(c2.endpoint, c2.make_transport());

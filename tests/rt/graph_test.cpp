@@ -4,7 +4,7 @@
 #include <Eigen/Eigenvalues>
 #include <random>
 
-#include "rt/graph.hpp"
+#include "tests/support/graph.hpp"
 
 using namespace haptic::rt;
 

@@ -7,7 +7,7 @@
 #include <random>
 #include <string>
 
-#include "rt/dense_reference.hpp"
+#include "tests/support/dense_reference.hpp"
 #include "rt/sparse_ldlt.hpp"
 #include "rt/station.hpp"
 #include "tests/rt/fixtures.hpp"

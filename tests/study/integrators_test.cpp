@@ -1,13 +1,13 @@
-// Reference integrators (rt/integrators.hpp): order of convergence against the exact modal
+// Reference integrators (tools/study/integrators.hpp): order of convergence against the exact modal
 // solution, NPMI energy conservation, explicit Euler energy growth (passivity failure), no heap
 // allocation in step().
 #include <CppUTest/TestHarness.h>
 
 #include <cmath>
 
-#include "rt/integrators.hpp"
-#include "rt/modal.hpp"
-#include "rt/model_selector.hpp"
+#include "tools/study/integrators.hpp"
+#include "tools/study/modal.hpp"
+#include "tools/study/model_selector.hpp"
 #include "tests/support/alloc_counter.hpp"
 
 using namespace haptic::rt;

@@ -1,13 +1,13 @@
-// Modal analysis (rt/modal.hpp): the basis diagonalizes the model, truncation to all modes equals
+// Modal analysis (tools/study/modal.hpp): the basis diagonalizes the model, truncation to all modes equals
 // the full model (stepped with the same NPMI), the closed-form mode response solves its ODE,
 // and the reduced step does not allocate.
 #include <CppUTest/TestHarness.h>
 
 #include <cmath>
 
-#include "rt/integrators.hpp"
-#include "rt/modal.hpp"
-#include "rt/model_selector.hpp"
+#include "tools/study/integrators.hpp"
+#include "tools/study/modal.hpp"
+#include "tools/study/model_selector.hpp"
 #include "tests/support/alloc_counter.hpp"
 
 using namespace haptic::rt;

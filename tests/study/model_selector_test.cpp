@@ -1,9 +1,9 @@
-// The model selector (rt/model_selector.hpp) and the study's test problem across a mesh family.
+// The model selector (tools/study/model_selector.hpp) and the study's test problem across a mesh family.
 #include <CppUTest/TestHarness.h>
 
 #include <cmath>
 
-#include "rt/model_selector.hpp"
+#include "tools/study/model_selector.hpp"
 #include "tools/study/study.hpp"
 
 using namespace haptic;

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <string>
 
-#include "rt/topology.hpp"
+#include "tools/topology/topology.hpp"
 
 #include <CppUTest/TestHarness.h>
 

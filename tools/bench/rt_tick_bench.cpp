@@ -7,7 +7,7 @@
 #include <memory>
 #include <vector>
 
-#include "rt/dense_reference.hpp"
+#include "tests/support/dense_reference.hpp"
 #include "rt/gains.hpp"
 #include "rt/scene.hpp"
 #include "rt/sparse_ldlt.hpp"

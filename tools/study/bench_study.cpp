@@ -1,14 +1,14 @@
 // Google Benchmark cost table of the study: one step + felt-force output of each reference
-// integrator on the push problem (rt/model_selector.hpp) for 33..3065 nodes, and of the modal
+// integrator on the push problem (tools/study/model_selector.hpp) for 33..3065 nodes, and of the modal
 // reduced model (r modes, static correction). JSON kept in tools/study/results/bench_study.json.
 #include <benchmark/benchmark.h>
 
 #include <map>
 #include <memory>
 
-#include "rt/integrators.hpp"
-#include "rt/modal.hpp"
-#include "rt/model_selector.hpp"
+#include "tools/study/integrators.hpp"
+#include "tools/study/modal.hpp"
+#include "tools/study/model_selector.hpp"
 
 using namespace haptic::rt;
 

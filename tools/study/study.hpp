@@ -1,6 +1,6 @@
 #pragma once
 // The speed-against-accuracy study (issue 6, parts 3 and 5): runs the reference integrators and
-// reduced models of rt/integrators.hpp, rt/modal.hpp on the push problem of rt/model_selector.hpp
+// reduced models of tools/study/integrators.hpp, tools/study/modal.hpp on the push problem of tools/study/model_selector.hpp
 // and measures their error against the exact (modal closed-form) solution. Analysis code: it
 // allocates freely; only the timed step loops are allocation-free.
 #include <Eigen/Core>
@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "rt/integrators.hpp"
-#include "rt/modal.hpp"
-#include "rt/model_selector.hpp"
+#include "tools/study/integrators.hpp"
+#include "tools/study/modal.hpp"
+#include "tools/study/model_selector.hpp"
 
 namespace haptic::study {
 

@@ -3,7 +3,7 @@
 // Results kept in tools/bench/results/topology_bench.json (see tools/topology/README.md).
 #include <benchmark/benchmark.h>
 
-#include "rt/topology.hpp"
+#include "tools/topology/topology.hpp"
 
 namespace topo = haptic::rt::topology;
 

@@ -4,7 +4,7 @@
 #include <Eigen/Core>
 #include <string>
 
-#include "rt/topology.hpp"
+#include "tools/topology/topology.hpp"
 
 namespace haptic::tools::topology {
 

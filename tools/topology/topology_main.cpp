@@ -19,7 +19,7 @@
 
 #include "rt/mesh.hpp"
 #include "rt/scene.hpp"
-#include "rt/topology.hpp"
+#include "tools/topology/topology.hpp"
 #include "tools/topology/topology_io.hpp"
 
 #ifndef HAPTIC_TOOLS_DIR

@@ -1,4 +1,4 @@
-#include "rt/modal.hpp"
+#include "tools/study/modal.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>

@@ -1,5 +1,5 @@
 // Network topology optimization, eq. (27). See topology.hpp. Offline math: not RT-safe.
-#include "rt/topology.hpp"
+#include "tools/topology/topology.hpp"
 
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>

@@ -1,4 +1,4 @@
-#include "rt/dense_reference.hpp"
+#include "tests/support/dense_reference.hpp"
 
 namespace haptic::rt {
 

@@ -24,7 +24,7 @@ Integrator parse_integrator(const std::string& name);
 std::vector<Integrator> all_integrators();
 
 // The smooth push profile s(t) = (1 - cos(Omega t)) / 2 (push in and release, C-infinity,
-// s(0) = s'(0) = 0). The exact solution in rt/modal.hpp uses the same closed form.
+// s(0) = s'(0) = 0). The exact solution in tools/study/modal.hpp uses the same closed form.
 struct PushProfile {
   double omega_rad_per_s = 6.283185307179586;  // 1 Hz push-release cycles
   double value(double t_s) const;

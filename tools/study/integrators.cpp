@@ -1,4 +1,4 @@
-#include "rt/integrators.hpp"
+#include "tools/study/integrators.hpp"
 
 #include <cmath>
 #include <stdexcept>

@@ -1,4 +1,4 @@
-#include "rt/model_selector.hpp"
+#include "tools/study/model_selector.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "rt/integrators.hpp"
+#include "tools/study/integrators.hpp"
 #include "rt/mesh.hpp"
 
 namespace haptic::rt {

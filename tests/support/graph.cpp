@@ -1,4 +1,4 @@
-#include "rt/graph.hpp"
+#include "tests/support/graph.hpp"
 
 #include <numeric>
 #include <stdexcept>

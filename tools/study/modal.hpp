@@ -1,12 +1,12 @@
 #pragma once
-// Modal analysis of the isotropic linear VO model (rt/integrators.hpp): the generalized
+// Modal analysis of the isotropic linear VO model (tools/study/integrators.hpp): the generalized
 // eigenproblem S phi = omega^2 m phi on the node-level n x n matrix (dense, start-up only), the
 // EXACT response to the push profile s(t) = (1 - cos Omega t)/2 in closed form (mode by mode), and
 // the modally truncated reduced model (r modes, optionally with a static correction of the
 // truncated modes' quasi-static response) stepped with NPMI in modal coordinates.
 #include <Eigen/Core>
 
-#include "rt/integrators.hpp"
+#include "tools/study/integrators.hpp"
 
 namespace haptic::rt {
 

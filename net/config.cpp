@@ -86,6 +86,7 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
   e.io_cpu = integer<int>(net["io_cpu"], P + "io_cpu", -1, -1, CPU_SETSIZE - 1);
   e.tx_spin_lead_s = real(net["tx_spin_lead_us"], P + "tx_spin_lead_us", 100.0, 0.0, 1e6) * 1e-6;
   e.tx_spin_tail_s = real(net["tx_spin_tail_us"], P + "tx_spin_tail_us", 300.0, 1.0, 1e6) * 1e-6;
+  e.peer_silence_s = real(net["peer_silence_s"], P + "peer_silence_s", 0.25, 0.01, 60.0);
   e.delay_queue_datagrams = integer<std::size_t>(net["delay_queue_datagrams"], P + "delay_queue_datagrams", 8192, 16, 1 << 20);
   e.rtt.margin_fraction = real(net["rtt_margin_fraction"], P + "rtt_margin_fraction", 0.25, 0.0, 10.0);
   e.rtt.margin_s = real(net["rtt_margin_s"], P + "rtt_margin_s", 0.004, 0.0, 10.0);

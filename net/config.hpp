@@ -17,6 +17,7 @@
 //   tx_spin = false                # tick-synchronous TX (net/endpoint.hpp): the I/O thread spins
 //   tx_spin_lead_us = 100          #   from lead before the next push is due (0..1e6)
 //   tx_spin_tail_us = 300          #   to tail after it (1..1e6; lead + tail < the tick period)
+//   peer_silence_s = 0.25          # a neighbour silent this long is marked down (0.01..60)
 //   delay_queue_datagrams = 8192   # 16..1048576
 //   rtt_margin_fraction = 0.25     # 0..10
 //   rtt_margin_s = 0.004           # 0..10

@@ -11,9 +11,13 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <chrono>
 #include <cstring>
 #include <stdexcept>
 #include <system_error>
+#include <thread>
+
+#include "platform/rt_thread.hpp"
 
 namespace haptic::net {
 
@@ -47,6 +51,11 @@ const EndpointConfig& checked(const EndpointConfig& cfg, const Transport* t) {
   if (cfg.peers.empty()) throw std::invalid_argument("net.peers must list at least one neighbor");
   if (cfg.delay_queue_datagrams < 16 || cfg.delay_queue_datagrams > (1u << 20))
     throw std::invalid_argument("net.delay_queue_datagrams must be in [16, 1048576]");
+  if (cfg.io_priority < 0 || cfg.io_priority > 98)
+    throw std::invalid_argument("station.io_priority must be 0 (SCHED_OTHER) or a SCHED_FIFO priority 1..98; got " +
+                                std::to_string(cfg.io_priority));
+  if (!(cfg.peer_silence_s >= 0.01 && cfg.peer_silence_s <= 60.0))
+    throw std::invalid_argument("net.peer_silence_s must be in [0.01, 60] s");
   if (cfg.io_cpu < -1 || cfg.io_cpu >= CPU_SETSIZE)
     throw std::invalid_argument("net.io_cpu must be -1 (unpinned) or a CPU number; got " + std::to_string(cfg.io_cpu));
   if (cfg.tx_spin) {
@@ -63,6 +72,10 @@ const EndpointConfig& checked(const EndpointConfig& cfg, const Transport* t) {
                                 std::to_string(t->max_datagram_bytes()) + ")");
   return cfg;
 }
+WireConfig with_incarnation(WireConfig w) {
+  if (w.incarnation == 0) w.incarnation = new_incarnation();
+  return w;
+}
 bool heap_later(const auto& a, const auto& b) {
   return a.release_ns != b.release_ns ? a.release_ns > b.release_ns : a.order > b.order;
 }
@@ -71,7 +84,7 @@ bool heap_later(const auto& a, const auto& b) {
 Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transport)
     : value_count_(checked(cfg, transport.get()).value_count),
       transport_(std::move(transport)),
-      encoder_(cfg.wire),
+      encoder_(with_incarnation(cfg.wire)),
       decoder_(cfg.wire, peer_ids(cfg), cfg.value_count),
       frags_per_packet_(encoder_.fragment_count(cfg.value_count)),
       epoch_s_(cfg.impairment_epoch_s),
@@ -80,7 +93,11 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
       io_cpu_(cfg.io_cpu),
       tx_period_ns_(static_cast<std::int64_t>(std::llround(cfg.tx_period_s * 1e9))),
       tx_lead_ns_(static_cast<std::int64_t>(std::llround(cfg.tx_spin_lead_s * 1e9))),
-      tx_tail_ns_(static_cast<std::int64_t>(std::llround(cfg.tx_spin_tail_s * 1e9))) {
+      tx_tail_ns_(static_cast<std::int64_t>(std::llround(cfg.tx_spin_tail_s * 1e9))),
+      io_priority_(cfg.io_priority),
+      incarnation_(encoder_.config().incarnation),
+      fingerprint_(cfg.fingerprint),
+      silence_ns_(static_cast<std::int64_t>(std::llround(cfg.peer_silence_s * 1e9))) {
   if (frags_per_packet_ == 0)
     throw std::invalid_argument("net: scene too large for " + std::to_string(kMaxFragments) +
                                 " fragments of net.max_datagram_bytes = " + std::to_string(cfg.wire.max_datagram_bytes));
@@ -90,8 +107,10 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
     if (l.impaired) p->impaired = ImpairedLink(l.impairment, l.seed);
     p->rtt = RttEstimator(cfg.rtt);
     p->stats.station_id = l.station_id;
+    p->box.publish(p->stats);
     peers_.push_back(std::move(p));
   }
+  send_records_.resize(kSendRecords);
   rx_meta_.resize(kRxBuffers);
   rx_store_.resize(kRxBuffers * 2 * value_count_);
   tx_meta_.resize(kTxBuffers);
@@ -140,36 +159,52 @@ void Endpoint::start() {
   if (running_.load(std::memory_order_acquire)) return;
   if (epoch_s_ < 0.0) epoch_s_ = monotonic_s();
   running_.store(true, std::memory_order_release);
-  thread_ = std::thread([this] { run(); });
-  if (io_cpu_ >= 0) {
-    cpu_set_t set;
-    CPU_ZERO(&set);
-    CPU_SET(io_cpu_, &set);
-    const int e = ::pthread_setaffinity_np(thread_.native_handle(), sizeof set, &set);
-    if (e != 0) {
-      stop();
-      throw std::system_error(e, std::generic_category(),
-                              "net.io_cpu = " + std::to_string(io_cpu_) + ": cannot pin the I/O thread");
-    }
+  platform::RtConfig rc;
+  rc.sched_fifo = io_priority_ > 0;
+  rc.priority = io_priority_ > 0 ? io_priority_ : 1;
+  rc.cpu = io_cpu_;
+  rc.lock_memory = false;  // the station's RT thread locks the process's memory
+  rc.isolate_cpu = false;
+  rc.prefault_stack_bytes = 0;
+  rc.prefault_heap_bytes = 0;
+  try {
+    thread_ = std::make_unique<platform::RtThread>(rc, [this](const platform::RtReport&) { run(); });
+  } catch (const std::invalid_argument& e) {
+    running_.store(false, std::memory_order_release);
+    throw std::invalid_argument(std::string("net.io_cpu = ") + std::to_string(io_cpu_) + ": " + e.what());
+  } catch (...) {
+    running_.store(false, std::memory_order_release);
+    throw;
   }
+  io_warnings_.clear();
+  bool fifo = io_priority_ > 0;
+  for (const auto& w : thread_->setup_warnings()) {
+    if (w.find("PREEMPT_RT") != std::string::npos) continue;  // the station's RT thread reports the kernel
+    if (w.find("SCHED_FIFO") != std::string::npos) fifo = false;
+    if (w.find("pinning to cpu") != std::string::npos) {
+      stop();
+      throw std::runtime_error("net.io_cpu = " + std::to_string(io_cpu_) + ": cannot pin the I/O thread (" + w + ")");
+    }
+    io_warnings_.push_back("I/O thread: " + w);
+  }
+  io_sched_ = fifo ? "SCHED_FIFO " + std::to_string(io_priority_) : std::string("SCHED_OTHER");
 }
 
 double Endpoint::io_thread_cpu_s() const {
-  if (!thread_.joinable()) return io_cpu_at_stop_s_;
-  clockid_t cid{};
+  const std::int64_t id = io_clock_.load(std::memory_order_acquire);
+  if (!thread_ || id < 0) return static_cast<double>(io_cpu_at_stop_ns_.load(std::memory_order_relaxed)) * 1e-9;
   timespec ts{};
-  if (pthread_getcpuclockid(const_cast<std::thread&>(thread_).native_handle(), &cid) != 0 || clock_gettime(cid, &ts) != 0)
-    return 0.0;
+  if (clock_gettime(static_cast<clockid_t>(id), &ts) != 0) return 0.0;
   return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
 }
 
 void Endpoint::stop() {
-  if (!thread_.joinable()) return;
-  io_cpu_at_stop_s_ = io_thread_cpu_s();
+  if (!thread_) return;
   running_.store(false, std::memory_order_release);
   const std::uint64_t one = 1;
   [[maybe_unused]] auto r = ::write(wake_fd_, &one, sizeof one);
-  thread_.join();
+  thread_->join();
+  thread_.reset();
 }
 
 int Endpoint::find_peer(std::uint16_t id) const {
@@ -213,76 +248,132 @@ void Endpoint::publish_bound(PeerState& p) {
   p.bound_generation.store(p.rtt.generation(), std::memory_order_release);
 }
 
-void Endpoint::begin_probing() {
-  std::lock_guard lock(stats_mutex_);
-  for (auto& p : peers_) p->rtt.begin_probing();
+bool Endpoint::probe_command(int command) {
+  if (!thread_ || !running_.load(std::memory_order_acquire)) {
+    // No I/O thread: nothing runs concurrently, apply here.
+    probe_command_.store(command, std::memory_order_relaxed);
+    apply_probe_command();
+    return probe_all_bound_.load(std::memory_order_relaxed);
+  }
+  probe_command_.store(command, std::memory_order_relaxed);
+  const std::uint64_t req = probe_request_.fetch_add(1, std::memory_order_acq_rel) + 1;
+  const std::uint64_t one = 1;
+  [[maybe_unused]] auto r = ::write(wake_fd_, &one, sizeof one);
+  // Bounded wait: the I/O thread looks at the request at least every 100 ms.
+  for (int i = 0; i < 2000 && probe_done_.load(std::memory_order_acquire) < req; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  return probe_done_.load(std::memory_order_acquire) >= req && probe_all_bound_.load(std::memory_order_acquire);
 }
 
-bool Endpoint::finish_probing() {
-  std::lock_guard lock(stats_mutex_);
-  bool all = true;
-  for (auto& p : peers_) {
-    if (!p->rtt.probing() && p->rtt.has_bound()) continue;
-    if (p->rtt.finish_probing()) publish_bound(*p);
-    else all = false;
+void Endpoint::apply_probe_command() {
+  const int c = probe_command_.exchange(kProbeNone, std::memory_order_relaxed);
+  if (c == kProbeBegin) {
+    for (auto& p : peers_) p->rtt.begin_probing();
+  } else if (c == kProbeFinish) {
+    bool all = true;
+    for (auto& p : peers_) {
+      if (!p->rtt.probing() && p->rtt.has_bound()) continue;
+      if (p->rtt.finish_probing()) publish_bound(*p);
+      else all = false;
+    }
+    probe_all_bound_.store(all, std::memory_order_release);
   }
-  return all;
+  publish_stats();
+}
+
+void Endpoint::begin_probing() { probe_command(kProbeBegin); }
+
+bool Endpoint::finish_probing() { return probe_command(kProbeFinish); }
+
+void Endpoint::publish_stats() {
+  for (auto& pp : peers_) {
+    PeerState& p = *pp;
+    PeerStats& ps = p.stats;
+    ps.rtt_samples = p.rtt.samples();
+    ps.rtt_last_s = p.rtt.last_s();
+    ps.rtt_mean_s = p.rtt.mean_s();
+    ps.rtt_min_s = p.rtt.min_s();
+    ps.rtt_max_s = p.rtt.max_s();
+    ps.rtt_bound_s = p.rtt.bound_s();
+    ps.rtt_probing = p.rtt.probing();
+    ps.rtt_has_bound = p.rtt.has_bound();
+    ps.rtt_over_bound_events = p.rtt.over_bound_events();
+    ps.rtt_bound_generation = p.rtt.generation();
+    ps.loss_fraction = 0.0;
+    if (ps.packets_received_incarnation > 0) {
+      const double span = static_cast<double>(ps.newest_seq - ps.lowest_seq + 1);
+      ps.loss_fraction = std::max(0.0, 1.0 - static_cast<double>(ps.packets_received_incarnation) / span);
+    }
+    p.box.publish(ps);
+  }
+  counters_.drops = decoder_.drops();
+  counters_box_.publish(counters_);
 }
 
 EndpointStats Endpoint::stats() const {
-  std::lock_guard lock(stats_mutex_);
+  const EndpointCounters c = counters_box_.read();
   EndpointStats s;
-  s.drops = decoder_.drops();
-  s.datagrams_received = datagrams_received_;
-  s.receive_errors = receive_errors_;
-  s.rx_ring_full = rx_ring_full_;
-  s.wrong_scene_size = wrong_scene_size_;
+  s.drops = c.drops;
+  s.datagrams_received = c.datagrams_received;
+  s.receive_errors = c.receive_errors;
+  s.rx_ring_full = c.rx_ring_full;
+  s.wrong_scene_size = c.wrong_scene_size;
+  s.fingerprints_received = c.fingerprints_received;
+  s.incarnation = incarnation_;
   s.tx_overruns = tx_overruns_.load(std::memory_order_relaxed);
-  s.tx_packets = tx_packets_;
-  s.tx_caught_spinning = tx_caught_spinning_;
-  s.tx_spin_windows = windows_;
+  s.tx_packets = c.tx_packets;
+  s.tx_caught_spinning = c.tx_caught_spinning;
+  s.tx_spin_windows = c.tx_spin_windows;
   s.io_thread_cpu_s = io_thread_cpu_s();
-  s.tx_handoff_mean_s = tx_packets_ ? tx_handoff_sum_s_ / static_cast<double>(tx_packets_) : 0.0;
-  s.tx_handoff_max_s = tx_handoff_max_s_;
-  for (const auto& p : peers_) {
-    PeerStats ps = p->stats;
-    ps.rtt_samples = p->rtt.samples();
-    ps.rtt_last_s = p->rtt.last_s();
-    ps.rtt_mean_s = p->rtt.mean_s();
-    ps.rtt_min_s = p->rtt.min_s();
-    ps.rtt_max_s = p->rtt.max_s();
-    ps.rtt_bound_s = p->rtt.bound_s();
-    ps.rtt_probing = p->rtt.probing();
-    ps.rtt_has_bound = p->rtt.has_bound();
-    ps.rtt_over_bound_events = p->rtt.over_bound_events();
-    ps.rtt_bound_generation = p->rtt.generation();
-    if (ps.packets_received > 0) {
-      const double span = static_cast<double>(ps.newest_seq - ps.lowest_seq + 1);
-      ps.loss_fraction = std::max(0.0, 1.0 - static_cast<double>(ps.packets_received) / span);
-    }
-    s.peers.push_back(ps);
-  }
+  s.tx_handoff_mean_s = c.tx_packets ? c.tx_handoff_sum_s / static_cast<double>(c.tx_packets) : 0.0;
+  s.tx_handoff_max_s = c.tx_handoff_max_s;
+  for (const auto& p : peers_) s.peers.push_back(p->box.read());
   return s;
 }
 
 // ------------------------------------------------------------------ I/O thread
 
+void Endpoint::io_step(std::int64_t now_ns, bool rx, bool caught_spinning) {
+  if (probe_request_.load(std::memory_order_acquire) != probe_done_.load(std::memory_order_relaxed)) {
+    const std::uint64_t req = probe_request_.load(std::memory_order_acquire);
+    apply_probe_command();
+    probe_done_.store(req, std::memory_order_release);
+  }
+  if (rx) handle_rx(now_ns);
+  handle_tx(now_ns, caught_spinning);
+  release_due(monotonic_ns());
+  check_silence(monotonic_ns());
+  publish_stats();
+}
+
+void Endpoint::check_silence(std::int64_t now_ns) {
+  for (auto& pp : peers_) {
+    PeerState& p = *pp;
+    if (p.stats.up && now_ns - p.last_receive_ns > silence_ns_) {
+      p.stats.up = false;
+      ++p.stats.down_events;
+      p.stats.last_change_s = static_cast<double>(now_ns) * 1e-9;
+    }
+  }
+}
+
 void Endpoint::run() {
+  {
+    clockid_t cid{};
+    if (pthread_getcpuclockid(pthread_self(), &cid) == 0) io_clock_.store(static_cast<std::int64_t>(cid), std::memory_order_release);
+  }
   // The ppoll timeouts below schedule the TX spin window: a SCHED_OTHER thread's default
   // 50 us timer slack would make it late, so ask for none (per thread; harmless otherwise).
   if (tx_spin_) ::prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   pollfd fds[2] = {{transport_->fd(), POLLIN, 0}, {wake_fd_, POLLIN, 0}};
   while (running_.load(std::memory_order_acquire)) {
     if (busy_poll_) {
-      std::lock_guard lock(stats_mutex_);
-      const std::int64_t t = monotonic_ns();
-      handle_rx(t);
-      handle_tx(t);
-      release_due(t);
+      io_step(monotonic_ns(), true);
       continue;
     }
     std::int64_t now = monotonic_ns();
     std::int64_t wake_at = now + 100'000'000;  // re-check running_ at least every 100 ms
+    wake_at = std::min(wake_at, now + silence_ns_ / 2);  // notice a silent neighbour in time
     if (!delay_heap_.empty()) wake_at = std::min(wake_at, delay_heap_.front().release_ns);
     if (tx_spin_ && last_push_ns_ >= 0 && missed_windows_ < kMaxMissedWindows) {
       // The next push is due one period after the previous one (the previous push's stamp,
@@ -295,11 +386,7 @@ void Endpoint::run() {
         // (the largest lateness of the last 64 windows) and go to sleep that much earlier.
         const std::int64_t late = std::max<std::int64_t>(0, now - (open - wake_late_ns_));
         window_late_max_ = std::max(window_late_max_, late);
-        std::uint64_t w;
-        {
-          std::lock_guard lock(stats_mutex_);
-          w = ++windows_;
-        }
+        const std::uint64_t w = ++counters_.tx_spin_windows;
         if (w % 64 == 0) {
           wake_late_ns_ = std::min<std::int64_t>(window_late_max_, tx_period_ns_ / 4);
           window_late_max_ = 0;
@@ -316,12 +403,16 @@ void Endpoint::run() {
       std::uint64_t v;
       [[maybe_unused]] auto rr = ::read(wake_fd_, &v, sizeof v);
     }
-    now = monotonic_ns();
-    std::lock_guard lock(stats_mutex_);
-    if (fds[0].revents & POLLIN) handle_rx(now);
-    handle_tx(now);
-    release_due(monotonic_ns());
+    io_step(monotonic_ns(), (fds[0].revents & POLLIN) != 0);
   }
+  // Final snapshot, and the CPU time for stats() after the thread is gone.
+  publish_stats();
+  clockid_t cid{};
+  timespec ts{};
+  if (pthread_getcpuclockid(pthread_self(), &cid) == 0 && clock_gettime(cid, &ts) == 0)
+    io_cpu_at_stop_ns_.store(static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000'000u + static_cast<std::uint64_t>(ts.tv_nsec),
+                             std::memory_order_relaxed);
+  io_clock_.store(-1, std::memory_order_release);
 }
 
 bool Endpoint::spin_for_push(std::int64_t until_ns) {
@@ -330,17 +421,12 @@ bool Endpoint::spin_for_push(std::int64_t until_ns) {
   std::int64_t now = monotonic_ns();
   while (running_.load(std::memory_order_relaxed) && now < until_ns) {
     if (tx_ready_.size() > 0) {
-      std::lock_guard lock(stats_mutex_);
-      handle_tx(now, /*caught_spinning=*/true);
-      release_due(monotonic_ns());
+      io_step(now, true, /*caught_spinning=*/true);
       sent = true;
       break;
     }
-    {
-      std::lock_guard lock(stats_mutex_);
-      handle_rx(now);  // non-blocking: keep receiving while we wait
-      release_due(now);
-    }
+    handle_rx(now);  // non-blocking: keep receiving while we wait
+    release_due(now);
     cpu_relax();
     now = monotonic_ns();
   }
@@ -349,11 +435,73 @@ bool Endpoint::spin_for_push(std::int64_t until_ns) {
   (void)tx_pushed_.load(std::memory_order_seq_cst);  // pairs with push_state()
   // A push that raced with the end of the window skipped its eventfd write: take it now.
   if (!sent && tx_ready_.size() > 0) {
-    std::lock_guard lock(stats_mutex_);
-    handle_tx(monotonic_ns());
+    io_step(monotonic_ns(), false);
     sent = true;
   }
+  if (!sent) io_step(monotonic_ns(), false);  // publish what the window received
   return sent;
+}
+
+void Endpoint::on_incarnation(PeerState& p, std::uint64_t incarnation) {
+  if (p.has_incarnation && incarnation == p.stats.incarnation) return;
+  if (p.has_incarnation) {
+    // A restarted neighbour: its sequence numbers and echoes start afresh.
+    ++p.stats.incarnation_changes;
+    p.echo = {};
+    p.previous_echo = {};
+    p.stats.packets_received_incarnation = 0;
+    p.offset_window_n = 0;
+  }
+  p.has_incarnation = true;
+  p.stats.incarnation = incarnation;
+}
+
+void Endpoint::on_state(PeerState& p, const DecodedState& st, std::int64_t now_ns) {
+  // Echo bookkeeping: remember the newest packet of this peer to echo it back.
+  if (!p.echo.valid || st.seq > p.echo.seq) {
+    p.previous_echo = p.echo;
+    p.echo = PeerState::EchoSlot{true, st.seq, st.send_time_ns, now_ns};
+  }
+  // Round trip from OUR send record of the echoed sequence, first time we see this echo.
+  if (st.has_echo && (!p.sampled_any || st.echo_seq > p.last_sampled_echo)) {
+    const SendRecord* rec = send_record(st.echo_seq);
+    if (rec == nullptr) {
+      ++p.stats.echoes_unmatched;
+    } else {
+      p.sampled_any = true;
+      p.last_sampled_echo = st.echo_seq;
+      const bool over = p.rtt.add_sample(static_cast<double>(now_ns - rec->send_ns) * 1e-9);
+      if (over) publish_bound(p);
+      // Clock offset, NTP-style: t1 our send, t2 = t3 - hold their receipt, t3 their send, t4 now.
+      const double t1 = static_cast<double>(rec->send_ns) * 1e-9, t4 = static_cast<double>(now_ns) * 1e-9;
+      const double t3 = static_cast<double>(st.send_time_ns) * 1e-9;
+      const double hold = static_cast<double>(std::max<std::int64_t>(0, st.echo_hold_ns)) * 1e-9;
+      const double t2 = t3 - hold;
+      const double offset = ((t2 - t1) + (t3 - t4)) / 2.0;
+      const double path = (t4 - t1) - hold;  // the offset's error is at most path / 2
+      if (p.offset_window_n == 0 || path < p.offset_window_best_rtt) {
+        p.offset_window_best_rtt = path;
+        p.offset_window_best = offset;
+      }
+      ++p.stats.clock_offset_samples;
+      // The first window publishes as it goes; later ones when complete (min-RTT filter).
+      if (p.stats.clock_offset_samples <= 128 || ++p.offset_window_n >= 128) {
+        p.stats.clock_offset_s = p.offset_window_best;
+        p.stats.clock_offset_rtt_s = p.offset_window_best_rtt;
+      }
+      if (p.stats.clock_offset_samples <= 128) ++p.offset_window_n;
+      if (p.offset_window_n >= 128) p.offset_window_n = 0;
+    }
+  }
+  PeerStats& ps = p.stats;
+  if (ps.packets_received_incarnation == 0) ps.lowest_seq = ps.newest_seq = st.seq;
+  ps.lowest_seq = std::min(ps.lowest_seq, st.seq);
+  ps.newest_seq = std::max(ps.newest_seq, st.seq);
+  ++ps.packets_received;
+  ++ps.packets_received_incarnation;
+  const double one_way = static_cast<double>(now_ns - st.send_time_ns) * 1e-9;
+  ps.one_way_mean_s += (one_way - ps.one_way_mean_s) / static_cast<double>(ps.packets_received);
+  ps.one_way_max_s = std::max(ps.one_way_max_s, one_way);
 }
 
 void Endpoint::handle_rx(std::int64_t now_ns) {
@@ -361,10 +509,10 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
     const long n = transport_->receive(rx_buf_.data(), rx_buf_.size());
     if (n == 0) return;
     if (n < 0) {
-      ++receive_errors_;
+      ++counters_.receive_errors;
       return;
     }
-    ++datagrams_received_;
+    ++counters_.datagrams_received;
     DecodedState st;
     const std::size_t len = std::min<std::size_t>(static_cast<std::size_t>(n), rx_buf_.size());
     if (static_cast<std::size_t>(n) > rx_buf_.size()) {
@@ -372,44 +520,41 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
       decoder_.decode(rx_buf_.data(), static_cast<std::size_t>(n) > max_datagram_ ? max_datagram_ + 1 : len, st);
       continue;
     }
-    if (decoder_.decode(rx_buf_.data(), len, st) != DecodeStatus::complete) continue;
-    if (st.value_count != value_count_) {  // a peer with another scene: never hand it to the tick
-      ++wrong_scene_size_;
-      continue;
-    }
+    const DecodeStatus ds = decoder_.decode(rx_buf_.data(), len, st);
+    if (ds != DecodeStatus::complete && ds != DecodeStatus::fingerprint) continue;
     const int pi = find_peer(st.sender);
     if (pi < 0) continue;  // cannot happen: the decoder knows the same peers
     PeerState& p = *peers_[static_cast<std::size_t>(pi)];
-    // Echo bookkeeping: remember the newest packet of this peer to echo it back.
-    if (!p.echo.valid || st.seq > p.echo.seq) {
-      p.previous_echo = p.echo;
-      p.echo = PeerState::EchoSlot{true, st.seq, st.send_time_ns, now_ns};
+    on_incarnation(p, st.incarnation);
+    p.last_receive_ns = now_ns;
+    p.stats.last_receive_s = static_cast<double>(now_ns) * 1e-9;
+    if (!p.stats.up) {
+      p.stats.up = true;
+      ++p.stats.up_events;
+      p.stats.last_change_s = static_cast<double>(now_ns) * 1e-9;
     }
-    // Round trip: first time we see this echo of one of our own packets.
-    if (st.has_echo && (!p.sampled_any || st.echo_seq > p.last_sampled_echo)) {
-      p.sampled_any = true;
-      p.last_sampled_echo = st.echo_seq;
-      const bool over = p.rtt.add_sample(static_cast<double>(now_ns - st.echo_time_ns) * 1e-9);
-      if (over) publish_bound(p);
+    if (ds == DecodeStatus::fingerprint) {
+      ++counters_.fingerprints_received;
+      p.stats.has_fingerprint = true;
+      p.stats.fingerprint = st.fingerprint;
+      continue;
     }
-    PeerStats& ps = p.stats;
-    if (ps.packets_received == 0) ps.lowest_seq = ps.newest_seq = st.seq;
-    ps.lowest_seq = std::min(ps.lowest_seq, st.seq);
-    ps.newest_seq = std::max(ps.newest_seq, st.seq);
-    ++ps.packets_received;
-    const double one_way = static_cast<double>(now_ns - st.send_time_ns) * 1e-9;
-    ps.one_way_mean_s += (one_way - ps.one_way_mean_s) / static_cast<double>(ps.packets_received);
-    ps.one_way_max_s = std::max(ps.one_way_max_s, one_way);
+    if (st.value_count != value_count_) {  // a peer with another scene: never hand it to the tick
+      ++counters_.wrong_scene_size;
+      continue;
+    }
+    on_state(p, st, now_ns);
 
     std::uint32_t idx = 0;
     if (!rx_free_.try_pop(idx)) {
-      ++rx_ring_full_;
+      ++counters_.rx_ring_full;
       continue;
     }
     double* x = rx_store_.data() + std::size_t{idx} * 2 * value_count_;
     st.copy_out(x, x + value_count_);
-    rx_meta_[idx] = RxMeta{st.sender,   st.seq,      static_cast<double>(st.send_time_ns) * 1e-9,
-                           st.has_echo, st.echo_seq, static_cast<double>(st.echo_time_ns) * 1e-9,
+    const SendRecord* rec = st.has_echo ? send_record(st.echo_seq) : nullptr;
+    rx_meta_[idx] = RxMeta{st.sender,      st.seq,      static_cast<double>(st.send_time_ns) * 1e-9,
+                           rec != nullptr, st.echo_seq, rec ? static_cast<double>(rec->send_ns) * 1e-9 : 0.0,
                            monotonic_ns()};
     rx_ready_.try_push(idx);
     // Dekker pair with wait_rx(), seq_cst on both sides (no fences: ThreadSanitizer checks
@@ -419,6 +564,18 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
       const std::uint64_t one = 1;
       [[maybe_unused]] auto r = ::write(rx_wake_fd_, &one, sizeof one);
     }
+  }
+}
+
+void Endpoint::send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns) {
+  if (fingerprint_.scene_nodes == 0) return;
+  // The first pushes, then every 25th (20 Hz at a 2 ms tick): a neighbour that starts or
+  // restarts later learns it within 50 ms.
+  if (pushes_sent_ > 8 && pushes_sent_ % 25 != 0) return;
+  for (auto& pp : peers_) {
+    const std::size_t len =
+        encoder_.encode_fingerprint(pp->link.station_id, seq, stamp_ns, fingerprint_, tx_buf_.data(), tx_buf_.size());
+    if (len) send_now(pp->link.station_id, tx_buf_.data(), len, *pp);
   }
 }
 
@@ -434,13 +591,16 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
     const double* x = tx_store_.data() + std::size_t{idx} * 2 * value_count_;
     last_push_ns_ = std::max(last_push_ns_, m.push_ns);
     missed_windows_ = 0;
-    ++tx_packets_;
-    if (caught_spinning) ++tx_caught_spinning_;
+    ++counters_.tx_packets;
+    if (caught_spinning) ++counters_.tx_caught_spinning;
     const double handoff = static_cast<double>(monotonic_ns() - m.push_ns) * 1e-9;
-    tx_handoff_sum_s_ += handoff;
-    tx_handoff_max_s_ = std::max(tx_handoff_max_s_, handoff);
+    counters_.tx_handoff_sum_s += handoff;
+    counters_.tx_handoff_max_s = std::max(counters_.tx_handoff_max_s, handoff);
     const std::int64_t stamp = m.send_time_s >= 0.0 ? static_cast<std::int64_t>(std::llround(m.send_time_s * 1e9))
                                                      : now_ns;
+    send_records_[m.seq % kSendRecords] = SendRecord{true, m.seq, stamp};
+    send_fingerprints(m.seq, stamp);
+    ++pushes_sent_;
     for (auto& pp : peers_) {
       PeerState& p = *pp;
       OutgoingState o;
@@ -450,7 +610,7 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
       const PeerState::EchoSlot* e = p.echo_as_of(stamp);
       o.has_echo = e != nullptr;
       o.echo_seq = e ? e->seq : 0;
-      o.echo_time_ns = e ? e->send_time_ns : 0;
+      o.echo_hold_ns = e ? stamp - e->receive_time_ns : 0;
       o.value_count = value_count_;
       o.x_hat = x;
       o.v_hat = x + value_count_;

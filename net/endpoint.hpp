@@ -10,7 +10,20 @@
 //                           --rx_free ring--->
 //
 // The rings carry buffer indices; buffers (2*value_count doubles each) are allocated in the
-// constructor. The RT side never touches the socket, never allocates and never locks;
+// constructor. The I/O thread is a platform::RtThread (net.io_cpu, EndpointConfig::io_priority)
+// and shares no lock with any other thread: statistics are published in seqlock snapshot boxes
+// (platform/snapshot_box.hpp) and start-up commands (probing) travel as atomics.
+//
+// Lifecycle (net/README.md): every datagram carries the sender's incarnation; a restarted
+// neighbour (higher incarnation) is accepted afresh, an older incarnation is dropped. Round
+// trips come from this station's own send records (the echo names our sequence number), and
+// with the echo's holding time they give the clock offset to each neighbour (NTP-style). A
+// neighbour silent for `peer_silence_s` is marked down and marked up again at its next packet
+// (counted; the non-RT side logs the events, PeerEvents). With a Fingerprint configured the
+// I/O thread sends it to every neighbour (the first pushes, then every 25th) and keeps the
+// newest one received from each.
+//
+// The RT side never touches the socket, never allocates and never locks;
 // push_state() wakes the I/O thread through a non-blocking eventfd write (one syscall, never
 // blocks) unless the I/O thread is spinning for it (tick-synchronous TX, below), in which
 // case the push is a ring write and nothing else. Everything else here is non-RT (start-up,
@@ -26,16 +39,19 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
-#include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "net/impairment.hpp"
 #include "net/rtt.hpp"
 #include "net/transport.hpp"
 #include "net/wire.hpp"
+#include "platform/snapshot_box.hpp"
 #include "rt/spsc_ring.hpp"
+
+namespace haptic::platform {
+class RtThread;
+}
 
 namespace haptic::net {
 
@@ -65,6 +81,13 @@ struct EndpointConfig {
   bool tx_spin = false;
   double tx_period_s = 0.0;
   int io_cpu = -1;  // pin the I/O thread to this CPU (net.io_cpu; -1 = let the scheduler place it)
+  // SCHED_FIFO priority of the I/O thread (the station's station.io_priority; 0 = SCHED_OTHER).
+  // Refused (no CAP_SYS_NICE): the thread runs SCHED_OTHER and io_setup_warnings() says why.
+  int io_priority = 0;
+  // A neighbour with no authentic datagram for this long is marked down (net.peer_silence_s).
+  double peer_silence_s = 0.25;
+  // Sent to every neighbour while the station runs (scene_nodes = 0: none sent).
+  Fingerprint fingerprint{};
   double tx_spin_lead_s = 100e-6;
   double tx_spin_tail_s = 300e-6;
   double impairment_epoch_s = -1.0;  // blackout times are relative to this (monotonic_s); <0: start()
@@ -74,23 +97,53 @@ struct EndpointConfig {
 struct PeerStats {
   std::uint16_t station_id = 0;
   std::uint64_t packets_received = 0;     // complete state packets delivered
-  std::uint64_t newest_seq = 0;
+  std::uint64_t newest_seq = 0;           // of the current incarnation
   std::uint64_t lowest_seq = 0;
-  double loss_fraction = 0.0;             // 1 - distinct received / (newest - lowest + 1)
+  double loss_fraction = 0.0;             // 1 - distinct received / (newest - lowest + 1), current incarnation
+  std::uint64_t packets_received_incarnation = 0;
   double one_way_mean_s = 0.0;            // receive time - sender stamp (same-host clocks only)
   double one_way_max_s = 0.0;
   std::uint64_t packets_sent = 0, datagrams_sent = 0, impair_lost = 0, impair_duplicated = 0,
                 send_errors = 0, delay_queue_full = 0;
   std::uint64_t rtt_samples = 0;
+  std::uint64_t echoes_unmatched = 0;     // echoes naming a sequence we have no send record of
   double rtt_last_s = 0.0, rtt_mean_s = 0.0, rtt_min_s = 0.0, rtt_max_s = 0.0, rtt_bound_s = 0.0;
   bool rtt_probing = false, rtt_has_bound = false;
   std::uint64_t rtt_over_bound_events = 0, rtt_bound_generation = 0;
+  // Incarnation of the neighbour (0 before its first packet) and how often it changed.
+  std::uint64_t incarnation = 0, incarnation_changes = 0;
+  // Up/down: up after its first packet, down after peer_silence_s without one.
+  bool up = false;
+  std::uint64_t up_events = 0, down_events = 0;
+  double last_change_s = 0.0;             // monotonic_s() of the newest up/down change
+  double last_receive_s = 0.0;
+  // Clock offset (peer clock - our clock), NTP-style from the echo (our send record t1, the
+  // peer's receipt t2 = t3 - hold, its send stamp t3, our receipt t4):
+  //   offset = ((t2 - t1) + (t3 - t4)) / 2, taken from the lowest-round-trip sample of a window
+  // of 128 samples; its error is at most half that round trip minus the hold.
+  std::uint64_t clock_offset_samples = 0;
+  double clock_offset_s = 0.0;
+  double clock_offset_rtt_s = 0.0;        // round trip (minus hold) of the sample it came from
+  bool has_fingerprint = false;
+  Fingerprint fingerprint{};              // newest received from this neighbour
+};
+
+// Totals of the I/O thread (a copy).
+struct EndpointCounters {
+  DropCounters drops{};
+  std::uint64_t datagrams_received = 0, receive_errors = 0, rx_ring_full = 0;
+  std::uint64_t wrong_scene_size = 0;  // authentic packets whose 3n differs from ours (dropped)
+  std::uint64_t fingerprints_received = 0;
+  std::uint64_t tx_packets = 0, tx_caught_spinning = 0, tx_spin_windows = 0;
+  double tx_handoff_sum_s = 0.0, tx_handoff_max_s = 0.0;
 };
 
 struct EndpointStats {
   DropCounters drops{};
   std::uint64_t datagrams_received = 0, receive_errors = 0, rx_ring_full = 0, tx_overruns = 0;
   std::uint64_t wrong_scene_size = 0;  // authentic packets whose 3n differs from ours (dropped)
+  std::uint64_t fingerprints_received = 0;
+  std::uint64_t incarnation = 0;       // ours
   // Push -> first datagram handed to the transport (I/O thread), per state packet.
   std::uint64_t tx_packets = 0, tx_caught_spinning = 0;  // caught inside a spin window
   std::uint64_t tx_spin_windows = 0;                     // spin windows opened (net.tx_spin)
@@ -104,9 +157,9 @@ struct RxPacket {
   std::uint16_t sender = 0;
   std::uint64_t seq = 0;
   double send_time_s = 0.0;      // sender's CLOCK_MONOTONIC stamp
-  bool has_echo = false;         // the sender echoed one of our packets
+  bool has_echo = false;         // the sender echoed one of our packets (and we have its send record)
   std::uint64_t echo_seq = 0;    // our newest sequence the sender had received
-  double echo_time_s = 0.0;      // our own send stamp of echo_seq (OUR clock)
+  double echo_time_s = 0.0;      // our own send stamp of echo_seq, from our send records (OUR clock)
   const double* x_hat = nullptr;
   const double* v_hat = nullptr;
   std::uint32_t count = 0;
@@ -128,7 +181,9 @@ class Endpoint {
   Endpoint(const Endpoint&) = delete;
   Endpoint& operator=(const Endpoint&) = delete;
 
-  void start();  // launches the I/O thread (not RT-safe)
+  // Launches the I/O thread on a platform::RtThread (not RT-safe). Throws when the thread cannot
+  // be created or net.io_cpu cannot be applied.
+  void start();
   void stop();   // stops and joins it (not RT-safe); idempotent
 
   // ---- RT side (one RT thread) -----------------------------------------------------------
@@ -186,10 +241,18 @@ class Endpoint {
   // Blocks up to timeout_s until the RX ring holds a packet (for non-RT consumers: tools,
   // benchmarks; the RT tick polls drain() instead). true when one is waiting. Not RT-safe.
   bool wait_rx(double timeout_s);
+  // Probing commands are carried out by the I/O thread (which owns the estimators); these
+  // wait (bounded, 2 s) until it has. Not RT-safe.
   void begin_probing();
   // Ends probing on every neighbor with enough samples; true when all have a bound.
   bool finish_probing();
+  // Snapshot of the statistics; never blocks the I/O thread. Not RT-safe (allocates).
   EndpointStats stats() const;
+  std::uint64_t incarnation() const { return incarnation_; }
+  // The I/O thread's set-up warnings (e.g. SCHED_FIFO refused), after start(). Not RT-safe.
+  const std::vector<std::string>& io_setup_warnings() const { return io_warnings_; }
+  // "SCHED_FIFO <p>" or "SCHED_OTHER" (after start()).
+  const std::string& io_scheduling() const { return io_sched_; }
   std::size_t peer_count() const { return peers_.size(); }
   std::uint32_t value_count() const { return value_count_; }
   const Transport& transport() const { return *transport_; }
@@ -222,7 +285,7 @@ class Endpoint {
     RttEstimator rtt;
     // The newest packet received from this peer and the one before it, with their receive
     // times. A state is echoed only with a packet received by its own send stamp, so the
-    // receiver's age bound (now - echoed send time) never understates the state's age.
+    // receiver's age bound (now - its own send time of the echo) never understates the age.
     struct EchoSlot {
       bool valid = false;
       std::uint64_t seq = 0;
@@ -237,13 +300,37 @@ class Endpoint {
     }
     std::uint64_t last_sampled_echo = 0;
     bool sampled_any = false;
-    PeerStats stats;
+    bool has_incarnation = false;
+    std::int64_t last_receive_ns = 0;
+    std::uint64_t offset_window_n = 0;   // samples in the current clock-offset window
+    double offset_window_best_rtt = 0.0, offset_window_best = 0.0;
+    PeerStats stats;                     // I/O thread only; published to `box`
+    platform::SnapshotBox<PeerStats> box;
     std::atomic<std::uint64_t> bound_ns{0};
     std::atomic<std::uint64_t> bound_generation{0};
   };
+  // Our own send records (I/O thread): sequence -> our send stamp, for round trips and the
+  // age bound from the echo (a peer cannot make a round trip look shorter than it was).
+  struct SendRecord {
+    bool valid = false;
+    std::uint64_t seq = 0;
+    std::int64_t send_ns = 0;
+  };
+  static constexpr std::size_t kSendRecords = 1024;  // 2 s of 2 ms ticks
+  const SendRecord* send_record(std::uint64_t seq) const {
+    const SendRecord& r = send_records_[seq % kSendRecords];
+    return r.valid && r.seq == seq ? &r : nullptr;
+  }
 
   void run();
   bool spin_for_push(std::int64_t until_ns);  // I/O thread: tick-synchronous TX window
+  void io_step(std::int64_t now_ns, bool rx, bool caught_spinning = false);  // rx, tx, release, publish
+  void on_state(PeerState& p, const DecodedState& st, std::int64_t now_ns);  // echo, RTT, offset, stats
+  void on_incarnation(PeerState& p, std::uint64_t incarnation);
+  void check_silence(std::int64_t now_ns);
+  void apply_probe_command();
+  void publish_stats();
+  void send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns);
   void handle_rx(std::int64_t now_ns);
   void handle_tx(std::int64_t now_ns, bool caught_spinning = false);
   void release_due(std::int64_t now_ns);
@@ -288,21 +375,37 @@ class Endpoint {
   std::atomic<int> rx_waiters_{0};
   std::atomic<std::uint64_t> rx_delivered_{0};
   std::atomic<bool> running_{false};
-  std::thread thread_;
-  double io_cpu_at_stop_s_ = 0.0;
+  std::unique_ptr<platform::RtThread> thread_;
+  int io_priority_;
+  std::vector<std::string> io_warnings_;
+  std::string io_sched_ = "not started";
+  std::atomic<std::int64_t> io_clock_{-1};  // the I/O thread's CPU clock id (clockid_t), -1 before start
+  std::atomic<std::uint64_t> io_cpu_at_stop_ns_{0};
   double io_thread_cpu_s() const;
 
-  mutable std::mutex stats_mutex_;  // guards PeerState::rtt/stats and the counters below
-  std::uint64_t datagrams_received_ = 0, receive_errors_ = 0, rx_ring_full_ = 0, wrong_scene_size_ = 0;
-  std::uint64_t tx_packets_ = 0, tx_caught_spinning_ = 0;
-  double tx_handoff_sum_s_ = 0.0, tx_handoff_max_s_ = 0.0;
+  // Probing commands (non-RT -> I/O thread): the request number, the command, the I/O
+  // thread's acknowledgement and the result of the newest finish.
+  enum : int { kProbeNone = 0, kProbeBegin = 1, kProbeFinish = 2 };
+  std::atomic<int> probe_command_{kProbeNone};
+  std::atomic<std::uint64_t> probe_request_{0}, probe_done_{0};
+  std::atomic<bool> probe_all_bound_{false};
+  bool probe_command(int command);  // posts and waits (bounded); the finish result
+
+  std::uint64_t incarnation_;
+  Fingerprint fingerprint_;
+  std::int64_t silence_ns_;
+  std::vector<SendRecord> send_records_;  // I/O thread only
+  std::uint64_t pushes_sent_ = 0;          // I/O thread only
+
+  // I/O thread only; published to counters_box_.
+  EndpointCounters counters_{};
+  platform::SnapshotBox<EndpointCounters> counters_box_;
   std::int64_t last_push_ns_ = -1;  // I/O thread: push stamp of the newest packet sent
   // Consecutive windows without a push; at kMaxMissedWindows the thread stops spinning until
   // the next push (which arrives through the eventfd) re-arms it.
   static constexpr int kMaxMissedWindows = 4;
   int missed_windows_ = 0;
   std::int64_t wake_late_ns_ = 0, window_late_max_ = 0;  // learned timer lateness (run())
-  std::uint64_t windows_ = 0;  // guarded by stats_mutex_ for stats()
 };
 
 }  // namespace haptic::net

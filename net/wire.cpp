@@ -2,6 +2,8 @@
 
 #include <sodium.h>
 
+#include <time.h>
+
 #include <algorithm>
 #include <cstring>
 #include <stdexcept>
@@ -46,6 +48,7 @@ const char* to_string(DropReason r) {
     case DropReason::stale: return "stale";
     case DropReason::too_large: return "too_large";
     case DropReason::reassembly_evicted: return "reassembly_evicted";
+    case DropReason::old_incarnation: return "old_incarnation";
     case DropReason::count_: break;
   }
   return "?";
@@ -83,6 +86,36 @@ void WireConfig::validate() const {
   if (station_id == kNoStation) throw std::invalid_argument("station id must be in [0, 65534]");
 }
 
+std::uint64_t new_incarnation() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000'000u + static_cast<std::uint64_t>(ts.tv_nsec);
+}
+
+std::uint64_t fingerprint_hash(const void* data, std::size_t bytes) {
+  init_sodium();
+  std::uint8_t h[16];
+  crypto_generichash(h, sizeof h, static_cast<const std::uint8_t*>(data), bytes, nullptr, 0);
+  return get<std::uint64_t>(h, 0);
+}
+
+std::string fingerprint_difference(const Fingerprint& mine, const Fingerprint& theirs) {
+  std::string out;
+  auto field = [&](const char* name, auto a, auto b, bool show_values) {
+    if (a == b) return;
+    if (!out.empty()) out += "; ";
+    out += name;
+    if (show_values) out += ": " + std::to_string(a) + " here, " + std::to_string(b) + " at the peer";
+    else out += " differs";
+  };
+  field("protocol version", mine.protocol_version, theirs.protocol_version, true);
+  field("scene nodes", mine.scene_nodes, theirs.scene_nodes, true);
+  field("scene data (hash)", mine.scene_hash, theirs.scene_hash, false);
+  field("period_ns", mine.period_ns, theirs.period_ns, true);
+  field("gains (hash)", mine.gains_hash, theirs.gains_hash, false);
+  return out;
+}
+
 // ---------------------------------------------------------------- encoder
 
 Encoder::Encoder(const WireConfig& cfg) : cfg_(cfg) {
@@ -114,18 +147,9 @@ std::size_t Encoder::encode_fragment(const OutgoingState& s, std::size_t index, 
   if (cfg_.encoding == ValueEncoding::float32) flags |= kFlagFloat32;
   if (s.has_echo) flags |= kFlagHasEcho;
   namespace o = wire_offset;
-  put<std::uint32_t>(out, o::magic, kWireMagic);
-  put<std::uint8_t>(out, o::version, kWireVersion);
-  put<std::uint8_t>(out, o::kind, static_cast<std::uint8_t>(PayloadKind::state));
-  put<std::uint8_t>(out, o::flags, flags);
-  put<std::uint8_t>(out, o::header_len, static_cast<std::uint8_t>(kHeaderBytes));
-  put<std::uint32_t>(out, o::session, cfg_.session_id);
-  put<std::uint16_t>(out, o::sender, cfg_.station_id);
-  put<std::uint16_t>(out, o::dest, s.dest);
-  put<std::uint64_t>(out, o::seq, s.seq);
-  put<std::int64_t>(out, o::send_time, s.send_time_ns);
+  put_common(out, PayloadKind::state, flags, s.dest, s.seq, s.send_time_ns);
   put<std::uint64_t>(out, o::echo_seq, s.has_echo ? s.echo_seq : 0);
-  put<std::int64_t>(out, o::echo_time, s.has_echo ? s.echo_time_ns : 0);
+  put<std::int64_t>(out, o::echo_hold, s.has_echo ? s.echo_hold_ns : 0);
   put<std::uint32_t>(out, o::value_count, s.value_count);
   put<std::uint16_t>(out, o::frag_index, static_cast<std::uint16_t>(index));
   put<std::uint16_t>(out, o::frag_count, static_cast<std::uint16_t>(nfrag));
@@ -148,6 +172,46 @@ std::size_t Encoder::encode_fragment(const OutgoingState& s, std::size_t index, 
     }
   }
   mac(out, kHeaderBytes + len, cfg_.key, out + kHeaderBytes + len);
+  return size;
+}
+
+void Encoder::put_common(std::uint8_t* out, PayloadKind kind, std::uint8_t flags, std::uint16_t dest, std::uint64_t seq,
+                         std::int64_t send_time_ns) const {
+  namespace o = wire_offset;
+  put<std::uint32_t>(out, o::magic, kWireMagic);
+  put<std::uint8_t>(out, o::version, kWireVersion);
+  put<std::uint8_t>(out, o::kind, static_cast<std::uint8_t>(kind));
+  put<std::uint8_t>(out, o::flags, flags);
+  put<std::uint8_t>(out, o::header_len, static_cast<std::uint8_t>(kHeaderBytes));
+  put<std::uint32_t>(out, o::session, cfg_.session_id);
+  put<std::uint16_t>(out, o::sender, cfg_.station_id);
+  put<std::uint16_t>(out, o::dest, dest);
+  put<std::uint64_t>(out, o::seq, seq);
+  put<std::int64_t>(out, o::send_time, send_time_ns);
+  put<std::uint64_t>(out, o::incarnation, cfg_.incarnation);
+}
+
+std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
+                                        const Fingerprint& f, std::uint8_t* out, std::size_t cap) const {
+  const std::size_t size = kHeaderBytes + kFingerprintBytes + kMacBytes;
+  if (cap < size) return 0;
+  namespace o = wire_offset;
+  put_common(out, PayloadKind::fingerprint, 0, dest, seq, send_time_ns);
+  put<std::uint64_t>(out, o::echo_seq, 0);
+  put<std::int64_t>(out, o::echo_hold, 0);
+  put<std::uint32_t>(out, o::value_count, 0);
+  put<std::uint16_t>(out, o::frag_index, 0);
+  put<std::uint16_t>(out, o::frag_count, 1);
+  put<std::uint32_t>(out, o::frag_offset, 0);
+  put<std::uint16_t>(out, o::frag_len, static_cast<std::uint16_t>(kFingerprintBytes));
+  put<std::uint16_t>(out, o::frag_stride, static_cast<std::uint16_t>(kFingerprintBytes));
+  std::uint8_t* p = out + kHeaderBytes;
+  put<std::uint32_t>(p, 0, f.protocol_version);
+  put<std::uint32_t>(p, 4, f.scene_nodes);
+  put<std::uint64_t>(p, 8, f.scene_hash);
+  put<std::uint64_t>(p, 16, f.period_ns);
+  put<std::uint64_t>(p, 24, f.gains_hash);
+  mac(out, kHeaderBytes + kFingerprintBytes, cfg_.key, out + kHeaderBytes + kFingerprintBytes);
   return size;
 }
 
@@ -183,7 +247,8 @@ bool peek_header(const std::uint8_t* d, std::size_t len, HeaderView& h) {
   h.seq = get<std::uint64_t>(d, o::seq);
   h.send_time_ns = get<std::int64_t>(d, o::send_time);
   h.echo_seq = get<std::uint64_t>(d, o::echo_seq);
-  h.echo_time_ns = get<std::int64_t>(d, o::echo_time);
+  h.echo_hold_ns = get<std::int64_t>(d, o::echo_hold);
+  h.incarnation = get<std::uint64_t>(d, o::incarnation);
   h.value_count = get<std::uint32_t>(d, o::value_count);
   h.frag_index = get<std::uint16_t>(d, o::frag_index);
   h.frag_count = get<std::uint16_t>(d, o::frag_count);
@@ -278,6 +343,28 @@ DecodeStatus Decoder::drop(DropReason r) {
   return DecodeStatus::dropped;
 }
 
+bool Decoder::check_incarnation(Peer& p, std::uint64_t incarnation, bool& raised) {
+  raised = false;
+  if (!p.has_incarnation) {
+    p.has_incarnation = true;
+    p.incarnation = incarnation;
+    return true;
+  }
+  if (incarnation < p.incarnation) return false;
+  if (incarnation == p.incarnation) return true;
+  // A restarted sender: its sequence numbers start afresh, so forget its replay window and
+  // its partial packets (all of the old incarnation).
+  p.incarnation = incarnation;
+  p.any = false;
+  p.newest = 0;
+  p.window = {};
+  for (std::size_t i = 0; i < slots_per_peer_; ++i) slots_[p.first_slot + i].used = false;
+  ++incarnation_changes_;
+  p.raise_pending = true;
+  raised = true;
+  return true;
+}
+
 DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedState& out) {
   namespace o = wire_offset;
   if (d == nullptr || len < kHeaderBytes + kMacBytes) return drop(DropReason::truncated);
@@ -301,6 +388,30 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
   if (sodium_memcmp(tag, d + kHeaderBytes + h.frag_len, kMacBytes) != 0) return drop(DropReason::bad_mac);
 
   // Authenticated from here on; still validate every field before touching state.
+  Peer& peer = peers_[static_cast<std::size_t>(pi)];
+  if (h.kind == static_cast<std::uint8_t>(PayloadKind::fingerprint)) {
+    if (h.flags != 0 || h.value_count != 0 || h.frag_index != 0 || h.frag_count != 1 || h.frag_offset != 0 ||
+        h.frag_len != kFingerprintBytes || h.frag_stride != kFingerprintBytes)
+      return drop(DropReason::garbled);
+    bool raised = false;
+    if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
+    const std::uint8_t* p = d + kHeaderBytes;
+    out = DecodedState{};
+    out.sender = h.sender;
+    out.incarnation = h.incarnation;
+    out.new_incarnation = raised || peer.raise_pending;
+    peer.raise_pending = false;
+    out.kind = PayloadKind::fingerprint;
+    out.seq = h.seq;
+    out.send_time_ns = h.send_time_ns;
+    out.fingerprint.protocol_version = get<std::uint32_t>(p, 0);
+    out.fingerprint.scene_nodes = get<std::uint32_t>(p, 4);
+    out.fingerprint.scene_hash = get<std::uint64_t>(p, 8);
+    out.fingerprint.period_ns = get<std::uint64_t>(p, 16);
+    out.fingerprint.gains_hash = get<std::uint64_t>(p, 24);
+    ++accepted_datagrams_;
+    return DecodeStatus::fingerprint;
+  }
   if (h.kind != static_cast<std::uint8_t>(PayloadKind::state)) return drop(DropReason::garbled);
   if ((h.flags & ~(kFlagFloat32 | kFlagHasEcho)) != 0) return drop(DropReason::garbled);
   const std::size_t vb = (h.flags & kFlagFloat32) ? 4 : 8;
@@ -315,17 +426,22 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
   const std::size_t expect_len = std::min<std::size_t>(h.frag_stride, total - expect_off);
   if (h.frag_offset != expect_off || h.frag_len != expect_len) return drop(DropReason::garbled);
 
-  Peer& peer = peers_[static_cast<std::size_t>(pi)];
+  bool raised = false;
+  if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
   DropReason why{};
-  if (seen(peer, h.seq, why)) return drop(why);
+  if (seen(peer, h.seq, why)) return drop(why);  // never after a raise: the window is empty
 
   auto fill = [&](const std::uint8_t* payload) {
     out.sender = h.sender;
+    out.incarnation = h.incarnation;
+    out.new_incarnation = raised || peer.raise_pending;
+    peer.raise_pending = false;
+    out.kind = PayloadKind::state;
     out.seq = h.seq;
     out.send_time_ns = h.send_time_ns;
     out.has_echo = (h.flags & kFlagHasEcho) != 0;
     out.echo_seq = h.echo_seq;
-    out.echo_time_ns = h.echo_time_ns;
+    out.echo_hold_ns = h.echo_hold_ns;
     out.value_count = h.value_count;
     out.encoding = vb == 4 ? ValueEncoding::float32 : ValueEncoding::float64;
     out.payload = payload;
@@ -369,7 +485,7 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
     slot->bitmap = {};
     slot->send_time_ns = h.send_time_ns;
     slot->echo_seq = h.echo_seq;
-    slot->echo_time_ns = h.echo_time_ns;
+    slot->echo_hold_ns = h.echo_hold_ns;
   }
   std::memcpy(slot->buffer + h.frag_offset, d + kHeaderBytes, h.frag_len);
   slot->bitmap[h.frag_index / 64] |= std::uint64_t{1} << (h.frag_index % 64);
@@ -384,7 +500,7 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
   fill(slot->buffer);
   out.send_time_ns = slot->send_time_ns;
   out.echo_seq = slot->echo_seq;
-  out.echo_time_ns = slot->echo_time_ns;
+  out.echo_hold_ns = slot->echo_hold_ns;
   return DecodeStatus::complete;
 }
 

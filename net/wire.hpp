@@ -1,7 +1,10 @@
 #pragma once
-// Wire format v1 of the station-to-station state packet (spec: net/README.md).
+// Wire format v2 of the station-to-station packets (spec: net/README.md).
 //
-// One state packet (x_hat_i(k), v_hat_i(k)) is sent as 1..kMaxFragments datagrams. Every
+// v2 adds the sender's incarnation (new per process start) to every header, a fingerprint
+// message (kind 2: scene, period, gains, protocol version, exchanged while probing) and
+// carries the echo's holding time instead of an echoed stamp (round trips come from the
+// receiver's own send records). One state packet (x_hat_i(k), v_hat_i(k)) is sent as 1..kMaxFragments datagrams. Every
 // datagram is self-contained and authenticated: a 64-byte little-endian header, a slice of
 // the payload, and a 16-byte keyed BLAKE2b MAC (libsodium crypto_generichash with the session
 // key) over header + slice. The decoder validates everything before it changes any state and
@@ -11,6 +14,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -19,8 +23,8 @@ namespace haptic::net {
 static_assert(std::endian::native == std::endian::little, "wire codec assumes a little-endian host");
 
 inline constexpr std::uint32_t kWireMagic = 0x4E504148u;  // bytes "HAPN" on the wire
-inline constexpr std::uint8_t kWireVersion = 1;
-inline constexpr std::size_t kHeaderBytes = 64;
+inline constexpr std::uint8_t kWireVersion = 2;
+inline constexpr std::size_t kHeaderBytes = 72;
 inline constexpr std::size_t kMacBytes = 16;
 inline constexpr std::size_t kKeyBytes = 32;
 inline constexpr std::size_t kMinDatagramBytes = kHeaderBytes + kMacBytes + 8;
@@ -29,7 +33,7 @@ inline constexpr std::size_t kDefaultDatagramBytes = 1400;  // fits UDP/IPv4, UD
 inline constexpr std::size_t kMaxFragments = 256;
 inline constexpr std::uint16_t kNoStation = 0xFFFF;
 
-enum class PayloadKind : std::uint8_t { state = 1 };
+enum class PayloadKind : std::uint8_t { state = 1, fingerprint = 2 };
 enum class ValueEncoding : std::uint8_t { float64 = 0, float32 = 1 };
 
 // Header flag bits.
@@ -49,13 +53,14 @@ inline constexpr std::size_t dest = 14;          // u16
 inline constexpr std::size_t seq = 16;           // u64
 inline constexpr std::size_t send_time = 24;     // i64 ns, sender's CLOCK_MONOTONIC
 inline constexpr std::size_t echo_seq = 32;      // u64
-inline constexpr std::size_t echo_time = 40;     // i64 ns, destination's clock (its own stamp)
+inline constexpr std::size_t echo_hold = 40;     // i64 ns, how long the sender held echo_seq by send_time
 inline constexpr std::size_t value_count = 48;   // u32, values per vector (3n)
 inline constexpr std::size_t frag_index = 52;    // u16
 inline constexpr std::size_t frag_count = 54;    // u16
 inline constexpr std::size_t frag_offset = 56;   // u32, byte offset of this slice in the payload
 inline constexpr std::size_t frag_len = 60;      // u16, bytes of payload in this datagram
 inline constexpr std::size_t frag_stride = 62;   // u16, payload bytes of every non-last fragment
+inline constexpr std::size_t incarnation = 64;   // u64, sender's incarnation (new per process start)
 }  // namespace wire_offset
 
 enum class DropReason : std::uint8_t {
@@ -71,6 +76,7 @@ enum class DropReason : std::uint8_t {
   stale,              // sequence older than the anti-replay window
   too_large,          // value_count above this station's scene size
   reassembly_evicted, // partial packet evicted (counted per evicted packet, not per datagram)
+  old_incarnation,    // authentic, but from an incarnation older than the newest seen from that sender
   count_
 };
 inline constexpr std::size_t kDropReasonCount = static_cast<std::size_t>(DropReason::count_);
@@ -88,9 +94,28 @@ struct SessionKey {
   static SessionKey from_hex(std::string_view hex, std::string_view config_key = "net.session_key");
 };
 
+// A fresh incarnation number: CLOCK_REALTIME in ns at the call (grows across restarts as long
+// as the wall clock does not step back by more than a restart takes). Not RT-safe (call once).
+std::uint64_t new_incarnation();
+
+// What two stations must agree on before they couple (exchanged while probing, kind 2).
+struct Fingerprint {
+  std::uint32_t protocol_version = kWireVersion;
+  std::uint32_t scene_nodes = 0;
+  std::uint64_t scene_hash = 0;   // fingerprint_hash of the scene data (rest positions, masses, edges)
+  std::uint64_t period_ns = 0;    // the tick period T
+  std::uint64_t gains_hash = 0;   // fingerprint_hash of the coupling gains (P_ij, D_ij, ...)
+};
+inline constexpr std::size_t kFingerprintBytes = 32;
+// 64-bit keyless BLAKE2b of bytes (for Fingerprint's hashes). Not RT-safe (start-up).
+std::uint64_t fingerprint_hash(const void* data, std::size_t bytes);
+// "" when equal, else which fields differ, e.g. "scene nodes: 33 here, 27 at the peer". Not RT-safe.
+std::string fingerprint_difference(const Fingerprint& mine, const Fingerprint& theirs);
+
 struct WireConfig {
   std::uint32_t session_id = 1;
   std::uint16_t station_id = 0;              // this station
+  std::uint64_t incarnation = 0;             // this process's incarnation (new_incarnation())
   std::size_t max_datagram_bytes = kDefaultDatagramBytes;
   ValueEncoding encoding = ValueEncoding::float64;
   SessionKey key{};
@@ -105,7 +130,7 @@ struct OutgoingState {
   std::int64_t send_time_ns = 0;
   bool has_echo = false;
   std::uint64_t echo_seq = 0;
-  std::int64_t echo_time_ns = 0;
+  std::int64_t echo_hold_ns = 0;  // how long we held echo_seq by send_time_ns (our clock, >= 0)
   std::uint32_t value_count = 0;
   const double* x_hat = nullptr;
   const double* v_hat = nullptr;
@@ -124,9 +149,16 @@ class Encoder {
   // cap is too small or index is out of range. RT-safe (no allocation, no syscall).
   std::size_t encode_fragment(const OutgoingState& s, std::size_t index, std::uint8_t* out,
                               std::size_t cap) const;
+  // Writes one fingerprint datagram (kind 2) to `dest` into out[0..cap); its size or 0 when
+  // cap is too small. RT-safe.
+  std::size_t encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
+                                 const Fingerprint& f, std::uint8_t* out, std::size_t cap) const;
   const WireConfig& config() const { return cfg_; }
 
  private:
+  // Magic, version, kind, flags, header_len, session, sender, dest, seq, send_time, incarnation.
+  void put_common(std::uint8_t* out, PayloadKind kind, std::uint8_t flags, std::uint16_t dest, std::uint64_t seq,
+                  std::int64_t send_time_ns) const;
   WireConfig cfg_;
   std::size_t value_bytes_;
   std::size_t stride_;
@@ -136,11 +168,15 @@ class Encoder {
 // encoding; it points into the decoder (valid until the next decode call).
 struct DecodedState {
   std::uint16_t sender = 0;
+  std::uint64_t incarnation = 0;  // sender's incarnation
+  bool new_incarnation = false;   // this datagram raised the sender's incarnation (its replay state was reset)
+  PayloadKind kind = PayloadKind::state;
+  Fingerprint fingerprint{};      // kind == fingerprint (DecodeStatus::fingerprint)
   std::uint64_t seq = 0;
   std::int64_t send_time_ns = 0;
   bool has_echo = false;
   std::uint64_t echo_seq = 0;
-  std::int64_t echo_time_ns = 0;
+  std::int64_t echo_hold_ns = 0;
   std::uint32_t value_count = 0;
   ValueEncoding encoding = ValueEncoding::float64;
   const std::uint8_t* payload = nullptr;
@@ -148,7 +184,8 @@ struct DecodedState {
   void copy_out(double* x_hat, double* v_hat) const;
 };
 
-enum class DecodeStatus : std::uint8_t { dropped, fragment_stored, complete };
+// fingerprint: an authentic fingerprint message (out.fingerprint); complete: a state packet.
+enum class DecodeStatus : std::uint8_t { dropped, fragment_stored, complete, fingerprint };
 
 class Decoder {
  public:
@@ -158,11 +195,15 @@ class Decoder {
   Decoder(const WireConfig& cfg, std::span<const std::uint16_t> peers, std::uint32_t max_value_count,
           std::size_t slots_per_peer = 4);
   // Validates one datagram. On `complete`, `out` describes the packet. Bad input is dropped
-  // and counted, and leaves every state unchanged. RT-safe (no allocation, no syscall).
+  // and counted, and leaves every state unchanged. Incarnations: the first authentic datagram
+  // of a sender fixes its incarnation; a higher one resets that sender's replay window and
+  // partial packets (a restarted process); a lower one is dropped (old_incarnation).
+  // RT-safe (no allocation, no syscall).
   DecodeStatus decode(const std::uint8_t* data, std::size_t len, DecodedState& out);
   const DropCounters& drops() const { return drops_; }
   std::uint64_t accepted_datagrams() const { return accepted_datagrams_; }
   std::uint64_t completed_packets() const { return completed_; }
+  std::uint64_t incarnation_changes() const { return incarnation_changes_; }
 
  private:
   struct Slot {
@@ -177,11 +218,14 @@ class Decoder {
     std::array<std::uint64_t, kMaxFragments / 64> bitmap{};
     std::int64_t send_time_ns = 0;
     std::uint64_t echo_seq = 0;
-    std::int64_t echo_time_ns = 0;
+    std::int64_t echo_hold_ns = 0;
     std::uint8_t* buffer = nullptr;  // into storage_
   };
   struct Peer {
     std::uint16_t id = kNoStation;
+    bool has_incarnation = false;
+    std::uint64_t incarnation = 0;
+    bool raise_pending = false;  // raised; not yet reported with a delivered packet
     bool any = false;
     std::uint64_t newest = 0;  // newest delivered sequence
     std::array<std::uint64_t, kReplayWindow / 64> window{};  // bit (newest - seq) set = seen
@@ -191,6 +235,7 @@ class Decoder {
   bool seen(const Peer& p, std::uint64_t seq, DropReason& why) const;
   void mark(Peer& p, std::uint64_t seq);
   DecodeStatus drop(DropReason r);
+  bool check_incarnation(Peer& p, std::uint64_t incarnation, bool& raised);  // false: drop
 
   WireConfig cfg_;
   std::uint32_t max_value_count_;
@@ -203,6 +248,7 @@ class Decoder {
   DropCounters drops_{};
   std::uint64_t accepted_datagrams_ = 0;
   std::uint64_t completed_ = 0;
+  std::uint64_t incarnation_changes_ = 0;
 };
 
 // Reads the header fields of a datagram without validation (tools, tests). Returns false if
@@ -211,8 +257,8 @@ struct HeaderView {
   std::uint32_t magic, session;
   std::uint8_t version, kind, flags, header_len;
   std::uint16_t sender, dest, frag_index, frag_count, frag_len, frag_stride;
-  std::uint64_t seq, echo_seq;
-  std::int64_t send_time_ns, echo_time_ns;
+  std::uint64_t seq, echo_seq, incarnation;
+  std::int64_t send_time_ns, echo_hold_ns;
   std::uint32_t value_count, frag_offset;
 };
 bool peek_header(const std::uint8_t* data, std::size_t len, HeaderView& out);

@@ -90,7 +90,7 @@ bool prefault_heap(std::size_t bytes) {
 }  // namespace
 
 void validate(const RtConfig& config) {
-  if (config.priority < kMinPriority || config.priority > kMaxPriority) {
+  if (config.sched_fifo && (config.priority < kMinPriority || config.priority > kMaxPriority)) {
     throw std::invalid_argument("rt.priority = " + std::to_string(config.priority) + ": allowed range is " +
                                 std::to_string(kMinPriority) + ".." + std::to_string(kMaxPriority) +
                                 " (99 is left to the kernel's watchdog/migration threads)");
@@ -271,8 +271,10 @@ RtReport apply_rt_config(const RtConfig& config) {
 
   sched_param param{};
   param.sched_priority = config.priority;
-  const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
-  if (rc == 0) {
+  const int rc = config.sched_fifo ? pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) : -1;
+  if (!config.sched_fifo) {
+    // SCHED_OTHER requested: nothing to do, nothing failed.
+  } else if (rc == 0) {
     report.sched_fifo = true;
     report.priority = config.priority;
   } else {

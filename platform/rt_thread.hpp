@@ -13,6 +13,7 @@ namespace haptic::platform {
 
 struct RtConfig {
   int priority = 80;          // rt.priority: SCHED_FIFO priority, 1..98 (99 is left to the kernel's own threads)
+  bool sched_fifo = true;     // false: stay SCHED_OTHER (priority unused), e.g. an I/O thread without RT priority
   int cpu = -1;               // rt.cpu: core to pin to, 0..(online cpus - 1); -1: don't pin
   bool lock_memory = true;    // rt.lock_memory: mlockall(MCL_CURRENT|MCL_FUTURE) + prefaulting
   bool hold_dma_latency = false;  // rt.hold_dma_latency: write 0 to /dev/cpu_dma_latency and keep it open

@@ -58,6 +58,7 @@ inline ExchangeResult exchange(Endpoint& a, Endpoint& b, std::uint16_t id_a, std
   b.begin_probing();
   const auto t0 = std::chrono::steady_clock::now();
   std::uint64_t k = 0;
+  bool probed[2] = {false, false};
   while ((r.received[0] < count || r.received[1] < count) &&
          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < deadline_s) {
     if (k < count + 50) {  // a few extra so losses at the end of a run do not stall it
@@ -67,10 +68,10 @@ inline ExchangeResult exchange(Endpoint& a, Endpoint& b, std::uint16_t id_a, std
         eps[e]->push_state(k, monotonic_s(), x.data(), v.data());
       }
     }
-    if (k == count / 2) {
-      a.finish_probing();
-      b.finish_probing();
-    }
+    // Probing ends from half-way on, as soon as each side has its samples (a loaded machine
+    // may need a few more packets than half the run).
+    if (k >= count / 2 && !probed[0]) probed[0] = a.finish_probing();
+    if (k >= count / 2 && !probed[1]) probed[1] = b.finish_probing();
     for (int e = 0; e < 2; ++e) {
       eps[e]->drain([&](std::uint16_t sender, std::uint64_t seq, double, const double* xh, const double* vh,
                         std::uint32_t cnt) {

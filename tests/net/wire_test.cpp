@@ -51,7 +51,7 @@ struct Scene {
     o.send_time_ns = 123456789 + static_cast<std::int64_t>(seq);
     o.has_echo = true;
     o.echo_seq = seq / 2;
-    o.echo_time_ns = 987654321;
+    o.echo_hold_ns = 987654321;
     o.value_count = count;
     o.x_hat = x.data();
     o.v_hat = v.data();
@@ -91,7 +91,7 @@ TEST(Wire, RoundTripOf33NodeSceneIsExactInFloat64) {
   CHECK_EQUAL(123456789 + 42, st.send_time_ns);
   CHECK(st.has_echo);
   CHECK_EQUAL(21u, st.echo_seq);
-  CHECK_EQUAL(987654321, st.echo_time_ns);
+  CHECK_EQUAL(987654321, st.echo_hold_ns);
   std::vector<double> x(scene.count), v(scene.count);
   st.copy_out(x.data(), v.data());
   MEMCMP_EQUAL(scene.x.data(), x.data(), 8 * scene.count);
@@ -267,7 +267,7 @@ TEST(Wire, ReplayedAndStaleDatagramsAreDropped) {
 TEST(Wire, WrongVersionSessionSenderAndDestinationAreDropped) {
   auto d = encode_all(enc, scene.out(0, 1))[0];
   auto v = d;
-  v[wire_offset::version] = 2;
+  v[wire_offset::version] = 1;  // a v1 station (no incarnation in its header)
   expect_drop(dec, v, DropReason::wrong_version);
 
   WireConfig other_session = cfg_for(1);

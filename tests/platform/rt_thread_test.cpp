@@ -241,3 +241,20 @@ TEST(RtSetup, rt_thread_rethrows_a_refusal_on_a_non_rt_kernel) {
   }
   CHECK_FALSE(body_ran);
 }
+
+TEST(RtSetup, sched_other_thread_keeps_its_policy_and_reports_no_sched_fifo_failure) {
+  // An I/O thread without RT priority (net: station.io_priority = 0): pinned if asked, no
+  // SCHED_FIFO request, so no SCHED_FIFO warning and the thread runs SCHED_OTHER.
+  RtConfig c;
+  c.sched_fifo = false;
+  c.priority = 0;  // unused, and not validated, without sched_fifo
+  c.lock_memory = false;
+  c.isolate_cpu = false;
+  c.prefault_stack_bytes = 0;
+  c.prefault_heap_bytes = 0;
+  int policy = -1;
+  RtThread t(c, [&](const RtReport&) { policy = sched_getscheduler(0); });
+  t.join();
+  CHECK_EQUAL(SCHED_OTHER, policy);
+  for (const auto& w : t.setup_warnings()) CHECK_TEXT(w.find("SCHED_FIFO") == std::string::npos, w.c_str());
+}

@@ -1,11 +1,12 @@
--- Wireshark/tshark dissector for the haptic station wire format v1 (net/README.md).
--- Finds it on UDP by heuristic (magic "HAPN" + version 1 + header length 64) and on raw
+-- Wireshark/tshark dissector for the haptic station wire format v2 (net/README.md).
+-- Finds it on UDP by heuristic (magic "HAPN" + version 2 + header length 72) and on raw
 -- Ethernet by EtherType 0x88B5 (IEEE 802 Local Experimental EtherType 1).
 -- Use: tshark -X lua_script:tools/wireshark/hapn.lua -r capture.pcap -Y hapn
 -- The MAC (keyed BLAKE2b-128) is shown, not verified: the session key is not in the capture.
-local hapn = Proto("hapn", "Haptic station state packet")
+local hapn = Proto("hapn", "Haptic station packet")
 
-local kinds = { [1] = "state" }
+local kinds = { [1] = "state", [2] = "fingerprint" }
+local HDR = 72
 local f = hapn.fields
 f.magic = ProtoField.uint32("hapn.magic", "Magic", base.HEX)
 f.version = ProtoField.uint8("hapn.version", "Version")
@@ -20,13 +21,19 @@ f.dest = ProtoField.uint16("hapn.dest", "Destination station")
 f.seq = ProtoField.uint64("hapn.seq", "Sequence k")
 f.send_time = ProtoField.int64("hapn.send_time_ns", "Send time (ns, sender CLOCK_MONOTONIC)")
 f.echo_seq = ProtoField.uint64("hapn.echo_seq", "Echoed sequence")
-f.echo_time = ProtoField.int64("hapn.echo_time_ns", "Echoed send time (ns, destination clock)")
+f.echo_hold = ProtoField.int64("hapn.echo_hold_ns", "Echo held by the sender (ns, duration)")
 f.value_count = ProtoField.uint32("hapn.value_count", "Values per vector (3n)")
 f.frag_index = ProtoField.uint16("hapn.frag_index", "Fragment index")
 f.frag_count = ProtoField.uint16("hapn.frag_count", "Fragment count")
 f.frag_offset = ProtoField.uint32("hapn.frag_offset", "Fragment offset (bytes)")
 f.frag_len = ProtoField.uint16("hapn.frag_len", "Fragment length (bytes)")
 f.frag_stride = ProtoField.uint16("hapn.frag_stride", "Fragment stride (bytes)")
+f.incarnation = ProtoField.uint64("hapn.incarnation", "Sender incarnation (CLOCK_REALTIME ns at its start)")
+f.fp_protocol = ProtoField.uint32("hapn.fp.protocol_version", "Fingerprint: protocol version")
+f.fp_nodes = ProtoField.uint32("hapn.fp.scene_nodes", "Fingerprint: scene nodes")
+f.fp_scene = ProtoField.uint64("hapn.fp.scene_hash", "Fingerprint: scene hash", base.HEX)
+f.fp_period = ProtoField.uint64("hapn.fp.period_ns", "Fingerprint: period (ns)")
+f.fp_gains = ProtoField.uint64("hapn.fp.gains_hash", "Fingerprint: gains hash", base.HEX)
 f.payload = ProtoField.bytes("hapn.payload", "Payload slice (x_hat ++ v_hat)")
 f.first_value = ProtoField.double("hapn.first_value", "First value in slice")
 f.mac = ProtoField.bytes("hapn.mac", "MAC (keyed BLAKE2b-128)")
@@ -37,14 +44,14 @@ hapn.experts = { e_len }
 local MAGIC = 0x4E504148
 
 local function looks_like(tvb)
-  if tvb:len() < 80 then return false end
-  return tvb(0, 4):le_uint() == MAGIC and tvb(4, 1):uint() == 1 and tvb(7, 1):uint() == 64
+  if tvb:len() < HDR + 16 then return false end
+  return tvb(0, 4):le_uint() == MAGIC and tvb(4, 1):uint() == 2 and tvb(7, 1):uint() == HDR
 end
 
 function hapn.dissector(tvb, pinfo, tree)
-  if tvb:len() < 80 then return 0 end
+  if tvb:len() < HDR + 16 then return 0 end
   pinfo.cols.protocol = "HAPN"
-  local t = tree:add(hapn, tvb(), "Haptic station state packet")
+  local t = tree:add(hapn, tvb(), "Haptic station packet")
   t:add_le(f.magic, tvb(0, 4))
   t:add_le(f.version, tvb(4, 1))
   t:add_le(f.kind, tvb(5, 1))
@@ -58,28 +65,36 @@ function hapn.dissector(tvb, pinfo, tree)
   t:add_le(f.seq, tvb(16, 8))
   t:add_le(f.send_time, tvb(24, 8))
   t:add_le(f.echo_seq, tvb(32, 8))
-  t:add_le(f.echo_time, tvb(40, 8))
+  t:add_le(f.echo_hold, tvb(40, 8))
   t:add_le(f.value_count, tvb(48, 4))
   t:add_le(f.frag_index, tvb(52, 2))
   t:add_le(f.frag_count, tvb(54, 2))
   t:add_le(f.frag_offset, tvb(56, 4))
   t:add_le(f.frag_len, tvb(60, 2))
   t:add_le(f.frag_stride, tvb(62, 2))
+  t:add_le(f.incarnation, tvb(64, 8))
   local flen = tvb(60, 2):le_uint()
-  if 64 + flen + 16 ~= tvb:len() then
+  if HDR + flen + 16 ~= tvb:len() then
     t:add_proto_expert_info(e_len)
     return tvb:len()
   end
-  if flen > 0 then
-    t:add(f.payload, tvb(64, flen))
+  local kind = tvb(5, 1):uint()
+  if kind == 2 and flen == 32 then
+    t:add_le(f.fp_protocol, tvb(HDR, 4))
+    t:add_le(f.fp_nodes, tvb(HDR + 4, 4))
+    t:add_le(f.fp_scene, tvb(HDR + 8, 8))
+    t:add_le(f.fp_period, tvb(HDR + 16, 8))
+    t:add_le(f.fp_gains, tvb(HDR + 24, 8))
+  elseif flen > 0 then
+    t:add(f.payload, tvb(HDR, flen))
     if bit.band(tvb(6, 1):uint(), 1) == 1 then
-      t:add_le(f.first_value, tvb(64, 4), tvb(64, 4):le_float())
+      t:add_le(f.first_value, tvb(HDR, 4), tvb(HDR, 4):le_float())
     elseif flen >= 8 then
-      t:add_le(f.first_value, tvb(64, 8))
+      t:add_le(f.first_value, tvb(HDR, 8))
     end
   end
-  t:add(f.mac, tvb(64 + flen, 16))
-  pinfo.cols.info = string.format("state %d -> %d seq=%s frag %d/%d", tvb(12, 2):le_uint(), tvb(14, 2):le_uint(),
+  t:add(f.mac, tvb(HDR + flen, 16))
+  pinfo.cols.info = string.format("%s %d -> %d seq=%s frag %d/%d", kinds[kind] or "?", tvb(12, 2):le_uint(), tvb(14, 2):le_uint(),
     tostring(tvb(16, 8):le_uint64()), tvb(52, 2):le_uint() + 1, tvb(54, 2):le_uint())
   return tvb:len()
 end

@@ -1,0 +1,399 @@
+// Lifecycle on the wire and in the endpoint (issue 10 item 4): incarnations (a restarted
+// neighbour is accepted afresh, an older incarnation is dropped), fingerprints exchanged and
+// compared field by field, round trips from our own send records, the clock offset to a
+// neighbour (NTP-style), neighbour down/up events, and statistics read while the I/O thread runs.
+#include <CppUTest/TestHarness.h>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "net/transport_udp.hpp"
+#include "net/wire.hpp"
+#include "tests/net/exchange_util.hpp"
+
+using namespace haptic::net;
+using namespace haptic::net::test;
+
+namespace {
+
+std::vector<std::vector<std::uint8_t>> encode_state(const Encoder& e, std::uint16_t dest, std::uint64_t seq,
+                                                    const std::vector<double>& x) {
+  OutgoingState o;
+  o.dest = dest;
+  o.seq = seq;
+  o.send_time_ns = 1000 + static_cast<std::int64_t>(seq);
+  o.value_count = static_cast<std::uint32_t>(x.size());
+  o.x_hat = x.data();
+  o.v_hat = x.data();
+  std::vector<std::vector<std::uint8_t>> out;
+  for (std::size_t f = 0; f < e.fragment_count(o.value_count); ++f) {
+    std::vector<std::uint8_t> d(kDefaultDatagramBytes);
+    d.resize(e.encode_fragment(o, f, d.data(), d.size()));
+    out.push_back(d);
+  }
+  return out;
+}
+
+DecodeStatus decode_all(Decoder& dec, const std::vector<std::vector<std::uint8_t>>& dgs, DecodedState& st) {
+  DecodeStatus s = DecodeStatus::dropped;
+  for (const auto& d : dgs) s = dec.decode(d.data(), d.size(), st);
+  return s;
+}
+
+WireConfig wire_of(std::uint16_t station, std::uint64_t incarnation) {
+  WireConfig w = exchange_wire(station);
+  w.incarnation = incarnation;
+  return w;
+}
+
+// A station's UDP socket driven by hand (an Encoder/Decoder pair), to play a neighbour that
+// echoes with chosen stamps.
+struct HandPeer {
+  int fd = -1;
+  sockaddr_storage to{};
+  socklen_t to_len = 0;
+  Encoder enc;
+  Decoder dec;
+  HandPeer(std::uint16_t self, std::uint16_t peer, std::uint32_t values, std::uint16_t& port_out)
+      : enc(wire_of(self, 7)), dec(wire_of(self, 7), std::vector<std::uint16_t>{peer}, values) {
+    fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    socklen_t l = sizeof a;
+    ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &l);
+    port_out = ntohs(a.sin_port);
+  }
+  ~HandPeer() { ::close(fd); }
+  void aim(std::uint16_t port) { to = parse_udp_address("127.0.0.1:" + std::to_string(port), "test", to_len); }
+  // Newest state received (false when none waiting).
+  bool receive(DecodedState& st) {
+    std::uint8_t buf[2048];
+    bool got = false;
+    for (int i = 0; i < 256; ++i) {
+      const long n = ::recv(fd, buf, sizeof buf, 0);
+      if (n <= 0) break;
+      DecodedState s;
+      if (dec.decode(buf, static_cast<std::size_t>(n), s) == DecodeStatus::complete) {
+        st = s;
+        got = true;
+      }
+    }
+    return got;
+  }
+  void send(const OutgoingState& o) {
+    std::vector<std::uint8_t> d(kDefaultDatagramBytes);
+    for (std::size_t f = 0; f < enc.fragment_count(o.value_count); ++f) {
+      const std::size_t n = enc.encode_fragment(o, f, d.data(), d.size());
+      ::sendto(fd, d.data(), n, 0, reinterpret_cast<const sockaddr*>(&to), to_len);
+    }
+  }
+};
+
+std::unique_ptr<UdpTransport> udp_on(std::uint16_t port) {
+  return std::make_unique<UdpTransport>("127.0.0.1:" + std::to_string(port), std::vector<UdpPeer>{});
+}
+
+// Pushes from both endpoints every 1 ms for `ms` ms, counting what `b` delivers per sender.
+std::uint64_t pump(Endpoint& a, Endpoint* b, std::uint64_t& ka, std::uint64_t& kb, int ms, std::uint64_t* b_got = nullptr) {
+  std::vector<double> x(a.value_count(), 0.5), v(a.value_count(), -0.5);
+  std::uint64_t a_got = 0;
+  for (int i = 0; i < ms; ++i) {
+    a.push_state(++ka, monotonic_s(), x.data(), v.data());
+    if (b) b->push_state(++kb, monotonic_s(), x.data(), v.data());
+    a_got += a.drain([](auto...) {});
+    if (b) {
+      const std::size_t n = b->drain([](auto...) {});
+      if (b_got) *b_got += n;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return a_got;
+}
+
+}  // namespace
+
+TEST_GROUP(Incarnation) {
+  const std::uint16_t peers[1] = {1};
+  Decoder dec{wire_of(0, 1), peers, 99};
+  std::vector<double> x = std::vector<double>(99, 0.25);
+};
+
+TEST(Incarnation, RestartedSenderIsAcceptedAfreshAndItsOldIncarnationIsDropped) {
+  Encoder first{wire_of(1, 100)}, restarted{wire_of(1, 200)};
+  DecodedState st;
+  CHECK(decode_all(dec, encode_state(first, 0, 5000, x), st) == DecodeStatus::complete);
+  CHECK_EQUAL(100u, st.incarnation);
+  // The restarted process counts from 0 again: far older than the window, yet accepted.
+  CHECK(decode_all(dec, encode_state(restarted, 0, 3, x), st) == DecodeStatus::complete);
+  CHECK_EQUAL(200u, st.incarnation);
+  CHECK(st.new_incarnation);
+  CHECK_EQUAL(1u, dec.incarnation_changes());
+  CHECK(decode_all(dec, encode_state(restarted, 0, 4, x), st) == DecodeStatus::complete);
+  CHECK_FALSE(st.new_incarnation);
+  // Replay of the old incarnation (even with a fresh sequence number) is dropped and counted.
+  CHECK(decode_all(dec, encode_state(first, 0, 6000, x), st) == DecodeStatus::dropped);
+  CHECK_EQUAL(2u, dec.drops()[DropReason::old_incarnation]);  // both datagrams of the packet
+  // And within the new incarnation the replay window works as before.
+  CHECK(decode_all(dec, encode_state(restarted, 0, 4, x), st) == DecodeStatus::dropped);
+  CHECK_EQUAL(2u, dec.drops()[DropReason::replayed]);  // both datagrams
+}
+
+TEST(Incarnation, IncarnationIsAuthenticated) {
+  Encoder first{wire_of(1, 100)};
+  DecodedState st;
+  CHECK(decode_all(dec, encode_state(first, 0, 50, x), st) == DecodeStatus::complete);
+  auto d = encode_state(Encoder{wire_of(1, 101)}, 0, 1, x)[0];
+  d[wire_offset::incarnation] ^= 0x40;  // raise the incarnation without the key
+  CHECK(dec.decode(d.data(), d.size(), st) == DecodeStatus::dropped);
+  CHECK_EQUAL(1u, dec.drops()[DropReason::bad_mac]);
+  CHECK_EQUAL(0u, dec.incarnation_changes());
+}
+
+TEST(Incarnation, NewIncarnationsGrowAcrossCalls) {
+  const std::uint64_t a = new_incarnation();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  CHECK(new_incarnation() > a);
+}
+
+TEST_GROUP(Fingerprints) {};
+
+TEST(Fingerprints, RoundTripAndFieldByFieldDifference) {
+  Fingerprint f;
+  f.scene_nodes = 33;
+  f.scene_hash = fingerprint_hash("scene-a", 7);
+  f.period_ns = 2'000'000;
+  f.gains_hash = fingerprint_hash("gains", 5);
+  const std::uint16_t peers[1] = {1};
+  Decoder dec{wire_of(0, 1), peers, 99};
+  Encoder enc{wire_of(1, 9)};
+  std::vector<std::uint8_t> d(200);
+  d.resize(enc.encode_fingerprint(0, 3, 44, f, d.data(), d.size()));
+  CHECK_EQUAL(kHeaderBytes + kFingerprintBytes + kMacBytes, d.size());
+  DecodedState st;
+  CHECK(dec.decode(d.data(), d.size(), st) == DecodeStatus::fingerprint);
+  CHECK(st.kind == PayloadKind::fingerprint);
+  CHECK_EQUAL(std::string(""), fingerprint_difference(f, st.fingerprint));
+  Fingerprint g = f;
+  g.scene_nodes = 27;
+  g.scene_hash = fingerprint_hash("scene-b", 7);
+  STRCMP_EQUAL("scene nodes: 33 here, 27 at the peer; scene data (hash) differs", fingerprint_difference(f, g).c_str());
+  g = f;
+  g.period_ns = 1'000'000;
+  STRCMP_EQUAL("period_ns: 2000000 here, 1000000 at the peer", fingerprint_difference(f, g).c_str());
+  g = f;
+  g.gains_hash ^= 1;
+  STRCMP_EQUAL("gains (hash) differs", fingerprint_difference(f, g).c_str());
+  g = f;
+  g.protocol_version = 3;
+  STRCMP_EQUAL("protocol version: 2 here, 3 at the peer", fingerprint_difference(f, g).c_str());
+  // A changed field without the key fails the MAC.
+  auto bad = d;
+  bad[kHeaderBytes + 4] ^= 1;
+  CHECK(dec.decode(bad.data(), bad.size(), st) == DecodeStatus::dropped);
+  CHECK_EQUAL(1u, dec.drops()[DropReason::bad_mac]);
+}
+
+TEST(Fingerprints, StationsWithDifferentScenesSeeWhichFieldDiffers) {
+  // Two endpoints over loopback with 33- and 27-node scenes: their state packets never reach
+  // the other's tick (wrong size), but each learns the other's fingerprint and can say why.
+  auto ta = udp_on(0), tb = udp_on(0);
+  ta->set_peer({1, "127.0.0.1:" + std::to_string(tb->local_port())});
+  tb->set_peer({0, "127.0.0.1:" + std::to_string(ta->local_port())});
+  auto ca = exchange_config(0, 1, 99), cb = exchange_config(1, 0, 81);
+  ca.fingerprint.scene_nodes = 33;
+  ca.fingerprint.scene_hash = fingerprint_hash("33-node ball", 12);
+  ca.fingerprint.period_ns = 2'000'000;
+  cb.fingerprint = ca.fingerprint;
+  cb.fingerprint.scene_nodes = 27;
+  cb.fingerprint.scene_hash = fingerprint_hash("27-node ball", 12);
+  Endpoint a(ca, std::move(ta)), b(cb, std::move(tb));
+  a.start();
+  b.start();
+  std::vector<double> xa(99, 1.0), xb(81, 1.0);
+  for (std::uint64_t k = 1; k <= 60; ++k) {
+    a.push_state(k, monotonic_s(), xa.data(), xa.data());
+    b.push_state(k, monotonic_s(), xb.data(), xb.data());
+    a.drain([](auto...) {});
+    b.drain([](auto...) {});
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  a.stop();
+  b.stop();
+  const EndpointStats sa = a.stats(), sb = b.stats();
+  CHECK(sa.peers[0].has_fingerprint);
+  CHECK(sb.peers[0].has_fingerprint);
+  STRCMP_EQUAL("scene nodes: 33 here, 27 at the peer; scene data (hash) differs",
+               fingerprint_difference(ca.fingerprint, sa.peers[0].fingerprint).c_str());
+  STRCMP_EQUAL("scene nodes: 27 here, 33 at the peer; scene data (hash) differs",
+               fingerprint_difference(cb.fingerprint, sb.peers[0].fingerprint).c_str());
+}
+
+TEST_GROUP(Lifecycle) {};
+
+TEST(Lifecycle, RestartedNeighbourIsAcceptedAndItsSilenceAndReturnAreCounted) {
+  auto ta = udp_on(0), tb = udp_on(0);
+  const std::uint16_t port_b = tb->local_port();
+  ta->set_peer({1, "127.0.0.1:" + std::to_string(port_b)});
+  tb->set_peer({0, "127.0.0.1:" + std::to_string(ta->local_port())});
+  auto ca = exchange_config(0, 1, 99), cb = exchange_config(1, 0, 99);
+  ca.peer_silence_s = cb.peer_silence_s = 0.1;
+  Endpoint a(ca, std::move(ta));
+  a.start();
+  std::uint64_t ka = 0, kb = 0;
+  std::uint64_t got_from_first = 0, got_from_second = 0;
+  {
+    auto b = std::make_unique<Endpoint>(cb, std::move(tb));
+    b->start();
+    kb = 5000;  // the first incarnation has been running a while
+    got_from_first = pump(a, b.get(), ka, kb, 150);
+    b->stop();
+  }  // "SIGKILL": gone without a word
+  pump(a, nullptr, ka, kb, 250);  // silence: a marks it down
+  const EndpointStats mid = a.stats();
+  // Restart on the same address: sequence numbers from 1 again, a new incarnation.
+  auto tb3 = udp_on(port_b);
+  // a's port: ask the kernel through the fd a's transport owns.
+  sockaddr_in sa{};
+  socklen_t sl = sizeof sa;
+  ::getsockname(a.transport().fd(), reinterpret_cast<sockaddr*>(&sa), &sl);
+  tb3->set_peer({0, "127.0.0.1:" + std::to_string(ntohs(sa.sin_port))});
+  Endpoint b2(cb, std::move(tb3));
+  b2.start();
+  kb = 0;
+  got_from_second = pump(a, &b2, ka, kb, 200);
+  b2.stop();
+  a.stop();
+  const EndpointStats s = a.stats();
+  CHECK(got_from_first > 100);
+  CHECK(got_from_second > 150);  // accepted although its sequence numbers are 5000 lower
+  CHECK_EQUAL(1u, s.peers[0].incarnation_changes);
+  CHECK_EQUAL(0u, s.drops[DropReason::stale]);
+  CHECK_FALSE(mid.peers[0].up);
+  CHECK_EQUAL(1u, mid.peers[0].down_events);
+  CHECK(s.peers[0].up);
+  CHECK_EQUAL(2u, s.peers[0].up_events);
+  CHECK(s.peers[0].rtt_samples > 100);
+}
+
+TEST(Lifecycle, RoundTripsComeFromOurOwnSendRecordsAndGiveTheClockOffset) {
+  // A hand-driven neighbour whose clock runs 0.3 s ahead and which claims an absurd echo
+  // stamp cannot shorten our round trip; the offset comes out as 0.3 s.
+  std::uint16_t hand_port = 0;
+  HandPeer h(1, 0, 99, hand_port);
+  auto ta = udp_on(0);
+  ta->set_peer({1, "127.0.0.1:" + std::to_string(hand_port)});
+  h.aim(ta->local_port());
+  Endpoint a(exchange_config(0, 1, 99), std::move(ta));
+  a.start();
+  std::vector<double> x(99, 0.1);
+  const std::int64_t ahead_ns = 300'000'000;
+  std::uint64_t replies = 0;
+  for (std::uint64_t k = 1; k <= 300; ++k) {
+    a.push_state(k, monotonic_s(), x.data(), x.data());
+    a.drain([](auto...) {});
+    DecodedState st;
+    const auto deadline = monotonic_ns() + 20'000'000;
+    bool got = false;
+    while (!(got = h.receive(st)) && monotonic_ns() < deadline) std::this_thread::sleep_for(std::chrono::microseconds(50));
+    if (got) {
+      const std::int64_t hold_ns = 200'000;  // "we held it 0.2 ms"
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+      OutgoingState o;
+      o.dest = 0;
+      o.seq = k;
+      o.send_time_ns = monotonic_ns() + ahead_ns;
+      o.has_echo = true;
+      o.echo_seq = st.seq;
+      o.echo_hold_ns = hold_ns;
+      o.value_count = 99;
+      o.x_hat = x.data();
+      o.v_hat = x.data();
+      h.send(o);
+      ++replies;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  // An echo of a sequence we never sent: no sample.
+  OutgoingState o;
+  o.dest = 0;
+  o.seq = 10'000;
+  o.send_time_ns = monotonic_ns();
+  o.has_echo = true;
+  o.echo_seq = 77'777;
+  o.value_count = 99;
+  o.x_hat = x.data();
+  o.v_hat = x.data();
+  h.send(o);
+  std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  a.stop();
+  const PeerStats p = a.stats().peers[0];
+  CHECK(replies > 250);
+  CHECK(p.rtt_samples > 200);
+  CHECK_EQUAL(1u, p.echoes_unmatched);
+  CHECK(p.rtt_min_s >= 200e-6);  // covers at least the hold we slept: measured on our clock
+  CHECK(p.rtt_max_s < 0.25);     // and was never computed from the neighbour's clock (0.3 s off)
+  DOUBLES_EQUAL(0.3, p.clock_offset_s, 0.002);
+  CHECK(p.clock_offset_samples > 200);
+}
+
+TEST(Lifecycle, TwoStationsOnOneHostSeeNoClockOffset) {
+  auto ta = udp_on(0), tb = udp_on(0);
+  ta->set_peer({1, "127.0.0.1:" + std::to_string(tb->local_port())});
+  tb->set_peer({0, "127.0.0.1:" + std::to_string(ta->local_port())});
+  Endpoint a(exchange_config(0, 1, 99), std::move(ta)), b(exchange_config(1, 0, 99), std::move(tb));
+  a.start();
+  b.start();
+  std::uint64_t ka = 0, kb = 0;
+  pump(a, &b, ka, kb, 200);
+  a.stop();
+  b.stop();
+  const PeerStats p = a.stats().peers[0];
+  CHECK(p.clock_offset_samples > 100);
+  // Same CLOCK_MONOTONIC: the estimate's error is at most half its sample's path time.
+  CHECK(std::abs(p.clock_offset_s) <= p.clock_offset_rtt_s / 2 + 1e-6);
+  CHECK(std::abs(p.clock_offset_s) < 0.002);
+}
+
+TEST(Lifecycle, StatisticsAreReadWhileTheIoThreadRunsWithoutStoppingIt) {
+  // stats() from another thread, as fast as it can, while the exchange goes on: every packet
+  // still arrives (the reader never holds the I/O thread) and counters only grow.
+  auto ta = udp_on(0), tb = udp_on(0);
+  ta->set_peer({1, "127.0.0.1:" + std::to_string(tb->local_port())});
+  tb->set_peer({0, "127.0.0.1:" + std::to_string(ta->local_port())});
+  Endpoint a(exchange_config(0, 1, 99), std::move(ta)), b(exchange_config(1, 0, 99), std::move(tb));
+  a.start();
+  b.start();
+  std::atomic<bool> done{false};
+  std::uint64_t reads = 0, went_back = 0;
+  std::thread reader([&] {
+    std::uint64_t last = 0;
+    while (!done.load()) {
+      const EndpointStats s = a.stats();
+      if (s.peers[0].packets_received < last) ++went_back;
+      last = s.peers[0].packets_received;
+      ++reads;
+    }
+  });
+  const ExchangeResult r = exchange(a, b, 0, 1, 300);
+  done = true;
+  reader.join();
+  a.stop();
+  b.stop();
+  CHECK(r.received[0] >= 300);
+  CHECK_EQUAL(0u, r.corrupt[0]);
+  CHECK(reads > 100);
+  CHECK_EQUAL(0u, went_back);
+  CHECK(a.stats().peers[0].packets_received >= 300);
+}

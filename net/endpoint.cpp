@@ -311,22 +311,12 @@ void Endpoint::publish_stats() {
 }
 
 EndpointStats Endpoint::stats() const {
-  const EndpointCounters c = counters_box_.read();
   EndpointStats s;
-  s.drops = c.drops;
-  s.datagrams_received = c.datagrams_received;
-  s.receive_errors = c.receive_errors;
-  s.rx_ring_full = c.rx_ring_full;
-  s.wrong_scene_size = c.wrong_scene_size;
-  s.fingerprints_received = c.fingerprints_received;
+  static_cast<EndpointCounters&>(s) = counters_box_.read();
   s.incarnation = incarnation_;
   s.tx_overruns = tx_overruns_.load(std::memory_order_relaxed);
-  s.tx_packets = c.tx_packets;
-  s.tx_caught_spinning = c.tx_caught_spinning;
-  s.tx_spin_windows = c.tx_spin_windows;
   s.io_thread_cpu_s = io_thread_cpu_s();
-  s.tx_handoff_mean_s = c.tx_packets ? c.tx_handoff_sum_s / static_cast<double>(c.tx_packets) : 0.0;
-  s.tx_handoff_max_s = c.tx_handoff_max_s;
+  s.tx_handoff_mean_s = s.tx_packets ? s.tx_handoff_sum_s / static_cast<double>(s.tx_packets) : 0.0;
   for (const auto& p : peers_) s.peers.push_back(p->box.read());
   return s;
 }

@@ -134,21 +134,18 @@ struct EndpointCounters {
   std::uint64_t datagrams_received = 0, receive_errors = 0, rx_ring_full = 0;
   std::uint64_t wrong_scene_size = 0;  // authentic packets whose 3n differs from ours (dropped)
   std::uint64_t fingerprints_received = 0;
+  // Push -> first datagram handed to the transport (I/O thread), per state packet; caught
+  // inside a spin window; spin windows opened (net.tx_spin).
   std::uint64_t tx_packets = 0, tx_caught_spinning = 0, tx_spin_windows = 0;
   double tx_handoff_sum_s = 0.0, tx_handoff_max_s = 0.0;
 };
 
-struct EndpointStats {
-  DropCounters drops{};
-  std::uint64_t datagrams_received = 0, receive_errors = 0, rx_ring_full = 0, tx_overruns = 0;
-  std::uint64_t wrong_scene_size = 0;  // authentic packets whose 3n differs from ours (dropped)
-  std::uint64_t fingerprints_received = 0;
-  std::uint64_t incarnation = 0;       // ours
-  // Push -> first datagram handed to the transport (I/O thread), per state packet.
-  std::uint64_t tx_packets = 0, tx_caught_spinning = 0;  // caught inside a spin window
-  std::uint64_t tx_spin_windows = 0;                     // spin windows opened (net.tx_spin)
-  double io_thread_cpu_s = 0.0;  // CPU time the I/O thread has used (spinning included)
-  double tx_handoff_mean_s = 0.0, tx_handoff_max_s = 0.0;
+// The totals (EndpointCounters) plus what only the caller's side knows.
+struct EndpointStats : EndpointCounters {
+  std::uint64_t tx_overruns = 0;
+  std::uint64_t incarnation = 0;  // ours
+  double io_thread_cpu_s = 0.0;   // CPU time the I/O thread has used (spinning included)
+  double tx_handoff_mean_s = 0.0; // push -> first datagram handed to the transport, per packet
   std::vector<PeerStats> peers;
 };
 

@@ -365,6 +365,16 @@ bool Decoder::check_incarnation(Peer& p, std::uint64_t incarnation, bool& raised
   return true;
 }
 
+void Decoder::report(DecodedState& out, const HeaderView& h, Peer& peer, bool raised, PayloadKind kind) {
+  out.sender = h.sender;
+  out.incarnation = h.incarnation;
+  out.new_incarnation = raised || peer.raise_pending;  // a raise seen on an earlier fragment
+  peer.raise_pending = false;
+  out.kind = kind;
+  out.seq = h.seq;
+  out.send_time_ns = h.send_time_ns;
+}
+
 DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedState& out) {
   namespace o = wire_offset;
   if (d == nullptr || len < kHeaderBytes + kMacBytes) return drop(DropReason::truncated);
@@ -397,13 +407,7 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
     if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
     const std::uint8_t* p = d + kHeaderBytes;
     out = DecodedState{};
-    out.sender = h.sender;
-    out.incarnation = h.incarnation;
-    out.new_incarnation = raised || peer.raise_pending;
-    peer.raise_pending = false;
-    out.kind = PayloadKind::fingerprint;
-    out.seq = h.seq;
-    out.send_time_ns = h.send_time_ns;
+    report(out, h, peer, raised, PayloadKind::fingerprint);
     out.fingerprint.protocol_version = get<std::uint32_t>(p, 0);
     out.fingerprint.scene_nodes = get<std::uint32_t>(p, 4);
     out.fingerprint.scene_hash = get<std::uint64_t>(p, 8);
@@ -432,13 +436,7 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
   if (seen(peer, h.seq, why)) return drop(why);  // never after a raise: the window is empty
 
   auto fill = [&](const std::uint8_t* payload) {
-    out.sender = h.sender;
-    out.incarnation = h.incarnation;
-    out.new_incarnation = raised || peer.raise_pending;
-    peer.raise_pending = false;
-    out.kind = PayloadKind::state;
-    out.seq = h.seq;
-    out.send_time_ns = h.send_time_ns;
+    report(out, h, peer, raised, PayloadKind::state);
     out.has_echo = (h.flags & kFlagHasEcho) != 0;
     out.echo_seq = h.echo_seq;
     out.echo_hold_ns = h.echo_hold_ns;

@@ -185,6 +185,8 @@ struct DecodedState {
 };
 
 // fingerprint: an authentic fingerprint message (out.fingerprint); complete: a state packet.
+struct HeaderView;  // below
+
 enum class DecodeStatus : std::uint8_t { dropped, fragment_stored, complete, fingerprint };
 
 class Decoder {
@@ -236,6 +238,8 @@ class Decoder {
   void mark(Peer& p, std::uint64_t seq);
   DecodeStatus drop(DropReason r);
   bool check_incarnation(Peer& p, std::uint64_t incarnation, bool& raised);  // false: drop
+  // Sender, incarnation (and whether it was raised), kind, seq and send time into `out`.
+  static void report(DecodedState& out, const HeaderView& h, Peer& peer, bool raised, PayloadKind kind);
 
   WireConfig cfg_;
   std::uint32_t max_value_count_;

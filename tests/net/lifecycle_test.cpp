@@ -58,30 +58,18 @@ WireConfig wire_of(std::uint16_t station, std::uint64_t incarnation) {
 // A station's UDP socket driven by hand (an Encoder/Decoder pair), to play a neighbour that
 // echoes with chosen stamps.
 struct HandPeer {
-  int fd = -1;
-  sockaddr_storage to{};
-  socklen_t to_len = 0;
+  UdpTransport udp{"127.0.0.1:0", {}};
   Encoder enc;
   Decoder dec;
-  HandPeer(std::uint16_t self, std::uint16_t peer, std::uint32_t values, std::uint16_t& port_out)
-      : enc(wire_of(self, 7)), dec(wire_of(self, 7), std::vector<std::uint16_t>{peer}, values) {
-    fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-    socklen_t l = sizeof a;
-    ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &l);
-    port_out = ntohs(a.sin_port);
-  }
-  ~HandPeer() { ::close(fd); }
-  void aim(std::uint16_t port) { to = parse_udp_address("127.0.0.1:" + std::to_string(port), "test", to_len); }
+  HandPeer(std::uint16_t self, std::uint16_t peer, std::uint32_t values)
+      : enc(wire_of(self, 7)), dec(wire_of(self, 7), std::vector<std::uint16_t>{peer}, values) {}
+  void aim(std::uint16_t port) { udp.set_peer({0, "127.0.0.1:" + std::to_string(port)}); }
   // Newest state received (false when none waiting).
   bool receive(DecodedState& st) {
     std::uint8_t buf[2048];
     bool got = false;
     for (int i = 0; i < 256; ++i) {
-      const long n = ::recv(fd, buf, sizeof buf, 0);
+      const long n = udp.receive(buf, sizeof buf);
       if (n <= 0) break;
       DecodedState s;
       if (dec.decode(buf, static_cast<std::size_t>(n), s) == DecodeStatus::complete) {
@@ -93,16 +81,44 @@ struct HandPeer {
   }
   void send(const OutgoingState& o) {
     std::vector<std::uint8_t> d(kDefaultDatagramBytes);
-    for (std::size_t f = 0; f < enc.fragment_count(o.value_count); ++f) {
-      const std::size_t n = enc.encode_fragment(o, f, d.data(), d.size());
-      ::sendto(fd, d.data(), n, 0, reinterpret_cast<const sockaddr*>(&to), to_len);
-    }
+    for (std::size_t f = 0; f < enc.fragment_count(o.value_count); ++f)
+      udp.send_to(0, d.data(), enc.encode_fragment(o, f, d.data(), d.size()));
   }
 };
+
+// A state to station 0 that echoes echo_seq after holding it hold_ns.
+OutgoingState echo_state(std::uint64_t seq, std::int64_t send_ns, std::uint64_t echo_seq, std::int64_t hold_ns,
+                         const std::vector<double>& x) {
+  OutgoingState o;
+  o.dest = 0;
+  o.seq = seq;
+  o.send_time_ns = send_ns;
+  o.has_echo = true;
+  o.echo_seq = echo_seq;
+  o.echo_hold_ns = hold_ns;
+  o.value_count = static_cast<std::uint32_t>(x.size());
+  o.x_hat = x.data();
+  o.v_hat = x.data();
+  return o;
+}
 
 std::unique_ptr<UdpTransport> udp_on(std::uint16_t port) {
   return std::make_unique<UdpTransport>("127.0.0.1:" + std::to_string(port), std::vector<UdpPeer>{});
 }
+
+// Two endpoints on loopback UDP ports the kernel picks, each aimed at the other.
+struct LoopbackPair {
+  std::unique_ptr<Endpoint> a, b;
+  LoopbackPair(const EndpointConfig& ca, const EndpointConfig& cb) {
+    auto ta = udp_on(0), tb = udp_on(0);
+    ta->set_peer({cb.wire.station_id, "127.0.0.1:" + std::to_string(tb->local_port())});
+    tb->set_peer({ca.wire.station_id, "127.0.0.1:" + std::to_string(ta->local_port())});
+    a = std::make_unique<Endpoint>(ca, std::move(ta));
+    b = std::make_unique<Endpoint>(cb, std::move(tb));
+    a->start();
+    b->start();
+  }
+};
 
 // Pushes from both endpoints every 1 ms for `ms` ms, counting what `b` delivers per sender.
 std::uint64_t pump(Endpoint& a, Endpoint* b, std::uint64_t& ka, std::uint64_t& kb, int ms, std::uint64_t* b_got = nullptr) {
@@ -207,9 +223,6 @@ TEST(Fingerprints, RoundTripAndFieldByFieldDifference) {
 TEST(Fingerprints, StationsWithDifferentScenesSeeWhichFieldDiffers) {
   // Two endpoints over loopback with 33- and 27-node scenes: their state packets never reach
   // the other's tick (wrong size), but each learns the other's fingerprint and can say why.
-  auto ta = udp_on(0), tb = udp_on(0);
-  ta->set_peer({1, "127.0.0.1:" + std::to_string(tb->local_port())});
-  tb->set_peer({0, "127.0.0.1:" + std::to_string(ta->local_port())});
   auto ca = exchange_config(0, 1, 99), cb = exchange_config(1, 0, 81);
   ca.fingerprint.scene_nodes = 33;
   ca.fingerprint.scene_hash = fingerprint_hash("33-node ball", 12);
@@ -217,9 +230,8 @@ TEST(Fingerprints, StationsWithDifferentScenesSeeWhichFieldDiffers) {
   cb.fingerprint = ca.fingerprint;
   cb.fingerprint.scene_nodes = 27;
   cb.fingerprint.scene_hash = fingerprint_hash("27-node ball", 12);
-  Endpoint a(ca, std::move(ta)), b(cb, std::move(tb));
-  a.start();
-  b.start();
+  LoopbackPair pair(ca, cb);
+  Endpoint &a = *pair.a, &b = *pair.b;
   std::vector<double> xa(99, 1.0), xb(81, 1.0);
   for (std::uint64_t k = 1; k <= 60; ++k) {
     a.push_state(k, monotonic_s(), xa.data(), xa.data());
@@ -290,10 +302,9 @@ TEST(Lifecycle, RestartedNeighbourIsAcceptedAndItsSilenceAndReturnAreCounted) {
 TEST(Lifecycle, RoundTripsComeFromOurOwnSendRecordsAndGiveTheClockOffset) {
   // A hand-driven neighbour whose clock runs 0.3 s ahead and which claims an absurd echo
   // stamp cannot shorten our round trip; the offset comes out as 0.3 s.
-  std::uint16_t hand_port = 0;
-  HandPeer h(1, 0, 99, hand_port);
+  HandPeer h(1, 0, 99);
   auto ta = udp_on(0);
-  ta->set_peer({1, "127.0.0.1:" + std::to_string(hand_port)});
+  ta->set_peer({1, "127.0.0.1:" + std::to_string(h.udp.local_port())});
   h.aim(ta->local_port());
   Endpoint a(exchange_config(0, 1, 99), std::move(ta));
   a.start();
@@ -310,32 +321,13 @@ TEST(Lifecycle, RoundTripsComeFromOurOwnSendRecordsAndGiveTheClockOffset) {
     if (got) {
       const std::int64_t hold_ns = 200'000;  // "we held it 0.2 ms"
       std::this_thread::sleep_for(std::chrono::microseconds(200));
-      OutgoingState o;
-      o.dest = 0;
-      o.seq = k;
-      o.send_time_ns = monotonic_ns() + ahead_ns;
-      o.has_echo = true;
-      o.echo_seq = st.seq;
-      o.echo_hold_ns = hold_ns;
-      o.value_count = 99;
-      o.x_hat = x.data();
-      o.v_hat = x.data();
-      h.send(o);
+      h.send(echo_state(k, monotonic_ns() + ahead_ns, st.seq, hold_ns, x));
       ++replies;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   // An echo of a sequence we never sent: no sample.
-  OutgoingState o;
-  o.dest = 0;
-  o.seq = 10'000;
-  o.send_time_ns = monotonic_ns();
-  o.has_echo = true;
-  o.echo_seq = 77'777;
-  o.value_count = 99;
-  o.x_hat = x.data();
-  o.v_hat = x.data();
-  h.send(o);
+  h.send(echo_state(10'000, monotonic_ns(), 77'777, 0, x));
   std::this_thread::sleep_for(std::chrono::milliseconds(30));
   a.stop();
   const PeerStats p = a.stats().peers[0];
@@ -349,12 +341,8 @@ TEST(Lifecycle, RoundTripsComeFromOurOwnSendRecordsAndGiveTheClockOffset) {
 }
 
 TEST(Lifecycle, TwoStationsOnOneHostSeeNoClockOffset) {
-  auto ta = udp_on(0), tb = udp_on(0);
-  ta->set_peer({1, "127.0.0.1:" + std::to_string(tb->local_port())});
-  tb->set_peer({0, "127.0.0.1:" + std::to_string(ta->local_port())});
-  Endpoint a(exchange_config(0, 1, 99), std::move(ta)), b(exchange_config(1, 0, 99), std::move(tb));
-  a.start();
-  b.start();
+  LoopbackPair pair(exchange_config(0, 1, 99), exchange_config(1, 0, 99));
+  Endpoint &a = *pair.a, &b = *pair.b;
   std::uint64_t ka = 0, kb = 0;
   pump(a, &b, ka, kb, 200);
   a.stop();
@@ -369,12 +357,8 @@ TEST(Lifecycle, TwoStationsOnOneHostSeeNoClockOffset) {
 TEST(Lifecycle, StatisticsAreReadWhileTheIoThreadRunsWithoutStoppingIt) {
   // stats() from another thread, as fast as it can, while the exchange goes on: every packet
   // still arrives (the reader never holds the I/O thread) and counters only grow.
-  auto ta = udp_on(0), tb = udp_on(0);
-  ta->set_peer({1, "127.0.0.1:" + std::to_string(tb->local_port())});
-  tb->set_peer({0, "127.0.0.1:" + std::to_string(ta->local_port())});
-  Endpoint a(exchange_config(0, 1, 99), std::move(ta)), b(exchange_config(1, 0, 99), std::move(tb));
-  a.start();
-  b.start();
+  LoopbackPair pair(exchange_config(0, 1, 99), exchange_config(1, 0, 99));
+  Endpoint &a = *pair.a, &b = *pair.b;
   std::atomic<bool> done{false};
   std::uint64_t reads = 0, went_back = 0;
   std::thread reader([&] {

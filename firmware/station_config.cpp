@@ -94,7 +94,8 @@ StationFile parse_station_file(std::string_view toml_text) {
   if (!st) bad("[station]", "present (with at least id = 1..users)");
   only_keys(st, "station", {"id", "scenario", "topology", "nodes", "duration_s", "seed", "push_start_s", "push_end_s", "release_s",
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
-                            "loss_allowance_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority", "out_dir", "trace_every", "state_every"});
+                            "loss_allowance_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority", "out_dir", "max_no_neighbour_fraction",
+                            "trace_every", "state_every"});
   StationSection& s = f.station;
   if (!st["id"]) bad("station.id", "present: this station's user number, 1..users");
   s.id = static_cast<int>(integer(st["id"], "station.id", 1, 1, 64));
@@ -121,6 +122,7 @@ StationFile parse_station_file(std::string_view toml_text) {
   s.io_priority = static_cast<int>(integer(st["io_priority"], "station.io_priority", 70, 0, 98));
   s.out_dir = text(st["out_dir"], "station.out_dir", ".");
   if (s.out_dir.empty()) bad("station.out_dir", "a non-empty directory path");
+  s.max_no_neighbour_fraction = real(st["max_no_neighbour_fraction"], "station.max_no_neighbour_fraction", 0.1, 0.0, 1.0);
   s.trace_every = static_cast<int>(integer(st["trace_every"], "station.trace_every", 1, 1, 100000));
   s.state_every = static_cast<int>(integer(st["state_every"], "station.state_every", 5, 1, 100000));
 
@@ -177,6 +179,7 @@ StationFile parse_station_file(std::string_view toml_text) {
   // [net] / [network]: only key names here; values are net/'s (net/config.hpp).
   const std::string P = cd.contains("network") ? "network" : "net";
   const View nt = root[P];
+  f.net_section = P;
   if (!nt) bad("[net]", "present (transport, addresses, session key, peers: see net/config.hpp)");
   only_keys(nt, P, {"station_id", "transport", "bind", "listen", "interface", "session_id", "session_key", "encoding",
                     "max_datagram_bytes", "io_busy_poll", "io_cpu", "tx_spin", "tx_spin_lead_us", "tx_spin_tail_us", "delay_queue_datagrams", "rtt_margin_fraction", "rtt_margin_s",
@@ -193,6 +196,7 @@ StationFile parse_station_file(std::string_view toml_text) {
       const View p{node};
       only_keys(p, k, {"id", "station", "address", "mac", "mean_delay_ms"});
       const View idv = p["id"] ? p["id"] : p["station"];
+      f.peer_id_keys.push_back(p["id"] || !p["station"] ? "id" : "station");
       const int id = static_cast<int>(integer(idv, k + ".id", -1, 0, 65534));
       f.peer_mean_delay_set.emplace_back(id, static_cast<bool>(p["mean_delay_ms"]));
     }
@@ -200,6 +204,11 @@ StationFile parse_station_file(std::string_view toml_text) {
   if (f.net_station_id_set && integer(nt["station_id"], P + ".station_id", 0, 0, 65534) != s.id)
     bad(P + ".station_id", "absent or equal to station.id (" + std::to_string(s.id) + "): wire ids are the user numbers");
   return f;
+}
+
+std::string StationFile::peer_key(std::size_t index, const std::string& field) const {
+  const std::string f = field == "id" && index < peer_id_keys.size() ? peer_id_keys[index] : field;
+  return net_section + ".peers[" + std::to_string(index) + "]." + f;
 }
 
 StationFile load_station_file(const std::string& path) {

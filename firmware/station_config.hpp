@@ -29,6 +29,8 @@
 //   io_priority = 70                 # SCHED_FIFO priority of the endpoint's I/O thread (inherited at its start),
 //                                    # 0 = leave it SCHED_OTHER; [0, 98]; falls back with a warning without privileges
 //   out_dir = "."                    # per-station outputs station-<id>.json, -trace.csv, -state.csv
+//   max_no_neighbour_fraction = 0.1 # the run fails (exit 7) when more than this share of its ticks had no
+//                                    # neighbour within its bound (all edges dropped), [0, 1]
 //   trace_every = 1                  # every k-th tick into station-<id>-trace.csv, [1, 100000]
 //   state_every = 5                  # every k-th tick the whole x into station-<id>-state.csv, [1, 100000]
 //   [device]                         (drivers/: device_factory.hpp)
@@ -78,6 +80,7 @@ struct StationSection {
   double damping_Ns_per_m = -1.0;
   int io_priority = 70;
   std::string out_dir = ".";
+  double max_no_neighbour_fraction = 0.1;
   int trace_every = 1;
   int state_every = 5;
 };
@@ -104,6 +107,12 @@ struct StationFile {
   bool impairment_seed_set = false;
   std::string impairment_preset = "none";
   std::vector<std::pair<int, bool>> peer_mean_delay_set;  // (peer wire id, mean_delay_ms given)
+  // How the network keys are written in the file, for error messages: "net" or "network", and
+  // per peer "id" or "station" ("net.peers[2].id", "network.peers[0].station").
+  std::string net_section = "net";
+  std::vector<std::string> peer_id_keys;
+  // Key of peer `index`'s field `field` as written in the file, e.g. "net.peers[2].address".
+  std::string peer_key(std::size_t index, const std::string& field) const;
 };
 
 // Parses and validates everything except the [net] section's values (net/ does those, with the

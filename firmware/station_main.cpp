@@ -14,6 +14,7 @@
 #include "firmware/scenario.hpp"
 #include "firmware/simulator.hpp"
 #include "firmware/station_config.hpp"
+#include "firmware/station_phase.hpp"
 #include "firmware/station_run.hpp"
 
 namespace fs = std::filesystem;
@@ -105,13 +106,16 @@ int main(int argc, char** argv) {
   run->add_option("--start-at", run_start_at, "Common epoch of tick k = 0 in seconds on station.start_clock (default: station.start_at, else now + start_delay_s)");
   run->add_option("--out", run_out, "Output directory for station-<id>.json/-trace.csv/-state.csv (default: station.out_dir)");
   run->add_option("--duration", run_duration, "Run time in s after probing (default: station.duration_s, else the scenario's)");
-  run->add_flag("--check-config", run_check, "Parse and validate the file (and the scenario), print a summary and exit");
+  run->add_flag("--check-config", run_check,
+                "Run every check `run` makes before it opens a socket (the plan phase), print a summary and exit: 0 valid, 2 configuration error");
+  run->footer(exit_code_help());
   run->add_flag("--quiet", run_quiet, "Only the final line");
 
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    const int rc = app.exit(e);  // prints help, or the usage error
+    return rc == 0 ? 0 : kExitConfigError;
   }
 
   if (run->parsed()) {
@@ -123,28 +127,18 @@ int main(int argc, char** argv) {
     ov.quiet = run_quiet;
     try {
       file = load_station_file(run_config);
-      const ScenarioSpec spec = station_scenario_spec(file, ov);
-      if (run_check) {
-        const BuiltScenario built = build_scenario(spec);
-        (void)haptic::net::parse_net_config(file.text, static_cast<std::uint32_t>(built.scene.dofs));
-        std::cout << "config ok: station " << file.station.id << " of " << spec.users << ", scenario " << spec.name << ", " << built.scene.nodes
-                  << " nodes, duration " << spec.duration_s << " s, release " << spec.script.release_s << " s\n";
-        return 0;
-      }
     } catch (const std::exception& e) {
       std::cerr << "haptic-station run: error: " << e.what() << "\n";
-      return 2;
+      return kExitConfigError;
     }
+    if (run_check) return check_station_config(file, ov, std::cout, std::cerr);
     std::signal(SIGINT, on_stop_signal);
     std::signal(SIGTERM, on_stop_signal);
     try {
       return run_station(file, ov, g_stop);
-    } catch (const std::invalid_argument& e) {
+    } catch (const std::exception& e) {  // the phases report their own failures; this is a bug's last resort
       std::cerr << "haptic-station run: error: " << e.what() << "\n";
-      return 2;
-    } catch (const std::exception& e) {
-      std::cerr << "haptic-station run: error: " << e.what() << "\n";
-      return 3;
+      return kExitRunFailed;
     }
   }
   if (sim->parsed()) {

@@ -164,7 +164,7 @@ void StationCore::prepare_contact_solve(unsigned mask) {
   lu_[mask].compute(G);
 }
 
-StationCore::TickOutput StationCore::tick(const Vec3& q) {
+StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
   TickOutput out;
   const double N = cfg_.users;
   const auto& g = cfg_.vp.coupling;
@@ -179,10 +179,10 @@ StationCore::TickOutput StationCore::tick(const Vec3& q) {
     out.flags |= kBadDeviceSample | kSafeState;
     qk = q_prev_;
   }
-  const Vec3 vq = (k_ == 0) ? Vec3::Zero() : Vec3((qk - q_prev_) / T_);
+  const Vec3 vq = !stepped_ ? Vec3::Zero() : Vec3((qk - q_prev_) / T_);
   Vec3 f_dev = -g.B_vc_Ns_per_m * (vq - w_hat_prev_) - g.K_vc_N_per_m * (qk - y_);
   // Energy the station put into the device over the last hold interval: F(k-1) . (q_k - q_{k-1}).
-  if (k_ > 0) energy_.device_port_J += f_dev_prev_.dot(qk - q_prev_);
+  if (stepped_) energy_.device_port_J += f_dev_prev_.dot(qk - q_prev_);
   const double fn = f_dev.norm();
   if (fn > cfg_.max_device_force_N) {
     f_dev *= cfg_.max_device_force_N / fn;
@@ -192,7 +192,7 @@ StationCore::TickOutput StationCore::tick(const Vec3& q) {
   // --- 2. neighbours: newest packet, indexing delay, duplication avoidance, delay bound ---
   unsigned mask = 0;
   for (int j = 0; j < nn; ++j) {
-    views_[j] = rx_[j].begin_tick(k_);
+    views_[j] = rx_[j].begin_tick(k);
     const bool ok = views_[j].index_delay <= cfg_.neighbors[j].index_delay_bound_ticks;
     active_[j] = ok ? 1 : 0;
     if (ok) {
@@ -340,7 +340,8 @@ StationCore::TickOutput StationCore::tick(const Vec3& q) {
   w_vp_ = 2.0 * w_hat - w_vp_;
   w_hat_prev_ = w_hat;
   q_prev_ = qk;
-  ++k_;
+  k_ = k + 1;
+  stepped_ = true;
 
   // --- 8. safety: divergence -> safe state (zero force), reported through flags ---
   const double vmax = cfg_.divergence_speed_m_per_s;

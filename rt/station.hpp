@@ -110,8 +110,12 @@ class StationCore {
   int neighbor_count() const { return static_cast<int>(cfg_.neighbors.size()); }
   const NeighborConfig& neighbor(int n) const { return cfg_.neighbors[static_cast<std::size_t>(n)]; }
 
-  // One step k with the device position sampled at t_k. RT-safe.
-  TickOutput tick(const Vec3& device_position_m);
+  // One step at cycle k (the caller's loop index, the same index its rx(n).offer sequence numbers
+  // use: N_ij^k = k - seq) with the device position sampled at t_k. Cycles the caller skipped
+  // (overruns) are simply absent: k may jump. RT-safe.
+  TickOutput tick(std::int64_t k, const Vec3& device_position_m);
+  // The next cycle (sequence() + 1): for callers that never skip a cycle. RT-safe.
+  TickOutput tick(const Vec3& device_position_m) { return tick(k_, device_position_m); }
 
   // State after the last tick.
   std::int64_t sequence() const { return k_ - 1; }  // k of the last tick (the x_hat/v_hat below)
@@ -157,7 +161,8 @@ class StationCore {
   Vec3 q_prev_ = Vec3::Zero();
   Vec3 f_dev_prev_ = Vec3::Zero();
   Vec3 f_contact_vp_ = Vec3::Zero();
-  std::int64_t k_ = 0;
+  std::int64_t k_ = 0;   // cycle after the last tick (sequence() + 1)
+  bool stepped_ = false; // a tick has run (q_prev_ is a real sample)
   bool in_contact_ = false;
   bool safe_state_ = false;
   std::vector<Vec3> anchor_;  // r_p: contact node offset from the VP at onset

@@ -58,23 +58,18 @@ TEST(RunTick, OneLoopIterationAllocatesNothingAndUsesTheNeighboursPackets) {
   std::vector<int> sender_to_nbr(65536, -1);
   for (std::size_t n = 0; n < b.neighbors[0].size(); ++n) sender_to_nbr[static_cast<std::size_t>(b.neighbors[0][n] + 1)] = static_cast<int>(n);
   const int ticks = 300;
-  std::vector<firmware::TraceRec> trace(ticks);
-  std::vector<std::int64_t> state_k(ticks);
-  std::vector<double> state_x(static_cast<std::size_t>(ticks) * static_cast<std::size_t>(dofs));
-  firmware::RunTick rtc;
-  rtc.core = &core;
-  rtc.ep = &ep1;
-  rtc.device = dev.device.get();
-  rtc.simulated = dev.simulated;
-  rtc.sender_to_nbr = sender_to_nbr.data();
-  rtc.dofs = dofs;
-  rtc.trace_node = b.trace_node;
-  rtc.T = b.spec.period_s;
-  rtc.trace = trace.data();
-  rtc.trace_cap = trace.size();
-  rtc.state_k = state_k.data();
-  rtc.state_x = state_x.data();
-  rtc.state_cap = state_k.size();
+  firmware::TickRecords rec;
+  rec.reserve(ticks, ticks, dofs);
+  firmware::TickCounters cnt;
+  firmware::TickInputs in;
+  in.core = &core;
+  in.ep = &ep1;
+  in.device = dev.device.get();
+  in.simulated = dev.simulated;
+  in.sender_to_nbr = sender_to_nbr.data();
+  in.dofs = dofs;
+  in.trace_node = b.trace_node;
+  in.period_s = b.spec.period_s;
 
   std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + dofs), v0(static_cast<std::size_t>(dofs), 0.0);
   platform::TickInfo info;
@@ -82,10 +77,10 @@ TEST(RunTick, OneLoopIterationAllocatesNothingAndUsesTheNeighboursPackets) {
     ep2.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data());
     std::this_thread::sleep_for(std::chrono::microseconds(1500));  // let the I/O threads deliver
     info.index = static_cast<std::uint64_t>(k);
-    firmware::run_tick(rtc, k, k, info);
+    firmware::run_tick(in, rec, cnt, k, k, info);
   };
   for (std::int64_t k = 0; k < 50; ++k) step(k);  // warm-up: first contact solve, first packets
-  const std::uint64_t offered_before = rtc.rx_offered;
+  const std::uint64_t offered_before = cnt.rx_offered;
   std::uint64_t allocations = 0;
   {
     test::AllocationCounter counter;
@@ -95,10 +90,10 @@ TEST(RunTick, OneLoopIterationAllocatesNothingAndUsesTheNeighboursPackets) {
   ep1.stop();
   ep2.stop();
   LONGS_EQUAL(0, allocations);
-  CHECK(rtc.rx_offered - offered_before > 100);  // the neighbour's packets went into rx(n).offer
-  LONGS_EQUAL(ticks - 10, rtc.ticks_run);
-  CHECK_FALSE(rtc.diverged);
-  LONGS_EQUAL(0, rtc.device_fault_ticks);
+  CHECK(cnt.rx_offered - offered_before > 100);  // the neighbour's packets went into rx(n).offer
+  LONGS_EQUAL(ticks - 10, cnt.ticks_run);
+  CHECK_FALSE(cnt.diverged);
+  LONGS_EQUAL(0, cnt.device_fault_ticks);
 }
 
 TEST(RunTick, TheJitterWorkloadIsTheRealStationTickAndAllocatesNothing) {

@@ -1,0 +1,37 @@
+#pragma once
+// The statuses the phases of `haptic-station run` return (DESIGN.md, "The station process":
+// plan -> probe -> build -> run -> report) and the process exit codes they map to.
+#include <string>
+
+namespace haptic::firmware {
+
+// What a phase ended with. RT-safe to copy (an enum).
+enum class PhaseStatus {
+  kOk = 0,
+  kConfigError,   // the configuration is wrong (plan): exit 2
+  kNoNeighbour,   // probing: no neighbour answered at all
+  kFailed,        // any other run-time failure (socket, device, a neighbour missing, core not ready)
+  kStopped,       // SIGINT/SIGTERM before the phase finished
+};
+
+// Process exit codes of `haptic-station run` (also in --help and firmware/README.md). When
+// several conditions hold, the code is the first of this list that holds:
+//   2 configuration error, 4 diverged, 5 safe state latched, 6 passivity condition not met,
+//   7 no neighbour (none answered probing, or none within its bound for more than
+//     station.max_no_neighbour_fraction of the run), 3 other run-time failure,
+//   8 the run ended before the scripted release; 0 otherwise.
+enum ExitCode : int {
+  kExitOk = 0,
+  kExitConfigError = 2,
+  kExitRunFailed = 3,
+  kExitDiverged = 4,
+  kExitSafeState = 5,
+  kExitPassivityNotMet = 6,
+  kExitNoNeighbour = 7,
+  kExitBeforeRelease = 8,
+};
+
+// One paragraph for --help and the README. Not RT-safe.
+std::string exit_code_help();
+
+}  // namespace haptic::firmware

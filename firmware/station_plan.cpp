@@ -1,0 +1,329 @@
+#include "firmware/station_plan.hpp"
+
+#include <sched.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <stdexcept>
+#include <system_error>
+
+#include "net/transport_udp.hpp"
+#include "net/wire.hpp"
+
+namespace haptic::firmware {
+
+namespace {
+
+constexpr std::size_t kMaxTraceRecords = 4'000'000;
+constexpr std::size_t kMaxStateValues = 64'000'000;  // 512 MB of doubles: refuse above
+
+std::int64_t clock_ns(clockid_t id) {
+  timespec ts{};
+  clock_gettime(id, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+[[noreturn]] void bad(const std::string& what) { throw std::invalid_argument("config: " + what); }
+
+// FNV-1a, 64 bit, over raw bytes.
+struct Fnv1a {
+  std::uint64_t h = 1469598103934665603ULL;
+  void bytes(const void* p, std::size_t n) {
+    const auto* b = static_cast<const unsigned char*>(p);
+    for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ULL;
+  }
+  template <class T>
+  void value(const T& v) {
+    bytes(&v, sizeof v);
+  }
+  void sparse(const rt::SpatialMatrix& m) {
+    value(m.width);
+    for (int r = 0; r < m.S.outerSize(); ++r)
+      for (rt::SparseRowMajor::InnerIterator it(m.S, r); it; ++it) {
+        value(static_cast<std::int64_t>(r));
+        value(static_cast<std::int64_t>(it.col()));
+        value(it.value());
+      }
+  }
+};
+
+// The [net] impairment per directed link as the simulator draws it (seed rule receiver*64 + sender).
+void apply_link_impairments(const StationFile& f, const ScenarioSpec& spec, int me, net::NetConfig& nc) {
+  const std::uint64_t seed_base = f.impairment_seed_set ? 0 : f.station.seed;
+  for (auto& l : nc.endpoint.peers) {
+    if (!l.impaired) continue;
+    const int u = l.station_id - 1;
+    bool mean_given = false;
+    for (const auto& [id, given] : f.peer_mean_delay_set)
+      if (id == l.station_id) mean_given = given;
+    if (!mean_given) {
+      auto keep = l.impairment;
+      l.impairment = net::LinkImpairment::preset(f.impairment_preset, spec.delay_ms(u, me) * 1e-3);
+      l.impairment.delay_trace = keep.delay_trace;
+      l.impairment.blackout_start_s = keep.blackout_start_s;
+      l.impairment.blackout_length_s = keep.blackout_length_s;
+    }
+    if (f.impairment_preset == "paper") {
+      l.impairment.jitter_fraction = spec.jitter_fraction;
+      l.impairment.loss_probability = spec.loss_probability;
+      l.impairment.duplicate_probability = spec.duplicate_probability;
+    }
+    if (!f.impairment_seed_set) l.seed = seed_base * 1000003ULL + static_cast<std::uint64_t>(u * 64 + me);
+  }
+}
+
+drivers::DeviceSelection device_selection(const StationFile& f, const BuiltScenario& built, int me) {
+  drivers::DeviceSelection sel;
+  sel.kind = f.device.kind;
+  sel.safety.max_force_N = f.device.max_force_N;
+  sel.safety.max_power_W = f.device.max_power_W;
+  sel.safety.max_speed_m_per_s = f.device.max_speed_m_per_s;
+  sel.simulated.device = built.spec.device;
+  sel.simulated.hand = built.spec.hand;
+  sel.simulated.script = built.goal_script(me);
+  const Eigen::Vector3d p0 = built.vp_start[static_cast<std::size_t>(me)];
+  for (int a = 0; a < 3; ++a) sel.simulated.start_position_m[a] = p0[a];
+  sel.simulated.max_force_N = f.device.sim_max_force_N;
+  sel.simulated.workspace_radius_m = std::max(0.1, 2.0 * p0.norm() + built.spec.script.retract_depth_m);
+  return sel;
+}
+
+void plan_records(StationPlan& p) {
+  const StationSection& s = p.file.station;
+  const std::int64_t run_ticks = p.times.run_ticks;
+  p.trace_capacity = static_cast<std::size_t>(run_ticks / s.trace_every + 2);
+  p.state_capacity = static_cast<std::size_t>(run_ticks / s.state_every + 2);
+  if (p.trace_capacity > kMaxTraceRecords) bad("station.trace_every too small for duration_s (over 4e6 records)");
+  if (p.state_capacity * static_cast<std::size_t>(p.built->scene.dofs) > kMaxStateValues)
+    bad("station.state_every too small for duration_s and nodes (over 64e6 values)");
+}
+
+void plan_release_warning(StationPlan& p) {
+  const ScenarioSpec& spec = p.built->spec;
+  if (spec.script.kind != UserScriptSpec::Kind::kPushHoldRelease || spec.duration_s > spec.script.release_s) return;
+  p.ends_before_release = true;
+  const std::string src = p.overrides.duration_s > 0 ? "--duration" : (p.file.station.duration_s > 0 ? "station.duration_s" : "the scenario's duration");
+  p.warnings.push_back("the run (" + src + " = " + std::to_string(spec.duration_s) + " s) ends before the scripted release at station.release_s = " +
+                       std::to_string(spec.script.release_s) + " s: the release metrics will be null and the exit code " +
+                       std::to_string(kExitBeforeRelease));
+}
+
+// Every check and translation of the plan phase; throws std::invalid_argument naming the key.
+std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides& o, const ClockReading& now) {
+  auto p = std::make_unique<StationPlan>();
+  p->file = f;
+  p->overrides = o;
+  const ScenarioSpec spec = station_scenario_spec(f, o);
+  p->built = std::make_shared<const BuiltScenario>(build_scenario(spec));
+  p->station_id = f.station.id;
+  p->me = f.station.id - 1;
+  p->net = net::parse_net_config(f.text, static_cast<std::uint32_t>(p->built->scene.dofs));
+  if (p->net.endpoint.wire.station_id != f.station.id)
+    bad("the wire station id (" + f.net_section + ".station_id / station.id) must be station.id = " + std::to_string(f.station.id));
+  p->peers = plan_peer_table(f, *p->built, p->me, p->net);
+  check_address_families(f, p->net);
+  check_io_cpu(f, p->net);
+  check_tx_spin(f, p->net);
+  apply_link_impairments(f, spec, p->me, p->net);
+  p->times = plan_times(f, o, spec, now);
+  p->net.endpoint.impairment_epoch_s = static_cast<double>(p->times.run_epoch_ns()) * 1e-9;
+  p->net.endpoint.tx_period_s = spec.period_s;  // tick-synchronous TX (net.tx_spin) needs the tick period
+  p->device = device_selection(f, *p->built, p->me);
+  p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
+  p->out_dir = o.out_dir.empty() ? f.station.out_dir : o.out_dir;
+  check_out_dir_creatable(p->out_dir, o.out_dir.empty() ? "station.out_dir" : "--out");
+  p->base_path = p->out_dir + "/station-" + std::to_string(f.station.id);
+  plan_records(*p);
+  plan_release_warning(*p);
+  return p;
+}
+
+}  // namespace
+
+ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) {
+  const StationSection& s = f.station;
+  ScenarioSpec spec = make_scenario(s.scenario);
+  if (!s.topology.empty()) {
+    try {
+      spec.topology = parse_topology(s.topology, spec.users);
+    } catch (const std::invalid_argument& e) {
+      bad("station.topology = \"" + s.topology + "\": " + e.what());
+    }
+  }
+  spec.scene_nodes = s.nodes;
+  spec.seed = s.seed;
+  const double dur = o.duration_s > 0 ? o.duration_s : s.duration_s;
+  if (dur > 0) spec.duration_s = dur;
+  if (s.push_start_s >= 0) spec.script.push_start_s = s.push_start_s;
+  if (s.push_end_s >= 0) spec.script.push_end_s = s.push_end_s;
+  if (s.release_s >= 0) spec.script.release_s = s.release_s;
+  spec.damping_margin = s.damping_margin;
+  spec.loss_allowance_ticks = s.loss_allowance_ticks;
+  if (std::llabs(std::llround(spec.period_s * 1e9) - f.loop.period_ns) > 0)
+    bad("loop.period_ns must equal the scenario's period " + std::to_string(std::llround(spec.period_s * 1e9)) + " ns (the paper's T = 2 ms)");
+  if (s.id > spec.users) bad("station.id must be in [1, " + std::to_string(spec.users) + "] for scenario " + spec.name);
+  const auto& sc = spec.script;
+  if (sc.kind == UserScriptSpec::Kind::kPushHoldRelease && !(sc.push_start_s < sc.push_end_s && sc.push_end_s < sc.release_s))
+    bad("station.push_start_s < station.push_end_s < station.release_s must hold (got " + std::to_string(sc.push_start_s) + ", " +
+        std::to_string(sc.push_end_s) + ", " + std::to_string(sc.release_s) + ")");
+  spec.validate();
+  return spec;
+}
+
+std::string SceneFingerprint::first_difference(const SceneFingerprint& o) const {
+  if (protocol_version != o.protocol_version) return "protocol version";
+  if (scene_nodes != o.scene_nodes) return "scene nodes";
+  if (period_ns != o.period_ns) return "period";
+  if (scene_hash != o.scene_hash) return "scene";
+  if (gains_hash != o.gains_hash) return "gains";
+  return "";
+}
+
+SceneFingerprint scene_fingerprint(const BuiltScenario& b, std::int64_t period_ns) {
+  SceneFingerprint fp;
+  fp.protocol_version = net::kWireVersion;
+  fp.scene_nodes = b.scene.nodes;
+  fp.period_ns = period_ns;
+  Fnv1a s;
+  s.bytes(b.scene.x_d.data(), sizeof(double) * static_cast<std::size_t>(b.scene.x_d.size()));
+  for (const auto& t : b.scene.mesh.tets) s.value(t);
+  for (const auto& e : b.scene.mesh.edges) s.value(e);
+  s.value(b.scene.params);
+  fp.scene_hash = s.h;
+  Fnv1a g;
+  g.value(b.spec.users);
+  for (const auto& l : b.spec.topology) g.value(l);
+  for (const auto& e : b.gains) {
+    g.sparse(e.P);
+    g.sparse(e.D);
+  }
+  g.value(b.spec.vp);
+  fp.gains_hash = g.h;
+  return fp;
+}
+
+ClockReading read_clocks() { return {clock_ns(CLOCK_MONOTONIC), clock_ns(CLOCK_REALTIME)}; }
+
+PeerTable plan_peer_table(const StationFile& f, const BuiltScenario& built, int me, const net::NetConfig& nc) {
+  const auto& nbrs = built.neighbors[static_cast<std::size_t>(me)];
+  const auto& peers = nc.endpoint.peers;
+  PeerTable t;
+  t.peer_to_nbr.assign(peers.size(), -1);
+  t.nbr_to_peer.assign(nbrs.size(), -1);
+  t.sender_to_nbr.assign(65536, -1);
+  const std::string topo = f.station.topology.empty() ? "the topology of scenario " + built.spec.name : "station.topology = \"" + f.station.topology + "\"";
+  for (std::size_t p = 0; p < peers.size(); ++p) {
+    const int u = peers[p].station_id - 1;
+    for (std::size_t n = 0; n < nbrs.size(); ++n)
+      if (nbrs[n] == u) t.peer_to_nbr[p] = static_cast<int>(n);
+    const std::string key = f.peer_key(p, "id");
+    if (t.peer_to_nbr[p] < 0) bad(key + " = " + std::to_string(u + 1) + " is not a neighbour of station " + std::to_string(me + 1) + " in " + topo);
+    const int first = t.nbr_to_peer[static_cast<std::size_t>(t.peer_to_nbr[p])];
+    if (first >= 0) bad(key + " = " + std::to_string(u + 1) + " lists that station a second time (also " + f.peer_key(static_cast<std::size_t>(first), "id") + ")");
+    t.nbr_to_peer[static_cast<std::size_t>(t.peer_to_nbr[p])] = static_cast<int>(p);
+    t.sender_to_nbr[static_cast<std::size_t>(u + 1)] = t.peer_to_nbr[p];
+  }
+  for (std::size_t n = 0; n < nbrs.size(); ++n)
+    if (t.nbr_to_peer[n] < 0)
+      bad(f.net_section + ".peers lacks station " + std::to_string(nbrs[n] + 1) + ", a neighbour of station " + std::to_string(me + 1) + " in " + topo);
+  return t;
+}
+
+void check_address_families(const StationFile& f, const net::NetConfig& nc) {
+  if (nc.transport != "udp") return;
+  socklen_t len = 0;
+  const std::string bind_key = f.net_section + ".bind";
+  const int family = net::parse_udp_address(nc.bind, bind_key, len).ss_family;
+  for (std::size_t p = 0; p < nc.udp_peers.size(); ++p) {
+    const std::string key = f.peer_key(p, "address");
+    if (net::parse_udp_address(nc.udp_peers[p].address, key, len).ss_family != family)
+      bad(key + " = \"" + nc.udp_peers[p].address + "\" must be the same address family (IPv4 or IPv6) as " + bind_key + " = \"" + nc.bind + "\"");
+  }
+}
+
+void check_io_cpu(const StationFile& f, const net::NetConfig& nc) {
+  const int cpu = nc.endpoint.io_cpu;
+  if (cpu < 0) return;
+  cpu_set_t allowed;
+  CPU_ZERO(&allowed);
+  if (sched_getaffinity(0, sizeof allowed, &allowed) != 0) return;  // cannot tell: the endpoint reports it at start
+  if (CPU_ISSET(cpu, &allowed)) return;
+  std::string list;
+  for (int c = 0; c < CPU_SETSIZE; ++c)
+    if (CPU_ISSET(c, &allowed)) {
+      if (!list.empty()) list += ' ';
+      list += std::to_string(c);
+    }
+  bad(f.net_section + ".io_cpu = " + std::to_string(cpu) + " must be -1 or a CPU this process may run on here (" + list + ")");
+}
+
+void check_tx_spin(const StationFile& f, const net::NetConfig& nc) {
+  const auto& e = nc.endpoint;
+  if (!e.tx_spin) return;
+  const double period_us = static_cast<double>(f.loop.period_ns) * 1e-3;
+  const double lead_us = e.tx_spin_lead_s * 1e6, tail_us = e.tx_spin_tail_s * 1e6;
+  const std::string P = f.net_section;
+  if (!(lead_us < period_us)) bad(P + ".tx_spin_lead_us = " + std::to_string(lead_us) + " must be shorter than the tick period (loop.period_ns = " + std::to_string(period_us) + " us)");
+  if (!(lead_us + tail_us < period_us))
+    bad(P + ".tx_spin_lead_us + " + P + ".tx_spin_tail_us = " + std::to_string(lead_us + tail_us) + " us must be shorter than the tick period (loop.period_ns = " +
+        std::to_string(period_us) + " us)");
+}
+
+void check_out_dir_creatable(const std::string& dir, const std::string& key) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path p = fs::absolute(fs::path(dir), ec);
+  if (ec) bad(key + " = \"" + dir + "\": " + ec.message());
+  // The deepest existing ancestor must be a directory we may write into (or the directory itself).
+  while (!fs::exists(p, ec) && p.has_parent_path() && p != p.parent_path()) p = p.parent_path();
+  if (!fs::is_directory(p, ec)) bad(key + " = \"" + dir + "\" cannot be created: " + p.string() + " is not a directory");
+  if (::access(p.c_str(), W_OK | X_OK) != 0)
+    bad(key + " = \"" + dir + "\" cannot be " + (p == fs::absolute(fs::path(dir), ec) ? "written" : "created") + ": " + p.string() + ": " + std::strerror(errno));
+}
+
+StationTimes plan_times(const StationFile& f, const RunOverrides& o, const ScenarioSpec& spec, const ClockReading& now) {
+  const StationSection& S = f.station;
+  const double T = spec.period_s;
+  StationTimes t;
+  t.period_ns = f.loop.period_ns;
+  const std::int64_t mono = now.monotonic_ns;
+  const double start_at = o.start_at >= 0 ? o.start_at : S.start_at;
+  if (start_at <= 0 && S.start_align_s > 0) {
+    const std::int64_t clk_now = S.start_clock == "realtime" ? now.realtime_ns : mono;
+    const auto align = static_cast<std::int64_t>(S.start_align_s * 1e9);
+    const std::int64_t earliest = clk_now + static_cast<std::int64_t>(S.start_delay_s * 1e9);
+    t.epoch_ns = ((earliest + align - 1) / align) * align - (clk_now - mono);
+  } else if (start_at <= 0) {
+    t.epoch_ns = mono + static_cast<std::int64_t>(S.start_delay_s * 1e9);
+  } else if (S.start_clock == "realtime") {
+    t.epoch_ns = static_cast<std::int64_t>(start_at * 1e9) - (now.realtime_ns - mono);
+  } else {
+    t.epoch_ns = static_cast<std::int64_t>(start_at * 1e9);
+  }
+  t.probe_ticks = std::llround(S.probe_s / T);
+  t.run_k0 = t.probe_ticks + std::llround(S.setup_gap_s / T);
+  t.run_ticks = std::llround(spec.duration_s / T);
+  t.epoch_in_s = static_cast<double>(t.epoch_ns - mono) * 1e-9;
+  if (mono > t.epoch_ns + (t.probe_ticks / 2) * t.period_ns)
+    bad(std::string(o.start_at >= 0 ? "--start-at" : "station.start_at") + ": started " + std::to_string(-t.epoch_in_s) +
+        " s after the common epoch, more than half the probing phase (station.probe_s): start earlier");
+  return t;
+}
+
+PlanResult plan_station(const StationFile& file, const RunOverrides& overrides, const ClockReading& now) {
+  PlanResult r;
+  try {
+    r.plan = make_plan(file, overrides, now);
+    r.status = PhaseStatus::kOk;
+  } catch (const std::exception& e) {
+    r.status = PhaseStatus::kConfigError;
+    r.error = e.what();
+  }
+  return r;
+}
+
+}  // namespace haptic::firmware

@@ -1,0 +1,118 @@
+#include "firmware/station_probe.hpp"
+
+#include <sstream>
+#include <stdexcept>
+
+#include "platform/periodic_loop.hpp"
+#include "rt/gains.hpp"
+
+namespace haptic::firmware {
+
+namespace {
+
+std::string id_list(const std::vector<int>& ids) {
+  std::string s;
+  for (int id : ids) {
+    if (!s.empty()) s += ", ";
+    s += std::to_string(id);
+  }
+  return s;
+}
+
+// The probing ticks: the rest state every tick, zero coupling; whatever arrives is dropped.
+std::uint64_t send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
+  const StationTimes& t = plan.times;
+  const BuiltScenario& b = *plan.built;
+  const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);
+  platform::LoopConfig lc = plan.file.loop;
+  platform::PeriodicLoop<> loop(lc);
+  loop.clock().sleep_until_ns(t.epoch_ns - t.period_ns);  // the loop's first deadline is one period on: k = 0
+  std::uint64_t push_failures = 0;
+  loop.run(
+      [&](const platform::TickInfo& info) {
+        const std::int64_t k = (info.scheduled_ns - t.epoch_ns + t.period_ns / 2) / t.period_ns;
+        if (k >= t.probe_ticks) return false;
+        ep.drain([](std::uint16_t, std::uint64_t, double, const double*, const double*, std::uint32_t) {});
+        if (k >= 0 && !ep.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data())) ++push_failures;
+        return true;
+      },
+      stop);
+  return push_failures;
+}
+
+}  // namespace
+
+ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
+  ProbeResult r;
+  r.push_failures = send_probes(plan, ep, stop);
+  if (stop.load(std::memory_order_acquire)) {
+    r.status = PhaseStatus::kStopped;
+    r.message = "stopped by a signal while probing";
+    return r;
+  }
+  const bool all = ep.finish_probing();
+  r.stats_at_end = ep.stats();
+  const auto& nbrs = plan.neighbours();
+  const double T = plan.built->spec.period_s;
+  for (std::size_t n = 0; n < nbrs.size(); ++n) {
+    const auto p = static_cast<std::size_t>(plan.peers.nbr_to_peer[n]);
+    if (!r.stats_at_end.peers[p].rtt_has_bound) r.missing.push_back(nbrs[n] + 1);
+    r.rtt_bound_ticks.push_back(ep.rtt_bound_ticks(p, T));
+  }
+  const std::string after = " after station.probe_s = " + std::to_string(plan.file.station.probe_s) + " s";
+  if (r.missing.size() == nbrs.size()) {
+    r.status = PhaseStatus::kNoNeighbour;
+    r.message = "no neighbour answered: no round trip from station(s) " + id_list(r.missing) + after +
+                " (not running, or wrong address, session key or session id); a station does not run alone";
+  } else if (!all || !r.missing.empty()) {
+    r.status = PhaseStatus::kFailed;
+    r.message = "probing: no round-trip bound for neighbour(s) " + id_list(r.missing) + after +
+                " (peer not running, wrong address/key/session, or fewer than net.rtt_min_probe_samples echoes)";
+  } else {
+    r.status = PhaseStatus::kOk;
+  }
+  return r;
+}
+
+MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const std::vector<std::uint32_t>& rtt_ticks, int allowance,
+                                       double margin, double override_B, int agreement) {
+  const auto& nbrs = b.neighbors[static_cast<std::size_t>(user)];
+  if (rtt_ticks.size() != nbrs.size()) throw std::invalid_argument("bounds_from_round_trips: one bound per neighbour needed");
+  MeasuredBounds m;
+  std::vector<rt::Eq18Neighbor> nb;
+  const double T = b.spec.period_s;
+  for (std::size_t n = 0; n < nbrs.size(); ++n) {
+    const int R = static_cast<int>(rtt_ticks[n]) + allowance;
+    m.round_trip_ticks.push_back(R);
+    m.index_guard_ticks.push_back((R + 1) / 2);
+    m.assumed_sum_ticks.push_back(2 * ((R + 1) / 2) + agreement);
+    nb.push_back({static_cast<double>(m.assumed_sum_ticks.back()), T,
+                  &b.gains[static_cast<std::size_t>(b.neighbor_edge[static_cast<std::size_t>(user)][n])]});
+  }
+  m.damping_min_Ns_per_m = rt::damping_min_eq18(T, nb);
+  m.damping_Ns_per_m = override_B >= 0 ? override_B : (1.0 + margin) * m.damping_min_Ns_per_m;
+  return m;
+}
+
+BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe, double b_d) {
+  BuildResult r;
+  const StationSection& S = plan.file.station;
+  const BuiltScenario& built = *plan.built;
+  try {
+    r.bounds = bounds_from_round_trips(built, plan.me, probe.rtt_bound_ticks, S.loss_allowance_ticks, S.damping_margin, S.damping_Ns_per_m,
+                                       S.agreement_ticks);
+    r.passivity_condition_met = r.bounds.damping_Ns_per_m >= r.bounds.damping_min_Ns_per_m * (1 - 1e-12);
+    rt::StationConfig sc = built.station_config(plan.me);
+    sc.damping_Ns_per_m = r.bounds.damping_Ns_per_m;
+    sc.device_damping_Ns_per_m = b_d;
+    for (std::size_t n = 0; n < sc.neighbors.size(); ++n) sc.neighbors[n].index_delay_bound_ticks = r.bounds.index_guard_ticks[n];
+    r.core = std::make_unique<rt::StationCore>(sc);
+    r.status = PhaseStatus::kOk;
+  } catch (const std::exception& e) {
+    r.status = PhaseStatus::kFailed;
+    r.message = std::string("building the station core: ") + e.what();
+  }
+  return r;
+}
+
+}  // namespace haptic::firmware

@@ -1,0 +1,62 @@
+#pragma once
+// probe and build: the second and third phases of `haptic-station run` (DESIGN.md, "The station
+// process"). probe sends the rest state every tick of k in [0, probe_ticks) and measures the round
+// trip to each neighbour from its own echoed send stamps (net/); build turns the measured bounds
+// into B_i (eq. 18), checks eq. (26) with the device's b_d and builds rt::StationCore with its
+// factorizations, on the calling (non-RT) thread, before the run phase starts: the core is handed
+// to the RT thread once, when that thread is created. Neither is RT-safe.
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "firmware/station_phase.hpp"
+#include "firmware/station_plan.hpp"
+#include "net/endpoint.hpp"
+#include "rt/station.hpp"
+
+namespace haptic::firmware {
+
+struct ProbeResult {
+  PhaseStatus status = PhaseStatus::kFailed;
+  std::string message;                          // why it failed ("" when ok)
+  std::vector<std::uint32_t> rtt_bound_ticks;   // per neighbour (net/: measured max x (1 + margin) + margin_s, in ticks)
+  std::vector<int> missing;                     // neighbours (station ids) without a bound
+  std::uint64_t push_failures = 0;
+  net::EndpointStats stats_at_end{};            // the endpoint's statistics when probing ended
+};
+
+// Runs the probing ticks on the calling thread (absolute deadlines from the plan's epoch; the
+// endpoint must be started and in probing mode), then ends probing. kNoNeighbour when no
+// neighbour answered at all, kFailed when some did not, kStopped on `stop`.
+ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop);
+
+// The per-neighbour bounds a station derives from its measured round trips.
+struct MeasuredBounds {
+  std::vector<int> round_trip_ticks;    // R_ij = measured bound (+ margin, net/) + loss allowance: Nbar_ij + Nbar_ji in eq. (18)
+  std::vector<int> index_guard_ticks;   // Nbar_ij = ceil(R_ij / 2): the rt core drops data older than this
+  std::vector<int> assumed_sum_ticks;   // Nbar_ij + Nbar_ji put into eq. (18): 2 Nbar_ij + agreement_ticks
+                                        // (covers the peer's guard ceil(R_ji/2) while R_ji <= R_ij + 2 agreement_ticks)
+  double damping_min_Ns_per_m = 0;      // eq. (18) with R_ij
+  double damping_Ns_per_m = 0;          // B_i used
+};
+// eq. (18) for user `user` of `b` from measured endpoint bounds (ticks, one per neighbour).
+MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const std::vector<std::uint32_t>& rtt_bound_ticks,
+                                       int loss_allowance_ticks, double damping_margin, double damping_override,
+                                       int agreement_ticks = 2);
+
+struct BuildResult {
+  PhaseStatus status = PhaseStatus::kFailed;
+  std::string message;
+  MeasuredBounds bounds;
+  bool passivity_condition_met = false;   // B_i used >= eq. (18) on the measured bounds
+  std::unique_ptr<rt::StationCore> core;  // set when status == kOk
+};
+
+// B_i from eq. (18) on the measured bounds (station.damping_Ns_per_m overrides it: then the
+// passivity condition may not be met, which the report names), eq. (26) with the device's b_d
+// (the core's constructor refuses violating gains), the core and its factorizations.
+BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe, double device_damping_Ns_per_m);
+
+}  // namespace haptic::firmware

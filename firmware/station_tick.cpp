@@ -1,0 +1,171 @@
+#include "firmware/station_tick.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "platform/trace.hpp"
+
+namespace haptic::firmware {
+
+namespace {
+
+using platform::trace::Stage;
+using platform::trace::StageScope;
+
+// Newest device sample; none (a faulted device): NaN, the core's safe state for this tick. RT-safe.
+rt::Vec3 read_device(const TickInputs& in, TickCounters& cnt) {
+  StageScope stage(Stage::device_read);
+  drivers::DeviceSample ds{};
+  rt::Vec3 q;
+  if (in.device->read_newest(ds)) {
+    q = rt::Vec3(ds.position_m[0], ds.position_m[1], ds.position_m[2]);
+  } else {
+    q = rt::Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+    ++cnt.device_fault_ticks;
+  }
+  platform::trace::device_read(0, ds.sequence);
+  return q;
+}
+
+// Drains the RX ring into the receive links; sequence numbers become run indices (seq - run_k0). RT-safe.
+void drain_rx(const TickInputs& in, TickCounters& cnt) {
+  StageScope stage(Stage::rx_drain);
+  in.ep->drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double* x, const double* v, std::uint32_t count) {
+    const int n = in.sender_to_nbr[sender];
+    if (n < 0) {
+      ++cnt.foreign_packets;
+      return;
+    }
+    if (static_cast<std::int64_t>(seq) < in.run_k0) {
+      ++cnt.probe_packets_after_run;
+      return;
+    }
+    platform::trace::packet_rx(static_cast<std::uint32_t>(sender), seq, static_cast<std::uint32_t>(count));
+    in.core->rx(n).offer(static_cast<std::int64_t>(seq) - in.run_k0, send_time_s, x, v, static_cast<int>(count));
+    ++cnt.rx_offered;
+  });
+}
+
+// Largest node speed of the core's state (inf when not finite). RT-safe.
+double max_node_speed(const TickInputs& in) {
+  const auto& v = in.core->v();
+  double vmax = 0;
+  for (int p = 0; p < in.dofs / 3; ++p) vmax = std::max(vmax, v.segment<3>(3 * p).norm());
+  return std::isfinite(vmax) ? vmax : INFINITY;
+}
+
+void record_trace(const TickInputs& in, TickRecords& rec, std::int64_t kr, const double* F, const rt::Vec3& q, double vmax, std::uint32_t flags,
+                  const platform::TickInfo& info) {
+  if (kr % in.trace_every != 0 || rec.trace_n >= rec.trace.size()) return;
+  TraceRec& r = rec.trace[rec.trace_n++];
+  const auto& e = in.core->energy();
+  r.k = kr;
+  const auto xn = in.core->x().segment<3>(3 * in.trace_node);
+  const auto& y = in.core->vp_position_m();
+  for (int a = 0; a < 3; ++a) {
+    r.node[a] = xn[a];
+    r.force[a] = F[a];
+    r.vp[a] = y[a];
+    r.device[a] = q[a];
+  }
+  r.port_J = e.port_J;
+  r.ctrl_J = e.controller_J;
+  r.vo_J = e.vo_J;
+  r.max_speed = vmax;
+  r.flags = flags;
+  r.wake_latency_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.wake_latency_ns, INT32_MAX));
+  r.contact = in.core->in_contact() ? 1 : 0;
+}
+
+void record_state(const TickInputs& in, TickRecords& rec, std::int64_t kr) {
+  if (kr % in.state_every != 0 || rec.state_n >= rec.state_k.size()) return;
+  rec.state_k[rec.state_n] = kr;
+  const double* x = in.core->x().data();
+  std::copy(x, x + in.dofs, rec.state_x.data() + rec.state_n * static_cast<std::size_t>(in.dofs));
+  ++rec.state_n;
+}
+
+void record_telemetry(const TickInputs& in, const double* F, const rt::Vec3& q, std::uint32_t flags, const platform::TickInfo& info) {
+  if (in.telemetry == nullptr) return;
+  StageScope stage(Stage::telemetry);
+  const auto& e = in.core->energy();
+  platform::TelemetryRecord tr;
+  tr.tick = info.index;
+  tr.scheduled_ns = info.scheduled_ns;
+  tr.wake_latency_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.wake_latency_ns, INT32_MAX));
+  tr.exec_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.prev_exec_ns, INT32_MAX));
+  tr.overruns = static_cast<std::uint32_t>(info.overruns);
+  tr.status = flags;
+  for (int a = 0; a < 3; ++a) {
+    tr.values[static_cast<std::size_t>(a)] = F[a];
+    tr.values[static_cast<std::size_t>(3 + a)] = q[a];
+  }
+  tr.values[6] = e.port_J;
+  tr.values[7] = e.controller_J;
+  tr.values[8] = e.vo_J;
+  tr.values[9] = in.core->in_contact() ? 1 : 0;
+  tr.values[10] = static_cast<double>(in.core->edge_drop_events());
+  in.telemetry->record(tr);
+}
+
+// Energy, speed, divergence and neighbour-presence bookkeeping. RT-safe.
+double monitor(const TickInputs& in, TickCounters& cnt, std::int64_t kr, std::uint32_t flags, const platform::TickInfo& info) {
+  cnt.port_min_J = std::min(cnt.port_min_J, in.core->energy().port_J);
+  const double vmax = max_node_speed(in);
+  cnt.max_speed_m_per_s = std::max(cnt.max_speed_m_per_s, vmax);
+  if (!any_neighbour_within_bound(*in.core, kr)) ++cnt.no_neighbour_ticks;
+  if ((flags & rt::kDiverged) && !cnt.diverged) {
+    cnt.diverged = true;
+    cnt.diverged_at_s = static_cast<double>(kr) * in.period_s;
+    if (in.telemetry) in.telemetry->report_fault(platform::FaultKind::divergence, info.index);
+  }
+  return vmax;
+}
+
+}  // namespace
+
+void TickRecords::reserve(std::size_t trace_rows, std::size_t state_rows, int dofs) {
+  trace.assign(trace_rows, TraceRec{});
+  state_k.assign(state_rows, 0);
+  state_x.assign(state_rows * static_cast<std::size_t>(dofs), 0.0);
+  trace_n = state_n = 0;
+}
+
+bool any_neighbour_within_bound(rt::StationCore& core, std::int64_t kr) {
+  for (int n = 0; n < core.neighbor_count(); ++n)
+    if (kr - core.rx(n).newest_sequence() <= core.neighbor(n).index_delay_bound_ticks) return true;
+  return false;
+}
+
+std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt, std::int64_t k, std::int64_t kr, const platform::TickInfo& info) {
+  if (in.gpio) in.gpio->tick_high();  // the loop already emitted tick_begin
+  const rt::Vec3 q = read_device(in, cnt);
+  drain_rx(in, cnt);
+  platform::trace::solve_begin();
+  const auto out = in.core->tick(kr, q);  // the coupled VO + VP step at run cycle kr
+  platform::trace::solve_end();
+  const double F[3] = {out.device_force_N[0], out.device_force_N[1], out.device_force_N[2]};
+  {
+    StageScope stage(Stage::publish);
+    in.device->command_force(F);
+    platform::trace::device_write(0, static_cast<std::uint64_t>(kr));
+    if (in.simulated) in.simulated->service(static_cast<double>(kr) * in.period_s, in.period_s);
+  }
+  {
+    StageScope stage(Stage::tx);
+    if (!in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), in.core->x_hat(), in.core->v_hat())) ++cnt.push_failures;
+  }
+  {
+    StageScope stage(Stage::monitor);
+    const double vmax = monitor(in, cnt, kr, out.flags, info);
+    record_trace(in, rec, kr, F, q, vmax, out.flags, info);
+    record_state(in, rec, kr);
+  }
+  record_telemetry(in, F, q, out.flags, info);
+  ++cnt.ticks_run;
+  if (in.gpio) in.gpio->tick_low();
+  return out.flags;
+}
+
+}  // namespace haptic::firmware

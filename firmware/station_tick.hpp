@@ -1,0 +1,74 @@
+#pragma once
+// One run tick of `haptic-station run` (DESIGN.md, "One tick of station i") and what it
+// touches, split by lifetime: TickInputs (built at start-up, read by the tick), TickRecords
+// (preallocated rows the tick fills), TickCounters (what the tick counts; read by the report
+// after the loop ended).
+#include <cstdint>
+#include <vector>
+
+#include "drivers/device.hpp"
+#include "drivers/simulated_device.hpp"
+#include "net/endpoint.hpp"
+#include "platform/gpio.hpp"
+#include "platform/periodic_loop.hpp"
+#include "platform/telemetry.hpp"
+#include "rt/station.hpp"
+
+namespace haptic::firmware {
+
+// One row of station-<id>-trace.csv (flat, preallocated).
+struct TraceRec {
+  std::int64_t k;
+  double node[3], force[3], vp[3], device[3];
+  double port_J, ctrl_J, vo_J, max_speed;
+  std::uint32_t flags;
+  std::int32_t wake_latency_ns;
+  std::uint8_t contact;
+};
+
+// Built at start-up; the tick only reads these (the objects pointed to are the tick's to use).
+struct TickInputs {
+  rt::StationCore* core = nullptr;
+  net::Endpoint* ep = nullptr;
+  drivers::HapticDevice* device = nullptr;
+  drivers::SimulatedDevice* simulated = nullptr;  // non-null: owner-stepped, service() per tick
+  platform::GpioToggler* gpio = nullptr;          // may be null
+  platform::Telemetry* telemetry = nullptr;       // may be null
+  const int* sender_to_nbr = nullptr;             // [65536]: wire sender id -> neighbour index, -1 = none
+  int dofs = 0, trace_node = 0, trace_every = 1, state_every = 1;
+  double period_s = 0.002;
+  std::int64_t run_k0 = 0;  // epoch tick of the run start: earlier sequence numbers are probes
+};
+
+// Preallocated by reserve() (not RT-safe); the tick writes rows by index, never grows them.
+struct TickRecords {
+  std::vector<TraceRec> trace;
+  std::size_t trace_n = 0;
+  std::vector<std::int64_t> state_k;
+  std::vector<double> state_x;  // state_k.size() x dofs
+  std::size_t state_n = 0;
+  void reserve(std::size_t trace_rows, std::size_t state_rows, int dofs);
+};
+
+// Counted by the tick; read by the non-RT side after the loop ended.
+struct TickCounters {
+  std::uint64_t foreign_packets = 0, probe_packets_after_run = 0, rx_offered = 0, push_failures = 0, device_fault_ticks = 0;
+  std::uint64_t no_neighbour_ticks = 0;  // ticks with every neighbour's data beyond its index-delay bound
+  std::int64_t ticks_run = 0;
+  bool diverged = false;
+  double diverged_at_s = -1, port_min_J = 0, max_speed_m_per_s = 0;
+};
+
+// Whether any neighbour's newest data is within its index-delay bound at run tick kr (the core
+// couples to it). RT-safe.
+bool any_neighbour_within_bound(rt::StationCore& core, std::int64_t kr);
+
+// One run tick at epoch index k, run index kr = k - run_k0 (the index the core and the receive
+// links use, so a packet's sequence number seq becomes seq - run_k0 and nothing else). In the order
+// of DESIGN.md: GPIO high, newest device sample (none: NaN, the core's safe state for the tick),
+// drain RX into rx(n).offer, core.tick(kr), command force (+ service() of a simulated device),
+// push_state(k, t, x_hat, v_hat), monitor, records, telemetry, GPIO low. Returns the core's
+// TickFlags. RT-safe: no allocation, lock or blocking call (tests/station checks it).
+std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt, std::int64_t k, std::int64_t kr, const platform::TickInfo& info);
+
+}  // namespace haptic::firmware

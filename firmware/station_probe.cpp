@@ -20,31 +20,32 @@ std::string id_list(const std::vector<int>& ids) {
 }
 
 // The probing ticks: the rest state every tick, zero coupling; whatever arrives is dropped.
-std::uint64_t send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
+void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, ProbeResult& r) {
   const StationTimes& t = plan.times;
   const BuiltScenario& b = *plan.built;
   const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);
   platform::LoopConfig lc = plan.file.loop;
   platform::PeriodicLoop<> loop(lc);
   loop.clock().sleep_until_ns(t.epoch_ns - t.period_ns);  // the loop's first deadline is one period on: k = 0
-  std::uint64_t push_failures = 0;
   loop.run(
       [&](const platform::TickInfo& info) {
         const std::int64_t k = (info.scheduled_ns - t.epoch_ns + t.period_ns / 2) / t.period_ns;
         if (k >= t.probe_ticks) return false;
         ep.drain([](std::uint16_t, std::uint64_t, double, const double*, const double*, std::uint32_t) {});
-        if (k >= 0 && !ep.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data())) ++push_failures;
+        if (k >= 0 && !ep.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data())) ++r.push_failures;
         return true;
       },
       stop);
-  return push_failures;
+  r.loop_ticks = loop.stats().ticks;
+  r.loop_overruns = loop.stats().overruns;
+  r.loop_missed_cycles = loop.stats().missed_cycles;
 }
 
 }  // namespace
 
 ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
   ProbeResult r;
-  r.push_failures = send_probes(plan, ep, stop);
+  send_probes(plan, ep, stop, r);
   if (stop.load(std::memory_order_acquire)) {
     r.status = PhaseStatus::kStopped;
     r.message = "stopped by a signal while probing";

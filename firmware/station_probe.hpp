@@ -24,6 +24,7 @@ struct ProbeResult {
   std::vector<std::uint32_t> rtt_bound_ticks;   // per neighbour (net/: measured max x (1 + margin) + margin_s, in ticks)
   std::vector<int> missing;                     // neighbours (station ids) without a bound
   std::uint64_t push_failures = 0;
+  std::uint64_t loop_ticks = 0, loop_overruns = 0, loop_missed_cycles = 0;  // the probing loop's counters
   net::EndpointStats stats_at_end{};            // the endpoint's statistics when probing ended
 };
 

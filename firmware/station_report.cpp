@@ -73,6 +73,8 @@ void add_run_json(const StationOutcome& o, json& j) {
   } else {
     j["loop"] = {{"ticks", 0}, {"overruns", 0}, {"missed_cycles", 0}, {"overrun_storms", 0}};
   }
+  if (o.probe)
+    j["probe_loop"] = {{"ticks", o.probe->loop_ticks}, {"overruns", o.probe->loop_overruns}, {"missed_cycles", o.probe->loop_missed_cycles}};
   const rt::StationCore* core = o.build ? o.build->core.get() : nullptr;
   j["port_energy_final_J"] = core && ran ? json(core->energy().port_J) : json(nullptr);
   j["controller_energy_final_J"] = core && ran ? json(core->energy().controller_J) : json(nullptr);

@@ -104,7 +104,7 @@ bool HapticDevice::sample_in_range(const DeviceSample& s) const {
 bool HapticDevice::read_newest(DeviceSample& out) {
   if (fault() != DeviceFault::kNone) return false;
   DeviceSample fresh;
-  if (samples_.take(fresh)) {
+  if (samples_.reader_take(fresh)) {
     if (!sample_in_range(fresh)) {
       raise_fault(DeviceFault::kOutOfRange, 0);
       return false;
@@ -163,14 +163,14 @@ void HapticDevice::command_force(const double force_N[3]) {
     }
   }
   if (fault() != DeviceFault::kNone) cmd = ForceCommand{{0.0, 0.0, 0.0}};
-  forces_.publish(cmd);
+  forces_.writer_publish(cmd);
 }
 
-void HapticDevice::publish_sample(const DeviceSample& sample) { samples_.publish(sample); }
+void HapticDevice::publish_sample(const DeviceSample& sample) { samples_.writer_publish(sample); }
 
 bool HapticDevice::take_force(double force_N[3]) {
   ForceCommand cmd;
-  const bool fresh = forces_.take(cmd);
+  const bool fresh = forces_.reader_take(cmd);
   if (fault() != DeviceFault::kNone) {
     // Safe state: drop whatever was queued so nothing from before the fault survives a re-arm.
     for (double& f : held_force_N_) f = 0.0;

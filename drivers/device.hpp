@@ -15,7 +15,7 @@
 // Force and power limits apply on the way out, in command_force(): non-actuated axes zeroed,
 // norm clamped to min(capabilities.max_force_N, limits.max_force_N), then the power the device
 // would deliver into the hand, F . v (v from the newest sample), capped at limits.max_power_W.
-#include "drivers/mailbox.hpp"
+#include "platform/latest_mailbox.hpp"
 
 #include <array>
 #include <atomic>
@@ -137,9 +137,9 @@ class HapticDevice {
 
   DeviceCapabilities caps_;
   SafetyLimits limits_;
-  LatestMailbox<DeviceSample> samples_;
+  platform::LatestMailbox<DeviceSample> samples_;
   struct ForceCommand { double force_N[3]; };
-  LatestMailbox<ForceCommand> forces_;
+  platform::LatestMailbox<ForceCommand> forces_;
   std::atomic<DeviceFault> fault_{DeviceFault::kNotStarted};
   std::atomic<std::int32_t> fault_detail_{0};
 

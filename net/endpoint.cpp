@@ -115,8 +115,8 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
   rx_store_.resize(kRxBuffers * 2 * value_count_);
   tx_meta_.resize(kTxBuffers);
   tx_store_.resize(kTxBuffers * 2 * value_count_);
-  for (std::uint32_t i = 0; i < kRxBuffers; ++i) rx_free_.try_push(i);
-  for (std::uint32_t i = 0; i < kTxBuffers; ++i) tx_free_.try_push(i);
+  for (std::uint32_t i = 0; i < kRxBuffers; ++i) rx_free_.writer_try_push(i);
+  for (std::uint32_t i = 0; i < kTxBuffers; ++i) tx_free_.writer_try_push(i);
   max_datagram_ = cfg.wire.max_datagram_bytes;
   rx_buf_.resize(kMaxDatagramBytes + 1);
   tx_buf_.resize(max_datagram_);
@@ -215,7 +215,7 @@ int Endpoint::find_peer(std::uint16_t id) const {
 
 bool Endpoint::push_state(std::uint64_t seq, double send_time_s, const double* x_hat, const double* v_hat) {
   std::uint32_t idx = 0;
-  if (!tx_free_.try_pop(idx)) {
+  if (!tx_free_.reader_try_pop(idx)) {
     tx_overruns_.fetch_add(1, std::memory_order_relaxed);
     return false;
   }
@@ -223,7 +223,7 @@ bool Endpoint::push_state(std::uint64_t seq, double send_time_s, const double* x
   std::memcpy(dst, x_hat, sizeof(double) * value_count_);
   std::memcpy(dst + value_count_, v_hat, sizeof(double) * value_count_);
   tx_meta_[idx] = TxMeta{seq, send_time_s, monotonic_ns()};  // vDSO clock read, no syscall
-  tx_ready_.try_push(idx);  // cannot fail: as many slots as buffers
+  tx_ready_.writer_try_push(idx);  // cannot fail: as many slots as buffers
   // Dekker pair with spin_for_push() (seq_cst, no fences): if we see the I/O thread spinning,
   // its end-of-window check sees this push; otherwise we wake it.
   tx_pushed_.fetch_add(1, std::memory_order_seq_cst);
@@ -536,7 +536,7 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
     on_state(p, st, now_ns);
 
     std::uint32_t idx = 0;
-    if (!rx_free_.try_pop(idx)) {
+    if (!rx_free_.reader_try_pop(idx)) {
       ++counters_.rx_ring_full;
       continue;
     }
@@ -546,7 +546,7 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
     rx_meta_[idx] = RxMeta{st.sender,      st.seq,      static_cast<double>(st.send_time_ns) * 1e-9,
                            rec != nullptr, st.echo_seq, rec ? static_cast<double>(rec->send_ns) * 1e-9 : 0.0,
                            monotonic_ns()};
-    rx_ready_.try_push(idx);
+    rx_ready_.writer_try_push(idx);
     // Dekker pair with wait_rx(), seq_cst on both sides (no fences: ThreadSanitizer checks
     // this code): either the waiter's ring check sees this packet or we see the waiter.
     rx_delivered_.fetch_add(1, std::memory_order_seq_cst);
@@ -576,7 +576,7 @@ void Endpoint::send_now(std::uint16_t dest, const std::uint8_t* d, std::size_t l
 
 void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
   std::uint32_t idx = 0;
-  while (tx_ready_.try_pop(idx)) {
+  while (tx_ready_.reader_try_pop(idx)) {
     const TxMeta m = tx_meta_[idx];
     const double* x = tx_store_.data() + std::size_t{idx} * 2 * value_count_;
     last_push_ns_ = std::max(last_push_ns_, m.push_ns);
@@ -636,7 +636,7 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
         }
       }
     }
-    tx_free_.try_push(idx);
+    tx_free_.writer_try_push(idx);
   }
 }
 

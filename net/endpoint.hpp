@@ -1,7 +1,7 @@
 #pragma once
 // A station's network endpoint: one I/O thread that owns the socket (a Transport), the wire
 // encoder/decoder, the per-link impairment emulator and the per-neighbor RTT estimators, and
-// four fixed-capacity SPSC rings (rt/spsc_ring.hpp) that connect it to the RT thread.
+// four fixed-capacity SPSC rings (platform/spsc_ring.hpp) that connect it to the RT thread.
 //
 //   RT thread                                  I/O thread
 //   push_state(k, t, x, v)  --tx_ready ring-->  encode per neighbor (+echo), impair, send
@@ -47,7 +47,7 @@
 #include "net/transport.hpp"
 #include "net/wire.hpp"
 #include "platform/snapshot_box.hpp"
-#include "rt/spsc_ring.hpp"
+#include "platform/spsc_ring.hpp"
 
 namespace haptic::platform {
 class RtThread;
@@ -190,11 +190,11 @@ class Endpoint {
   std::size_t drain(F&& on_state, std::size_t max_packets = std::numeric_limits<std::size_t>::max()) {
     std::size_t n = 0;
     std::uint32_t idx = 0;
-    while (n < max_packets && rx_ready_.try_pop(idx)) {
+    while (n < max_packets && rx_ready_.reader_try_pop(idx)) {
       const RxMeta& m = rx_meta_[idx];
       const double* x = rx_store_.data() + std::size_t{idx} * 2 * value_count_;
       on_state(m.sender, m.seq, m.send_time_s, x, x + value_count_, value_count_);
-      rx_free_.try_push(idx);  // cannot fail: as many slots as buffers
+      rx_free_.writer_try_push(idx);  // cannot fail: as many slots as buffers
       ++n;
     }
     return n;
@@ -204,7 +204,7 @@ class Endpoint {
   std::size_t drain_packets(F&& on_packet, std::size_t max_packets = std::numeric_limits<std::size_t>::max()) {
     std::size_t n = 0;
     std::uint32_t idx = 0;
-    while (n < max_packets && rx_ready_.try_pop(idx)) {
+    while (n < max_packets && rx_ready_.reader_try_pop(idx)) {
       const RxMeta& m = rx_meta_[idx];
       RxPacket p;
       p.sender = m.sender;
@@ -218,7 +218,7 @@ class Endpoint {
       p.count = value_count_;
       p.delivered_s = static_cast<double>(m.delivered_ns) * 1e-9;
       on_packet(static_cast<const RxPacket&>(p));
-      rx_free_.try_push(idx);
+      rx_free_.writer_try_push(idx);
       ++n;
     }
     return n;
@@ -347,8 +347,8 @@ class Endpoint {
   int io_cpu_;
   std::int64_t tx_period_ns_, tx_lead_ns_, tx_tail_ns_;
 
-  rt::SpscRing<std::uint32_t, kRxBuffers> rx_ready_, rx_free_;
-  rt::SpscRing<std::uint32_t, kTxBuffers> tx_ready_, tx_free_;
+  platform::SpscRing<std::uint32_t, kRxBuffers> rx_ready_, rx_free_;
+  platform::SpscRing<std::uint32_t, kTxBuffers> tx_ready_, tx_free_;
   std::vector<RxMeta> rx_meta_;
   std::vector<double> rx_store_;
   std::vector<TxMeta> tx_meta_;

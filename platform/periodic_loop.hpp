@@ -4,8 +4,9 @@
 // a callback `bool tick(const TickInfo&)` (return false to stop). Overruns are detected,
 // counted and skipped ahead to the next future deadline (never a burst of catch-up ticks).
 // Statistics live in fixed-size members (no allocation). Reporting is throttled: at most one
-// LoopReport per report interval is published into a try-or-skip mailbox that a non-RT thread
-// empties with take_report(). Stopping is through a std::atomic<bool>.
+// LoopReport per report interval is published into a latest-value mailbox
+// (platform/latest_mailbox.hpp; the loop is its writer) that a non-RT thread reads with
+// take_report(). Stopping is through a std::atomic<bool>.
 #include <time.h>
 
 #include <atomic>
@@ -15,6 +16,7 @@
 #include <string>
 
 #include "platform/latency_histogram.hpp"
+#include "platform/latest_mailbox.hpp"
 #include "platform/trace.hpp"
 
 namespace haptic::platform {
@@ -158,14 +160,10 @@ class PeriodicLoop {
   const LoopConfig& config() const { return config_; }
   Clock& clock() { return clock_; }
 
-  // Non-RT side: copies the newest unread report, returns false when there is none. Never
-  // blocks the loop: when the mailbox is still full the loop skips that report.
-  bool take_report(LoopReport& out) {
-    if (!report_ready_.load(std::memory_order_acquire)) return false;
-    out = report_box_;
-    report_ready_.store(false, std::memory_order_release);
-    return true;
-  }
+  // Reader side of the report mailbox (one non-RT thread): copies the newest unread report,
+  // returns false when there is none. Never blocks the loop; an unread older report is replaced
+  // by the newer one. Wait-free.
+  bool take_report(LoopReport& out) { return reports_.reader_take(out); }
 
  private:
   struct Window {
@@ -180,9 +178,8 @@ class PeriodicLoop {
     }
   };
 
-  // RT-safe: try-or-skip publication.
+  // Writer side of the report mailbox (the loop's thread). Wait-free, RT-safe.
   void publish_report() {
-    if (report_ready_.load(std::memory_order_acquire)) return;  // reader hasn't taken the last one
     LoopReport r;
     r.ticks = stats_.ticks;
     r.overruns = stats_.overruns;
@@ -194,16 +191,14 @@ class PeriodicLoop {
     r.window_latency_max_ns = window_.lat_max;
     r.window_exec_max_ns = window_.exec_max;
     r.window_latency_avg_ns = window_.ticks ? static_cast<double>(window_.lat_sum) / static_cast<double>(window_.ticks) : 0.0;
-    report_box_ = r;
-    report_ready_.store(true, std::memory_order_release);
+    reports_.writer_publish(r);
   }
 
   LoopConfig config_;
   Clock clock_;
   LoopStats stats_;
   Window window_;
-  LoopReport report_box_;
-  std::atomic<bool> report_ready_{false};
+  LatestMailbox<LoopReport> reports_;
 };
 
 }  // namespace haptic::platform

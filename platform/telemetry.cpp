@@ -70,7 +70,7 @@ void Telemetry::write_line(std::FILE* f, const TelemetryRecord& r) const {
 std::size_t Telemetry::drain() {
   std::size_t n = 0;
   TelemetryRecord r;
-  while (ring_->try_pop(r)) {
+  while (ring_->reader_try_pop(r)) {
     if (file_ != nullptr) write_line(file_, r);
     history_[history_next_] = r;
     history_next_ = (history_next_ + 1) % history_.size();

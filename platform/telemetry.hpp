@@ -14,7 +14,7 @@
 #include <thread>
 #include <vector>
 
-#include "rt/spsc_ring.hpp"
+#include "platform/spsc_ring.hpp"
 
 namespace haptic::platform {
 
@@ -55,7 +55,7 @@ class Telemetry {
 
   // RT-safe, producer side (one thread). False (and counted) when the ring is full.
   bool record(const TelemetryRecord& r) {
-    if (ring_->try_push(r)) return true;
+    if (ring_->writer_try_push(r)) return true;
     dropped_.fetch_add(1, std::memory_order_relaxed);
     return false;
   }
@@ -78,7 +78,7 @@ class Telemetry {
   std::size_t history_capacity() const { return history_.size(); }
 
  private:
-  using Ring = haptic::rt::SpscRing<TelemetryRecord, kRingCapacity>;
+  using Ring = SpscRing<TelemetryRecord, kRingCapacity>;
   void logger_main();
   std::size_t drain();
   void dump(FaultKind kind, std::uint64_t tick);

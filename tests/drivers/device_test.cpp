@@ -1,9 +1,7 @@
-// The device interface: limits on the way out, the safe state within one tick, the mailbox.
+// The device interface: limits on the way out, the safe state within one tick.
 #include "drivers/device.hpp"
-#include "drivers/mailbox.hpp"
 #include "tests/support/alloc_counter.hpp"
 
-#include <atomic>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -270,45 +268,4 @@ TEST(DeviceInterface, BadSafetyConfigNamesTheKeyAndRange) {
     CHECK(what.find("drivers.safety.max_power_W") != std::string::npos);
     CHECK(what.find("[0, 1000]") != std::string::npos);
   }
-}
-
-TEST_GROUP(LatestMailbox) {};
-
-TEST(LatestMailbox, ReaderGetsTheNewestValueOnce) {
-  LatestMailbox<int> box;
-  int v = 0;
-  CHECK_FALSE(box.take(v));
-  box.publish(1);
-  box.publish(2);
-  box.publish(3);
-  CHECK(box.take(v));
-  LONGS_EQUAL(3, v);
-  CHECK_FALSE(box.take(v));
-}
-
-TEST(LatestMailbox, ConcurrentReaderNeverSeesATornOrOlderRecord) {
-  struct Rec {
-    std::uint64_t seq;
-    std::uint64_t check[7];
-  };
-  LatestMailbox<Rec> box;
-  constexpr std::uint64_t kN = 200000;
-  std::thread writer([&box] {
-    for (std::uint64_t i = 1; i <= kN; ++i) {
-      Rec r{i, {}};
-      for (auto& c : r.check) c = i * 2654435761u;
-      box.publish(r);
-    }
-  });
-  std::uint64_t last = 0, torn = 0, backwards = 0;
-  while (last < kN) {
-    Rec r;
-    if (!box.take(r)) continue;
-    for (auto c : r.check) torn += (c != r.seq * 2654435761u);
-    backwards += (r.seq <= last);
-    last = r.seq;
-  }
-  writer.join();
-  LONGS_EQUAL(0, torn);
-  LONGS_EQUAL(0, backwards);
 }

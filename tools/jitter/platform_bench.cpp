@@ -43,12 +43,12 @@ BENCHMARK(BM_monotonic_clock_now);
 
 // The ring push that record() does (plus the logger's pop, same thread, so the ring never fills).
 static void BM_telemetry_ring_push_pop(benchmark::State& state) {
-  auto ring = std::make_unique<haptic::rt::SpscRing<hp::TelemetryRecord, hp::Telemetry::kRingCapacity>>();
+  auto ring = std::make_unique<haptic::platform::SpscRing<hp::TelemetryRecord, hp::Telemetry::kRingCapacity>>();
   hp::TelemetryRecord r, out;
   for (auto _ : state) {
     r.tick++;
-    benchmark::DoNotOptimize(ring->try_push(r));
-    benchmark::DoNotOptimize(ring->try_pop(out));
+    benchmark::DoNotOptimize(ring->writer_try_push(r));
+    benchmark::DoNotOptimize(ring->reader_try_pop(out));
   }
 }
 BENCHMARK(BM_telemetry_ring_push_pop);

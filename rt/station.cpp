@@ -32,7 +32,7 @@ void StationConfig::validate() const {
   if (users < 1) bad("users", ">= 1");
   if (!(period_s > 0 && period_s < 1)) bad("period_s", "in (0, 1)");
   if (!(damping_Ns_per_m >= 0 && std::isfinite(damping_Ns_per_m))) bad("damping_Ns_per_m", ">= 0");
-  if (static_cast<int>(neighbors.size()) > kMaxNeighbors) bad("neighbors", "at most 6");
+  if (static_cast<int>(neighbors.size()) > kMaxNeighbors) bad("neighbors", "at most " + std::to_string(kMaxNeighbors));
   for (const auto& n : neighbors) {
     if (!n.gains) bad("neighbors[].gains", "set");
     if (n.gains->P.dofs() != scene->dofs) bad("neighbors[].gains", "sized like the scene");
@@ -49,6 +49,7 @@ void StationConfig::validate() const {
   if (!(max_device_force_N > 0)) bad("max_device_force_N", "> 0");
   if (!vp_initial_position_m.allFinite()) bad("vp_initial_position_m", "finite");
   check_eq26(vp.coupling, device_damping_Ns_per_m, period_s);
+  solver.validate();
 }
 
 StationCore::StationCore(const StationConfig& config)
@@ -65,17 +66,15 @@ StationCore::StationCore(const StationConfig& config)
   for (const auto& nb : cfg_.neighbors) iso = iso && nb.gains->P.is_isotropic() && nb.gains->D.is_isotropic();
   w_ = iso ? 3 : 1;
   nf_ = iso ? n_ : dofs_;
-  factors_.reserve(std::size_t{1} << nn);
-  for (unsigned mask = 0; mask < (1u << nn); ++mask) {
+  {
+    // Every configured edge stays in A (an over-bound edge acts as a damper, rt/README.md).
     auto terms = base;
-    for (int j = 0; j < nn; ++j)
-      if (mask & (1u << j)) {
-        terms.emplace_back(1.0, &cfg_.neighbors[static_cast<std::size_t>(j)].gains->D);
-        terms.emplace_back(T_ / 2.0, &cfg_.neighbors[static_cast<std::size_t>(j)].gains->P);
-      }
+    for (int j = 0; j < nn; ++j) {
+      terms.emplace_back(1.0, &cfg_.neighbors[static_cast<std::size_t>(j)].gains->D);
+      terms.emplace_back(T_ / 2.0, &cfg_.neighbors[static_cast<std::size_t>(j)].gains->P);
+    }
     SpatialMatrix A = combine(terms);
-    SparseColMajor Af = iso ? SparseColMajor(A.S) : SparseColMajor(A.as_full());
-    factors_.emplace_back(Af);
+    solver_ = make_step_solver(cfg_.solver, iso ? SparseColMajor(A.S) : SparseColMajor(A.as_full()), w_);
   }
   x_ = scene_.x_d;
   v_ = Eigen::VectorXd::Zero(dofs_);
@@ -85,6 +84,7 @@ StationCore::StationCore(const StationConfig& config)
   tmp_.resize(dofs_);
   tmp2_.resize(dofs_);
   scratch_.resize(dofs_);
+  resid_ = Eigen::VectorXd::Zero(dofs_);
   rx_.resize(static_cast<std::size_t>(nn));
   for (auto& r : rx_) r.init(dofs_, x_.data(), v_.data());
   views_.resize(static_cast<std::size_t>(nn));
@@ -117,14 +117,12 @@ StationCore::StationCore(const StationConfig& config)
   // Orientation of the contact face normal: outward at rest.
   const ContactFace rest = contact_face(x_, cfg_.contact_nodes);
   normal_sign_ = rest.normal.dot(rest.centroid - scene_.mesh.centroid()) >= 0 ? 1.0 : -1.0;
-  Z_.resize(factors_.size());
-  lu_.resize(factors_.size());
-  for (unsigned mask = 0; mask < factors_.size(); ++mask) prepare_contact_solve(mask);
+  prepare_contact_solve();
 }
 
 bool StationCore::first_of_gain(int j) const {
   for (int i = 0; i < j; ++i)
-    if (active_[static_cast<std::size_t>(i)] && cfg_.neighbors[static_cast<std::size_t>(i)].gains == cfg_.neighbors[static_cast<std::size_t>(j)].gains) return false;
+    if (cfg_.neighbors[static_cast<std::size_t>(i)].gains == cfg_.neighbors[static_cast<std::size_t>(j)].gains) return false;
   return true;
 }
 
@@ -140,14 +138,15 @@ void StationCore::engage_contact() {
   in_contact_ = true;
 }
 
-void StationCore::prepare_contact_solve(unsigned mask) {
-  const SparseLdlt& F = factors_[mask];
+void StationCore::prepare_contact_solve() {
   const double c = cfg_.vp.contact_damping_Ns_per_m + cfg_.vp.contact_stiffness_N_per_m * T_ / 2.0;
-  Eigen::MatrixXd& Z = Z_[mask];
+  Eigen::MatrixXd& Z = Z_;
   Z = Eigen::MatrixXd::Zero(nf_, m_units_);
+  Eigen::VectorXd unit = Eigen::VectorXd::Zero(nf_);
   for (int a = 0; a < m_units_; ++a) {
-    Z(unit_row_[static_cast<std::size_t>(a)], a) = 1.0;
-    F.solve_in_place(Z.col(a).data(), 1, scratch_.data());
+    unit[unit_row_[static_cast<std::size_t>(a)]] = 1.0;
+    solver_->solve_accurately(unit.data(), Z.col(a).data(), 1);
+    unit[unit_row_[static_cast<std::size_t>(a)]] = 0.0;
   }
   const int m = m_units_;
   Small G = Small::Zero(m + vp_units_, m + vp_units_);
@@ -161,7 +160,7 @@ void StationCore::prepare_contact_solve(unsigned mask) {
   }
   const int per_vp = m / vp_units_;
   for (int e = 0; e < vp_units_; ++e) G(m + e, m + e) = a_w_ + c * per_vp;
-  lu_[mask].compute(G);
+  lu_.compute(G);
 }
 
 StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
@@ -190,13 +189,12 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
   }
 
   // --- 2. neighbours: newest packet, indexing delay, duplication avoidance, delay bound ---
-  unsigned mask = 0;
+  // Over the bound: x_hat_j := x(k), delta_ij = 0 (the edge acts as the damper D_ij + T/2 P_ij).
   for (int j = 0; j < nn; ++j) {
     views_[j] = rx_[j].begin_tick(k);
     const bool ok = views_[j].index_delay <= cfg_.neighbors[j].index_delay_bound_ticks;
     active_[j] = ok ? 1 : 0;
     if (ok) {
-      mask |= 1u << j;
       edge_was_dropped_[j] = 0;
     } else {
       out.flags |= kEdgeDropped;
@@ -243,14 +241,16 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
     energy_.vo_J = ek / N;
   }
   // Edges sharing one gain object (the usual case) are summed first: one matvec per gain set.
+  // An over-bound edge contributes nothing to b (x - x_hat_j = 0, delta_ij = 0).
   for (int j = 0; j < nn; ++j) {
-    if (!active_[j] || !first_of_gain(j)) continue;
+    if (!first_of_gain(j)) continue;
     const EdgeGains* eg = cfg_.neighbors[j].gains;
     tmp_.setZero();   // sum (x - x_hat_j)
     tmp2_.setZero();  // sum delta v_hat_j
-    bool any_fresh = false;
+    bool any_fresh = false, any_active = false;
     for (int i2 = j; i2 < nn; ++i2) {
       if (!active_[i2] || cfg_.neighbors[i2].gains != eg) continue;
+      any_active = true;
       const double* xj = views_[i2].x_hat;
       for (int i = 0; i < dofs_; ++i) tmp_[i] += x_[i] - xj[i];
       if (views_[i2].fresh) {
@@ -259,7 +259,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
         for (int i = 0; i < dofs_; ++i) tmp2_[i] += vj[i];
       }
     }
-    eg->P.multiply_add(-1.0, tmp_.data(), b);
+    if (any_active) eg->P.multiply_add(-1.0, tmp_.data(), b);
     if (any_fresh) eg->D.multiply_add(1.0, tmp2_.data(), b);
   }
   Vec3 bw = (2.0 * cfg_.vp.mass_kg / T_) * w_vp_ + g.B_vc_Ns_per_m * vq - g.K_vc_N_per_m * (y_ - qk);
@@ -271,9 +271,12 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
     }
   }
 
-  // --- 5. solve: A_S y0 = b, then the contact/VP Schur complement ---
-  v_hat_ = rhs_;
-  factors_[mask].solve_in_place(v_hat_.data(), w_, scratch_.data());
+  // --- 5. solve: A y0 = b (warm start: last v_hat), then the contact/VP Schur complement ---
+  {
+    const StepSolver::Report rep = solver_->solve(rhs_.data(), v_hat_.data(), resid_.data(), w_);
+    solver_last_iterations_ = rep.iterations;
+    if (!rep.converged) ++solver_unconverged_ticks_;
+  }
   Vec3 w_hat;
   if (in_contact_) {
     const int m = m_units_;
@@ -281,9 +284,9 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
       for (int col = 0; col < w_; ++col) R_(a, col) = v_hat_[unit_row_[a] * w_ + col];
     for (int e = 0; e < vp_units_; ++e)
       for (int col = 0; col < w_; ++col) R_(m + e, col) = (w_ == 3) ? bw[col] : bw[e];
-    X_.noalias() = lu_[mask].solve(R_);
+    X_.noalias() = lu_.solve(R_);
     for (int a = 0; a < m; ++a) {
-      const double* za = Z_[mask].col(a).data();
+      const double* za = Z_.col(a).data();
       for (int col = 0; col < w_; ++col) {
         const double coef = c * (X_(m + unit_vp_[a], col) - X_(a, col));
         if (coef == 0.0) continue;
@@ -309,18 +312,22 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
     }
   }
   energy_.port_J += port_power * T_;
-  // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)   (eq. 15)
+  // The VO rows' residual r of an inexact solve acted as the extra force -r (A v_hat = b - r; the
+  // Schur step solves the contact/VP part exactly on top, so r is y0's residual).
+  if (!solver_->exact()) energy_.solver_residual_J -= v_hat_.dot(resid_) * T_;
+  // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)   (eq. 15),
+  // with x_hat_j := x(k), delta_ij = 0 for an over-bound edge.
   double ctrl = -cfg_.damping_Ns_per_m * v_hat_.squaredNorm();
   for (int j = 0; j < nn; ++j) {
-    if (!active_[j] || !first_of_gain(j)) continue;
+    if (!first_of_gain(j)) continue;
     const EdgeGains* eg = cfg_.neighbors[j].gains;
     tmp_.setZero();   // sum (v_hat - delta v_hat_j)
     tmp2_.setZero();  // sum (x_hat - x_hat_j)
     for (int i2 = j; i2 < nn; ++i2) {
-      if (!active_[i2] || cfg_.neighbors[i2].gains != eg) continue;
-      const double delta = views_[i2].fresh ? 1.0 : 0.0;
+      if (cfg_.neighbors[i2].gains != eg) continue;
+      const double delta = (active_[i2] && views_[i2].fresh) ? 1.0 : 0.0;
       const double* vj = views_[i2].v_hat;
-      const double* xj = views_[i2].x_hat;
+      const double* xj = active_[i2] ? views_[i2].x_hat : x_.data();
       for (int i = 0; i < dofs_; ++i) {
         tmp_[i] += v_hat_[i] - delta * vj[i];
         tmp2_[i] += x_hat_[i] - xj[i];

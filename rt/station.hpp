@@ -6,12 +6,15 @@
 //
 //   A_S v_hat = b,   A_S = (1/N)(2M/T + B + T/2 K) + B_i + sum_{j in S} (D_ij + T/2 P_ij)
 //
-// with S the set of neighbours whose coupling is active. A_S is factored once per subset S at
-// start-up. Contact adds c = b_c + k_c T/2 on the contact nodes and couples them to the VP's
-// unknown w_hat; that is solved by a Schur complement on top of A_S^{-1} (a small dense system of
-// at most 3*kMaxContactNodes + 3 unknowns) whose data are precomputed at start-up for every
-// neighbour subset, so a change of contact or neighbour set costs nothing extra in the tick.
-// Worst-case tick cost: one sparse solve with 3 right-hand sides plus O(n * |C|) work.
+// with S all configured neighbours: a neighbour whose packet is older than its bound keeps its
+// edge in the matrix and its data are replaced by this station's own state (x_hat_j := x(k),
+// delta_ij = 0), which turns the edge into pure damping D_ij + T/2 P_ij (rt/README.md, "One matrix
+// at any degree"). A is constant: one solver per station (rt/step_solver: direct LDL^T for small
+// scenes, Jacobi-preconditioned CG for large ones). Contact adds c = b_c + k_c T/2 on the contact
+// nodes and couples them to the VP's unknown w_hat; that is solved by a Schur complement on top of
+// A^{-1} (a small dense system of at most 3*kMaxContactNodes + 3 unknowns) whose data are
+// precomputed at start-up, so a change of contact or neighbour set costs nothing extra in the tick.
+// Worst-case tick cost: one solve with 3 right-hand sides plus O(n * |C|) work.
 //
 // tick() never allocates, locks or blocks, and never throws: it returns status flags.
 #include <Eigen/Core>
@@ -24,14 +27,14 @@
 #include "rt/gains.hpp"
 #include "rt/rx_link.hpp"
 #include "rt/scene.hpp"
-#include "rt/sparse_ldlt.hpp"
+#include "rt/step_solver.hpp"
 
 namespace haptic::rt {
 
 using Vec3 = Eigen::Vector3d;
 
 inline constexpr int kMaxContactNodes = 8;
-inline constexpr int kMaxNeighbors = 6;
+inline constexpr int kMaxNeighbors = 16;
 
 struct VirtualProxyParams {
   double mass_kg = 0.001;                    // m_i (eq. 21)
@@ -44,8 +47,9 @@ struct NeighborConfig {
   int peer_id = -1;
   const EdgeGains* gains = nullptr;
   // Bound on the indexing delay N_ij^k assumed by eq. (18). A packet older than this is acted on
-  // passively: the edge's coupling is dropped at this station until a fresh packet within the
-  // bound arrives (counted as a bound violation).
+  // passively: the neighbour's data are replaced by this station's own state (x_hat_j := x(k),
+  // delta_ij = 0), so the edge acts as the damper D_ij + T/2 P_ij until a packet within the bound
+  // arrives (counted as a bound violation).
   std::int64_t index_delay_bound_ticks = 1 << 30;
 };
 
@@ -58,6 +62,7 @@ struct StationConfig {
   std::vector<NeighborConfig> neighbors;
   VirtualProxyParams vp{};
   std::vector<int> contact_nodes;     // the contact mesh C_i (node indices)
+  StepSolverConfig solver{};          // the linear step's solver (auto: by scene size)
   Vec3 vp_initial_position_m = Vec3::Zero();
   double device_damping_Ns_per_m = 0.5;  // b_d of the device (eq. 26)
   double max_device_force_N = 10.0;      // output limit
@@ -91,6 +96,10 @@ struct EnergyMonitor {
   double controller_J = 0;  // sum_k v_hat^T tau T: energy from the consensus control port (14)
   double vo_J = 0;          // E_i(k) = 1/N (|v|_M^2/2 + |x-x_d|_K^2/2) at the start of the last tick
   double device_port_J = 0; // sum_k F_dev . (q_k - q_{k-1}): energy the station put into the device
+  // -sum_k v_hat^T r T with r = b - A v_hat the VO rows' residual: energy an inexact (iterative)
+  // solve put into the VO; exactly 0 for the direct solve. E(k) - E(0) = port + controller + this
+  // (B = 0), so the passivity accounting stays exact.
+  double solver_residual_J = 0;
 };
 
 class StationCore {
@@ -135,15 +144,17 @@ class StationCore {
   }
   std::uint64_t edge_drop_events(int n) const { return edge_drops_[static_cast<std::size_t>(n)]; }
   std::uint64_t safe_state_ticks() const { return safe_state_ticks_; }
-  int factorizations() const { return static_cast<int>(factors_.size()); }
-  long factor_nonzeros() const { return factors_.empty() ? 0 : factors_[0].factor_nonzeros(); }
+  const char* solver_name() const { return solver_->name(); }
+  long solver_stored_doubles() const { return solver_->stored_doubles(); }
+  int solver_last_iterations() const { return solver_last_iterations_; }
+  std::uint64_t solver_unconverged_ticks() const { return solver_unconverged_ticks_; }
   // Start-up / tests: overwrite the state (allocates nothing; sizes must match).
   void set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v);
 
  private:
-  void prepare_contact_solve(unsigned mask);  // start-up: Z, G and its LU for one neighbour subset
+  void prepare_contact_solve();  // start-up: Z, G and its LU
   void engage_contact();
-  bool first_of_gain(int j) const;  // first active neighbour using this gain object
+  bool first_of_gain(int j) const;  // first neighbour using this gain object
 
   StationConfig cfg_;
   const Scene& scene_;
@@ -152,7 +163,9 @@ class StationCore {
   int dofs_;     // 3n
   int w_;        // 3 when the system is isotropic (factor n x n, 3 RHS), else 1 (factor 3n x 3n)
   int nf_;       // factor dimension
-  std::vector<SparseLdlt> factors_;  // one per subset mask of active neighbours
+  std::unique_ptr<StepSolver> solver_;  // A (constant at any neighbour state)
+  int solver_last_iterations_ = 0;
+  std::uint64_t solver_unconverged_ticks_ = 0;
   std::vector<RxLink> rx_;
 
   // State
@@ -173,19 +186,19 @@ class StationCore {
   std::vector<std::uint64_t> edge_drops_;
 
   // Scratch (sized at start-up)
-  Eigen::VectorXd rhs_, tmp_, tmp2_, scratch_;
+  Eigen::VectorXd rhs_, tmp_, tmp2_, scratch_, resid_;
   std::vector<RxLink::TickView> views_;
   std::vector<unsigned char> active_;
 
-  // Contact Schur data per neighbour subset, precomputed at start-up (the contact mesh is fixed
-  // per station): Z_[S] = A_S^{-1} U and the LU of the small bordered system.
+  // Contact Schur data, precomputed at start-up (the contact mesh is fixed per station):
+  // Z_ = A^{-1} U and the LU of the small bordered system.
   using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxContactNodes + 3, 3 * kMaxContactNodes + 3>;
   using SmallRhs = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxContactNodes + 3, 3>;
   int m_units_ = 0, vp_units_ = 0;
   std::vector<int> unit_row_;     // factor row of contact unit a
   std::vector<int> unit_vp_;      // VP unit that contact unit a couples to
-  std::vector<Eigen::MatrixXd> Z_;             // per subset, nf x m: A_S^{-1} e_unit
-  std::vector<Eigen::PartialPivLU<Small>> lu_;  // per subset
+  Eigen::MatrixXd Z_;                // nf x m: A^{-1} e_unit
+  Eigen::PartialPivLU<Small> lu_;
   SmallRhs R_, X_;
   double a_w_ = 0;  // VP diagonal without contact
 };

@@ -17,6 +17,8 @@ PKGS=(
   libgpiod-dev gpiod liblttng-ust-dev lttng-tools babeltrace2 python3-bt2 rt-tests
   # tests, benchmarks, fuzzing
   cpputest libbenchmark-dev clang libclang-rt-14-dev
+  # CHOLMOD: the prefactored sparse baseline in bench-rt-tick
+  libsuitesparse-dev
   # network tests and wire inspection
   iproute2 tshark
   # plots and reports (Debian's python3, /usr/bin/python3)

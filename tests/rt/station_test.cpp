@@ -70,10 +70,13 @@ TEST_GROUP(Station){};
 namespace {
 // Drives a StationCore and its dense reference with the same device motion and the same random
 // neighbour packets; returns the max state difference.
-double compare_with_dense(bool impaired_neighbors, int ticks) {
+double compare_with_dense(bool impaired_neighbors, int ticks, StepSolverKind solver = StepSolverKind::kDirect,
+                          std::uint64_t* over_bound_ticks = nullptr) {
   const auto& w = PaperWorld::get();
   const auto dir = test::tetra_dirs()[0];
-  auto cfg = w.station(0, 4, {1, 2}, 20.0, dir, impaired_neighbors ? 6 : (1 << 30));
+  auto cfg = w.station(0, 4, {1, 2}, 20.0, dir, impaired_neighbors ? 2 : (1 << 30));
+  cfg.solver.kind = solver;
+  cfg.solver.relative_tolerance = 1e-13;
   StationCore st(cfg);
   DenseStationReference ref(cfg);
   std::mt19937 rng(5);
@@ -99,7 +102,9 @@ double compare_with_dense(bool impaired_neighbors, int ticks) {
     const double t = k * 0.002;
     const double depth = t < 0.3 ? 0.02 * t / 0.3 : 0.02 - 0.05 * (t - 0.3);
     const Eigen::Vector3d q = p0 + depth * in;
-    const Eigen::Vector3d f1 = st.tick(q).device_force_N, f2 = ref.tick(q);
+    const auto out = st.tick(q);
+    const Eigen::Vector3d f1 = out.device_force_N, f2 = ref.tick(q);
+    if (over_bound_ticks && (out.flags & kEdgeDropped)) ++*over_bound_ticks;
     maxdiff = std::max({maxdiff, (st.x() - ref.x()).cwiseAbs().maxCoeff(), (st.v() - ref.v()).cwiseAbs().maxCoeff() * 1e-2,
                         (st.vp_position_m() - ref.vp_position_m()).cwiseAbs().maxCoeff(), (f1 - f2).cwiseAbs().maxCoeff() * 1e-3});
     CHECK_EQUAL(ref.in_contact(), st.in_contact());
@@ -113,9 +118,16 @@ TEST(Station, sparse_schur_step_matches_the_dense_solve_through_contact_onset_an
   CHECK_TRUE(d < 1e-10);
 }
 
-TEST(Station, matches_the_dense_solve_with_lost_swapped_packets_and_dropped_edges) {
-  const double d = compare_with_dense(true, 400);
+TEST(Station, matches_the_dense_solve_with_lost_swapped_packets_and_over_bound_edges) {
+  std::uint64_t over_bound = 0;
+  const double d = compare_with_dense(true, 400, StepSolverKind::kDirect, &over_bound);
+  CHECK_TRUE(over_bound >= 20);  // the over-bound action (edge as a damper) is exercised
   CHECK_TRUE(d < 1e-10);
+}
+
+TEST(Station, iterative_solver_matches_the_dense_solve_through_contact_losses_and_over_bound_edges) {
+  CHECK_TRUE(compare_with_dense(false, 400, StepSolverKind::kIterative) < 1e-9);
+  CHECK_TRUE(compare_with_dense(true, 400, StepSolverKind::kIterative) < 1e-9);
 }
 
 TEST(Station, npmi_conserves_energy_over_100000_ticks_without_damping_or_input) {
@@ -254,11 +266,17 @@ TEST(Station, eq18_damping_for_the_paper_star_is_round_trip_times_lambda_max_P) 
 }
 
 TEST(Station, tick_allocates_nothing_over_10000_ticks_of_four_users_with_contact) {
+  for (StepSolverKind solver : {StepSolverKind::kDirect, StepSolverKind::kIterative}) {
   const auto& w = PaperWorld::get();
   constexpr int N = 4;
   std::vector<std::unique_ptr<StationCore>> st;
   const std::vector<std::vector<int>> peers = {{1, 2, 3}, {0}, {0}, {0}};
-  for (int i = 0; i < N; ++i) st.push_back(std::make_unique<StationCore>(w.station(i, N, peers[static_cast<std::size_t>(i)], 30, test::tetra_dirs()[static_cast<std::size_t>(i)], 5)));
+  for (int i = 0; i < N; ++i) {
+    auto cfg = w.station(i, N, peers[static_cast<std::size_t>(i)], 30, test::tetra_dirs()[static_cast<std::size_t>(i)], 5);
+    cfg.solver.kind = solver;
+    st.push_back(std::make_unique<StationCore>(cfg));
+  }
+  STRCMP_EQUAL(solver == StepSolverKind::kDirect ? "direct" : "iterative", st[0]->solver_name());
   // A preallocated delay line stands in for the network: each station's x_hat/v_hat, delayed by
   // 3 ticks, with every 7th packet lost (edge drops and sustainment happen too).
   const int dofs = w.scene.dofs, D = 8;
@@ -297,4 +315,5 @@ TEST(Station, tick_allocates_nothing_over_10000_ticks_of_four_users_with_contact
   CHECK_TRUE(releases >= 4);
   CHECK_TRUE(drops > 0);
   CHECK_EQUAL(0u, allocs);
+  }
 }

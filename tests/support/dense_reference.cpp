@@ -58,8 +58,9 @@ Vec3 DenseStationReference::tick(const Vec3& q) {
   bv = (2.0 / (N * T)) * (Mfull_ * v_) - (Kfull_ * (x_ - xd_)) / N;
   for (std::size_t j = 0; j < rx_.size(); ++j) {
     const auto view = rx_[j].begin_tick(k_);
-    if (view.index_delay > cfg_.neighbors[j].index_delay_bound_ticks) continue;
     Avv += Dfull_[j] + (T / 2) * Pfull_[j];
+    // over the bound: x_hat_j := x(k), delta_ij = 0 -> nothing in b (the edge is a damper)
+    if (view.index_delay > cfg_.neighbors[j].index_delay_bound_ticks) continue;
     const Eigen::Map<const Eigen::VectorXd> xj(view.x_hat, dofs_), vj(view.v_hat, dofs_);
     if (view.fresh) bv += Dfull_[j] * vj;
     bv -= Pfull_[j] * (x_ - xj);

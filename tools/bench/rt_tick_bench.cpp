@@ -1,36 +1,164 @@
-// Tick cost of one station: the precomputed sparse step against a dense baseline that assembles
-// and factors the same (3n+3) system every tick, and the sparse tick against scene size.
-// Each tick includes what DESIGN.md's tick does in rt/: feeding the neighbours' newest packets
-// to the receive bookkeeping, the solve with contact active, energies and the state update.
+// Tick cost of one station against fair baselines, in one run (rt/README.md, tools/bench/README):
+//  - the station's tick with each solver of the linear step: auto (by size), direct (the project's
+//    sparse LDL^T, the only solver before issue 14), iterative (Jacobi-preconditioned CG), and two
+//    baselines plugged in through StepSolverConfig::custom: a dense Cholesky (Eigen LLT) factored
+//    ONCE at start-up and solved per tick, and CHOLMOD (SuiteSparse) factored once at start-up;
+//  - the old strawman (a dense assemble-and-factor every tick) at 33 nodes only, labelled as such;
+//  - the worst case (neighbour set changing every tick while in contact);
+//  - start-up to the first tick, and the peak memory of a station by its neighbour count.
+// Each tick includes what DESIGN.md's tick does in rt/: feeding the neighbours' newest packets to
+// the receive bookkeeping, the solve with contact active, energies and the state update.
 #include <benchmark/benchmark.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <Eigen/Cholesky>
+#include <chrono>
+#include <cstdio>
 #include <memory>
 #include <vector>
 
 #include "tests/support/dense_reference.hpp"
 #include "rt/gains.hpp"
 #include "rt/scene.hpp"
-#include "rt/sparse_ldlt.hpp"
 #include "rt/station.hpp"
+#include "rt/step_solver.hpp"
+
+#ifdef HAPTIC_HAVE_CHOLMOD
+#include <suitesparse/cholmod.h>
+#endif
 
 using namespace haptic::rt;
 
 namespace {
+
+enum SolverArg { kAutoArg = 0, kDirectArg = 1, kIterativeArg = 2, kDenseOnceArg = 3, kCholmodArg = 4 };
+
+// Baseline: dense Cholesky of the step matrix, factored once; the solve per tick is two dense
+// triangular solves with the interleaved right-hand sides (Eigen, vectorized).
+class DenseOnceSolver final : public StepSolver {
+ public:
+  explicit DenseOnceSolver(const SparseColMajor& A) : llt_(Eigen::MatrixXd(A)) {}
+  Report solve(const double* b, double* x, double*, int width) override {
+    const long n = llt_.rows();
+    for (long i = 0; i < n * width; ++i) x[i] = b[i];
+    if (width == 3) {
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> X(x, n, 3);
+      llt_.solveInPlace(X);
+    } else {
+      Eigen::Map<Eigen::VectorXd> X(x, n);
+      llt_.solveInPlace(X);
+    }
+    return {};
+  }
+  void solve_accurately(const double* b, double* x, int width) override { solve(b, x, nullptr, width); }
+  bool exact() const override { return true; }
+  const char* name() const override { return "dense-once"; }
+  long stored_doubles() const override { return llt_.rows() * llt_.rows(); }
+
+ private:
+  Eigen::LLT<Eigen::MatrixXd> llt_;
+};
+
+#ifdef HAPTIC_HAVE_CHOLMOD
+// Baseline: CHOLMOD's analysis (its default ordering choice) and factorization once; per tick
+// cholmod_solve2 with workspace reused across calls (no allocation after the first solve).
+class CholmodSolver final : public StepSolver {
+ public:
+  explicit CholmodSolver(const SparseColMajor& A, int width) {
+    cholmod_start(&cm_);
+    const int n = static_cast<int>(A.rows());
+    cholmod_sparse* S = cholmod_allocate_sparse(n, n, static_cast<std::size_t>(A.nonZeros()), 1, 1, -1, CHOLMOD_REAL, &cm_);
+    auto* cp = static_cast<int*>(S->p);
+    auto* ri = static_cast<int*>(S->i);
+    auto* vx = static_cast<double*>(S->x);
+    int q = 0;
+    for (int j = 0; j < n; ++j) {
+      cp[j] = q;
+      for (SparseColMajor::InnerIterator it(A, j); it; ++it)
+        if (it.row() >= j) {
+          ri[q] = static_cast<int>(it.row());
+          vx[q++] = it.value();
+        }
+    }
+    cp[n] = q;
+    L_ = cholmod_analyze(S, &cm_);
+    cholmod_factorize(S, L_, &cm_);
+    cholmod_free_sparse(&S, &cm_);
+    if (cm_.status != CHOLMOD_OK) throw std::runtime_error("CHOLMOD factorization failed");
+    B_ = cholmod_allocate_dense(static_cast<std::size_t>(n), static_cast<std::size_t>(width), static_cast<std::size_t>(n), CHOLMOD_REAL, &cm_);
+    n_ = n;
+  }
+  ~CholmodSolver() override {
+    cholmod_free_dense(&B_, &cm_);
+    cholmod_free_dense(&X_, &cm_);
+    cholmod_free_dense(&Y_, &cm_);
+    cholmod_free_dense(&E_, &cm_);
+    cholmod_free_factor(&L_, &cm_);
+    cholmod_finish(&cm_);
+  }
+  Report solve(const double* b, double* x, double*, int width) override {
+    auto* bx = static_cast<double*>(B_->x);
+    B_->ncol = static_cast<std::size_t>(width);
+    for (int i = 0; i < n_; ++i)
+      for (int c = 0; c < width; ++c) bx[static_cast<long>(c) * n_ + i] = b[static_cast<long>(i) * width + c];
+    cholmod_solve2(CHOLMOD_A, L_, B_, nullptr, &X_, nullptr, &Y_, &E_, &cm_);
+    const auto* xx = static_cast<const double*>(X_->x);
+    for (int i = 0; i < n_; ++i)
+      for (int c = 0; c < width; ++c) x[static_cast<long>(i) * width + c] = xx[static_cast<long>(c) * n_ + i];
+    return {};
+  }
+  void solve_accurately(const double* b, double* x, int width) override { solve(b, x, nullptr, width); }
+  bool exact() const override { return true; }
+  const char* name() const override { return "cholmod"; }
+  long stored_doubles() const override { return static_cast<long>(L_->is_super ? L_->xsize : L_->nzmax); }
+
+ private:
+  cholmod_common cm_{};
+  cholmod_factor* L_ = nullptr;
+  cholmod_dense *B_ = nullptr, *X_ = nullptr, *Y_ = nullptr, *E_ = nullptr;
+  int n_ = 0;
+};
+#endif
+
+bool set_solver(StepSolverConfig& s, int arg) {
+  switch (arg) {
+    case kDirectArg:
+      s.kind = StepSolverKind::kDirect;
+      return true;
+    case kIterativeArg:
+      s.kind = StepSolverKind::kIterative;
+      return true;
+    case kDenseOnceArg:
+      s.custom = [](const SparseColMajor& A, int) { return std::make_unique<DenseOnceSolver>(A); };
+      return true;
+    case kCholmodArg:
+#ifdef HAPTIC_HAVE_CHOLMOD
+      s.custom = [](const SparseColMajor& A, int w) { return std::make_unique<CholmodSolver>(A, w); };
+      return true;
+#else
+      return false;
+#endif
+    default:
+      return true;
+  }
+}
 
 struct World {
   Scene scene;
   EdgeGains gains;
   StationConfig cfg;
   Eigen::Vector3d push_to;
-  explicit World(int nodes)
+  explicit World(int nodes, int neighbours = 3)
       : scene(build_scene(nodes == 33 ? make_paper_ball(0.05) : make_lattice_ball(nodes, 0.05), SceneParams{})),
         gains(paper_edge_gains(scene)) {
     const int f = scene.mesh.face_towards(Eigen::Vector3d(1, 1, 1));
     const auto& face = scene.mesh.surface[static_cast<std::size_t>(f)];
-    cfg.users = 4;
+    cfg.users = neighbours + 1;
     cfg.scene = &scene;
     cfg.damping_Ns_per_m = 30.45;
-    for (int p = 1; p <= 3; ++p) cfg.neighbors.push_back({p, &gains, 1 << 30});
+    for (int p = 1; p <= neighbours; ++p) cfg.neighbors.push_back({p, &gains, 1 << 30});
     cfg.contact_nodes = {face[0], face[1], face[2]};
     cfg.vp_initial_position_m = scene.mesh.face_center(f);
     push_to = cfg.vp_initial_position_m - 0.01 * scene.mesh.face_normal(f);
@@ -40,33 +168,46 @@ struct World {
 template <class Station>
 void run_ticks(benchmark::State& state, Station& st, const World& w) {
   const int dofs = w.scene.dofs;
+  const int nn = static_cast<int>(w.cfg.neighbors.size());
   std::vector<double> x(w.scene.x_d.data(), w.scene.x_d.data() + dofs), v(static_cast<std::size_t>(dofs), 1e-4);
   std::int64_t seq = 0;
   // settle into contact first
   for (int k = 0; k < 50; ++k) {
-    for (int n = 0; n < 3; ++n) st.rx(n).offer(seq, 0, x.data(), v.data(), dofs);
+    for (int n = 0; n < nn; ++n) st.rx(n).offer(seq, 0, x.data(), v.data(), dofs);
     ++seq;
     st.tick(w.push_to);
   }
   for (auto _ : state) {
-    for (int n = 0; n < 3; ++n) st.rx(n).offer(seq, 0, x.data(), v.data(), dofs);
+    for (int n = 0; n < nn; ++n) st.rx(n).offer(seq, 0, x.data(), v.data(), dofs);
     ++seq;
     auto out = st.tick(w.push_to);
     benchmark::DoNotOptimize(out);
   }
 }
 
-void BM_SparseTick(benchmark::State& state) {
+void station_counters(benchmark::State& state, const StationCore& st, const World& w) {
+  state.counters["nodes"] = w.scene.nodes;
+  state.counters["solver_MB"] = static_cast<double>(st.solver_stored_doubles()) * 8e-6;
+  state.counters["iterations"] = st.solver_last_iterations();
+  state.counters["unconverged_ticks"] = static_cast<double>(st.solver_unconverged_ticks());
+  state.SetLabel(st.solver_name());
+}
+
+// Args: nodes, solver (0 auto, 1 direct, 2 iterative, 3 dense factored once, 4 CHOLMOD once).
+void BM_Tick(benchmark::State& state) {
   World w(static_cast<int>(state.range(0)));
+  if (!set_solver(w.cfg.solver, static_cast<int>(state.range(1)))) {
+    state.SkipWithError("CHOLMOD not built in (libsuitesparse-dev missing)");
+    return;
+  }
   StationCore st(w.cfg);
   run_ticks(state, st, w);
   if (!st.in_contact()) state.SkipWithError("contact not active");
-  state.counters["nodes"] = w.scene.nodes;
-  state.counters["factor_nnz"] = static_cast<double>(st.factor_nonzeros());
-  state.counters["factorizations"] = st.factorizations();
+  station_counters(state, st, w);
 }
 
-void BM_DenseBaselineTick(benchmark::State& state) {
+// The strawman the README used to quote: assemble and factor the dense (3n+3) system every tick.
+void BM_DenseRefactorEveryTick(benchmark::State& state) {
   World w(static_cast<int>(state.range(0)));
   DenseStationReference st(w.cfg);
   run_ticks(state, st, w);
@@ -74,11 +215,11 @@ void BM_DenseBaselineTick(benchmark::State& state) {
   state.counters["nodes"] = w.scene.nodes;
 }
 
-// Worst-case tick: the neighbour set changes every tick while in contact (one neighbour's
-// packets arrive every other tick and its index-delay bound is 0), so the Schur data are rebuilt
-// from the other factorization on every tick: one extra sparse solve per contact unit.
-void BM_SparseTickWorstCase(benchmark::State& state) {
+// Worst-case tick: the neighbour set changes every tick while in contact (one neighbour's packets
+// arrive every other tick and its index-delay bound is 0). Args: nodes, solver.
+void BM_TickWorstCase(benchmark::State& state) {
   World w(static_cast<int>(state.range(0)));
+  set_solver(w.cfg.solver, static_cast<int>(state.range(1)));
   w.cfg.neighbors[2].index_delay_bound_ticks = 0;
   StationCore st(w.cfg);
   const int dofs = w.scene.dofs;
@@ -98,31 +239,92 @@ void BM_SparseTickWorstCase(benchmark::State& state) {
     benchmark::DoNotOptimize(out);
   }
   if (!st.in_contact()) state.SkipWithError("contact not active");
-  state.counters["nodes"] = w.scene.nodes;
+  station_counters(state, st, w);
   state.counters["edge_drop_ticks"] = static_cast<double>(drops);
 }
 
-// The sparse triangular solves alone (3 interleaved right-hand sides), the floor of the tick.
-void BM_FactorSolveOnly(benchmark::State& state) {
-  World w(static_cast<int>(state.range(0)));
-  const SpatialMatrix I = SpatialMatrix::identity(w.scene.nodes);
-  const SpatialMatrix A = linear_combination({{40.0, &I}, {0.00025, &w.scene.K}, {0.003, &w.gains.P}});
-  const SparseLdlt F{SparseColMajor(A.S)};
-  Eigen::VectorXd x = Eigen::VectorXd::Random(w.scene.dofs), scratch(w.scene.dofs);
+// Start-up to the first tick: scene, gains (lambda_max), station (matrix, solver, contact Schur
+// data) and one tick. Args: nodes, neighbours.
+void BM_StartupToFirstTick(benchmark::State& state) {
   for (auto _ : state) {
-    F.solve_in_place(x.data(), 3, scratch.data());
-    benchmark::DoNotOptimize(x.data());
+    World w(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+    StationCore st(w.cfg);
+    auto out = st.tick(w.push_to);
+    benchmark::DoNotOptimize(out);
+    state.counters["nodes"] = w.scene.nodes;
+    state.SetLabel(st.solver_name());
   }
-  state.counters["factor_nnz"] = static_cast<double>(F.factor_nonzeros());
+}
+
+void run_ticks_child(StationCore& st, const World& w) {
+  const int dofs = w.scene.dofs;
+  const int nn = static_cast<int>(w.cfg.neighbors.size());
+  std::vector<double> x(w.scene.x_d.data(), w.scene.x_d.data() + dofs), v(static_cast<std::size_t>(dofs), 1e-4);
+  for (std::int64_t k = 0; k < 100; ++k) {
+    for (int n = 0; n < nn; ++n) st.rx(n).offer(k, 0, x.data(), v.data(), dofs);
+    st.tick(w.push_to);
+  }
+}
+
+long rss_kB() {
+  long pages = 0, rss = 0;
+  if (FILE* f = std::fopen("/proc/self/statm", "r")) {
+    if (std::fscanf(f, "%ld %ld", &pages, &rss) != 2) rss = 0;
+    std::fclose(f);
+  }
+  return rss * (sysconf(_SC_PAGESIZE) / 1024);
+}
+
+// Peak memory of a station by neighbour count: a child process builds the world, records its RSS,
+// builds the station and runs 100 ticks with every neighbour fed; its peak RSS (wait4's
+// ru_maxrss) minus the RSS before the station is the station's peak. Args: nodes, neighbours,
+// solver. Counter station_peak_MB (the time of this benchmark is not a figure).
+void BM_StationPeakMemory(benchmark::State& state) {
+  for (auto _ : state) {
+    int fd[2];
+    if (pipe(fd) != 0) {
+      state.SkipWithError("pipe failed");
+      return;
+    }
+    const pid_t pid = fork();
+    if (pid == 0) {
+      close(fd[0]);
+      World w(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+      set_solver(w.cfg.solver, static_cast<int>(state.range(2)));
+      const long before = rss_kB();
+      {
+        StationCore st(w.cfg);
+        run_ticks_child(st, w);
+      }
+      if (write(fd[1], &before, sizeof before) != static_cast<ssize_t>(sizeof before)) _exit(2);
+      _exit(0);
+    }
+    close(fd[1]);
+    long before = 0;
+    const bool got = read(fd[0], &before, sizeof before) == static_cast<ssize_t>(sizeof before);
+    close(fd[0]);
+    int status = 0;
+    rusage ru{};
+    wait4(pid, &status, 0, &ru);
+    if (!got || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+      state.SkipWithError("child failed");
+      return;
+    }
+    state.counters["station_peak_MB"] = static_cast<double>(ru.ru_maxrss - before) / 1024.0;
+  }
 }
 
 }  // namespace
 
-BENCHMARK(BM_FactorSolveOnly)->Arg(33)->Arg(3000)->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_SparseTick)->Arg(33)->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_DenseBaselineTick)->Arg(33)->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_SparseTick)->Arg(100)->Arg(300)->Arg(1000)->Arg(3000)->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_DenseBaselineTick)->Arg(300)->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_SparseTickWorstCase)->Arg(33)->Arg(3000)->Unit(benchmark::kMicrosecond);
+// 33 nodes: every solver and the strawman
+BENCHMARK(BM_Tick)->ArgsProduct({{33}, {kDirectArg, kIterativeArg, kDenseOnceArg, kCholmodArg, kAutoArg}})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_DenseRefactorEveryTick)->Arg(33)->Unit(benchmark::kMicrosecond);
+// crossover and large scenes
+BENCHMARK(BM_Tick)->ArgsProduct({{300, 1000}, {kDirectArg, kIterativeArg, kCholmodArg}})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Tick)->ArgsProduct({{3000}, {kDirectArg, kIterativeArg, kDenseOnceArg, kCholmodArg, kAutoArg}})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Tick)->ArgsProduct({{10000}, {kAutoArg}})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_TickWorstCase)->ArgsProduct({{33, 3000}, {kAutoArg}})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_StartupToFirstTick)->Args({5000, 3})->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_StationPeakMemory)->ArgsProduct({{3000}, {1, 6, 16}, {kAutoArg, kDirectArg}})->Iterations(1)->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();

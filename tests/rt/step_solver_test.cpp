@@ -1,0 +1,133 @@
+// The linear step's solvers (rt/step_solver, rt/jacobi_cg), the over-bound action (an edge over
+// its delay bound is a damper) and the memory that no longer depends on the neighbour count.
+#include <CppUTest/TestHarness.h>
+
+#include <cmath>
+#include <random>
+
+#include "rt/jacobi_cg.hpp"
+#include "rt/station.hpp"
+#include "rt/step_solver.hpp"
+#include "tests/rt/fixtures.hpp"
+
+using namespace haptic;
+using namespace haptic::rt;
+using haptic::test::PaperWorld;
+
+TEST_GROUP(StepSolver){};
+
+TEST(StepSolver, jacobi_cg_reaches_the_tolerance_within_its_proven_cap_for_three_interleaved_rhs) {
+  const auto& w = PaperWorld::get();
+  const SpatialMatrix I = SpatialMatrix::identity(w.scene.nodes);
+  const SpatialMatrix A = linear_combination({{50.0, &I}, {0.001, &w.scene.K_int}, {0.003, &w.gains.P}});
+  const SparseColMajor As(A.S);
+  JacobiCg cg(As, 3, 1e-12);
+  CHECK_TRUE(cg.condition_bound() < 1.2);
+  const int n = w.scene.nodes;
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> B = Eigen::MatrixXd::Random(n, 3), X(n, 3), R(n, 3);
+  X.setZero();
+  const int it = cg.solve(B.data(), X.data(), R.data(), 3, 1e-12, cg.iteration_cap());
+  CHECK_TRUE(it <= cg.iteration_cap());
+  const Eigen::MatrixXd dense = Eigen::MatrixXd(As);
+  const Eigen::MatrixXd true_r = Eigen::MatrixXd(B) - dense * Eigen::MatrixXd(X);
+  CHECK_TRUE(true_r.norm() <= 1e-12 * B.norm() * 1.01);
+  CHECK_TRUE((true_r - Eigen::MatrixXd(R)).norm() < 1e-14 * B.norm());  // returned residual is b - A x
+}
+
+TEST(StepSolver, iterative_is_refused_when_the_cap_cannot_meet_the_tolerance_and_auto_falls_back) {
+  const auto& w = PaperWorld::get();
+  auto cfg = w.station(0, 4, {1}, 10, test::tetra_dirs()[0]);
+  cfg.solver.kind = StepSolverKind::kIterative;
+  cfg.solver.max_iterations_cap = 1;
+  try {
+    StationCore s(cfg);
+    FAIL("expected the iterative solver to be refused");
+  } catch (const std::invalid_argument& e) {
+    STRCMP_CONTAINS("max_iterations_cap", e.what());
+  }
+  cfg.solver.kind = StepSolverKind::kAuto;
+  cfg.solver.iterative_from_rows = 0;
+  StationCore s(cfg);
+  STRCMP_EQUAL("direct", s.solver_name());
+  CHECK_THROWS(std::invalid_argument, parse_step_solver_kind("cg"));
+}
+
+TEST(StepSolver, one_solver_of_the_same_size_at_any_degree_up_to_16) {
+  const auto& w = PaperWorld::get();
+  std::vector<int> peers16;
+  for (int p = 1; p <= 16; ++p) peers16.push_back(p);
+  for (StepSolverKind kind : {StepSolverKind::kDirect, StepSolverKind::kIterative}) {
+    auto c1 = w.station(0, 17, {1}, 10, test::tetra_dirs()[0]);
+    auto c16 = w.station(0, 17, peers16, 10, test::tetra_dirs()[0]);
+    c1.solver.kind = c16.solver.kind = kind;
+    StationCore s1(c1), s16(c16);
+    CHECK_EQUAL(s1.solver_stored_doubles(), s16.solver_stored_doubles());
+  }
+  std::vector<int> peers17 = peers16;
+  peers17.push_back(17);
+  CHECK_THROWS(std::invalid_argument, StationCore{w.station(0, 18, peers17, 10, test::tetra_dirs()[0])});
+}
+
+TEST_GROUP(OverBound){};
+
+TEST(OverBound, an_edge_over_its_bound_is_a_damper_its_controller_energy_never_increases) {
+  // Both neighbours send stale data (index delay above the bound 0 from tick 1 on) far from this
+  // copy: if the held data were used, the P-coupling would pull and inject energy.
+  const auto& w = PaperWorld::get();
+  auto cfg = w.station(0, 3, {1, 2}, 0.0, test::tetra_dirs()[0], 0);
+  cfg.vp_initial_position_m = Eigen::Vector3d(1, 1, 1);  // no contact
+  StationCore st(cfg);
+  Eigen::VectorXd far = w.scene.x_d, v0 = Eigen::VectorXd::Zero(w.scene.dofs);
+  far.array() += 0.01;
+  for (int n = 0; n < 2; ++n) st.rx(n).offer(0, 0, far.data(), v0.data(), w.scene.dofs);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::VectorXd x = w.scene.x_d, v(w.scene.dofs);
+  for (int i = 0; i < w.scene.dofs; ++i) v[i] = 0.1 * u(rng);
+  st.set_state(x, v);
+  st.tick(Eigen::Vector3d(1, 1, 1));  // k = 0: the packet is within the bound
+  double prev = st.energy().controller_J;
+  int dissipating = 0;
+  for (int k = 1; k < 200; ++k) {
+    const auto out = st.tick(Eigen::Vector3d(1, 1, 1));
+    CHECK_TRUE(out.flags & kEdgeDropped);
+    const double now = st.energy().controller_J;
+    CHECK_TRUE(now <= prev + 1e-15);
+    dissipating += now < prev;
+    prev = now;
+  }
+  CHECK_TRUE(dissipating > 150);
+}
+
+TEST_GROUP(SolverEnergy){};
+
+TEST(SolverEnergy, eq12_balance_is_exact_with_a_loose_iterative_solve_when_its_residual_is_counted) {
+  // B = 0: E(end) - E(0) = port + controller + solver residual energy, to roundoff, although the
+  // solve stops at 5e-4 relative residual (that term alone is far above the check's tolerance).
+  const auto& w = PaperWorld::get();
+  auto cfg = w.station(0, 3, {1, 2}, 12.0, test::tetra_dirs()[1]);
+  cfg.solver.kind = StepSolverKind::kIterative;
+  cfg.solver.relative_tolerance = 5e-4;
+  StationCore st(cfg);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::VectorXd xj(w.scene.dofs), vj(w.scene.dofs);
+  const Eigen::Vector3d p0 = cfg.vp_initial_position_m, in = w.face_inward(test::tetra_dirs()[1]);
+  for (int k = 0; k < 3000; ++k) {
+    for (int n = 0; n < 2; ++n) {
+      if (u(rng) < 0) continue;
+      for (int i = 0; i < w.scene.dofs; ++i) {
+        xj[i] = w.scene.x_d[i] + 2e-3 * u(rng);
+        vj[i] = 0.05 * u(rng);
+      }
+      st.rx(n).offer(k, 0, xj.data(), vj.data(), w.scene.dofs);
+    }
+    st.tick(p0 + (0.01 + 0.01 * u(rng)) * in + 0.003 * Eigen::Vector3d(u(rng), u(rng), u(rng)));
+  }
+  const auto& e = st.energy();
+  const double Eend = w.scene.energy(st.x(), st.v()) / cfg.users;
+  const double supplied = e.port_J + e.controller_J + e.solver_residual_J;
+  const double flows = std::abs(e.port_J) + std::abs(e.controller_J);
+  CHECK_TRUE(std::abs(e.solver_residual_J) > 1e-6 * flows);  // the residual term matters here
+  CHECK_TRUE(std::abs(Eend - supplied) < 1e-9 * flows);
+}

@@ -70,26 +70,7 @@ void only_keys(View t, const std::string& where, std::initializer_list<const cha
   }
 }
 
-}  // namespace
-
-StationFile parse_station_file(std::string_view toml_text) {
-  toml::table doc;
-  try {
-    doc = toml::parse(toml_text);
-  } catch (const toml::parse_error& e) {
-    std::ostringstream os;
-    os << "config: TOML parse error: " << e.description() << " at line " << e.source().begin.line;
-    throw std::invalid_argument(os.str());
-  }
-  const toml::table& cd = doc;
-  const View root{cd};
-  only_keys(root, "", {"station", "device", "rt", "loop", "gpio", "telemetry", "trace", "net", "network"});
-  if (cd.contains("net") && cd.contains("network")) bad("[network]", "absent when [net] is present (one network section)");
-
-  StationFile f;
-  f.text = std::string(toml_text);
-
-  // [station]
+void parse_station_section(View root, StationFile& f) {
   const View st = root["station"];
   if (!st) bad("[station]", "present (with at least id = 1..users)");
   only_keys(st, "station", {"id", "scenario", "topology", "nodes", "duration_s", "seed", "push_start_s", "push_end_s", "release_s",
@@ -125,8 +106,9 @@ StationFile parse_station_file(std::string_view toml_text) {
   s.max_no_neighbour_fraction = real(st["max_no_neighbour_fraction"], "station.max_no_neighbour_fraction", 0.1, 0.0, 1.0);
   s.trace_every = static_cast<int>(integer(st["trace_every"], "station.trace_every", 1, 1, 100000));
   s.state_every = static_cast<int>(integer(st["state_every"], "station.state_every", 5, 1, 100000));
+}
 
-  // [device]
+void parse_device_section(View root, StationFile& f) {
   const View dv = root["device"];
   only_keys(dv, "device", {"kind", "max_force_N", "max_power_W", "max_speed_m_per_s", "sim_max_force_N"});
   DeviceSection& d = f.device;
@@ -137,7 +119,9 @@ StationFile parse_station_file(std::string_view toml_text) {
   d.max_power_W = real(dv["max_power_W"], "device.max_power_W", 3.0, 0, 1000);
   d.max_speed_m_per_s = real(dv["max_speed_m_per_s"], "device.max_speed_m_per_s", 3.0, 1e-6, 1000);
   d.sim_max_force_N = real(dv["sim_max_force_N"], "device.sim_max_force_N", 3.3, 1e-6, 1000);
+}
 
+void parse_platform_sections(View root, StationFile& f) {
   // [rt]
   const View rtv = root["rt"];
   only_keys(rtv, "rt", {"priority", "cpu", "lock_memory", "hold_dma_latency", "require_rt", "isolate_cpu"});
@@ -173,10 +157,9 @@ StationFile parse_station_file(std::string_view toml_text) {
   f.telemetry.postmortem_dir = text(tm["postmortem_dir"], "telemetry.postmortem_dir", ".");
   f.telemetry.postmortem_s = real(tm["postmortem_s"], "telemetry.postmortem_s", 5.0, 0.1, 600);
   f.telemetry.max_dumps = static_cast<std::uint32_t>(integer(tm["max_dumps"], "telemetry.max_dumps", 8, 1, 100000));
+}
 
-  only_keys(root["trace"], "trace", {});
-
-  // [net] / [network]: only key names here; values are net/'s (net/config.hpp).
+void parse_net_keys(const toml::table& cd, View root, StationFile& f) {
   const std::string P = cd.contains("network") ? "network" : "net";
   const View nt = root[P];
   f.net_section = P;
@@ -201,8 +184,35 @@ StationFile parse_station_file(std::string_view toml_text) {
       f.peer_mean_delay_set.emplace_back(id, static_cast<bool>(p["mean_delay_ms"]));
     }
   }
-  if (f.net_station_id_set && integer(nt["station_id"], P + ".station_id", 0, 0, 65534) != s.id)
-    bad(P + ".station_id", "absent or equal to station.id (" + std::to_string(s.id) + "): wire ids are the user numbers");
+  if (f.net_station_id_set && integer(nt["station_id"], P + ".station_id", 0, 0, 65534) != f.station.id)
+    bad(P + ".station_id", "absent or equal to station.id (" + std::to_string(f.station.id) + "): wire ids are the user numbers");
+}
+
+}  // namespace
+
+StationFile parse_station_file(std::string_view toml_text) {
+  toml::table doc;
+  try {
+    doc = toml::parse(toml_text);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream os;
+    os << "config: TOML parse error: " << e.description() << " at line " << e.source().begin.line;
+    throw std::invalid_argument(os.str());
+  }
+  const toml::table& cd = doc;
+  const View root{cd};
+  only_keys(root, "", {"station", "device", "rt", "loop", "gpio", "telemetry", "trace", "net", "network"});
+  if (cd.contains("net") && cd.contains("network")) bad("[network]", "absent when [net] is present (one network section)");
+
+  StationFile f;
+  f.text = std::string(toml_text);
+
+  parse_station_section(root, f);
+  parse_device_section(root, f);
+  parse_platform_sections(root, f);
+  only_keys(root["trace"], "trace", {});
+  // [net] / [network]: only key names here; values are net/'s (net/config.hpp).
+  parse_net_keys(cd, root, f);
   return f;
 }
 

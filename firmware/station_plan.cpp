@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <sstream>
 #include <stdexcept>
 #include <system_error>
 
@@ -28,6 +29,22 @@ std::int64_t clock_ns(clockid_t id) {
 }
 
 [[noreturn]] void bad(const std::string& what) { throw std::invalid_argument("config: " + what); }
+
+std::string num(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+// ScenarioSpec::validate() names the simulator's flags; a station file writes them as [station] keys.
+std::string as_station_keys(std::string message) {
+  static const std::pair<const char*, const char*> kKeys[] = {{"--topology", "station.topology"}, {"--nodes", "station.nodes"},
+                                                              {"--duration", "station.duration_s"}, {"--release", "station.release_s"},
+                                                              {"--push-end", "station.push_end_s"}};
+  for (const auto& [flag, key] : kKeys)
+    for (auto at = message.find(flag); at != std::string::npos; at = message.find(flag, at)) message.replace(at, std::strlen(flag), key);
+  return message;
+}
 
 // FNV-1a, 64 bit, over raw bytes.
 struct Fnv1a {
@@ -107,9 +124,8 @@ void plan_release_warning(StationPlan& p) {
   if (spec.script.kind != UserScriptSpec::Kind::kPushHoldRelease || spec.duration_s > spec.script.release_s) return;
   p.ends_before_release = true;
   const std::string src = p.overrides.duration_s > 0 ? "--duration" : (p.file.station.duration_s > 0 ? "station.duration_s" : "the scenario's duration");
-  p.warnings.push_back("the run (" + src + " = " + std::to_string(spec.duration_s) + " s) ends before the scripted release at station.release_s = " +
-                       std::to_string(spec.script.release_s) + " s: the release metrics will be null and the exit code " +
-                       std::to_string(kExitBeforeRelease));
+  p.warnings.push_back("the run (" + src + " = " + num(spec.duration_s) + " s) ends before the scripted release at station.release_s = " +
+                       num(spec.script.release_s) + " s: the release metrics will be null and the exit code " + std::to_string(kExitBeforeRelease));
 }
 
 // Every check and translation of the plan phase; throws std::invalid_argument naming the key.
@@ -170,7 +186,11 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   if (sc.kind == UserScriptSpec::Kind::kPushHoldRelease && !(sc.push_start_s < sc.push_end_s && sc.push_end_s < sc.release_s))
     bad("station.push_start_s < station.push_end_s < station.release_s must hold (got " + std::to_string(sc.push_start_s) + ", " +
         std::to_string(sc.push_end_s) + ", " + std::to_string(sc.release_s) + ")");
-  spec.validate();
+  try {
+    spec.validate();
+  } catch (const std::invalid_argument& e) {
+    bad(as_station_keys(e.what()));
+  }
   return spec;
 }
 
@@ -267,10 +287,10 @@ void check_tx_spin(const StationFile& f, const net::NetConfig& nc) {
   const double period_us = static_cast<double>(f.loop.period_ns) * 1e-3;
   const double lead_us = e.tx_spin_lead_s * 1e6, tail_us = e.tx_spin_tail_s * 1e6;
   const std::string P = f.net_section;
-  if (!(lead_us < period_us)) bad(P + ".tx_spin_lead_us = " + std::to_string(lead_us) + " must be shorter than the tick period (loop.period_ns = " + std::to_string(period_us) + " us)");
+  if (!(lead_us < period_us)) bad(P + ".tx_spin_lead_us = " + num(lead_us) + " must be shorter than the tick period (loop.period_ns = " + num(period_us) + " us)");
   if (!(lead_us + tail_us < period_us))
-    bad(P + ".tx_spin_lead_us + " + P + ".tx_spin_tail_us = " + std::to_string(lead_us + tail_us) + " us must be shorter than the tick period (loop.period_ns = " +
-        std::to_string(period_us) + " us)");
+    bad(P + ".tx_spin_lead_us + " + P + ".tx_spin_tail_us = " + num(lead_us + tail_us) + " us must be shorter than the tick period (loop.period_ns = " +
+        num(period_us) + " us)");
 }
 
 void check_out_dir_creatable(const std::string& dir, const std::string& key) {

@@ -1,0 +1,172 @@
+// `haptic-station run --check-config` is the plan phase: it rejects every configuration `run`
+// rejects before opening a socket, with exit code 2 and the key named as written in the file.
+#include <CppUTest/TestHarness.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "firmware/station_run.hpp"
+#include "tests/station/station_files.hpp"
+
+using namespace haptic;
+using namespace haptic::firmware;
+
+namespace {
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+struct Checked {
+  int code = -1;
+  std::string out, err;
+};
+
+Checked check(const std::string& text, RunOverrides o = {}) {
+  Checked c;
+  std::ostringstream out, err;
+  c.code = check_station_config(parse_station_file(text), o, out, err);
+  c.out = out.str();
+  c.err = err.str();
+  return c;
+}
+
+// The same file through run_station: it must stop at the same check with the same code.
+int run_code(const std::string& text) {
+  std::atomic<bool> stop{false};
+  RunOverrides o;
+  o.quiet = true;
+  return run_station(parse_station_file(text), o, stop);
+}
+
+test::StationText hub() {
+  test::StationText s;
+  s.id = 1;
+  s.peers = {2, 3, 4};
+  s.out_dir = std::filesystem::temp_directory_path().string();
+  return s;
+}
+
+void rejected_with_key(const std::string& text, const std::string& key) {
+  const Checked c = check(text);
+  LONGS_EQUAL(kExitConfigError, c.code);
+  if (!contains(c.err, key)) FAIL(("expected the key " + key + " in: " + c.err).c_str());
+  LONGS_EQUAL(kExitConfigError, run_code(text));
+}
+
+}  // namespace
+
+TEST_GROUP(CheckConfig){};
+
+TEST(CheckConfig, AValidFileIsAcceptedWithASummary) {
+  const Checked c = check(hub().text());
+  LONGS_EQUAL(kExitOk, c.code);
+  CHECK(contains(c.out, "config ok: station 1 of 4"));
+  CHECK(contains(c.out, "3 neighbour(s)"));
+}
+
+TEST(CheckConfig, APeerThatIsNotANeighbourIsRejectedNamingItsKey) {
+  test::StationText s = hub();
+  s.id = 2;
+  s.peers = {3};
+  rejected_with_key(s.text(), "net.peers[0].id = 3 is not a neighbour of station 2");
+}
+
+TEST(CheckConfig, APeerListedTwiceIsRejectedNamingBothEntries) {
+  test::StationText s = hub();
+  s.peers = {2, 3, 4, 2};
+  rejected_with_key(s.text(), "net.peers[3].id = 2 lists that station a second time (also net.peers[0].id)");
+}
+
+TEST(CheckConfig, AMissingNeighbourIsRejected) {
+  test::StationText s = hub();
+  s.peers = {2, 3};
+  rejected_with_key(s.text(), "net.peers lacks station 4");
+}
+
+TEST(CheckConfig, AnIPv6PeerOfAnIPv4BindIsRejectedNamingTheAddressKey) {
+  test::StationText s = hub();
+  s.peers = {};
+  std::string t = s.text();
+  t += "[[net.peers]]\nid = 2\naddress = \"127.0.0.1:50002\"\n[[net.peers]]\nid = 3\naddress = \"[::1]:50003\"\n[[net.peers]]\nid = 4\naddress = \"127.0.0.1:50004\"\n";
+  rejected_with_key(t, "net.peers[1].address = \"[::1]:50003\" must be the same address family");
+}
+
+TEST(CheckConfig, AnIoCpuThisProcessCannotUseIsRejected) {
+  test::StationText s = hub();
+  s.net_extra = "io_cpu = 1000\n";
+  rejected_with_key(s.text(), "net.io_cpu = 1000");
+}
+
+TEST(CheckConfig, ATxSpinWindowLongerThanThePeriodIsRejected) {
+  test::StationText s = hub();
+  s.net_extra = "tx_spin = true\ntx_spin_lead_us = 2500\n";
+  rejected_with_key(s.text(), "net.tx_spin_lead_us = 2500");
+  s.net_extra = "tx_spin = true\ntx_spin_lead_us = 100\ntx_spin_tail_us = 1950\n";
+  rejected_with_key(s.text(), "net.tx_spin_lead_us + net.tx_spin_tail_us = 2050");
+  s.net_extra = "tx_spin = true\n";  // the shipped lead/tail fit a 2 ms tick
+  LONGS_EQUAL(kExitOk, check(s.text()).code);
+}
+
+TEST(CheckConfig, AnOutDirThatCannotBeCreatedIsRejected) {
+  const std::string dir = test::fresh_dir("outdir");
+  const std::string file = dir + "/plain-file";
+  std::ofstream(file) << "x";
+  test::StationText s = hub();
+  s.out_dir = file + "/sub";
+  rejected_with_key(s.text(), "station.out_dir = \"" + file + "/sub\" cannot be created");
+  // nothing was created by the check
+  s.out_dir = dir + "/new/deeper";
+  LONGS_EQUAL(kExitOk, check(s.text()).code);
+  CHECK_FALSE(std::filesystem::exists(dir + "/new"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(CheckConfig, KeysAreNamedAsWrittenUnderTheNetworkAlias) {
+  std::string t = "[station]\nid = 2\nio_priority = 0\nout_dir = \"/tmp\"\n[network]\nlisten = \"127.0.0.1:50002\"\n";
+  t += "session_key = \"000102030405060708090a0b0c0d0e0f101112131415161718191a1b1c1d1e1f\"\n";
+  t += "peers = [{ station = 3, address = \"127.0.0.1:50003\" }]\n";
+  rejected_with_key(t, "network.peers[0].station = 3 is not a neighbour");
+}
+
+TEST(CheckConfig, ScenarioKeysAreNamedAsWrittenNotAsFlags) {
+  test::StationText s = hub();
+  s.station_extra = "topology = \"1-2,3-4\"\n";
+  rejected_with_key(s.text(), "station.topology must connect all users");
+  s.station_extra = "push_end_s = 6\nrelease_s = 5\n";
+  rejected_with_key(s.text(), "station.release_s");
+}
+
+TEST(CheckConfig, ARunThatEndsBeforeTheReleaseIsAWarningAtStart) {
+  test::StationText s = hub();
+  s.station_extra = "duration_s = 4\nrelease_s = 5\n";
+  const Checked c = check(s.text());
+  LONGS_EQUAL(kExitOk, c.code);
+  CHECK(contains(c.out, "ends before the scripted release at station.release_s = 5"));
+  RunOverrides o;
+  o.duration_s = 2;
+  s.station_extra = "release_s = 5\n";
+  CHECK(contains(check(s.text(), o).out, "(--duration = 2 s) ends before"));
+}
+
+TEST(CheckConfig, AStartLongAfterTheCommonEpochIsAConfigurationError) {
+  RunOverrides o;
+  o.start_at = 1.0;  // CLOCK_MONOTONIC 1 s after boot: long past
+  const Checked c = check(hub().text(), o);
+  LONGS_EQUAL(kExitConfigError, c.code);
+  CHECK(contains(c.err, "--start-at"));
+}
+
+TEST(CheckConfig, TheFingerprintNamesTheFirstFieldThatDiffers) {
+  const BuiltScenario a = build_scenario(make_scenario("paper-best"));
+  ScenarioSpec bigger = make_scenario("paper-best");
+  bigger.scene_nodes = 27;
+  ScenarioSpec stiffer = make_scenario("paper-best");
+  stiffer.p_gain_N_per_m = 900;
+  const SceneFingerprint fa = scene_fingerprint(a, 2'000'000);
+  STRCMP_EQUAL("", fa.first_difference(scene_fingerprint(build_scenario(make_scenario("paper-best")), 2'000'000)).c_str());
+  STRCMP_EQUAL("scene nodes", fa.first_difference(scene_fingerprint(build_scenario(bigger), 2'000'000)).c_str());
+  STRCMP_EQUAL("gains", fa.first_difference(scene_fingerprint(build_scenario(stiffer), 2'000'000)).c_str());
+  STRCMP_EQUAL("period", fa.first_difference(scene_fingerprint(a, 1'000'000)).c_str());
+}

@@ -1,0 +1,223 @@
+// The phases of `haptic-station run` in-process over UDP on 127.0.0.1 (no root): a station
+// alone, four stations on threads, and the conditions each exit code names. Runs are short
+// (probing 0.3 s, run 0.4-1 s); nothing depends on timing beyond "packets flow on loopback".
+#include <CppUTest/TestHarness.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "drivers/device_factory.hpp"
+#include "drivers/simulated_device.hpp"
+#include "firmware/station_run.hpp"
+#include "tests/station/station_files.hpp"
+
+using namespace haptic;
+using namespace haptic::firmware;
+using nlohmann::json;
+
+namespace {
+
+constexpr const char* kShort = "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 1.0\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 0.5\n";
+
+json station_json(const std::string& dir, int id) {
+  std::ifstream in(dir + "/station-" + std::to_string(id) + ".json");
+  return json::parse(in);
+}
+
+bool has(const json& list, const std::string& name) {
+  for (const auto& v : list)
+    if (v == name) return true;
+  return false;
+}
+
+// The paper's star (1 is the hub): four run_station() calls on four threads with one common epoch.
+// station_extra[i] is appended to station i+1's [station] section.
+std::vector<int> run_four(const std::string& dir, int session, const std::vector<std::string>& station_extra) {
+  const int base = test::station_port_base();
+  const double epoch_s = static_cast<double>(read_clocks().monotonic_ns) * 1e-9 + 0.4;
+  std::vector<int> codes(4, -1);
+  std::vector<std::thread> threads;
+  std::atomic<bool> stop{false};
+  for (int i = 1; i <= 4; ++i) {
+    test::StationText s;
+    s.id = i;
+    s.peers = i == 1 ? std::vector<int>{2, 3, 4} : std::vector<int>{1};
+    s.port_base = base;
+    s.session = session;
+    s.out_dir = dir;
+    s.station_extra = station_extra[static_cast<std::size_t>(i - 1)];
+    threads.emplace_back([&codes, &stop, i, text = s.text(), epoch_s] {
+      RunOverrides o;
+      o.quiet = true;
+      o.start_at = epoch_s;
+      codes[static_cast<std::size_t>(i - 1)] = run_station(parse_station_file(text), o, stop);
+    });
+  }
+  for (auto& t : threads) t.join();
+  return codes;
+}
+
+}  // namespace
+
+TEST_GROUP(StationPhases){};
+
+TEST(StationPhases, AStationAloneExitsNonZeroSayingNoNeighbourAnsweredAndReportsNullMetrics) {
+  const std::string dir = test::fresh_dir("alone");
+  test::StationText s;
+  s.id = 2;
+  s.peers = {1};
+  s.port_base = test::station_port_base();
+  s.session = 101;
+  s.out_dir = dir;
+  s.station_extra = kShort;
+  std::atomic<bool> stop{false};
+  RunOverrides o;
+  o.quiet = true;
+  o.start_at = static_cast<double>(read_clocks().monotonic_ns) * 1e-9 + 0.2;
+  LONGS_EQUAL(kExitNoNeighbour, run_station(parse_station_file(s.text()), o, stop));
+  const json j = station_json(dir, 2);
+  CHECK(has(j["conditions"], "no_neighbour"));
+  CHECK(j["error"].get<std::string>().find("no neighbour answered") != std::string::npos);
+  LONGS_EQUAL(kExitNoNeighbour, j["exit_code"].get<int>());
+  LONGS_EQUAL(0, j["ticks_run"].get<int>());
+  CHECK(j["port_energy_min_J"].is_null());
+  CHECK(j["max_node_speed_m_per_s"].is_null());
+  CHECK(j["no_neighbour_fraction"].is_null());
+  CHECK(j["damping_Ns_per_m"].is_null());
+  CHECK(j["links"][0]["rtt_mean_ms"].is_null());
+  CHECK(j["links"][0]["one_way_mean_ms"].is_null());
+  CHECK(j["links"][0]["tx_packets_run"].get<int>() == 0);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, FourStationsOnThreadsRunEveryPhaseAndExitZero) {
+  const std::string dir = test::fresh_dir("four");
+  const std::vector<int> codes = run_four(dir, 102, {kShort, kShort, kShort, kShort});
+  for (int i = 1; i <= 4; ++i) {
+    LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
+    const json j = station_json(dir, i);
+    CHECK(j["conditions"].empty());
+    CHECK(j["passivity_condition_met"].get<bool>());
+    CHECK_FALSE(j["diverged"].get<bool>());
+    CHECK(j["ticks_run"].get<int>() > 400);  // 500 planned; an overrun may skip a few
+    CHECK(j["rx_offered"].get<int>() > 300);
+    CHECK(j["no_neighbour_fraction"].get<double>() < 0.1);
+    CHECK(j["probe_loop"]["ticks"].get<int>() > 100);
+    CHECK(j["error"].is_null());
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, ARunEndingBeforeTheScriptedReleaseExitsWithItsOwnCode) {
+  const std::string dir = test::fresh_dir("early");
+  const std::string early = "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 0.4\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 0.5\n";
+  const std::vector<int> codes = run_four(dir, 103, {early, early, early, early});
+  for (int i = 1; i <= 4; ++i) {
+    LONGS_EQUAL(kExitBeforeRelease, codes[static_cast<std::size_t>(i - 1)]);
+    const json j = station_json(dir, i);
+    CHECK(has(j["conditions"], "ended_before_release"));
+    CHECK(j["warnings"][0].get<std::string>().find("before the scripted release") != std::string::npos);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, DampingBelowEq18OnTheMeasuredBoundsExitsPassivityNotMet) {
+  const std::string dir = test::fresh_dir("passivity");
+  const std::string low = std::string(kShort) + "damping_Ns_per_m = 0.5\n";  // far below eq. (18) for the hub
+  const std::vector<int> codes = run_four(dir, 104, {low, kShort, kShort, kShort});
+  LONGS_EQUAL(kExitPassivityNotMet, codes[0]);
+  const json j = station_json(dir, 1);
+  CHECK(has(j["conditions"], "passivity_condition_not_met"));
+  CHECK_FALSE(j["passivity_condition_met"].get<bool>());
+  CHECK(j["damping_Ns_per_m"].get<double>() < j["damping_min_Ns_per_m"].get<double>());
+  for (int i = 2; i <= 4; ++i) CHECK_FALSE(has(station_json(dir, i)["conditions"], "passivity_condition_not_met"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, AHubWhoseNeighboursLeaveEarlyExitsNoNeighbour) {
+  const std::string dir = test::fresh_dir("left");
+  const std::string leaf = "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 0.3\npush_start_s = 0.05\npush_end_s = 0.1\nrelease_s = 0.2\n";
+  const std::string hub = "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 1.2\npush_start_s = 0.05\npush_end_s = 0.1\nrelease_s = 0.2\n";
+  const std::vector<int> codes = run_four(dir, 105, {hub, leaf, leaf, leaf});
+  LONGS_EQUAL(kExitNoNeighbour, codes[0]);
+  const json j = station_json(dir, 1);
+  CHECK(has(j["conditions"], "no_neighbour"));
+  CHECK(j["no_neighbour_fraction"].get<double>() > 0.5);
+  for (int i = 2; i <= 4; ++i) LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, AnExceptionAtTheLoopBoundaryEntersTheSafeStateAndIsReported) {
+  test::StationText s;
+  s.peers = {2, 3, 4};
+  s.out_dir = test::fresh_dir("boundary");
+  s.station_extra = kShort;
+  const PlanResult pr = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  CHECK(pr.status == PhaseStatus::kOk);
+  StationPlan plan = *pr.plan;
+  plan.times.epoch_ns = read_clocks().monotonic_ns + 50'000'000 - plan.times.run_k0 * plan.times.period_ns;  // the run starts in 50 ms
+  drivers::OpenedDevice dev = drivers::open_device(plan.device);
+  std::atomic<bool> stop{false};
+  std::int64_t ticks = 0;
+  const RunTickFn tick = [&](std::int64_t, std::int64_t, const platform::TickInfo&) {
+    const double push[3] = {1.0, 0, 0};
+    dev.device->command_force(push);
+    if (++ticks == 6) throw std::runtime_error("injected fault in tick 5");
+  };
+  const RunPhaseResult r = run_periodic(plan, dev.device.get(), tick, stop, RunObserver{});
+  CHECK(r.loop_exception);
+  CHECK(r.status == PhaseStatus::kFailed);
+  CHECK(r.loop_exception_what.find("injected fault in tick 5") != std::string::npos);
+  LONGS_EQUAL(6, ticks);  // the loop ended at the throwing tick
+  dev.simulated->service(1.0, plan.built->spec.period_s);  // the backend takes the last commanded force
+  double f[3] = {9, 9, 9};
+  dev.simulated->last_output_force(f);
+  DOUBLES_EQUAL(0.0, f[0], 0);  // zero force, not the tick's 1 N
+  // the report names it and exits with the safe-state code
+  StationOutcome o;
+  o.plan = &plan;
+  o.run = &r;
+  o.failure = r.message;
+  o.failure_status = r.status;
+  const RunConditions c = run_conditions(o);
+  CHECK(c.safe_state_latched);
+  LONGS_EQUAL(kExitSafeState, exit_code(c));
+  dev.device->stop();
+  std::filesystem::remove_all(s.out_dir);
+}
+
+TEST(StationPhases, ExitCodesFollowTheDocumentedOrder) {
+  RunConditions c;
+  LONGS_EQUAL(kExitOk, exit_code(c));
+  c.ended_before_release = true;
+  LONGS_EQUAL(kExitBeforeRelease, exit_code(c));
+  c.failed = true;
+  LONGS_EQUAL(kExitRunFailed, exit_code(c));
+  c.no_neighbour = true;
+  LONGS_EQUAL(kExitNoNeighbour, exit_code(c));
+  c.passivity_not_met = true;
+  LONGS_EQUAL(kExitPassivityNotMet, exit_code(c));
+  c.safe_state_latched = true;
+  LONGS_EQUAL(kExitSafeState, exit_code(c));
+  c.diverged = true;
+  LONGS_EQUAL(kExitDiverged, exit_code(c));
+  LONGS_EQUAL(6u, c.names().size());
+}
+
+TEST(StationPhases, ALatchedDeviceFaultIsASafeStateCondition) {
+  test::StationText s;
+  s.peers = {2, 3, 4};
+  s.out_dir = "/tmp";
+  const PlanResult pr = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  StationOutcome o;
+  o.plan = pr.plan.get();
+  o.device_fault = "none";
+  CHECK_FALSE(run_conditions(o).safe_state_latched);
+  o.device_fault = "unplugged";
+  CHECK(run_conditions(o).safe_state_latched);
+}

@@ -22,7 +22,11 @@ using nlohmann::json;
 
 namespace {
 
-constexpr const char* kShort = "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 1.0\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 0.5\n";
+// Without an impairment the index guards are 2-3 ticks, which a loaded machine's scheduling can
+// exceed now and then: tests of other conditions accept any share of ticks without a neighbour
+// (AHubWhoseNeighboursLeaveEarlyExitsNoNeighbour checks that condition with the default limit).
+constexpr const char* kShort =
+    "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 1.0\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 0.5\nmax_no_neighbour_fraction = 1.0\n";
 
 json station_json(const std::string& dir, int id) {
   std::ifstream in(dir + "/station-" + std::to_string(id) + ".json");
@@ -106,7 +110,7 @@ TEST(StationPhases, FourStationsOnThreadsRunEveryPhaseAndExitZero) {
     CHECK_FALSE(j["diverged"].get<bool>());
     CHECK(j["ticks_run"].get<int>() > 400);  // 500 planned; an overrun may skip a few
     CHECK(j["rx_offered"].get<int>() > 300);
-    CHECK(j["no_neighbour_fraction"].get<double>() < 0.1);
+    CHECK(j["no_neighbour_fraction"].get<double>() < 0.5);  // measured, not zero by construction
     CHECK(j["probe_loop"]["ticks"].get<int>() > 0);  // the probing phase ran (150 ticks when on time)
     CHECK(j["error"].is_null());
   }
@@ -115,7 +119,8 @@ TEST(StationPhases, FourStationsOnThreadsRunEveryPhaseAndExitZero) {
 
 TEST(StationPhases, ARunEndingBeforeTheScriptedReleaseExitsWithItsOwnCode) {
   const std::string dir = test::fresh_dir("early");
-  const std::string early = "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 0.4\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 0.5\n";
+  const std::string early =
+      "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 0.4\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 0.5\nmax_no_neighbour_fraction = 1.0\n";
   const std::vector<int> codes = run_four(dir, 103, {early, early, early, early});
   for (int i = 1; i <= 4; ++i) {
     LONGS_EQUAL(kExitBeforeRelease, codes[static_cast<std::size_t>(i - 1)]);

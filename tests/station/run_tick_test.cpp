@@ -12,7 +12,7 @@
 
 #include "drivers/device_factory.hpp"
 #include "firmware/scenario.hpp"
-#include "firmware/station_jitter_workload.hpp"
+#include "tools/jitter/station_workload.hpp"
 #include "firmware/station_run.hpp"
 #include "net/config.hpp"
 #include "tests/support/alloc_counter.hpp"
@@ -97,7 +97,7 @@ TEST(RunTick, OneLoopIterationAllocatesNothingAndUsesTheNeighboursPackets) {
 }
 
 TEST(RunTick, TheJitterWorkloadIsTheRealStationTickAndAllocatesNothing) {
-  firmware::StationJitterWorkload w;
+  tools::StationJitterWorkload w;
   LONGS_EQUAL(3, w.core().neighbor_count());
   platform::TickInfo info;
   for (std::uint64_t k = 0; k < 100; ++k) {

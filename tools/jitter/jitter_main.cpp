@@ -13,10 +13,10 @@
 #include <string>
 #include <vector>
 
-#include "firmware/station_jitter_workload.hpp"
 #include "platform/rt_thread.hpp"
 #include "platform/trace.hpp"
 #include "tools/jitter/jitter.hpp"
+#include "tools/jitter/station_workload.hpp"
 
 namespace {
 std::atomic<bool> g_stop{false};  // set by SIGINT/SIGTERM (lock-free atomic: async-signal-safe)
@@ -81,8 +81,8 @@ int main(int argc, char** argv) {
   std::string json;
   try {
     // Built (and factored) before the real-time thread starts: construction allocates.
-    std::unique_ptr<firmware::StationJitterWorkload> station;
-    if (station_workload) station = std::make_unique<firmware::StationJitterWorkload>("paper-best");
+    std::unique_ptr<tools::StationJitterWorkload> station;
+    if (station_workload) station = std::make_unique<tools::StationJitterWorkload>("paper-best");
     rt.isolate_cpu = !no_isolate;
     std::atomic<bool> finished{false};
     platform::RtThread thread(rt, [&](const platform::RtReport& report) {

@@ -1,9 +1,9 @@
 #pragma once
-// The real station tick as a haptic-jitter workload (tools/jitter/jitter.hpp): user 1 of the
+// The real station tick as a haptic-jitter workload (jitter.hpp): user 1 of the
 // paper's scene (4 users, 33 nodes, 3 neighbours in the best topology), its neighbours' receive
 // links fed one synthetic packet each per tick (the neighbours' copies at rest, index delay 3),
-// the simulated user's device advanced by the commanded force. Header-only so the firmware
-// library does not depend on tools/: the jitter tool includes it and links haptic_firmware.
+// the simulated user's device advanced by the commanded force. It lives with haptic-jitter (which
+// links haptic_firmware), so nothing in firmware/ includes tools/ (DESIGN.md: dependencies point down).
 // Construction builds and factors the scene (not RT-safe); tick() is RT-safe.
 #include <string>
 #include <vector>
@@ -13,12 +13,12 @@
 #include "rt/user_model.hpp"
 #include "tools/jitter/jitter.hpp"
 
-namespace haptic::firmware {
+namespace haptic::tools {
 
-class StationJitterWorkload final : public tools::JitterWorkload {
+class StationJitterWorkload final : public JitterWorkload {
  public:
   explicit StationJitterWorkload(const std::string& scenario = "paper-best")
-      : built_(build_scenario(make_scenario(scenario))),
+      : built_(firmware::build_scenario(firmware::make_scenario(scenario))),
         core_(built_.station_config(0)),
         user_(built_.spec.device, built_.spec.hand, built_.goal_script(0)),
         x0_(built_.scene.x_d.data(), built_.scene.x_d.data() + built_.scene.dofs),
@@ -40,11 +40,11 @@ class StationJitterWorkload final : public tools::JitterWorkload {
   const rt::StationCore& core() const { return core_; }
 
  private:
-  BuiltScenario built_;
+  firmware::BuiltScenario built_;
   rt::StationCore core_;
   rt::SimulatedUser user_;
   std::vector<double> x0_, v0_;
   std::uint32_t flags_ = 0;
 };
 
-}  // namespace haptic::firmware
+}  // namespace haptic::tools

@@ -16,22 +16,19 @@
 #include "firmware/station_config.hpp"
 #include "firmware/station_phase.hpp"
 #include "firmware/station_run.hpp"
+#include "platform/install_paths.hpp"
 
 namespace fs = std::filesystem;
 using namespace haptic::firmware;
 
 namespace {
 
-std::string tools_dir() {
-  if (const char* e = std::getenv("HAPTIC_TOOLS_DIR")) return e;
-  return HAPTIC_TOOLS_DIR;
-}
-
 // Runs the matplotlib figure script on a run directory; explains plainly when it cannot.
 bool make_plots(const std::string& dir) {
-  const std::string script = tools_dir() + "/plots/plot_run.py";
+  const std::string script = haptic::platform::tools_dir() + "/plots/plot_run.py";
   if (!fs::exists(script)) {
-    std::cerr << "haptic-station: no figures: " << script << " not found (set HAPTIC_TOOLS_DIR)\n";
+    std::cerr << "haptic-station: no figures: " << script
+              << " not found (looked next to this executable's ../share/haptic/tools; set HAPTIC_TOOLS_DIR)\n";
     return false;
   }
   if (!fs::exists("/usr/bin/python3")) {

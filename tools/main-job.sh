@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The main job: the paper's 4-user experiment (Huang & Lee 2013, Section V) end to end.
-#   1. build (Release)
+#   1. build (Release) only what it runs: haptic-station and haptic-topology (no tests, no benchmarks)
 #   2. topology choice from the delay matrix (eq. 27) with haptic-topology: best and worst
 #   3. damping from eq. (18) and the paper-best, paper-worst and paper-unstable runs
 #   4. a report (Markdown + PNG) with our numbers next to the paper's
@@ -20,7 +20,7 @@ while [ $# -gt 0 ]; do
 done
 BUILD=${HAPTIC_BUILD_DIR:-build}  # build directory (default build/)
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release
-cmake --build "$BUILD" -j"$(nproc)"
+cmake --build "$BUILD" -j"$(nproc)" --target haptic-station haptic-topology
 mkdir -p "$OUT"
 DELAYS="0,4,4,4;8,0,80,200;4,100,0,200;6,240,200,0"
 # Topology choice (eq. 27) over all connected 3-link graphs of the paper's delay matrix.

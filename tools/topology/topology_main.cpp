@@ -17,14 +17,11 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "platform/install_paths.hpp"
 #include "rt/mesh.hpp"
 #include "rt/scene.hpp"
 #include "tools/topology/topology.hpp"
 #include "tools/topology/topology_io.hpp"
-
-#ifndef HAPTIC_TOOLS_DIR
-#define HAPTIC_TOOLS_DIR "tools"
-#endif
 
 namespace topo = haptic::rt::topology;
 namespace tio = haptic::tools::topology;
@@ -377,8 +374,7 @@ int main(int argc, char** argv) {
       f.close();
       if (!json_out.empty()) std::printf("\nwrote %s\n", json_out.c_str());
       if (!png_out.empty()) {
-        const char* env = std::getenv("HAPTIC_TOOLS_DIR");
-        const std::string script = std::string(env ? env : HAPTIC_TOOLS_DIR) + "/topology/plot_topology.py";
+        const std::string script = haptic::platform::tools_dir() + "/topology/plot_topology.py";
         const std::string cmd = "/usr/bin/python3 '" + script + "' '" + jpath + "' '" + png_out + "'";
         const int rc = std::system(cmd.c_str());
         if (rc != 0) {

@@ -107,7 +107,7 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
     if (l.impaired) p->impaired = ImpairedLink(l.impairment, l.seed);
     p->rtt = RttEstimator(cfg.rtt);
     p->stats.station_id = l.station_id;
-    p->box.publish(p->stats);
+    p->box.writer_publish(p->stats);
     peers_.push_back(std::move(p));
   }
   send_records_.resize(kSendRecords);
@@ -304,20 +304,20 @@ void Endpoint::publish_stats() {
       const double span = static_cast<double>(ps.newest_seq - ps.lowest_seq + 1);
       ps.loss_fraction = std::max(0.0, 1.0 - static_cast<double>(ps.packets_received_incarnation) / span);
     }
-    p.box.publish(ps);
+    p.box.writer_publish(ps);
   }
   counters_.drops = decoder_.drops();
-  counters_box_.publish(counters_);
+  counters_box_.writer_publish(counters_);
 }
 
 EndpointStats Endpoint::stats() const {
   EndpointStats s;
-  static_cast<EndpointCounters&>(s) = counters_box_.read();
+  static_cast<EndpointCounters&>(s) = counters_box_.reader_snapshot();
   s.incarnation = incarnation_;
   s.tx_overruns = tx_overruns_.load(std::memory_order_relaxed);
   s.io_thread_cpu_s = io_thread_cpu_s();
   s.tx_handoff_mean_s = s.tx_packets ? s.tx_handoff_sum_s / static_cast<double>(s.tx_packets) : 0.0;
-  for (const auto& p : peers_) s.peers.push_back(p->box.read());
+  for (const auto& p : peers_) s.peers.push_back(p->box.reader_snapshot());
   return s;
 }
 

@@ -6,6 +6,8 @@
 // of an RT writer (e.g. the network I/O thread). The record is held in relaxed atomic words,
 // so concurrent access is race-free in the C++ memory model (and under ThreadSanitizer).
 // Reader cost grows with sizeof(T): fine for statistics records of a few hundred bytes.
+// Methods are named after the side that calls them (writer_*, reader_*), like the other
+// hand-off primitives here (spsc_ring.hpp, latest_mailbox.hpp).
 #include <array>
 #include <atomic>
 #include <cstddef>
@@ -22,7 +24,7 @@ class SnapshotBox {
 
  public:
   // Writer side (one thread). RT-safe: wait-free, no allocation, no syscall.
-  void publish(const T& value) {
+  void writer_publish(const T& value) {
     std::array<std::uint64_t, kWords> w{};
     std::memcpy(w.data(), &value, sizeof(T));
     const std::uint64_t s = seq_.load(std::memory_order_relaxed);
@@ -35,8 +37,8 @@ class SnapshotBox {
   }
 
   // Reader side (any thread): the newest complete record (a default-constructed T before the
-  // first publish). Retries while the writer is inside publish(): not RT-safe on the reader side.
-  T read() const {
+  // first publication). Retries while the writer is inside writer_publish(): not RT-safe.
+  T reader_snapshot() const {
     std::array<std::uint64_t, kWords> w{};
     for (;;) {
       const std::uint64_t s0 = seq_.load(std::memory_order_acquire);
@@ -49,7 +51,7 @@ class SnapshotBox {
     return out;
   }
 
-  // How many times publish() ran (readers can tell whether anything changed). Any thread.
+  // How many times writer_publish() ran (readers can tell whether anything changed). Any thread.
   std::uint64_t publications() const { return seq_.load(std::memory_order_acquire) / 2; }
 
  private:

@@ -20,13 +20,13 @@ TEST_GROUP(SnapshotBox) {};
 
 TEST(SnapshotBox, ReaderNeverSeesATornRecordAndEndsWithTheNewest) {
   SnapshotBox<Record> box;
-  CHECK_EQUAL(0u, box.read().w[0]);  // before the first publish: a value-initialised record
+  CHECK_EQUAL(0u, box.reader_snapshot().w[0]);  // before the first publish: a value-initialised record
   std::atomic<bool> done{false};
   std::uint64_t torn = 0, reads = 0, went_back = 0;
   std::thread reader([&] {
     std::uint64_t last = 0;
     while (!done.load(std::memory_order_acquire)) {
-      const Record r = box.read();
+      const Record r = box.reader_snapshot();
       for (std::uint64_t v : r.w)
         if (v != r.w[0]) ++torn;
       if (r.w[0] < last) ++went_back;
@@ -38,13 +38,13 @@ TEST(SnapshotBox, ReaderNeverSeesATornRecordAndEndsWithTheNewest) {
   Record r{};
   for (std::uint64_t i = 1; i <= kWrites; ++i) {
     for (auto& v : r.w) v = i;
-    box.publish(r);
+    box.writer_publish(r);
   }
   done.store(true, std::memory_order_release);
   reader.join();
   CHECK(reads > 0);
   CHECK_EQUAL(0u, torn);
   CHECK_EQUAL(0u, went_back);
-  CHECK_EQUAL(kWrites, box.read().w[39]);
+  CHECK_EQUAL(kWrites, box.reader_snapshot().w[39]);
   CHECK_EQUAL(kWrites, box.publications());
 }

@@ -11,6 +11,7 @@
 #include "tests/support/alloc_counter.hpp"
 
 using namespace haptic::rt;
+using namespace haptic::study;
 
 namespace {
 // A small undamped spring system: a 4-node chain tied to ground at node 0, pushed at node 3.

@@ -11,6 +11,7 @@
 #include "tests/support/alloc_counter.hpp"
 
 using namespace haptic::rt;
+using namespace haptic::study;
 
 namespace {
 const PushProblem& paper_problem() {

@@ -8,6 +8,7 @@
 
 using namespace haptic;
 using namespace haptic::rt;
+using namespace haptic::study;
 
 TEST_GROUP(ModelSelector){};
 

@@ -11,6 +11,7 @@
 #include "tools/study/model_selector.hpp"
 
 using namespace haptic::rt;
+using namespace haptic::study;
 
 namespace {
 const PushProblem& problem(int nodes) {

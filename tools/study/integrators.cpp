@@ -3,7 +3,7 @@
 #include <cmath>
 #include <stdexcept>
 
-namespace haptic::rt {
+namespace haptic::study {
 
 namespace {
 struct Named {
@@ -53,7 +53,7 @@ LinearIntegrator::LinearIntegrator(const LinearModel& model, Integrator method, 
     : method_(method), h_(step_s), m_(model.node_mass_kg), b_(model.damping_Ns_per_m), profile_(model.profile) {
   model.validate();
   if (!(step_s > 0) || !std::isfinite(step_s)) throw std::invalid_argument("integrator step_s must be > 0");
-  K_ = SpatialMatrix::isotropic(model.K);
+  K_ = rt::SpatialMatrix::isotropic(model.K);
   const int dofs = 3 * model.nodes;
   g_ = model.load.size() ? model.load : Eigen::VectorXd::Zero(dofs);
   driven_ = g_.squaredNorm() > 0;
@@ -64,10 +64,10 @@ LinearIntegrator::LinearIntegrator(const LinearModel& model, Integrator method, 
     // Backward Euler: (m + h b) I + h^2 S;  NPMI (eq. 9): (2m/h + b) I + (h/2) S.
     const double diag = method == Integrator::kNpmi ? 2.0 * m_ / h_ + b_ : m_ + h_ * b_;
     const double kscale = method == Integrator::kNpmi ? 0.5 * h_ : h_ * h_;
-    SparseRowMajor I(model.nodes, model.nodes);
+    rt::SparseRowMajor I(model.nodes, model.nodes);
     I.setIdentity();
-    SparseRowMajor A = diag * I + kscale * model.K;
-    ldlt_ = SparseLdlt(SparseColMajor(A));
+    rt::SparseRowMajor A = diag * I + kscale * model.K;
+    ldlt_ = rt::SparseLdlt(rt::SparseColMajor(A));
   }
 }
 
@@ -167,4 +167,4 @@ double LinearIntegrator::energy() {
   return 0.5 * m_ * v_.squaredNorm() + 0.5 * u_.dot(s_);
 }
 
-}  // namespace haptic::rt
+}  // namespace haptic::study

@@ -14,7 +14,7 @@
 #include "rt/sparse_ldlt.hpp"
 #include "rt/spatial_matrix.hpp"
 
-namespace haptic::rt {
+namespace haptic::study {
 
 enum class Integrator { kNpmi, kExplicitEuler, kSemiImplicitEuler, kBackwardEuler, kRk4 };
 
@@ -34,7 +34,7 @@ struct LinearModel {
   int nodes = 0;
   double node_mass_kg = 0.04;       // m
   double damping_Ns_per_m = 0.0;    // b
-  SparseRowMajor K;                 // node-level n x n stiffness S (symmetric, PSD)
+  rt::SparseRowMajor K;                 // node-level n x n stiffness S (symmetric, PSD)
   Eigen::VectorXd load;             // g: 3n interleaved force (N) at s = 1; empty or zero: free
   PushProfile profile;
   void validate() const;  // throws std::invalid_argument naming the field
@@ -72,13 +72,13 @@ class LinearIntegrator {
 
   Integrator method_;
   double h_, t_ = 0, m_, b_;
-  SpatialMatrix K_;
+  rt::SpatialMatrix K_;
   Eigen::VectorXd g_;
   bool driven_ = false;
   PushProfile profile_;
-  SparseLdlt ldlt_;
+  rt::SparseLdlt ldlt_;
   Eigen::VectorXd u_, v_, r_, s_, scratch_;
   Eigen::VectorXd k1u_, k1v_, k2u_, k2v_, k3u_, k3v_, k4u_, k4v_, us_, vs_;
 };
 
-}  // namespace haptic::rt
+}  // namespace haptic::study

@@ -6,7 +6,7 @@
 #include <complex>
 #include <stdexcept>
 
-namespace haptic::rt {
+namespace haptic::study {
 
 namespace {
 using NodeMat = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
@@ -155,4 +155,4 @@ void ModalReducedModel::displacement(Eigen::VectorXd& u) const {
   u = Eigen::Map<const Eigen::VectorXd>(U.data(), U.size());
 }
 
-}  // namespace haptic::rt
+}  // namespace haptic::study

@@ -8,7 +8,7 @@
 
 #include "tools/study/integrators.hpp"
 
-namespace haptic::rt {
+namespace haptic::study {
 
 struct ModalBasis {
   double node_mass_kg = 0;
@@ -71,4 +71,4 @@ class ModalReducedModel {
   double sc_output_ = 0;  // w . (static-correction shape)
 };
 
-}  // namespace haptic::rt
+}  // namespace haptic::study

@@ -6,7 +6,7 @@
 #include <set>
 #include <stdexcept>
 
-namespace haptic::rt {
+namespace haptic::study {
 
 void PushProblemParams::validate() const {
   auto need = [](bool ok, const char* key, const char* range) {
@@ -24,19 +24,19 @@ void PushProblemParams::validate() const {
   need(direction.norm() > 0, "direction", "non-zero");
 }
 
-TetMesh make_ball_mesh(int nodes, double radius_m) {
-  return nodes == 33 ? make_paper_ball(radius_m) : make_lattice_ball(nodes, radius_m);
+rt::TetMesh make_ball_mesh(int nodes, double radius_m) {
+  return nodes == 33 ? rt::make_paper_ball(radius_m) : rt::make_lattice_ball(nodes, radius_m);
 }
 
 namespace {
-double mean_edge_length(const TetMesh& m) {
+double mean_edge_length(const rt::TetMesh& m) {
   double s = 0;
   for (const auto& e : m.edges) s += (m.nodes[static_cast<std::size_t>(e[0])] - m.nodes[static_cast<std::size_t>(e[1])]).norm();
   return s / static_cast<double>(m.edges.size());
 }
 
 // Surface nodes within `radius` of `pole`; at least the 3 nearest surface nodes.
-std::vector<int> cap_nodes(const TetMesh& m, const Eigen::Vector3d& pole, double radius) {
+std::vector<int> cap_nodes(const rt::TetMesh& m, const Eigen::Vector3d& pole, double radius) {
   std::set<int> surf;
   for (const auto& f : m.surface) surf.insert(f.begin(), f.end());
   std::vector<std::pair<double, int>> by_dist;
@@ -50,10 +50,10 @@ std::vector<int> cap_nodes(const TetMesh& m, const Eigen::Vector3d& pole, double
 }
 }  // namespace
 
-PushProblem make_push_problem(const TetMesh& mesh, const PushProblemParams& params) {
+PushProblem make_push_problem(const rt::TetMesh& mesh, const PushProblemParams& params) {
   params.validate();
   if (mesh.edges.empty() || mesh.surface.empty()) throw std::invalid_argument("push problem: mesh has no edges/surface");
-  static const double ref_len = mean_edge_length(make_paper_ball(0.05)) / 0.05;  // per unit radius
+  static const double ref_len = mean_edge_length(rt::make_paper_ball(0.05)) / 0.05;  // per unit radius
   PushProblem p;
   p.params = params;
   p.mesh = mesh;
@@ -114,4 +114,4 @@ Selection select_model(const std::vector<ModelCandidate>& candidates, double acc
   return s;
 }
 
-}  // namespace haptic::rt
+}  // namespace haptic::study

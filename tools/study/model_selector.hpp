@@ -20,7 +20,7 @@
 #include "tools/study/integrators.hpp"
 #include "rt/mesh.hpp"
 
-namespace haptic::rt {
+namespace haptic::study {
 
 struct PushProblemParams {
   double radius_m = 0.05;
@@ -38,7 +38,7 @@ struct PushProblemParams {
 
 struct PushProblem {
   PushProblemParams params;
-  TetMesh mesh;
+  rt::TetMesh mesh;
   LinearModel model;
   Eigen::VectorXd felt_w;  // 3n: F = contact_stiffness * depth * s(t) - felt_w . u
   std::vector<int> contact_nodes, support_nodes;
@@ -47,8 +47,8 @@ struct PushProblem {
 };
 
 // The mesh the station uses for --nodes N: 33 = the paper ball, otherwise a lattice ball.
-TetMesh make_ball_mesh(int nodes, double radius_m);
-PushProblem make_push_problem(const TetMesh& mesh, const PushProblemParams& params);
+rt::TetMesh make_ball_mesh(int nodes, double radius_m);
+PushProblem make_push_problem(const rt::TetMesh& mesh, const PushProblemParams& params);
 
 struct ModelCandidate {
   std::string kind;          // "mesh" (full model of a mesh), "modal", "modal+sc" (static correction)
@@ -71,4 +71,4 @@ struct Selection {
 Selection select_model(const std::vector<ModelCandidate>& candidates, double accuracy,
                        const std::vector<std::string>& kinds = {});
 
-}  // namespace haptic::rt
+}  // namespace haptic::study

@@ -9,15 +9,15 @@
 
 namespace haptic::study {
 
-ExactCase make_exact_case(int nodes, const rt::PushProblemParams& params, double duration_s, double sample_dt_s,
+ExactCase make_exact_case(int nodes, const PushProblemParams& params, double duration_s, double sample_dt_s,
                           bool keep_shape) {
   ExactCase c;
-  c.problem = rt::make_push_problem(rt::make_ball_mesh(nodes, params.radius_m), params);
+  c.problem = make_push_problem(make_ball_mesh(nodes, params.radius_m), params);
   const auto t0 = std::chrono::steady_clock::now();
-  c.basis = rt::compute_modes(c.problem.model);
+  c.basis = compute_modes(c.problem.model);
   c.eig_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(3 * c.problem.model.nodes);
-  rt::ExactResponse ex(c.basis, c.problem.model, zero, zero);
+  ExactResponse ex(c.basis, c.problem.model, zero, zero);
   ex.set_output(c.problem.felt_w);
   const int samples = static_cast<int>(std::lround(duration_s / sample_dt_s));
   for (int j = 0; j <= samples; ++j) {
@@ -55,9 +55,9 @@ void accumulate(const ExactCase& c, std::size_t j, double F, const Eigen::Vector
 }
 }  // namespace
 
-RunErrors run_full(const ExactCase& c, rt::Integrator method, double step_s, const ExactCase* reference) {
+RunErrors run_full(const ExactCase& c, Integrator method, double step_s, const ExactCase* reference) {
   RunErrors e;
-  rt::LinearIntegrator integ(c.problem.model, method, step_s);
+  LinearIntegrator integ(c.problem.model, method, step_s);
   const int k = steps_per_sample(c, step_s);
   if (reference && reference->times_s.size() != c.times_s.size()) throw std::invalid_argument("reference grid differs");
   accumulate(c, 0, c.problem.felt_force(0, integ.output(c.problem.felt_w)), &integ.u(), e, reference);
@@ -71,7 +71,7 @@ RunErrors run_full(const ExactCase& c, rt::Integrator method, double step_s, con
 
 RunErrors run_modal(const ExactCase& c, int modes, bool static_correction, double step_s) {
   RunErrors e;
-  rt::ModalReducedModel red(c.basis, c.problem.model, modes, step_s, static_correction, c.problem.felt_w);
+  ModalReducedModel red(c.basis, c.problem.model, modes, step_s, static_correction, c.problem.felt_w);
   const int k = steps_per_sample(c, step_s);
   Eigen::VectorXd u;
   for (std::size_t j = 0; j < c.times_s.size() && !e.blew_up; ++j) {
@@ -107,8 +107,8 @@ double median_step_time(Step&& step, int repeats, double min_batch_s) {
 }
 }  // namespace
 
-double time_full_step(const rt::PushProblem& p, rt::Integrator method, double step_s, int repeats, double min_batch_s) {
-  rt::LinearIntegrator integ(p.model, method, step_s);
+double time_full_step(const PushProblem& p, Integrator method, double step_s, int repeats, double min_batch_s) {
+  LinearIntegrator integ(p.model, method, step_s);
   volatile double sink = 0;
   // A tick = one step + the felt force output (what the haptic loop needs).
   const double t = median_step_time(
@@ -121,9 +121,9 @@ double time_full_step(const rt::PushProblem& p, rt::Integrator method, double st
   return t;
 }
 
-double time_modal_step(const rt::ModalBasis& basis, const rt::PushProblem& p, int modes, bool static_correction,
+double time_modal_step(const ModalBasis& basis, const PushProblem& p, int modes, bool static_correction,
                        double step_s, int repeats, double min_batch_s) {
-  rt::ModalReducedModel red(basis, p.model, modes, step_s, static_correction, p.felt_w);
+  ModalReducedModel red(basis, p.model, modes, step_s, static_correction, p.felt_w);
   volatile double sink = 0;
   return median_step_time(
       [&] {
@@ -133,9 +133,9 @@ double time_modal_step(const rt::ModalBasis& basis, const rt::PushProblem& p, in
       repeats, min_batch_s);
 }
 
-EnergyTrace energy_trace(const rt::PushProblem& p, rt::Integrator method, double step_s, double duration_s,
+EnergyTrace energy_trace(const PushProblem& p, Integrator method, double step_s, double duration_s,
                          int record_every) {
-  rt::LinearModel free_model = p.model;
+  LinearModel free_model = p.model;
   free_model.load.resize(0);
   free_model.damping_Ns_per_m = 0;
   // u0 = K^{-1} g: the static deformation under the full push.
@@ -146,7 +146,7 @@ EnergyTrace energy_trace(const rt::PushProblem& p, rt::Integrator method, double
   Eigen::VectorXd u0(3 * n);
   for (int i = 0; i < n; ++i)
     for (int d = 0; d < 3; ++d) u0[3 * i + d] = U(i, d);
-  rt::LinearIntegrator integ(free_model, method, step_s);
+  LinearIntegrator integ(free_model, method, step_s);
   integ.set_state(u0, Eigen::VectorXd::Zero(3 * n));
   EnergyTrace tr;
   const double E0 = integ.energy();

@@ -17,8 +17,8 @@ namespace haptic::study {
 
 // One mesh of the family with its exact solution sampled on a common time grid.
 struct ExactCase {
-  rt::PushProblem problem;
-  rt::ModalBasis basis;
+  PushProblem problem;
+  ModalBasis basis;
   std::vector<double> times_s;            // sample times
   std::vector<double> force_N;            // exact felt force at each sample
   std::vector<Eigen::VectorXd> shape;     // exact displacement u at each sample (3n)
@@ -28,7 +28,7 @@ struct ExactCase {
 
 // Builds the problem on make_ball_mesh(nodes), the modes and the exact samples every
 // sample_dt_s over [0, duration_s]. keep_shape = false skips the O(n^2) shape samples.
-ExactCase make_exact_case(int nodes, const rt::PushProblemParams& params, double duration_s, double sample_dt_s,
+ExactCase make_exact_case(int nodes, const PushProblemParams& params, double duration_s, double sample_dt_s,
                           bool keep_shape = true);
 
 struct RunErrors {
@@ -39,15 +39,15 @@ struct RunErrors {
 };
 
 // Runs a full-model integrator on `c` (sample_dt must be a multiple of step_s).
-RunErrors run_full(const ExactCase& c, rt::Integrator method, double step_s, const ExactCase* reference);
+RunErrors run_full(const ExactCase& c, Integrator method, double step_s, const ExactCase* reference);
 // Runs the r-mode reduced model of `c` with NPMI.
 RunErrors run_modal(const ExactCase& c, int modes, bool static_correction, double step_s);
 
 // Wall-clock seconds per step (median over `repeats` batches, each >= ~min_batch_s) of the
 // allocation-free step loop. Not a Google Benchmark figure.
-double time_full_step(const rt::PushProblem& p, rt::Integrator method, double step_s, int repeats = 5,
+double time_full_step(const PushProblem& p, Integrator method, double step_s, int repeats = 5,
                       double min_batch_s = 0.02);
-double time_modal_step(const rt::ModalBasis& basis, const rt::PushProblem& p, int modes, bool static_correction,
+double time_modal_step(const ModalBasis& basis, const PushProblem& p, int modes, bool static_correction,
                        double step_s, int repeats = 5, double min_batch_s = 0.02);
 
 // Free vibration (no input) from a deformed rest: u0 = static response to the push load.
@@ -55,7 +55,7 @@ struct EnergyTrace {
   std::vector<double> t_s, energy_ratio;  // E(t) / E(0)
   bool blew_up = false;
 };
-EnergyTrace energy_trace(const rt::PushProblem& p, rt::Integrator method, double step_s, double duration_s,
+EnergyTrace energy_trace(const PushProblem& p, Integrator method, double step_s, double duration_s,
                          int record_every);
 
 // Classification of a free-vibration run (stability map): "blows-up" (max E/E0 > 100 or

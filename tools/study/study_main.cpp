@@ -94,13 +94,13 @@ std::vector<std::size_t> pareto(const std::vector<Row>& rows, bool against_ref) 
   return front;
 }
 
-rt::PushProblemParams problem_params(double damping_per_s) {
-  rt::PushProblemParams p;
+study::PushProblemParams problem_params(double damping_per_s) {
+  study::PushProblemParams p;
   p.damping_per_s = damping_per_s;
   return p;
 }
 
-json problem_json(const rt::PushProblemParams& p) {
+json problem_json(const study::PushProblemParams& p) {
   return {{"radius_m", p.radius_m},
           {"total_mass_kg", p.total_mass_kg},
           {"reference_edge_stiffness_N_per_m", p.reference_edge_stiffness_N_per_m},
@@ -144,14 +144,14 @@ Study run_accuracy(const std::vector<int>& nodes_list, const std::vector<double>
                                  {"peak_force_N", c.force_scale}});
   }
   const auto& ref = cases.at(ref_nodes);
-  const auto methods = all_integrators ? rt::all_integrators() : std::vector<rt::Integrator>{rt::Integrator::kNpmi};
+  const auto methods = all_integrators ? study::all_integrators() : std::vector<study::Integrator>{study::Integrator::kNpmi};
   for (int n : nodes_list) {
     const auto& c = cases.at(n);
     for (auto m : methods) {
       const double cost = study::time_full_step(c.problem, m, 0.002);
       for (double hms : steps_ms) {
         const auto e = study::run_full(c, m, hms * 1e-3, &ref);
-        Row r{"mesh", rt::integrator_name(m), n, 0, hms * 1e-3, e.force_error_self, e.shape_error_self, e.force_error_ref, cost};
+        Row r{"mesh", study::integrator_name(m), n, 0, hms * 1e-3, e.force_error_self, e.shape_error_self, e.force_error_ref, cost};
         if (verbose)
           std::cerr << "  " << std::setw(5) << n << " " << std::setw(20) << r.integrator << " h " << std::setw(5) << hms
                     << " ms: force err " << std::setw(11) << num(r.force_self) << " shape err " << std::setw(11)
@@ -214,8 +214,8 @@ void write_json(const std::string& path, const json& j) {
   f << j.dump(1) << "\n";
 }
 
-std::vector<rt::ModelCandidate> candidates_from(const std::vector<Row>& rows, double step_s) {
-  std::vector<rt::ModelCandidate> c;
+std::vector<study::ModelCandidate> candidates_from(const std::vector<Row>& rows, double step_s) {
+  std::vector<study::ModelCandidate> c;
   for (const auto& r : rows) {
     if (r.integrator != "npmi" || std::abs(r.step_s - step_s) > 1e-12 || !std::isfinite(r.force_ref)) continue;
     c.push_back({r.kind, r.nodes, r.modes, r.step_s, r.force_ref, r.cost_s});
@@ -296,21 +296,21 @@ int main(int argc, char** argv) {
       print_front(st.rows, true, std::cout);
       std::cout << "wrote " << out << "/accuracy.csv, accuracy.json\n";
     } else if (en->parsed()) {
-      const auto p = rt::make_push_problem(rt::make_ball_mesh(en_nodes, 0.05), problem_params(0));
+      const auto p = study::make_push_problem(study::make_ball_mesh(en_nodes, 0.05), problem_params(0));
       std::ofstream f(out + "/energy.csv");
       f << "integrator,step_s,t_s,energy_ratio\n";
       json summary;
       for (double hms : study::parse_double_list(en_steps, "--steps-ms")) {
         const double h = hms * 1e-3;
         const int every = std::max(1, static_cast<int>(std::lround(0.01 / h)));
-        for (auto m : rt::all_integrators()) {
+        for (auto m : study::all_integrators()) {
           const auto tr = study::energy_trace(p, m, h, en_duration, every);
           for (std::size_t k = 0; k < tr.t_s.size(); ++k)
-            f << rt::integrator_name(m) << ',' << num(h) << ',' << num(tr.t_s[k]) << ',' << std::setprecision(16) << tr.energy_ratio[k] << '\n';
-          summary.push_back({{"integrator", rt::integrator_name(m)}, {"step_s", h}, {"class", study::classify_energy(tr)},
+            f << study::integrator_name(m) << ',' << num(h) << ',' << num(tr.t_s[k]) << ',' << std::setprecision(16) << tr.energy_ratio[k] << '\n';
+          summary.push_back({{"integrator", study::integrator_name(m)}, {"step_s", h}, {"class", study::classify_energy(tr)},
                              {"final_ratio", tr.energy_ratio.back()}, {"final_t_s", tr.t_s.back()},
                              {"max_ratio", *std::max_element(tr.energy_ratio.begin(), tr.energy_ratio.end())}});
-          std::cout << std::setw(20) << rt::integrator_name(m) << " h " << hms << " ms: E(" << num(tr.t_s.back())
+          std::cout << std::setw(20) << study::integrator_name(m) << " h " << hms << " ms: E(" << num(tr.t_s.back())
                     << " s)/E0 = " << num(tr.energy_ratio.back()) << " (" << study::classify_energy(tr) << ")\n";
         }
       }
@@ -320,9 +320,9 @@ int main(int argc, char** argv) {
       std::ofstream f(out + "/stability.csv");
       f << "axis,value,nodes,integrator,step_s,omega_max_h,class,max_energy_ratio\n";
       json summary = json::array();
-      auto cell = [&](const std::string& axis, double value, const rt::PushProblem& p) {
+      auto cell = [&](const std::string& axis, double value, const study::PushProblem& p) {
         const double wmax = std::sqrt(rt::lambda_max(rt::SpatialMatrix::isotropic(p.model.K)) / p.model.node_mass_kg);
-        for (auto m : rt::all_integrators()) {
+        for (auto m : study::all_integrators()) {
           double first_bad = -1;
           for (double hms : study::parse_double_list(st_steps, "--steps-ms")) {
             const double h = hms * 1e-3;
@@ -330,13 +330,13 @@ int main(int argc, char** argv) {
             const auto cls = study::classify_energy(tr);
             double mx = 0;
             for (double r : tr.energy_ratio) mx = std::isfinite(r) ? std::max(mx, r) : INFINITY;
-            f << axis << ',' << num(value) << ',' << p.model.nodes << ',' << rt::integrator_name(m) << ',' << num(h) << ','
+            f << axis << ',' << num(value) << ',' << p.model.nodes << ',' << study::integrator_name(m) << ',' << num(h) << ','
               << num(wmax * h) << ',' << cls << ',' << num(mx) << '\n';
             if ((cls == "blows-up" || cls == "grows") && first_bad < 0) first_bad = h;
           }
-          summary.push_back({{"axis", axis}, {"value", value}, {"nodes", p.model.nodes}, {"integrator", rt::integrator_name(m)},
+          summary.push_back({{"axis", axis}, {"value", value}, {"nodes", p.model.nodes}, {"integrator", study::integrator_name(m)},
                              {"omega_max_rad_per_s", wmax}, {"smallest_unstable_step_s", first_bad}});
-          std::cout << axis << "=" << num(value) << " " << std::setw(20) << rt::integrator_name(m) << " omega_max "
+          std::cout << axis << "=" << num(value) << " " << std::setw(20) << study::integrator_name(m) << " omega_max "
                     << num(wmax) << " rad/s: first growing/blowing step " << (first_bad < 0 ? std::string("none") : num(first_bad * 1e3) + " ms")
                     << "\n";
         }
@@ -344,10 +344,10 @@ int main(int argc, char** argv) {
       for (double s : study::parse_double_list(st_scales, "--stiffness-scales")) {
         auto params = problem_params(0);
         params.reference_edge_stiffness_N_per_m *= s;
-        cell("stiffness_scale", s, rt::make_push_problem(rt::make_ball_mesh(33, 0.05), params));
+        cell("stiffness_scale", s, study::make_push_problem(study::make_ball_mesh(33, 0.05), params));
       }
       for (int n : study::parse_int_list(st_sizes, "--sizes"))
-        cell("nodes", n, rt::make_push_problem(rt::make_ball_mesh(n, 0.05), problem_params(0)));
+        cell("nodes", n, study::make_push_problem(study::make_ball_mesh(n, 0.05), problem_params(0)));
       write_json(out + "/stability.json", {{"duration_s", st_duration}, {"cells", summary},
                                            {"classes", "blows-up: max E/E0 > 100; grows: max > 1.01 and 2nd-half max > 1.1 x 1st-half max; dissipative: final < 0.99; bounded: oscillates above 1.01 without trend; stable: within 1%"}});
     } else if (con->parsed()) {
@@ -418,9 +418,9 @@ int main(int argc, char** argv) {
                    .rows;
       }
       const auto cands = candidates_from(rows, 0.002);
-      const auto mesh = rt::select_model(cands, accuracy, {"mesh"});
-      const auto any = rt::select_model(cands, accuracy, {});
-      auto describe = [](const rt::ModelCandidate& c) {
+      const auto mesh = study::select_model(cands, accuracy, {"mesh"});
+      const auto any = study::select_model(cands, accuracy, {});
+      auto describe = [](const study::ModelCandidate& c) {
         std::ostringstream o;
         o << c.kind << " " << c.nodes << " nodes";
         if (c.modes) o << ", " << c.modes << " modes";
@@ -440,7 +440,7 @@ int main(int argc, char** argv) {
       std::cerr << "  smallest mesh: " << describe(mesh.chosen) << ", saves x" << num(mesh.cost_saving_factor) << " against "
                 << describe(mesh.reference) << "\n";
       {
-        const auto chosen = rt::make_push_problem(rt::make_ball_mesh(mesh.chosen.nodes, 0.05), problem_params(0));
+        const auto chosen = study::make_push_problem(study::make_ball_mesh(mesh.chosen.nodes, 0.05), problem_params(0));
         std::cerr << "  the study's physics for this mesh (same ball at every resolution): node_mass_kg "
                   << num(chosen.model.node_mass_kg) << ", edge_stiffness_N_per_m " << num(chosen.edge_stiffness_N_per_m)
                   << " (the station's --nodes keeps 0.04 kg / 100 N/m per node/edge; see tools/study/README.md)\n";

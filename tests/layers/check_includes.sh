@@ -6,7 +6,8 @@
 #   net/      -> net/ platform/
 #   drivers/  -> drivers/ platform/ rt/
 #   firmware/ -> firmware/ net/ drivers/ platform/ rt/   (never tools/ or tests/)
-# and no Eigen include in platform/ or net/. Prints every offending line; exit 1 if any.
+# and no Eigen include in platform/ or net/, and their CMake targets link neither haptic_rt nor
+# Eigen. Prints every offending line; exit 1 if any.
 # Usage: check_includes.sh SOURCE_DIR
 set -euo pipefail
 src="${1:?usage: check_includes.sh SOURCE_DIR}"
@@ -32,6 +33,13 @@ eigen=$(grep -HnE '#[[:space:]]*include[[:space:]]*<(Eigen|unsupported/Eigen)' p
 if [ -n "$eigen" ]; then
   echo "platform/ or net/ includes Eigen:"
   echo "$eigen"
+  bad=1
+fi
+# The libraries too: haptic_platform and haptic_net link neither haptic_rt nor Eigen.
+links=$(grep -HnE 'haptic_rt|Eigen3::' platform/CMakeLists.txt net/CMakeLists.txt | grep -v '^[^:]*:[0-9]*:[[:space:]]*#' || true)
+if [ -n "$links" ]; then
+  echo "platform/ or net/ links the real-time core or Eigen:"
+  echo "$links"
   bad=1
 fi
 [ "$bad" -eq 0 ] && echo "layers: every include points downward (rt, platform, net, drivers, firmware checked)"

@@ -76,7 +76,7 @@ void parse_station_section(View root, StationFile& f) {
   only_keys(st, "station", {"id", "scenario", "topology", "nodes", "duration_s", "seed", "push_start_s", "push_end_s", "release_s",
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
                             "loss_allowance_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority", "out_dir", "max_no_neighbour_fraction",
-                            "trace_every", "state_every"});
+                            "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse", "rejoin_probe_s"});
   StationSection& s = f.station;
   if (!st["id"]) bad("station.id", "present: this station's user number, 1..users");
   s.id = static_cast<int>(integer(st["id"], "station.id", 1, 1, 64));
@@ -106,6 +106,9 @@ void parse_station_section(View root, StationFile& f) {
   s.max_no_neighbour_fraction = real(st["max_no_neighbour_fraction"], "station.max_no_neighbour_fraction", 0.1, 0.0, 1.0);
   s.trace_every = static_cast<int>(integer(st["trace_every"], "station.trace_every", 1, 1, 100000));
   s.state_every = static_cast<int>(integer(st["state_every"], "station.state_every", 5, 1, 100000));
+  s.clock_offset_max_ms = real(st["clock_offset_max_ms"], "station.clock_offset_max_ms", 20.0, 0.0, 1e6);
+  s.clock_offset_refuse = boolean(st["clock_offset_refuse"], "station.clock_offset_refuse", false);
+  s.rejoin_probe_s = real(st["rejoin_probe_s"], "station.rejoin_probe_s", 0.4, 0.1, 10);
 }
 
 void parse_device_section(View root, StationFile& f) {

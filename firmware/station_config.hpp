@@ -33,6 +33,13 @@
 //                                    # neighbour within its bound (all edges dropped), [0, 1]
 //   trace_every = 1                  # every k-th tick into station-<id>-trace.csv, [1, 100000]
 //   state_every = 5                  # every k-th tick the whole x into station-<id>-state.csv, [1, 100000]
+//   clock_offset_max_ms = 20         # bound on each neighbour's tick-grid offset (its epoch in our clock minus ours,
+//                                    # from NTP-style echoes, net/README.md): a larger offset, beyond the measurement's
+//                                    # own uncertainty (half the round trip), is warned about, [0, 1e6]
+//   clock_offset_refuse = false      # true: refuse to couple instead (exit 3) when the bound is exceeded
+//   rejoin_probe_s = 0.4             # a station started after its epoch's probing phase rejoins the running
+//                                    # session: it probes this long (round trips, the neighbours' epoch), adopts the
+//                                    # session's epoch and a neighbour's object state, then couples, [0.1, 10]
 //   [device]                         (drivers/: device_factory.hpp)
 //   kind = "auto"                    # "auto" | "touch" | "spacemouse" | "simulated" (simulated user of the scenario script)
 //   max_force_N = 1e9                # extra output clamp, > 0
@@ -83,6 +90,9 @@ struct StationSection {
   double max_no_neighbour_fraction = 0.1;
   int trace_every = 1;
   int state_every = 5;
+  double clock_offset_max_ms = 20.0;
+  bool clock_offset_refuse = false;
+  double rejoin_probe_s = 0.4;
 };
 
 struct DeviceSection {

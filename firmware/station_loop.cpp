@@ -26,7 +26,12 @@ void loop_body(const StationPlan& plan, drivers::HapticDevice* device, const Run
   const StationTimes& t = plan.times;
   const std::int64_t run_epoch = t.run_epoch_ns();
   try {
-    loop.clock().sleep_until_ns(run_epoch - t.period_ns);  // first deadline one period on: kr = 0
+    // First deadline one period on: kr = 0, or for a station past the run start (rejoining) the
+    // next tick of the session's grid.
+    std::int64_t first = run_epoch;
+    const std::int64_t now = loop.clock().now_ns();
+    if (now > run_epoch - t.period_ns) first = run_epoch + ((now - run_epoch) / t.period_ns + 2) * t.period_ns;
+    loop.clock().sleep_until_ns(first - t.period_ns);
     loop.run(
         [&](const platform::TickInfo& info) -> bool {
           const std::int64_t kr = (info.scheduled_ns - run_epoch + t.period_ns / 2) / t.period_ns;  // = info.cycle when on time
@@ -74,10 +79,13 @@ RunPhaseResult run_periodic(const StationPlan& plan, drivers::HapticDevice* devi
     r.rt_summary = rt_thread.setup_summary();
     r.rt_warnings = rt_thread.setup_warnings();
     if (observer.rt_ready) observer.rt_ready(r.rt_summary, r.rt_warnings);
-    const auto interval = std::chrono::nanoseconds(plan.file.loop.report_interval_ns);
+    const auto interval = std::min<std::chrono::nanoseconds>(std::chrono::nanoseconds(plan.file.loop.report_interval_ns),
+                                                             std::chrono::milliseconds(100));
     platform::LoopReport rep;
-    while (!done.try_acquire_for(interval))
+    while (!done.try_acquire_for(interval)) {
       if (observer.report && loop.take_report(rep)) observer.report(rep);
+      if (observer.idle) observer.idle();
+    }
     rt_thread.join();
   } catch (const std::exception& e) {  // RtThread set-up refused (rt.require_rt)
     r.status = PhaseStatus::kFailed;

@@ -37,13 +37,14 @@ void enter_safe_state(drivers::HapticDevice* device) noexcept;
 struct RunObserver {
   std::function<void(const std::string& rt_summary, const std::vector<std::string>& rt_warnings)> rt_ready;  // after the RT set-up
   std::function<void(const platform::LoopReport&)> report;  // the loop's throttled reports
+  std::function<void()> idle;  // every 100 ms while the loop runs (non-RT monitoring, e.g. neighbour events)
 };
 
 // One run tick at epoch index k = run_k0 + kr (run_tick() in the station). Called on the RT thread.
 using RunTickFn = std::function<void(std::int64_t k, std::int64_t kr, const platform::TickInfo& info)>;
 
 // The RT side of the run phase for any tick function: RtThread (plan.file.rt), wait for the run
-// epoch, PeriodicLoop (plan.file.loop) until run_ticks or `stop`; an exception out of `tick` is
+// epoch (a rejoining station, already past it, for the next tick of the session's grid), PeriodicLoop (plan.file.loop) until run_ticks or `stop`; an exception out of `tick` is
 // caught at the loop boundary, ends the loop and enters the safe state of `device` (may be null).
 // The calling thread waits on a semaphore with a timeout of one report interval and hands the
 // loop's reports to `observer` (no polling of the RT side). Not RT-safe (owns the RT thread).

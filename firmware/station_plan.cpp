@@ -146,10 +146,16 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   check_tx_spin(f, p->net);
   apply_link_impairments(f, spec, p->me, p->net);
   p->times = plan_times(f, o, spec, now);
+  if (p->times.rejoin)
+    p->warnings.push_back("started " + std::to_string(-p->times.epoch_in_s) + " s after the common epoch (" +
+                          (o.start_at >= 0 ? std::string("--start-at") : std::string("station.start_at")) +
+                          "), past half the probing phase: rejoining the running session");
   p->net.endpoint.impairment_epoch_s = static_cast<double>(p->times.run_epoch_ns()) * 1e-9;
   p->net.endpoint.tx_period_s = spec.period_s;  // tick-synchronous TX (net.tx_spin) needs the tick period
   p->device = device_selection(f, *p->built, p->me);
   p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
+  p->net.endpoint.fingerprint = p->fingerprint;  // sent to every neighbour (net/)
+  p->net.endpoint.io_priority = f.station.io_priority;  // the I/O thread's RtThread (SCHED_FIFO or 0)
   p->out_dir = o.out_dir.empty() ? f.station.out_dir : o.out_dir;
   check_out_dir_creatable(p->out_dir, o.out_dir.empty() ? "station.out_dir" : "--out");
   p->base_path = p->out_dir + "/station-" + std::to_string(f.station.id);
@@ -192,15 +198,6 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
     bad(as_station_keys(e.what()));
   }
   return spec;
-}
-
-std::string SceneFingerprint::first_difference(const SceneFingerprint& o) const {
-  if (protocol_version != o.protocol_version) return "protocol version";
-  if (scene_nodes != o.scene_nodes) return "scene nodes";
-  if (period_ns != o.period_ns) return "period";
-  if (scene_hash != o.scene_hash) return "scene";
-  if (gains_hash != o.gains_hash) return "gains";
-  return "";
 }
 
 SceneFingerprint scene_fingerprint(const BuiltScenario& b, std::int64_t period_ns) {
@@ -328,9 +325,8 @@ StationTimes plan_times(const StationFile& f, const RunOverrides& o, const Scena
   t.run_k0 = t.probe_ticks + std::llround(S.setup_gap_s / T);
   t.run_ticks = std::llround(spec.duration_s / T);
   t.epoch_in_s = static_cast<double>(t.epoch_ns - mono) * 1e-9;
-  if (mono > t.epoch_ns + (t.probe_ticks / 2) * t.period_ns)
-    bad(std::string(o.start_at >= 0 ? "--start-at" : "station.start_at") + ": started " + std::to_string(-t.epoch_in_s) +
-        " s after the common epoch, more than half the probing phase (station.probe_s): start earlier");
+  // Started after half the probing phase: the session runs without us; rejoin it.
+  t.rejoin = mono > t.epoch_ns + (t.probe_ticks / 2) * t.period_ns;
   return t;
 }
 

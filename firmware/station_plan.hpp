@@ -29,17 +29,10 @@ struct RunOverrides {
 // Applies the file's [station] keys to the scenario (throws std::invalid_argument naming the key).
 ScenarioSpec station_scenario_spec(const StationFile& file, const RunOverrides& overrides);
 
-// What two stations must agree on before they couple (sent during probing by net/). Two stations
-// with equal fingerprints run the same scene, period, gains and wire protocol.
-struct SceneFingerprint {
-  std::uint32_t protocol_version = 0;  // net/wire.hpp's version
-  std::int32_t scene_nodes = 0;
-  std::int64_t period_ns = 0;
-  std::uint64_t scene_hash = 0;        // FNV-1a of the rest configuration, mesh and scene parameters
-  std::uint64_t gains_hash = 0;        // FNV-1a of every edge's P_ij, D_ij and the VP/coupling gains
-  // Name of the first field that differs ("" when all are equal).
-  std::string first_difference(const SceneFingerprint& other) const;
-};
+// What two stations must agree on before they couple: net/'s fingerprint message (sent during
+// probing; net::fingerprint_difference names each field that differs). Two stations with equal
+// fingerprints run the same scene, period, gains and wire protocol.
+using SceneFingerprint = net::Fingerprint;
 SceneFingerprint scene_fingerprint(const BuiltScenario& built, std::int64_t period_ns);
 
 // Both clocks read once, so that the plan is a pure function of its inputs.
@@ -57,6 +50,10 @@ struct StationTimes {
   std::int64_t run_k0 = 0;       // first run tick (probe_ticks + the set-up gap)
   std::int64_t run_ticks = 0;    // planned run length
   double epoch_in_s = 0;         // epoch - now at planning
+  // Started after the first half of its probing phase: the session is running, so the station
+  // rejoins it (station_rejoin.hpp: learns the epoch from its neighbours, adopts a neighbour's
+  // object state, then couples) instead of probing from k = 0.
+  bool rejoin = false;
   std::int64_t run_epoch_ns() const { return epoch_ns + run_k0 * period_ns; }
 };
 

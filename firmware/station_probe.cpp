@@ -31,7 +31,9 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
       [&](const platform::TickInfo& info) {
         const std::int64_t k = (info.scheduled_ns - t.epoch_ns + t.period_ns / 2) / t.period_ns;
         if (k >= t.probe_ticks) return false;
-        ep.drain([](std::uint16_t, std::uint64_t, double, const double*, const double*, std::uint32_t) {});
+        ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
+          r.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, b.spec.period_s);  // the neighbour's tick grid
+        });
         if (k >= 0 && !ep.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data())) ++r.push_failures;
         return true;
       },
@@ -45,6 +47,7 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
 
 ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
   ProbeResult r;
+  r.grid = NeighbourGrid(plan.neighbours().size());
   send_probes(plan, ep, stop, r);
   if (stop.load(std::memory_order_acquire)) {
     r.status = PhaseStatus::kStopped;
@@ -52,6 +55,12 @@ ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const s
     return r;
   }
   const bool all = ep.finish_probing();
+  collect_probe_result(plan, ep, all, "station.probe_s = " + std::to_string(plan.file.station.probe_s) + " s", r);
+  if (r.status == PhaseStatus::kOk) check_clock(plan, plan.times.epoch_ns, r);
+  return r;
+}
+
+void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, const std::string& after_what, ProbeResult& r) {
   r.stats_at_end = ep.stats();
   const auto& nbrs = plan.neighbours();
   const double T = plan.built->spec.period_s;
@@ -60,8 +69,14 @@ ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const s
     if (!r.stats_at_end.peers[p].rtt_has_bound) r.missing.push_back(nbrs[n] + 1);
     r.rtt_bound_ticks.push_back(ep.rtt_bound_ticks(p, T));
   }
-  const std::string after = " after station.probe_s = " + std::to_string(plan.file.station.probe_s) + " s";
-  if (r.missing.size() == nbrs.size()) {
+  const std::string after = " after " + after_what;
+  // A neighbour with another scene, period, gains or protocol: say which, before anything else
+  // (its state packets are dropped as the wrong size, so its round trips are missing too).
+  const std::string mismatch = fingerprint_mismatches(plan, r.stats_at_end);
+  if (!mismatch.empty()) {
+    r.status = PhaseStatus::kFailed;
+    r.message = "refusing to couple: neighbour fingerprint differs (" + mismatch + ")";
+  } else if (r.missing.size() == nbrs.size()) {
     r.status = PhaseStatus::kNoNeighbour;
     r.message = "no neighbour answered: no round trip from station(s) " + id_list(r.missing) + after +
                 " (not running, or wrong address, session key or session id); a station does not run alone";
@@ -72,7 +87,17 @@ ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const s
   } else {
     r.status = PhaseStatus::kOk;
   }
-  return r;
+}
+
+void check_clock(const StationPlan& plan, std::int64_t epoch_ns, ProbeResult& r) {
+  r.clock = check_clock_offsets(plan, r.stats_at_end, r.grid, epoch_ns);
+  if (!r.clock.exceeded) return;
+  if (plan.file.station.clock_offset_refuse) {
+    r.status = PhaseStatus::kFailed;
+    r.message = "refusing to couple (station.clock_offset_refuse = true): " + r.clock.message;
+  } else {
+    r.warnings.push_back(r.clock.message);
+  }
 }
 
 MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const std::vector<std::uint32_t>& rtt_ticks, int allowance,

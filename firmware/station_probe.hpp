@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "firmware/station_neighbours.hpp"
 #include "firmware/station_phase.hpp"
 #include "firmware/station_plan.hpp"
 #include "net/endpoint.hpp"
@@ -26,12 +27,26 @@ struct ProbeResult {
   std::uint64_t push_failures = 0;
   std::uint64_t loop_ticks = 0, loop_overruns = 0, loop_missed_cycles = 0;  // the probing loop's counters
   net::EndpointStats stats_at_end{};            // the endpoint's statistics when probing ended
+  NeighbourGrid grid;                           // each neighbour's tick grid, from the probes it sent
+  ClockCheck clock;                             // tick-grid offsets against ours (station.clock_offset_max_ms)
+  std::vector<std::string> warnings;            // e.g. a clock offset above the bound (not refused)
 };
 
 // Runs the probing ticks on the calling thread (absolute deadlines from the plan's epoch; the
 // endpoint must be started and in probing mode), then ends probing. kNoNeighbour when no
 // neighbour answered at all, kFailed when some did not, kStopped on `stop`.
+// Before any round-trip complaint it compares the neighbours' fingerprints (refusing, kFailed,
+// with the fields that differ) and, after, checks the clock offset of each neighbour's tick grid
+// (warning, or kFailed with station.clock_offset_refuse).
 ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop);
+
+// After probing has been finished on `ep` (`all`: every neighbour has a bound): statistics,
+// bounds, missing neighbours, the fingerprint comparison and the status. `after` names how long
+// probing ran ("station.probe_s = 1.5 s"). Used by the probe and the rejoin phase.
+void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, const std::string& after, ProbeResult& r);
+// The clock check of r (grid and statistics) against the epoch `epoch_ns`: a warning, or with
+// station.clock_offset_refuse the status kFailed.
+void check_clock(const StationPlan& plan, std::int64_t epoch_ns, ProbeResult& r);
 
 // The per-neighbour bounds a station derives from its measured round trips.
 struct MeasuredBounds {

@@ -146,6 +146,7 @@ void add_links_json(const StationOutcome& o, json& j) {
   if (o.endpoint == nullptr) return;
   const net::EndpointStats st = o.endpoint->stats();
   j.update(endpoint_json(st, o.plan->net.endpoint, o.io_sched));
+  if (!o.lifecycle.is_null()) j["lifecycle"] = o.lifecycle;
   json links = json::array();
   for (std::size_t n = 0; n < o.plan->neighbours().size(); ++n) {
     const auto p = static_cast<std::size_t>(o.plan->peers.nbr_to_peer[n]);
@@ -209,7 +210,9 @@ RunConditions run_conditions(const StationOutcome& o) {
                    (c.no_neighbour_fraction && *c.no_neighbour_fraction > p.file.station.max_no_neighbour_fraction);
   c.failed = !o.failure.empty() && o.failure_status != PhaseStatus::kNoNeighbour && !(o.run && o.run->loop_exception);
   const auto& sc = p.built->spec.script;
-  const double ran_s = k ? static_cast<double>(k->ticks_run) * p.built->spec.period_s : 0.0;
+  // Run time reached: a rejoined station's run starts late (first_run_k > run_k0) and ends on time.
+  const std::int64_t first_kr = o.run && o.run->first_run_k >= 0 ? o.run->first_run_k - p.times.run_k0 : 0;
+  const double ran_s = k ? static_cast<double>(first_kr + k->ticks_run) * p.built->spec.period_s : 0.0;
   // Named when planned so, or when the run phase started and stopped early (a run that never
   // started is named by its failure).
   c.ended_before_release = sc.kind == UserScriptSpec::Kind::kPushHoldRelease && (p.ends_before_release || (o.run != nullptr && ran_s <= sc.release_s));

@@ -33,6 +33,7 @@ struct StationOutcome {
   std::string device_fault;         // latched device fault at the end of the run ("none" when none)
   std::string io_sched;             // scheduling of the endpoint's I/O thread
   double wall_time_s = 0;
+  nlohmann::json lifecycle;         // rejoin, neighbour clock offsets and events (station_run.cpp)
 };
 
 // The degraded conditions of a run (each is also a key of station-<id>.json's "conditions").

@@ -4,6 +4,7 @@
 #include <sched.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <iostream>
@@ -11,6 +12,8 @@
 #include <sstream>
 
 #include "drivers/device_factory.hpp"
+#include "firmware/station_neighbours.hpp"
+#include "firmware/station_rejoin.hpp"
 #include "platform/gpio.hpp"
 #include "platform/telemetry.hpp"
 
@@ -40,11 +43,14 @@ struct StationResources {
 // Everything the phases returned, owned here so the report can point into it.
 struct PhaseResults {
   ProbeResult probe;
+  RejoinResult rejoin;  // when the station rejoined a running session (plan.times.rejoin)
+  AdoptedState adopted;
   BuildResult build;
   RunPhaseResult run;
   bool probed = false, built = false, ran = false;
   TickCounters counters;
   TickRecords records;
+  nlohmann::json lifecycle = nlohmann::json::object();  // rejoin, clock offsets, neighbour events
   std::string failure;
   PhaseStatus failure_status = PhaseStatus::kOk;
   void fail(PhaseStatus s, const std::string& message) {
@@ -54,23 +60,12 @@ struct PhaseResults {
   }
 };
 
-// The endpoint's I/O thread inherits the scheduling of the thread that starts it: SCHED_FIFO at
-// station.io_priority, so round trips measure the network rather than CPU contention.
-std::string start_io_thread(net::Endpoint& ep, int io_priority, const Log& log) {
-  std::string sched = "SCHED_OTHER";
-  if (io_priority > 0) {
-    sched_param sp{};
-    sp.sched_priority = io_priority;
-    const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
-    if (rc == 0) sched = "SCHED_FIFO " + std::to_string(io_priority);
-    else log.say("warning: I/O thread stays SCHED_OTHER (SCHED_FIFO " + std::to_string(io_priority) + " refused: " + std::strerror(rc) + "); running anyway");
-  }
+// The endpoint's I/O thread: platform::RtThread at station.io_priority (net.io_cpu pins it), so
+// round trips measure the network rather than CPU contention; a refusal is a warning.
+std::string start_io_thread(net::Endpoint& ep, const Log& log) {
   ep.start();
-  if (io_priority > 0) {
-    sched_param sp{};
-    pthread_setschedparam(pthread_self(), SCHED_OTHER, &sp);
-  }
-  return sched;
+  for (const auto& w : ep.io_setup_warnings()) log.say("warning: " + w + "; running anyway");
+  return ep.io_scheduling();
 }
 
 // open: output directory, device, transport + endpoint (I/O thread started, probing), GPIO, telemetry.
@@ -89,7 +84,7 @@ void open_resources(const StationPlan& plan, StationResources& res, const Log& l
                       "contact", "edge_drops"};
     res.telemetry = std::make_unique<platform::Telemetry>(tc);
   }
-  res.io_sched = start_io_thread(*res.ep, plan.file.station.io_priority, log);
+  res.io_sched = start_io_thread(*res.ep, log);
   res.ep->begin_probing();
 }
 
@@ -137,7 +132,7 @@ TickInputs tick_inputs(const StationPlan& plan, StationResources& res, rt::Stati
 // run: refuses a core that is ready more than a second after the run start; else the loop.
 void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
   const double late_s = static_cast<double>(read_clocks().monotonic_ns - plan.times.run_epoch_ns()) * 1e-9;
-  if (late_s > 1.0) {
+  if (late_s > 1.0 && !plan.times.rejoin) {
     pr.fail(PhaseStatus::kFailed, "the station core was ready " + std::to_string(late_s) + " s after the run start (station.setup_gap_s too short?)");
     return;
   }
@@ -151,13 +146,74 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
   observer.report = [&](const platform::LoopReport& rep) {
     if (rep.window_overruns > 0) log.say(platform::format_report(rep));
   };
+  // Neighbours going silent and coming back: logged once each (station id, session time).
+  PeerEventLog events(plan, plan.times.run_epoch_ns(), plan.net.endpoint.peer_silence_s + 0.1);
+  nlohmann::json& ev = pr.lifecycle["neighbour_events"] = nlohmann::json::array();
+  observer.idle = [&] {
+    for (const auto& line : events.poll(res.ep->stats())) {
+      log.say(line);
+      ev.push_back(line);
+    }
+  };
   pr.run = run_loop(plan, in, pr.records, pr.counters, stop, observer);
   pr.ran = true;
   if (pr.run.status == PhaseStatus::kFailed) pr.fail(PhaseStatus::kFailed, pr.run.message);
 }
 
-// open -> probe -> build -> run; each phase's failure ends the sequence.
-void run_phases(const StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
+// The probe's warnings and what the report keeps of the neighbours' clocks.
+void note_probe(const StationPlan& plan, PhaseResults& pr, const Log& log) {
+  for (const auto& w : pr.probe.warnings) log.say("warning: " + w);
+  nlohmann::json offs = nlohmann::json::object();
+  for (std::size_t n = 0; n < pr.probe.clock.grid_offset_s.size(); ++n) {
+    const double o = pr.probe.clock.grid_offset_s[n], u = pr.probe.clock.uncertainty_s[n];
+    offs[std::to_string(plan.neighbours()[n] + 1)] = {{"tick_grid_offset_ms", std::isfinite(o) ? nlohmann::json(o * 1e3) : nlohmann::json(nullptr)},
+                                                      {"uncertainty_ms", std::isfinite(u) ? nlohmann::json(u * 1e3) : nlohmann::json(nullptr)}};
+  }
+  pr.lifecycle["clock_offsets"] = offs;
+  pr.lifecycle["clock_offset_exceeded"] = pr.probe.clock.exceeded;
+}
+
+// rejoin (instead of probe): learn the session's epoch, measure round trips; the plan's epoch
+// becomes the learned one.
+bool rejoin_session(StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
+  pr.rejoin = rejoin_probe(plan, *res.ep, stop);
+  pr.probe = pr.rejoin.probe;
+  pr.probed = true;
+  if (pr.probe.status == PhaseStatus::kStopped) return false;
+  if (pr.probe.status != PhaseStatus::kOk) {
+    pr.fail(pr.probe.status, pr.probe.message);
+    return false;
+  }
+  plan.times.epoch_ns = pr.rejoin.epoch_ns;
+  std::ostringstream os;
+  os << "rejoining: the session's epoch from station " << pr.rejoin.epoch_from_station << " is " << pr.rejoin.epoch_shift_s * 1e3
+     << " ms from the planned one (+- " << pr.rejoin.epoch_uncertainty_s * 1e3 << " ms)";
+  log.say(os.str());
+  pr.lifecycle["rejoin"] = {{"epoch_from_station", pr.rejoin.epoch_from_station},
+                            {"epoch_shift_ms", pr.rejoin.epoch_shift_s * 1e3},
+                            {"epoch_uncertainty_ms", pr.rejoin.epoch_uncertainty_s * 1e3},
+                            {"provisional_pushes", pr.rejoin.provisional_pushes}};
+  return true;
+}
+
+// Before a rejoining station couples: a neighbour's current object state becomes its own.
+bool adopt_state(const StationPlan& plan, StationResources& res, PhaseResults& pr, const Log& log) {
+  pr.adopted = adopt_neighbour_state(plan, *res.ep, *pr.build.core, 0.5);
+  if (!pr.adopted.ok) {
+    pr.fail(PhaseStatus::kFailed, pr.adopted.message);
+    return false;
+  }
+  const std::int64_t k_now = (read_clocks().monotonic_ns - plan.times.epoch_ns) / plan.times.period_ns;
+  log.say("rejoining: took over station " + std::to_string(pr.adopted.from_station) + "'s object state of tick " + std::to_string(pr.adopted.seq) +
+          " (now tick " + std::to_string(k_now) + "); coupling");
+  pr.lifecycle["rejoin"]["state_from_station"] = pr.adopted.from_station;
+  pr.lifecycle["rejoin"]["state_tick"] = pr.adopted.seq;
+  pr.lifecycle["rejoin"]["coupled_at_tick"] = k_now + 1;
+  return true;
+}
+
+// open -> probe (or rejoin) -> build -> run; each phase's failure ends the sequence.
+void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
   try {
     open_resources(plan, res, log);
   } catch (const std::exception& e) {
@@ -165,14 +221,20 @@ void run_phases(const StationPlan& plan, StationResources& res, PhaseResults& pr
     return;
   }
   say_plan(plan, log);
-  pr.probe = probe_neighbours(plan, *res.ep, stop);
-  pr.probed = true;
-  if (pr.probe.status == PhaseStatus::kStopped) return;
-  if (pr.probe.status != PhaseStatus::kOk) return pr.fail(pr.probe.status, pr.probe.message);
+  if (plan.times.rejoin) {
+    if (!rejoin_session(plan, res, pr, stop, log)) return;
+  } else {
+    pr.probe = probe_neighbours(plan, *res.ep, stop);
+    pr.probed = true;
+    if (pr.probe.status == PhaseStatus::kStopped) return;
+    if (pr.probe.status != PhaseStatus::kOk) return pr.fail(pr.probe.status, pr.probe.message);
+  }
+  note_probe(plan, pr, log);
   pr.build = build_station_core(plan, pr.probe, res.dev.device->capabilities().min_damping_Ns_per_m);
   pr.built = true;
   if (pr.build.status != PhaseStatus::kOk) return pr.fail(pr.build.status, pr.build.message);
   say_bounds(plan, pr.build, log);
+  if (plan.times.rejoin && !adopt_state(plan, res, pr, log)) return;
   run_phase(plan, res, pr, stop, log);
 }
 
@@ -190,6 +252,7 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
   o.failure_status = pr.failure_status;
   o.io_sched = res.io_sched;
   o.wall_time_s = wall_s;
+  o.lifecycle = pr.lifecycle;
   if (res.dev.device) {
     o.device_name = res.dev.device->capabilities().name;
     o.device_fault = drivers::fault_name(res.dev.device->fault());  // before stop(), which latches "not started"
@@ -247,7 +310,7 @@ int check_station_config(const StationFile& file, const RunOverrides& overrides,
 int run_station(const StationFile& f, const RunOverrides& o, std::atomic<bool>& stop) {
   const auto wall0 = std::chrono::steady_clock::now();
   const Log log{"haptic-station run [station " + std::to_string(f.station.id) + "]", o.quiet};
-  const PlanResult plan = plan_station(f, o, read_clocks());
+  PlanResult plan = plan_station(f, o, read_clocks());
   if (plan.status != PhaseStatus::kOk) {
     log.error(plan.error);
     return kExitConfigError;

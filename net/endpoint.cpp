@@ -342,7 +342,7 @@ void Endpoint::check_silence(std::int64_t now_ns) {
     if (p.stats.up && now_ns - p.last_receive_ns > silence_ns_) {
       p.stats.up = false;
       ++p.stats.down_events;
-      p.stats.last_change_s = static_cast<double>(now_ns) * 1e-9;
+      p.stats.last_change_s = p.stats.last_down_s = static_cast<double>(now_ns) * 1e-9;
     }
   }
 }
@@ -486,7 +486,10 @@ void Endpoint::on_state(PeerState& p, const DecodedState& st, std::int64_t now_n
   PeerStats& ps = p.stats;
   if (ps.packets_received_incarnation == 0) ps.lowest_seq = ps.newest_seq = st.seq;
   ps.lowest_seq = std::min(ps.lowest_seq, st.seq);
-  ps.newest_seq = std::max(ps.newest_seq, st.seq);
+  if (st.seq >= ps.newest_seq) {
+    ps.newest_seq = st.seq;
+    ps.newest_send_time_s = static_cast<double>(st.send_time_ns) * 1e-9;
+  }
   ++ps.packets_received;
   ++ps.packets_received_incarnation;
   const double one_way = static_cast<double>(now_ns - st.send_time_ns) * 1e-9;
@@ -521,7 +524,7 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
     if (!p.stats.up) {
       p.stats.up = true;
       ++p.stats.up_events;
-      p.stats.last_change_s = static_cast<double>(now_ns) * 1e-9;
+      p.stats.last_change_s = p.stats.last_up_s = static_cast<double>(now_ns) * 1e-9;
     }
     if (ds == DecodeStatus::fingerprint) {
       ++counters_.fingerprints_received;

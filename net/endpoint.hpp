@@ -98,6 +98,7 @@ struct PeerStats {
   std::uint16_t station_id = 0;
   std::uint64_t packets_received = 0;     // complete state packets delivered
   std::uint64_t newest_seq = 0;           // of the current incarnation
+  double newest_send_time_s = 0.0;        // the neighbour's send stamp of newest_seq (its clock)
   std::uint64_t lowest_seq = 0;
   double loss_fraction = 0.0;             // 1 - distinct received / (newest - lowest + 1), current incarnation
   std::uint64_t packets_received_incarnation = 0;
@@ -116,6 +117,7 @@ struct PeerStats {
   bool up = false;
   std::uint64_t up_events = 0, down_events = 0;
   double last_change_s = 0.0;             // monotonic_s() of the newest up/down change
+  double last_down_s = 0.0, last_up_s = 0.0;  // monotonic_s() of the newest down / up change
   double last_receive_s = 0.0;
   // Clock offset (peer clock - our clock), NTP-style from the echo (our send record t1, the
   // peer's receipt t2 = t3 - hold, its send stamp t3, our receipt t4):

@@ -10,6 +10,11 @@
 #                [--port-base P] [--nodes N] [--state-every K] [--no-plots] [--rt-priority P]
 #                [--net KEY=VALUE]...   (extra [net] keys in every station, TOML values: e.g.
 #                                        --net tx_spin=true --net 'encoding="float64"')
+#                [--station KEY=VALUE]... (extra [station] keys, e.g. --station max_no_neighbour_fraction=0.5)
+#                [--kill I:KILL_S:RESTART_S] (SIGKILL station I at run time KILL_S, restart it with the
+#                                        same configuration at RESTART_S: it rejoins; its first log is
+#                                        station-I.log, the restarted one's station-I-restart.log; no
+#                                        merge, tools/run4/rejoin_check.py checks the run instead)
 # Exit 0 when all four stations finished and the merge succeeded. Bounded: every process is
 # sent SIGTERM after its planned time + 15 s, SIGKILL 5 s later.
 set -euo pipefail
@@ -17,7 +22,7 @@ here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../.." && pwd)"
 transport=udp; bin="$repo/build/bin/haptic-station"; out=""; scenario=paper-best
 duration=8; push_end=2.5; release=5; seed=1; probe=1.5; preset=paper; port_base=47210
-nodes=33; state_every=5; plots=1; prio=80; net_extra=()
+nodes=33; state_every=5; plots=1; prio=80; net_extra=(); station_extra=(); kill_spec=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --transport) transport="$2"; shift 2 ;;
@@ -36,7 +41,10 @@ while [ $# -gt 0 ]; do
     --rt-priority) prio="$2"; shift 2 ;;
     --no-plots) plots=0; shift ;;
     --net) [[ "$2" == *=* ]] || { echo "run4.sh: --net needs KEY=VALUE, got '$2'" >&2; exit 2; }; net_extra+=("$2"); shift 2 ;;
-    -h|--help) sed -n 2,14p "$0"; exit 0 ;;
+    --station) [[ "$2" == *=* ]] || { echo "run4.sh: --station needs KEY=VALUE, got '$2'" >&2; exit 2; }; station_extra+=("$2"); shift 2 ;;
+    --kill) [[ "$2" =~ ^[1-4]:[0-9.]+:[0-9.]+$ ]] || { echo "run4.sh: --kill needs I:KILL_S:RESTART_S (e.g. 2:5:8), got '$2'" >&2; exit 2; }
+            kill_spec="$2"; shift 2 ;;
+    -h|--help) sed -n 2,19p "$0"; exit 0 ;;
     *) echo "run4.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -86,6 +94,7 @@ for i in 1 2 3 4; do
     echo "probe_s = $probe"
     echo "out_dir = \"$out\""
     echo "state_every = $state_every"
+    for kv in "${station_extra[@]}"; do echo "${kv%%=*} = ${kv#*=}"; done
     echo "[device]"
     echo "kind = \"simulated\""
     echo "sim_max_force_N = 50.0      # the simulator's user model has no output clamp"
@@ -126,6 +135,23 @@ for i in 1 2 3 4; do
   "${cmd[@]}" > "$out/station-$i.log" 2>&1 &
   pids+=($!)
 done
+if [ -n "$kill_spec" ]; then
+  IFS=: read -r kill_i kill_s restart_s <<< "$kill_spec"
+  run0=$(/usr/bin/python3 -c "print($start_at + $probe + 0.5)")  # run start (setup_gap_s default 0.5)
+  sleep_to() { /usr/bin/python3 -c "import time; time.sleep(max(0.0, $1 - time.monotonic()))"; }
+  sleep_to "$(/usr/bin/python3 -c "print($run0 + $kill_s)")"
+  kill -KILL "${pids[$((kill_i - 1))]}" 2>/dev/null || true
+  wait "${pids[$((kill_i - 1))]}" 2>/dev/null || true
+  echo "run4.sh: SIGKILL station $kill_i at run time $kill_s s"
+  sleep_to "$(/usr/bin/python3 -c "print($run0 + $restart_s)")"
+  restart_mono=$(/usr/bin/python3 -c 'import time; print("%.6f" % time.monotonic())')
+  cmd=("$bin" run --config "$out/station-$kill_i.toml" --start-at "$start_at")
+  if [ "$transport" = raw ]; then cmd=(ip netns exec "$(ns $((kill_i - 1)))" "${cmd[@]}"); fi
+  "${cmd[@]}" > "$out/station-$kill_i-restart.log" 2>&1 &
+  pids[$((kill_i - 1))]=$!
+  echo "{\"station\": $kill_i, \"kill_run_s\": $kill_s, \"restart_run_s\": $restart_s, \"restart_monotonic_s\": $restart_mono, \"run_start_monotonic_s\": $run0}" > "$out/restart.json"
+  echo "run4.sh: restarted station $kill_i at run time $restart_s s"
+fi
 limit=$(/usr/bin/python3 -c "print(int(2.0 + $probe + 0.5 + $duration + 15))")
 rc=0
 for idx in 0 1 2 3; do
@@ -139,8 +165,11 @@ for idx in 0 1 2 3; do
   if wait "$p"; then :; else s=$?; echo "run4.sh: station $((idx + 1)) exited with $s (log: $out/station-$((idx + 1)).log)" >&2; rc=1; fi
 done
 pids=()
-for i in 1 2 3 4; do tail -n 1 "$out/station-$i.log"; done
-[ "$rc" -eq 0 ] || { for i in 1 2 3 4; do echo "--- station-$i.log"; tail -n 20 "$out/station-$i.log"; done >&2; exit 1; }
+logs=("$out/station-1.log" "$out/station-2.log" "$out/station-3.log" "$out/station-4.log")
+[ -n "$kill_spec" ] && logs[$((kill_i - 1))]="$out/station-$kill_i-restart.log"
+for l in "${logs[@]}"; do tail -n 1 "$l"; done
+[ "$rc" -eq 0 ] || { for l in "${logs[@]}"; do echo "--- $l"; tail -n 20 "$l"; done >&2; exit 1; }
+if [ -n "$kill_spec" ]; then exit 0; fi  # a rejoin run: tools/run4/rejoin_check.py checks it
 /usr/bin/python3 "$here/merge_run.py" "$out"
 if [ "$plots" -eq 1 ]; then
   /usr/bin/python3 "$repo/tools/plots/plot_run.py" "$out" && echo "run4.sh: figures in $out/*.png" || echo "run4.sh: figure script failed" >&2

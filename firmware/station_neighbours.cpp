@@ -64,7 +64,7 @@ ClockCheck check_clock_offsets(const StationPlan& plan, const net::EndpointStats
     if (std::abs(offset) - unc > bound) {
       c.exceeded = true;
       if (!c.message.empty()) c.message += "; ";
-      c.message += "station " + std::to_string(nbrs[n] + 1) + " runs its ticks " + ms(offset) + " " + (offset > 0 ? "later" : "earlier") +
+      c.message += "station " + std::to_string(nbrs[n] + 1) + " runs its ticks " + ms(std::abs(offset)) + " " + (offset > 0 ? "later" : "earlier") +
                    " than ours (+- " + ms(unc) + ")";
     }
   }

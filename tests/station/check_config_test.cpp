@@ -158,15 +158,16 @@ TEST(CheckConfig, AStartLongAfterTheCommonEpochIsAConfigurationError) {
   CHECK(contains(c.err, "--start-at"));
 }
 
-TEST(CheckConfig, TheFingerprintNamesTheFirstFieldThatDiffers) {
+TEST(CheckConfig, TheFingerprintNamesTheFieldsThatDiffer) {
   const BuiltScenario a = build_scenario(make_scenario("paper-best"));
   ScenarioSpec bigger = make_scenario("paper-best");
   bigger.scene_nodes = 27;
   ScenarioSpec stiffer = make_scenario("paper-best");
   stiffer.p_gain_N_per_m = 900;
   const SceneFingerprint fa = scene_fingerprint(a, 2'000'000);
-  STRCMP_EQUAL("", fa.first_difference(scene_fingerprint(build_scenario(make_scenario("paper-best")), 2'000'000)).c_str());
-  STRCMP_EQUAL("scene nodes", fa.first_difference(scene_fingerprint(build_scenario(bigger), 2'000'000)).c_str());
-  STRCMP_EQUAL("gains", fa.first_difference(scene_fingerprint(build_scenario(stiffer), 2'000'000)).c_str());
-  STRCMP_EQUAL("period", fa.first_difference(scene_fingerprint(a, 1'000'000)).c_str());
+  using haptic::net::fingerprint_difference;
+  STRCMP_EQUAL("", fingerprint_difference(fa, scene_fingerprint(build_scenario(make_scenario("paper-best")), 2'000'000)).c_str());
+  STRCMP_CONTAINS("scene nodes: 33 here, 27 at the peer", fingerprint_difference(fa, scene_fingerprint(build_scenario(bigger), 2'000'000)).c_str());
+  STRCMP_EQUAL("gains (hash) differs", fingerprint_difference(fa, scene_fingerprint(build_scenario(stiffer), 2'000'000)).c_str());
+  STRCMP_EQUAL("period_ns: 2000000 here, 1000000 at the peer", fingerprint_difference(fa, scene_fingerprint(a, 1'000'000)).c_str());
 }

@@ -71,7 +71,8 @@ std::pair<ProbeResult, ProbeResult> probe_both(Station& a, Station& b) {
   return {std::move(ra), std::move(rb)};
 }
 
-double soon_s() { return static_cast<double>(read_clocks().monotonic_ns) * 1e-9 + 0.3; }
+// The common epoch: 1 s from now leaves time to plan both stations on a loaded machine.
+double soon_s() { return static_cast<double>(read_clocks().monotonic_ns) * 1e-9 + 1.0; }
 
 }  // namespace
 
@@ -92,7 +93,7 @@ TEST(StationLifecycle, StationsWithDifferentScenesRefuseToCoupleAndSayWhichField
 
 TEST(StationLifecycle, StationsWithTheSameSceneProbeAndSeeNoClockOffset) {
   const double t0 = soon_s();
-  Station a = open_station(star_station_file(1, 33, 0.3), t0), b = open_station(star_station_file(2, 33, 0.3), t0);
+  Station a = open_station(star_station_file(1, 33, 0.6), t0), b = open_station(star_station_file(2, 33, 0.6), t0);
   connect(a, b);
   auto [ra, rb] = probe_both(a, b);  // the hub misses 3 and 4; the leaf has all it needs
   CHECK_TEXT(rb.status == PhaseStatus::kOk, rb.message.c_str());

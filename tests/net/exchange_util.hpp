@@ -44,7 +44,7 @@ struct ExchangeResult {
   std::uint64_t out_of_order[2] = {0, 0};
 };
 
-// Both endpoints push `count` packets (one per ~1 ms) and drain; stops when both received
+// Both endpoints push packets (one per period_us) and drain; stops when both received
 // `count` or after deadline_s. Probing runs over the first half.
 inline ExchangeResult exchange(Endpoint& a, Endpoint& b, std::uint16_t id_a, std::uint16_t id_b, std::uint64_t count,
                                double deadline_s = 10.0, int period_us = 500) {
@@ -61,7 +61,9 @@ inline ExchangeResult exchange(Endpoint& a, Endpoint& b, std::uint16_t id_a, std
   bool probed[2] = {false, false};
   while ((r.received[0] < count || r.received[1] < count) &&
          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < deadline_s) {
-    if (k < count + 50) {  // a few extra so losses at the end of a run do not stall it
+    {  // keep sending until both sides have `count` (bounded by the deadline): a push the I/O
+       // thread could not take on a loaded machine, or a datagram the kernel dropped, is
+       // replaced by a later packet instead of stalling the exchange
       ++k;
       for (int e = 0; e < 2; ++e) {
         fill_state(ids[e], k, x, v);

@@ -1,15 +1,20 @@
 #!/usr/bin/python3
 """Checks a four-station run in which one station was SIGKILLed and restarted (tools/run4/run4.sh
---kill I:KILL_S:RESTART_S): the restarted station rejoined within --max-rejoin-s of its start, the
-copies reached consensus again by the end, and no station's device force jumped by more than the
-hold force around the rejoin. Prints the figures; exit 0 when all hold, 1 otherwise.
-Usage: rejoin_check.py OUT_DIR [--max-rejoin-s 2.0] [--consensus-m 1e-3]"""
+--kill I:KILL_S:RESTART_S): the restarted station rejoined within --max-rejoin-s of its start, its
+copy started within --adopt-m of the neighbour copy it took over (state adoption before coupling),
+the copies reached consensus again by the end, and no station's device force jumped (tick to tick)
+by more than the hold force around the rejoin. Also prints, without checking it, the largest
+change of each device force from its value at the restart until the release (the copies that
+drifted apart while the station was away are pulled together again).
+Prints the figures; exit 0 when all checks hold, 1 otherwise.
+Usage: rejoin_check.py OUT_DIR [--max-rejoin-s 2.0] [--consensus-m 1e-3] [--adopt-m 1e-3]"""
 import argparse, csv, json, math, os, sys
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
 ap.add_argument('out')
 ap.add_argument('--max-rejoin-s', type=float, default=2.0)
 ap.add_argument('--consensus-m', type=float, default=1e-3)
+ap.add_argument('--adopt-m', type=float, default=1e-3)
 a = ap.parse_args()
 
 restart = json.load(open(os.path.join(a.out, 'restart.json')))
@@ -60,6 +65,16 @@ else:
     if before:
         kb = max(before)
         print(f'before the restart (run time {(kb + 1) * T:.2f} s): the other three copies are {spread_at(others, kb) * 1e3:.4f} mm apart')
+    # The rejoined copy's first state row against the copy it took over, same k.
+    src = (rj or {}).get('state_from_station')
+    if src in states:
+        k1 = next((k for k in sorted(states[who]) if k in states[src]), None)
+        if k1 is not None:
+            a0, b0 = states[who][k1], states[src][k1]
+            d = max(math.dist(a0[3 * p:3 * p + 3], b0[3 * p:3 * p + 3]) for p in range(len(a0) // 3))
+            print(f'adoption: station {who}\'s first state row (run time {(k1 + 1) * T:.3f} s) is {d * 1e3:.4f} mm from station {src}\'s copy')
+            if not d <= a.adopt_m:
+                fails.append(f'the rejoined copy started {d * 1e3:.3f} mm from the copy it took over (> {a.adopt_m * 1e3} mm)')
     k_end = max(common)
     spread = spread_at(range(1, 5), k_end)
     print(f'consensus at run time {(k_end + 1) * T:.2f} s: largest node distance from the mean of the copies {spread * 1e3:.4f} mm')
@@ -70,7 +85,7 @@ else:
 push_end, release = js[1]['push_end_s'], js[1]['release_time_s']
 t_re = restart['restart_run_s']
 hold = []
-jumps, base = {}, {}
+jumps, base, drift = {}, {}, {}
 for i in range(1, 5):
     rows = read_rows(os.path.join(a.out, f'station-{i}-trace.csv'))
     F = [(float(r['t_s']), (float(r['force_x_N']), float(r['force_y_N']), float(r['force_z_N']))) for r in rows]
@@ -81,13 +96,15 @@ for i in range(1, 5):
         win = [(t, f) for t, f in F if t0 <= t <= t1]
         return max((math.dist(f1, f0) for (_, f0), (_, f1) in zip(win, win[1:])), default=0.0)
     jumps[i] = largest_change(t_re, t_re + a.max_rejoin_s + 1.0)
+    at_restart = [f for t, f in F if t <= t_re]
+    drift[i] = max((math.dist(f, at_restart[-1]) for t, f in F if t_re <= t <= release - 0.1), default=0.0) if at_restart else math.nan
     # Baseline: the same statistic over an undisturbed stretch of the hold (before the kill).
     base[i] = largest_change(push_end + 0.5, min(release, restart['kill_run_s']) - 0.1) if i != who else math.nan
 hold_N = min(hold) if hold else math.nan
 print('hold force (smallest station mean |F| while holding): %.3f N' % hold_N)
 for i in range(1, 5):
     print(f'  station {i}: largest tick-to-tick force change in run time [{t_re}, {t_re + a.max_rejoin_s + 1.0}] s: {jumps[i]:.4f} N '
-          f'(undisturbed hold before the kill: {base[i]:.4f} N)')
+          f'(undisturbed hold before the kill: {base[i]:.4f} N); largest |F - F(restart)| until the release: {drift[i]:.4f} N')
     if not jumps[i] <= hold_N:
         fails.append(f'station {i} force jumped {jumps[i]:.3f} N > hold force {hold_N:.3f} N')
 

@@ -3,7 +3,10 @@
 // of phases, each a small function returning a status (DESIGN.md, "The station process"):
 //   plan    (station_plan.hpp)  pure: file -> scenario, epoch, peer table, link settings, fingerprint
 //   open    (here)              the device, the transport + endpoint (its I/O thread), GPIO, telemetry
-//   probe   (station_probe.hpp) k in [0, P): rest state every tick, round trips measured
+//   probe   (station_probe.hpp) k in [0, P): rest state every tick, round trips measured, fingerprints
+//                               compared, clock offsets checked (station_neighbours.hpp)
+//   rejoin  (station_rejoin.hpp) instead of probe when started after the probing phase: learn the
+//                               session's epoch, round trips; after build adopt a neighbour's state
 //   build   (station_probe.hpp) B_i from eq. (18) on the measured bounds, eq. (26), rt::StationCore
 //   run     (station_loop.hpp)  k in [P+G, P+G+run): run_tick() (station_tick.hpp) on RtThread
 //   report  (station_report.hpp) station-<id>.json/-trace.csv/-state.csv, the exit code

@@ -9,7 +9,7 @@
 
 #include <CppUTest/TestHarness.h>
 
-using namespace haptic::rt::topology;
+using namespace haptic::topology;
 
 namespace {
 

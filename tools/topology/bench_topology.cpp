@@ -5,7 +5,7 @@
 
 #include "tools/topology/topology.hpp"
 
-namespace topo = haptic::rt::topology;
+namespace topo = haptic::topology;
 
 namespace {
 

@@ -11,7 +11,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace haptic::rt::topology {
+namespace haptic::topology {
 
 namespace {
 
@@ -995,4 +995,4 @@ Eigen::MatrixXd paper_delay_matrix_ms() {
   return d;
 }
 
-}  // namespace haptic::rt::topology
+}  // namespace haptic::topology

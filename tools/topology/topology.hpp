@@ -40,7 +40,7 @@
 #include <string>
 #include <vector>
 
-namespace haptic::rt::topology {
+namespace haptic::topology {
 
 // Undirected link between users a < b (0-based).
 struct Edge {
@@ -199,4 +199,4 @@ Eigen::MatrixXd synthetic_delays_ms(int users, const SyntheticMap& map, Eigen::M
 // The paper's mean one-way delay matrix (Section V), ms, row i receives from column j.
 Eigen::MatrixXd paper_delay_matrix_ms();
 
-}  // namespace haptic::rt::topology
+}  // namespace haptic::topology

@@ -36,8 +36,8 @@ Eigen::MatrixXd effective_mean_delay_ms(const MeasuredLinks& m, double period_s)
 //   {"n": n, "blocks": {"1-2": [[..]], "2-1": [[..]], ...}}   -> explicit dense P_ij (row i from j)
 struct GainFile {
   bool dense = false;
-  rt::topology::PolynomialGains poly;
-  rt::topology::DenseGains blocks;
+  ::haptic::topology::PolynomialGains poly;
+  ::haptic::topology::DenseGains blocks;
 };
 GainFile read_gain_file(const std::string& path, int users);
 

@@ -23,7 +23,7 @@
 #include "tools/topology/topology.hpp"
 #include "tools/topology/topology_io.hpp"
 
-namespace topo = haptic::rt::topology;
+namespace topo = haptic::topology;
 namespace tio = haptic::tools::topology;
 using nlohmann::json;
 

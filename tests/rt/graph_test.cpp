@@ -6,7 +6,7 @@
 
 #include "tests/support/graph.hpp"
 
-using namespace haptic::rt;
+using namespace haptic::test;
 
 namespace {
 UndirectedGraph random_connected_graph(std::mt19937& rng, int N) {

@@ -15,6 +15,7 @@
 
 using namespace haptic;
 using namespace haptic::rt;
+using haptic::test::DenseStationReference;
 using haptic::test::PaperWorld;
 
 TEST_GROUP(SparseLdlt){};

@@ -10,16 +10,16 @@
 
 #include "rt/station.hpp"
 
-namespace haptic::rt {
+namespace haptic::test {
 
 class DenseStationReference {
  public:
-  explicit DenseStationReference(const StationConfig& config);
-  RxLink& rx(int n) { return rx_[static_cast<std::size_t>(n)]; }
-  Vec3 tick(const Vec3& device_position_m);  // returns the device force
+  explicit DenseStationReference(const rt::StationConfig& config);
+  rt::RxLink& rx(int n) { return rx_[static_cast<std::size_t>(n)]; }
+  rt::Vec3 tick(const rt::Vec3& device_position_m);  // returns the device force
   const Eigen::VectorXd& x() const { return x_; }
   const Eigen::VectorXd& v() const { return v_; }
-  const Vec3& vp_position_m() const { return y_; }
+  const rt::Vec3& vp_position_m() const { return y_; }
   bool in_contact() const { return in_contact_; }
   void set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
     x_ = x;
@@ -27,15 +27,15 @@ class DenseStationReference {
   }
 
  private:
-  StationConfig cfg_;
+  rt::StationConfig cfg_;
   double T_;
   int dofs_;
   Eigen::MatrixXd Mfull_, Bfull_, Kfull_;
   std::vector<Eigen::MatrixXd> Pfull_, Dfull_;
-  std::vector<RxLink> rx_;
+  std::vector<rt::RxLink> rx_;
   Eigen::VectorXd x_, v_, xd_;
-  Vec3 y_, w_ = Vec3::Zero(), w_hat_prev_ = Vec3::Zero(), q_prev_, f_vp_ = Vec3::Zero();
-  std::vector<Vec3> anchor_;
+  rt::Vec3 y_, w_ = rt::Vec3::Zero(), w_hat_prev_ = rt::Vec3::Zero(), q_prev_, f_vp_ = rt::Vec3::Zero();
+  std::vector<rt::Vec3> anchor_;
   bool in_contact_ = false;
   double normal_sign_ = 1;
   std::int64_t k_ = 0;
@@ -44,4 +44,4 @@ class DenseStationReference {
   Eigen::LDLT<Eigen::MatrixXd> ldlt_;
 };
 
-}  // namespace haptic::rt
+}  // namespace haptic::test

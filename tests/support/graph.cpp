@@ -3,7 +3,7 @@
 #include <numeric>
 #include <stdexcept>
 
-namespace haptic::rt {
+namespace haptic::test {
 
 bool UndirectedGraph::connected() const {
   if (vertices <= 1) return true;
@@ -69,4 +69,4 @@ Eigen::MatrixXd stiffness_matrix_lemma1(const UndirectedGraph& g, const std::vec
   return 0.5 * DI * Pd * DI.transpose();
 }
 
-}  // namespace haptic::rt
+}  // namespace haptic::test

@@ -5,7 +5,7 @@
 #include <array>
 #include <vector>
 
-namespace haptic::rt {
+namespace haptic::test {
 
 // Undirected simple graph on N vertices (0-based edges {i, j}, i != j).
 struct UndirectedGraph {
@@ -24,4 +24,4 @@ Eigen::MatrixXd stiffness_matrix(const UndirectedGraph& g, const std::vector<Eig
 // Lemma 1's right-hand side: 1/2 (D (x) I_n) P_d (D (x) I_n)^T with P_d = diag over directed edges.
 Eigen::MatrixXd stiffness_matrix_lemma1(const UndirectedGraph& g, const std::vector<Eigen::MatrixXd>& gains);
 
-}  // namespace haptic::rt
+}  // namespace haptic::test

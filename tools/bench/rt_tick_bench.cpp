@@ -30,6 +30,7 @@
 #endif
 
 using namespace haptic::rt;
+using haptic::test::DenseStationReference;
 
 namespace {
 

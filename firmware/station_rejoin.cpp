@@ -115,3 +115,23 @@ AdoptedState adopt_neighbour_state(const StationPlan& plan, net::Endpoint& ep, r
 }
 
 }  // namespace haptic::firmware
+
+namespace haptic::firmware {
+
+void refresh_adopted_state(const StationPlan& plan, net::Endpoint& ep, rt::StationCore& core, Eigen::VectorXd& x, Eigen::VectorXd& v,
+                           AdoptedState& a) {
+  const int dofs = static_cast<int>(x.size());
+  bool newer = false;
+  ep.drain([&](std::uint16_t sender, std::uint64_t seq, double, const double* xh, const double* vh, std::uint32_t count) {
+    const int n = plan.peers.sender_to_nbr[sender];
+    if (n < 0 || seq <= a.seq || static_cast<int>(count) != dofs) return;
+    a.seq = seq;
+    a.from_station = plan.neighbours()[static_cast<std::size_t>(n)] + 1;
+    x = Eigen::Map<const Eigen::VectorXd>(xh, dofs);  // same size: no allocation
+    v = Eigen::Map<const Eigen::VectorXd>(vh, dofs);
+    newer = true;
+  });
+  if (newer) core.set_state(x, v);
+}
+
+}  // namespace haptic::firmware

@@ -18,6 +18,8 @@
 #include <cstdint>
 #include <string>
 
+#include <Eigen/Core>
+
 #include "firmware/station_neighbours.hpp"
 #include "firmware/station_plan.hpp"
 #include "firmware/station_probe.hpp"
@@ -46,5 +48,13 @@ struct AdoptedState {
 // thread starts) and sets the core's state to the newest neighbour state packet of the running
 // session (seq >= run_k0). Not RT-safe.
 AdoptedState adopt_neighbour_state(const StationPlan& plan, net::Endpoint& ep, rt::StationCore& core, double wait_s);
+
+// The same at the rejoined station's first run tick, on the RT thread (the RT thread's set-up
+// takes ~0.1 s after the adoption above): drains the RX ring and, if a newer neighbour state
+// arrived, takes it over into the preallocated x, v (dofs each) and the core. RT-safe (no
+// allocation, no wait); the drained packets are not offered to the receive links, so the first
+// tick couples to nobody.
+void refresh_adopted_state(const StationPlan& plan, net::Endpoint& ep, rt::StationCore& core, Eigen::VectorXd& x, Eigen::VectorXd& v,
+                           AdoptedState& adopted);
 
 }  // namespace haptic::firmware

@@ -155,8 +155,27 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
       ev.push_back(line);
     }
   };
-  pr.run = run_loop(plan, in, pr.records, pr.counters, stop, observer);
+  if (plan.times.rejoin) {
+    // A rejoining station refreshes the adopted state at its first tick (RT-safe, preallocated).
+    Eigen::VectorXd x = pr.build.core->x(), v = pr.build.core->v();
+    bool first = true;
+    const RunTickFn tick = [&](std::int64_t k, std::int64_t kr, const platform::TickInfo& info) {
+      if (first) {
+        refresh_adopted_state(plan, *res.ep, *pr.build.core, x, v, pr.adopted);
+        first = false;
+      }
+      run_tick(in, pr.records, pr.counters, k, kr, info);
+    };
+    pr.run = run_periodic(plan, in.device, tick, stop, observer);
+  } else {
+    pr.run = run_loop(plan, in, pr.records, pr.counters, stop, observer);
+  }
   pr.ran = true;
+  if (plan.times.rejoin) {
+    pr.lifecycle["rejoin"]["state_from_station"] = pr.adopted.from_station;
+    pr.lifecycle["rejoin"]["state_tick"] = pr.adopted.seq;
+    pr.lifecycle["rejoin"]["coupled_at_tick"] = pr.run.first_run_k;
+  }
   if (pr.run.status == PhaseStatus::kFailed) pr.fail(PhaseStatus::kFailed, pr.run.message);
 }
 
@@ -205,10 +224,7 @@ bool adopt_state(const StationPlan& plan, StationResources& res, PhaseResults& p
   }
   const std::int64_t k_now = (read_clocks().monotonic_ns - plan.times.epoch_ns) / plan.times.period_ns;
   log.say("rejoining: took over station " + std::to_string(pr.adopted.from_station) + "'s object state of tick " + std::to_string(pr.adopted.seq) +
-          " (now tick " + std::to_string(k_now) + "); coupling");
-  pr.lifecycle["rejoin"]["state_from_station"] = pr.adopted.from_station;
-  pr.lifecycle["rejoin"]["state_tick"] = pr.adopted.seq;
-  pr.lifecycle["rejoin"]["coupled_at_tick"] = k_now + 1;
+          " (now tick " + std::to_string(k_now) + "; refreshed at the first run tick); coupling");
   return true;
 }
 

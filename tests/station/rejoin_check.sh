@@ -15,7 +15,7 @@ rc=0
 for who in 2 1; do
   out="$work/kill-$who"
   if ! "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out" --port-base 47430 --duration 14 --release 10 \
-       --kill "$who:5:8" --no-plots --station max_no_neighbour_fraction=0.5 > "$work/run4-kill-$who.log" 2>&1; then
+       --kill "$who:5:8" --no-plots --state-every 1 --station max_no_neighbour_fraction=0.5 > "$work/run4-kill-$who.log" 2>&1; then
     echo "rejoin_check.sh: the run with station $who killed failed:" >&2; tail -n 30 "$work/run4-kill-$who.log" >&2; rc=1; continue
   fi
   echo "--- station $who SIGKILLed at 5 s, restarted at 8 s"

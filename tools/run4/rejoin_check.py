@@ -32,7 +32,7 @@ if rj is None:
 else:
     # Tick k of the learned epoch is at (planned run start + shift) + (k - run_k0) T on CLOCK_MONOTONIC.
     run0 = restart['run_start_monotonic_s'] + rj['epoch_shift_ms'] * 1e-3
-    coupled_mono = run0 + (rj['coupled_at_tick'] - js[who]['run_k0']) * T
+    coupled_mono = run0 + (rj['coupled_at_tick'] - js[who]['run_k0']) * T  # its first run tick (first_run_k)
     latency = coupled_mono - restart['restart_monotonic_s']
     print(f'rejoin: station {who} restarted at run time {restart["restart_run_s"]} s, coupled {latency:.3f} s later '
           f'(epoch from station {rj["epoch_from_station"]}: {rj["epoch_shift_ms"]:+.3f} ms from the planned one, '

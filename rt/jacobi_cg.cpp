@@ -48,13 +48,12 @@ JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance
   const double need = relative_tolerance / (2 * std::sqrt(kappa_a_));
   cap_ = rho <= 0 ? 1 : std::max(1, static_cast<int>(std::ceil(std::log(need) / std::log(rho))));
   const auto w = static_cast<std::size_t>(n_) * 3;
-  z_.assign(w, 0.0);
   p_.assign(w, 0.0);
   q_.assign(w, 0.0);
 }
 
 long JacobiCg::stored_doubles() const {
-  return static_cast<long>(val_.size() + dinv_.size() + z_.size() + p_.size() + q_.size()) +
+  return static_cast<long>(val_.size() + dinv_.size() + p_.size() + q_.size()) +
          static_cast<long>(rowptr_.size() + colidx_.size()) / 2;
 }
 
@@ -81,38 +80,47 @@ void JacobiCg::multiply(const double* x, double* y, int width) const {
     multiply_fixed<1>(x, y);
 }
 
-// Preconditioned CG (Saad, Alg. 9.1) run on W independent systems; one matrix pass per iteration.
+// Preconditioned CG (Saad, Alg. 9.1) run on W independent systems; one matrix pass per iteration
+// with the p.q products accumulated in it, z = D^{-1} r never stored (three vector passes).
 template <int W>
 int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int max_iterations) {
-  const long m = static_cast<long>(n_) * W;
-  double* z = z_.data();
   double* p = p_.data();
   double* q = q_.data();
   const double* dinv = dinv_.data();
+  const int* rp = rowptr_.data();
+  const int* ci = colidx_.data();
+  const double* av = val_.data();
   multiply_fixed<W>(x, q);
   double bb = 0, rr = 0;
   double rz[W] = {};
-  for (long i = 0; i < m; ++i) {
-    r[i] = b[i] - q[i];
-    bb += b[i] * b[i];
-    rr += r[i] * r[i];
-  }
   for (int i = 0; i < n_; ++i)
     for (int c = 0; c < W; ++c) {
       const long k = static_cast<long>(i) * W + c;
-      z[k] = dinv[i] * r[k];
-      p[k] = z[k];
-      rz[c] += r[k] * z[k];
+      r[k] = b[k] - q[k];
+      p[k] = dinv[i] * r[k];
+      bb += b[k] * b[k];
+      rr += r[k] * r[k];
+      rz[c] += r[k] * p[k];
     }
   const double threshold = tol * tol * bb;
   int it = 0;
   while (rr > threshold) {
     if (it == max_iterations) return max_iterations + 1;
     ++it;
-    multiply_fixed<W>(p, q);
     double pq[W] = {};
-    for (long i = 0; i < m; i += W)
-      for (int c = 0; c < W; ++c) pq[c] += p[i + c] * q[i + c];
+    for (int i = 0; i < n_; ++i) {  // q = A p, pq = p.q
+      double acc[W] = {};
+      for (int e = rp[i]; e < rp[i + 1]; ++e) {
+        const double a = av[e];
+        const double* pj = p + static_cast<long>(ci[e]) * W;
+        for (int c = 0; c < W; ++c) acc[c] += a * pj[c];
+      }
+      const long k = static_cast<long>(i) * W;
+      for (int c = 0; c < W; ++c) {
+        q[k + c] = acc[c];
+        pq[c] += p[k + c] * acc[c];
+      }
+    }
     double alpha[W];
     for (int c = 0; c < W; ++c) alpha[c] = pq[c] > 0 ? rz[c] / pq[c] : 0.0;
     double rz_new[W] = {};
@@ -122,8 +130,7 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
         const long k = static_cast<long>(i) * W + c;
         x[k] += alpha[c] * p[k];
         r[k] -= alpha[c] * q[k];
-        z[k] = dinv[i] * r[k];
-        rz_new[c] += r[k] * z[k];
+        rz_new[c] += r[k] * r[k] * dinv[i];
         rr += r[k] * r[k];
       }
     double beta[W];
@@ -131,8 +138,11 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
       beta[c] = rz[c] > 0 ? rz_new[c] / rz[c] : 0.0;
       rz[c] = rz_new[c];
     }
-    for (long i = 0; i < m; i += W)
-      for (int c = 0; c < W; ++c) p[i + c] = z[i + c] + beta[c] * p[i + c];
+    for (int i = 0; i < n_; ++i)
+      for (int c = 0; c < W; ++c) {
+        const long k = static_cast<long>(i) * W + c;
+        p[k] = dinv[i] * r[k] + beta[c] * p[k];
+      }
   }
   return it;
 }

@@ -39,7 +39,7 @@ class JacobiCg {
   int n_ = 0;
   std::vector<int> rowptr_, colidx_;
   std::vector<double> val_, dinv_;
-  std::vector<double> z_, p_, q_;  // work vectors, n * 3
+  std::vector<double> p_, q_;  // work vectors, n * 3
   double kappa_scaled_ = 1, kappa_a_ = 1;
   int cap_ = 1;
 };

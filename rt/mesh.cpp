@@ -118,6 +118,30 @@ TetMesh make_paper_ball(double radius_m) {
 }
 
 namespace {
+// Nodes of the lattice ball with spacing h: corners of the cubes whose 8 corners are inside the
+// sphere (the mesh below uses exactly these). Counting needs no mesh: a flag per lattice point.
+long lattice_ball_node_count(double h, double R) {
+  const int K = static_cast<int>(std::ceil(R / h)) + 1;
+  const int W = 2 * K + 1;
+  auto inside = [&](int i, int j, int k) { return std::sqrt(double(i * i + j * j + k * k)) * h <= R * (1 + 1e-9); };
+  std::vector<unsigned char> used(static_cast<std::size_t>(W) * W * W, 0);
+  long count = 0;
+  for (int i = -K; i < K; ++i)
+    for (int j = -K; j < K; ++j)
+      for (int k = -K; k < K; ++k) {
+        bool all = true;
+        for (int c = 0; c < 8 && all; ++c) all = inside(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
+        if (!all) continue;
+        for (int c = 0; c < 8; ++c) {
+          const auto at = (static_cast<std::size_t>(i + (c & 1) + K) * W + static_cast<std::size_t>(j + ((c >> 1) & 1) + K)) * W +
+                          static_cast<std::size_t>(k + ((c >> 2) & 1) + K);
+          count += used[at] == 0;
+          used[at] = 1;
+        }
+      }
+  return count;
+}
+
 TetMesh lattice_ball_with_spacing(double h, double R) {
   const int K = static_cast<int>(std::ceil(R / h)) + 1;
   auto inside = [&](int i, int j, int k) {
@@ -169,19 +193,20 @@ TetMesh make_lattice_ball(int target_nodes, double radius_m) {
   if (!(radius_m > 0)) throw std::invalid_argument("ball radius must be > 0");
   // Node count grows like (4/3) pi (R/h)^3; scan a bracket of spacings around that estimate.
   const double h0 = radius_m * std::cbrt(4.0 * std::numbers::pi / (3.0 * target_nodes));
-  TetMesh best;
+  double best_h = 0;
   long best_err = -1;
   for (int s = -12; s <= 12; ++s) {
     const double h = h0 * (1.0 + 0.025 * s);
-    TetMesh m = lattice_ball_with_spacing(h, radius_m);
-    if (m.tets.empty()) continue;
-    const long err = std::labs(static_cast<long>(m.node_count()) - target_nodes);
+    const long count = lattice_ball_node_count(h, radius_m);
+    if (count == 0) continue;
+    const long err = std::labs(count - target_nodes);
     if (best_err < 0 || err < best_err) {
       best_err = err;
-      best = std::move(m);
+      best_h = h;
     }
   }
   if (best_err < 0) throw std::runtime_error("lattice ball: no mesh for that target");
+  TetMesh best = lattice_ball_with_spacing(best_h, radius_m);
   best.description = "lattice ball (Kuhn-split cubes, boundary projected), " + std::to_string(best.node_count()) + " nodes";
   return best;
 }

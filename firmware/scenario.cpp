@@ -109,6 +109,8 @@ void ScenarioSpec::validate() const {
   if (scene_nodes < 7 || scene_nodes > 20000) bad("--nodes must be in [7, 20000]");
   if (!(damping_margin >= 0 && damping_margin <= 10)) bad("damping margin must be in [0, 10]");
   if (loss_allowance_ticks < 0 || loss_allowance_ticks > 1000) bad("loss allowance must be in [0, 1000] ticks");
+  if (!(tx_deadband.position_deadband_m >= 0 && tx_deadband.position_deadband_m < 0.1)) bad("--tx-deadband-mm must be in [0, 100)");
+  if (tx_deadband.max_interval_ticks < 1 || tx_deadband.max_interval_ticks > 1000) bad("--tx-max-interval must be in [1, 1000]");
   scene.validate();
 }
 
@@ -180,13 +182,15 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
   }
   for (int i = 0; i < N; ++i)
     if (static_cast<int>(b.neighbors[static_cast<std::size_t>(i)].size()) > rt::kMaxNeighbors)
-      bad("--topology: user " + std::to_string(i + 1) + " has more than 6 links");
+      bad("--topology: user " + std::to_string(i + 1) + " has more than " + std::to_string(rt::kMaxNeighbors) + " links");
   b.nbar_ticks = Eigen::MatrixXi::Zero(N, N);
   for (int i = 0; i < N; ++i)
     for (int j = 0; j < N; ++j)
       if (i != j) {
         const double max_delay_s = spec.delay_ms(i, j) * 1e-3 * (1.0 + spec.jitter_fraction);
-        b.nbar_ticks(i, j) = static_cast<int>(std::ceil(max_delay_s / T - 1e-9)) + spec.loss_allowance_ticks;
+        // the sender's deadband may hold its state up to max_interval - 1 extra ticks
+        b.nbar_ticks(i, j) = static_cast<int>(std::ceil(max_delay_s / T - 1e-9)) + spec.loss_allowance_ticks +
+                             spec.tx_deadband.added_index_delay_ticks();
       }
   b.round_trip_sum_ms.assign(static_cast<std::size_t>(N), 0.0);
   b.damping_min.assign(static_cast<std::size_t>(N), 0.0);

@@ -13,6 +13,7 @@
 #include "rt/gains.hpp"
 #include "rt/scene.hpp"
 #include "rt/station.hpp"
+#include "rt/tx_deadband.hpp"
 #include "rt/user_model.hpp"
 
 namespace haptic::firmware {
@@ -59,6 +60,7 @@ struct ScenarioSpec {
   std::optional<std::vector<double>> damping_Ns_per_m;  // B_i override (one per user)
   double damping_margin = 0.05;          // B_i = (1 + margin) * eq. (18) minimum
   int loss_allowance_ticks = 1;          // Nbar_ij = ceil(max one-way delay / T) + this
+  rt::TxDeadbandConfig tx_deadband{};    // transmission deadband (off); Nbar_ij adds its interval - 1
   UserScriptSpec script{};
   int trace_node = -1;                   // -1: first node of user 2's contact mesh (paper: node 19)
 

@@ -11,6 +11,8 @@
 #include <stdexcept>
 
 #include "net/impairment.hpp"
+#include "net/wire.hpp"
+#include "rt/tx_deadband.hpp"
 
 namespace haptic::firmware {
 
@@ -52,6 +54,13 @@ double consensus_error(const std::vector<std::unique_ptr<rt::StationCore>>& st, 
   return std::isfinite(err) ? err : INFINITY;
 }
 
+// States sent on a link at ticks k with t0 <= k T < t1.
+std::uint64_t sent_between(const LinkStats& l, double t0, double t1, double T) {
+  std::uint64_t n = 0;
+  for (std::int64_t k : l.sent_ticks) n += (k * T >= t0 - 1e-9 && k * T < t1 - 1e-9) ? 1 : 0;
+  return n;
+}
+
 File open_out(const std::string& path) {
   File f(std::fopen(path.c_str(), "w"));
   if (!f) throw std::runtime_error("cannot write " + path);
@@ -77,6 +86,18 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
     users.emplace_back(spec.device, spec.hand, b.goal_script(i));
     users.back().reset(b.vp_start[static_cast<std::size_t>(i)]);
   }
+  // Transmission policy per station (rt/tx_deadband: every tick unless a deadband is set) and the
+  // UDP payload bytes of one state on the station's default wire (float32 values).
+  std::vector<rt::TxDeadband> tx;
+  for (int i = 0; i < N; ++i) tx.emplace_back(spec.tx_deadband, dofs);
+  std::uint64_t state_bytes = 0;
+  {
+    net::WireConfig wc;
+    wc.encoding = net::ValueEncoding::float32;
+    const net::Encoder enc(wc);
+    const auto values = static_cast<std::uint32_t>(dofs);
+    state_bytes = enc.payload_bytes(values) + enc.fragment_count(values) * (net::kHeaderBytes + net::kMacBytes);
+  }
   // Directed channels: one per (receiver i, sender j) on every link; seeds derived from the run seed.
   std::vector<Channel> ch;
   std::vector<std::vector<int>> out_channels(static_cast<std::size_t>(N)), in_channels(static_cast<std::size_t>(N));
@@ -93,6 +114,7 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
       c.link = net::ImpairedLink(m, spec.seed * 1000003ULL + static_cast<std::uint64_t>(i * 64 + c.from));
       c.stats.to = i;
       c.stats.from = c.from;
+      c.stats.sent_ticks.reserve(static_cast<std::size_t>(ticks));
       ch.push_back(std::move(c));
       in_channels[static_cast<std::size_t>(i)].push_back(static_cast<int>(ch.size()) - 1);
       out_channels[static_cast<std::size_t>(ch.back().from)].push_back(static_cast<int>(ch.size()) - 1);
@@ -185,12 +207,15 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
     // 3. every station sends x_hat(k), v_hat(k) to its neighbours through the impaired links
     for (int i = 0; i < N; ++i) {
       const auto& s = *st[static_cast<std::size_t>(i)];
+      if (!tx[static_cast<std::size_t>(i)].should_send(k, s.x_hat())) continue;
       auto payload = std::make_shared<std::vector<double>>(static_cast<std::size_t>(2 * dofs));
       std::copy(s.x_hat(), s.x_hat() + dofs, payload->begin());
       std::copy(s.v_hat(), s.v_hat() + dofs, payload->begin() + dofs);
       for (int ci : out_channels[static_cast<std::size_t>(i)]) {
         auto& c = ch[static_cast<std::size_t>(ci)];
         ++c.stats.sent;
+        c.stats.bytes_sent += state_bytes;
+        c.stats.sent_ticks.push_back(k);
         const auto fate = c.link.next_packet();
         if (fate.lost) ++c.stats.lost;
         if (fate.duplicated) ++c.stats.duplicated;
@@ -368,9 +393,17 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["diverged_at_s"] = r.diverged ? json(r.diverged_at_s) : json(nullptr);
   j["max_node_speed_m_per_s"] = std::isfinite(r.max_node_speed_m_per_s) ? json(r.max_node_speed_m_per_s) : json("inf");
   json pk;
-  std::uint64_t sent = 0, delivered = 0, lost = 0, dup = 0, reord = 0;
+  std::uint64_t sent = 0, delivered = 0, lost = 0, dup = 0, reord = 0, sent_hold = 0, sent_settled = 0;
   json links = json::array();
+  // Bandwidth per link over the run, over the hold window and after consensus (release +
+  // consensus time to the end); the transmission policy (rt/tx_deadband) decides what is sent.
+  const double run_s = static_cast<double>(r.ticks) * s.period_s;
+  const double settled_from_s = r.consensus_time_s ? r.release_time_s + *r.consensus_time_s : run_s;
   for (const auto& l : r.links) {
+    const std::uint64_t in_hold = sent_between(l, r.hold_window_start_s, r.hold_window_end_s, s.period_s);
+    const std::uint64_t settled = sent_between(l, settled_from_s, run_s + s.period_s, s.period_s);
+    sent_hold += in_hold;
+    sent_settled += settled;
     sent += l.sent;
     delivered += l.delivered;
     lost += l.lost;
@@ -388,6 +421,10 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
                      {"loss_rate", l.sent ? static_cast<double>(l.lost) / l.sent : 0.0},
                      {"max_index_delay_ticks", l.max_index_delay},
                      {"bound_violations", l.bound_violations},
+                     {"packets_per_s", run_s > 0 ? static_cast<double>(l.sent) / run_s : 0.0},
+                     {"bytes_per_s", run_s > 0 ? static_cast<double>(l.bytes_sent) / run_s : 0.0},
+                     {"sent_in_hold_window", in_hold},
+                     {"sent_after_consensus", settled},
                      {"index_delay_bound_ticks", b.nbar_ticks(l.to, l.from)}});
   }
   pk["sent"] = sent;
@@ -395,6 +432,10 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   pk["lost"] = lost;
   pk["duplicated"] = dup;
   pk["reordered"] = reord;
+  pk["sent_in_hold_window"] = sent_hold;
+  pk["sent_after_consensus"] = sent_settled;
+  pk["after_consensus_s"] = run_s - settled_from_s;
+  j["tx_deadband"] = {{"position_m", s.tx_deadband.position_deadband_m}, {"max_interval_ticks", s.tx_deadband.max_interval_ticks}};
   j["packets"] = pk;
   j["link_stats"] = links;
   j["wall_time_s"] = r.wall_time_s;

@@ -57,7 +57,8 @@ struct SimArgs {
   std::string scenario, out, topology, damping, delay_matrix;
   double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1, push_end = -1, release = -1;
   std::uint64_t seed = 1;
-  int nodes = -1, trace_every = 1, allowance = -1, trace_node = -1;
+  int nodes = -1, trace_every = 1, allowance = -1, trace_node = -1, tx_interval = 1;
+  double tx_deadband_mm = 0;
   bool no_plots = false, quiet = false;
 };
 
@@ -88,6 +89,10 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   sim->add_option("--nodes", a.nodes, "Scene size: 33 is the paper's ball, other values a lattice ball of about that many nodes (default 33)");
   sim->add_option("--damping-margin", a.margin, "B_i = (1 + margin) x eq. (18) minimum (default 0.05)");
   sim->add_option("--loss-allowance", a.allowance, "Ticks added to ceil(max delay / T) for the bound Nbar_ij (default 1)");
+  sim->add_option("--tx-deadband-mm", a.tx_deadband_mm,
+                  "Send a state only when some node moved more than this since the last one sent, in mm (default 0: every tick)");
+  sim->add_option("--tx-max-interval", a.tx_interval,
+                  "With --tx-deadband-mm: a state at least every this many ticks; Nbar_ij grows by this - 1 (default 1)");
   sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
   sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)");
   sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)");
@@ -160,6 +165,8 @@ int sim_command(const SimArgs& a) {
     if (a.d_gain >= 0) spec.d_gain_Ns_per_m = a.d_gain;
     if (a.margin >= 0) spec.damping_margin = a.margin;
     if (a.allowance >= 0) spec.loss_allowance_ticks = a.allowance;
+    spec.tx_deadband.position_deadband_m = a.tx_deadband_mm * 1e-3;
+    spec.tx_deadband.max_interval_ticks = a.tx_interval;
     spec.trace_node = a.trace_node;
     const BuiltScenario built = build_scenario(spec);
     fs::create_directories(a.out);

@@ -1,0 +1,42 @@
+#include "rt/tx_deadband.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace haptic::rt {
+
+void TxDeadbandConfig::validate() const {
+  if (!(position_deadband_m >= 0 && position_deadband_m < 0.1))
+    throw std::invalid_argument("tx_deadband.position_m must be in [0, 0.1) m");
+  if (max_interval_ticks < 1 || max_interval_ticks > 1000)
+    throw std::invalid_argument("tx_deadband.max_interval_ticks must be in [1, 1000]");
+}
+
+TxDeadband::TxDeadband(const TxDeadbandConfig& config, int dofs) : cfg_(config), last_x_(static_cast<std::size_t>(dofs), 0.0) {
+  cfg_.validate();
+}
+
+bool TxDeadband::should_send(std::int64_t k, const double* x_hat) {
+  bool send = !cfg_.enabled() || !any_sent_ || k - last_k_ >= cfg_.max_interval_ticks;
+  const std::size_t n = last_x_.size();
+  if (!send) {
+    const double band = cfg_.position_deadband_m;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!(std::abs(x_hat[i] - last_x_[i]) <= band)) {  // also sends a non-finite state
+        send = true;
+        break;
+      }
+  }
+  if (!send) {
+    ++skipped_;
+    return false;
+  }
+  if (cfg_.enabled())
+    for (std::size_t i = 0; i < n; ++i) last_x_[i] = x_hat[i];
+  last_k_ = k;
+  any_sent_ = true;
+  ++sent_;
+  return true;
+}
+
+}  // namespace haptic::rt

@@ -1,0 +1,43 @@
+#pragma once
+// Transmission deadband (issue 14; kinesthetic deadband codecs, IEEE 1918.1.1): a station sends its
+// state (x_hat, v_hat) to its neighbours only when its configuration changed perceptibly since
+// the last state it sent -- some node's x_hat moved more than `position_deadband_m` (max norm
+// over coordinates) -- and at least every `max_interval_ticks` ticks. The receiver's packet
+// sustainment treats a skipped packet like a lost one (eq. 17: delta = 0 on the held sample);
+// eq. (18) stays valid when the index-delay bound Nbar_ij includes max_interval_ticks - 1 on top
+// of the delay and loss allowance (the scenario and the station plan add it). A pure object,
+// used by the simulator and the real station alike.
+#include <cstdint>
+#include <vector>
+
+namespace haptic::rt {
+
+struct TxDeadbandConfig {
+  double position_deadband_m = 0;  // 0: send every tick (the policy is off)
+  int max_interval_ticks = 1;      // a state at least every this many ticks, [1, 1000]
+  bool enabled() const { return position_deadband_m > 0 && max_interval_ticks > 1; }
+  // Ticks the policy can add to a receiver's index delay N_ij^k (add to Nbar_ij).
+  int added_index_delay_ticks() const { return enabled() ? max_interval_ticks - 1 : 0; }
+  void validate() const;  // throws std::invalid_argument naming the key (tx_deadband.*)
+};
+
+class TxDeadband {
+ public:
+  TxDeadband() = default;
+  // Start-up: allocates the last-sent copy. The first call to should_send() always sends.
+  TxDeadband(const TxDeadbandConfig& config, int dofs);
+  // Tick k: true if the state x_hat (dofs values) must be sent now; then it becomes the last
+  // sent state. RT-safe: no allocation, O(dofs).
+  bool should_send(std::int64_t k, const double* x_hat);
+  std::uint64_t sent() const { return sent_; }
+  std::uint64_t skipped() const { return skipped_; }
+
+ private:
+  TxDeadbandConfig cfg_{};
+  std::vector<double> last_x_;
+  std::int64_t last_k_ = 0;
+  bool any_sent_ = false;
+  std::uint64_t sent_ = 0, skipped_ = 0;
+};
+
+}  // namespace haptic::rt

@@ -23,6 +23,10 @@
 //   setup_gap_s = 0.5                # from the end of probing to the run start (StationCore built meanwhile), [0.05, 10]
 //   damping_margin = 0.05            # B_i = (1 + margin) x eq. (18) of the MEASURED bounds, [0, 10]
 //   loss_allowance_ticks = 1         # ticks added to the measured round-trip bound, [0, 1000]
+//   tx_deadband_mm = 0               # > 0: send a state only when some node moved more than this since the
+//                                    # last one sent (rt/tx_deadband), [0, 100); 0 = every tick
+//   tx_max_interval_ticks = 1        # with tx_deadband_mm: a state at least every this many ticks; the
+//                                    # index-delay bounds grow by this - 1 (eq. 18 damping follows), [1, 1000]
 //   agreement_ticks = 2              # eq. (18) uses Nbar_ij + Nbar_ji = 2 ceil(R_ij/2) + this: covers the peer's
 //                                    # guard ceil(R_ji/2) while the two ends' measured R differ by <= 2x this, [0, 1000]
 //   damping_Ns_per_m = -1            # >= 0: fixed B_i (experiments below eq. 18); -1: from the measurement
@@ -83,6 +87,8 @@ struct StationSection {
   double setup_gap_s = 0.5;
   double damping_margin = 0.05;
   int loss_allowance_ticks = 1;
+  double tx_deadband_mm = 0;
+  int tx_max_interval_ticks = 1;
   int agreement_ticks = 2;
   double damping_Ns_per_m = -1.0;
   int io_priority = 70;

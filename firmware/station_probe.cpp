@@ -125,7 +125,9 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
   const StationSection& S = plan.file.station;
   const BuiltScenario& built = *plan.built;
   try {
-    r.bounds = bounds_from_round_trips(built, plan.me, probe.rtt_bound_ticks, S.loss_allowance_ticks, S.damping_margin, S.damping_Ns_per_m,
+    // the neighbours' transmission deadband may hold their states up to interval - 1 extra ticks
+    const int allowance = S.loss_allowance_ticks + built.spec.tx_deadband.added_index_delay_ticks();
+    r.bounds = bounds_from_round_trips(built, plan.me, probe.rtt_bound_ticks, allowance, S.damping_margin, S.damping_Ns_per_m,
                                        S.agreement_ticks);
     r.passivity_condition_met = r.bounds.damping_Ns_per_m >= r.bounds.damping_min_Ns_per_m * (1 - 1e-12);
     rt::StationConfig sc = built.station_config(plan.me);
@@ -133,6 +135,7 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
     sc.device_damping_Ns_per_m = b_d;
     for (std::size_t n = 0; n < sc.neighbors.size(); ++n) sc.neighbors[n].index_delay_bound_ticks = r.bounds.index_guard_ticks[n];
     r.core = std::make_unique<rt::StationCore>(sc);
+    r.tx_deadband = rt::TxDeadband(built.spec.tx_deadband, built.scene.dofs);
     r.status = PhaseStatus::kOk;
   } catch (const std::exception& e) {
     r.status = PhaseStatus::kFailed;

@@ -16,6 +16,7 @@
 #include "firmware/station_plan.hpp"
 #include "net/endpoint.hpp"
 #include "rt/station.hpp"
+#include "rt/tx_deadband.hpp"
 
 namespace haptic::firmware {
 
@@ -68,6 +69,7 @@ struct BuildResult {
   MeasuredBounds bounds;
   bool passivity_condition_met = false;   // B_i used >= eq. (18) on the measured bounds
   std::unique_ptr<rt::StationCore> core;  // set when status == kOk
+  rt::TxDeadband tx_deadband;             // this station's transmission policy (rt/tx_deadband)
 };
 
 // B_i from eq. (18) on the measured bounds (station.damping_Ns_per_m overrides it: then the

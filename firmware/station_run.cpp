@@ -111,9 +111,10 @@ void say_bounds(const StationPlan& plan, const BuildResult& b, const Log& log) {
             std::to_string(b.bounds.damping_min_Ns_per_m) + "): the passivity condition is not met (exit code " + std::to_string(kExitPassivityNotMet) + ")");
 }
 
-TickInputs tick_inputs(const StationPlan& plan, StationResources& res, rt::StationCore* core) {
+TickInputs tick_inputs(const StationPlan& plan, StationResources& res, rt::StationCore* core, rt::TxDeadband* tx) {
   TickInputs in;
   in.core = core;
+  in.tx_deadband = tx;
   in.ep = res.ep.get();
   in.device = res.dev.device.get();
   in.simulated = res.dev.simulated;
@@ -137,7 +138,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
     return;
   }
   pr.records.reserve(plan.trace_capacity, plan.state_capacity, plan.built->scene.dofs);
-  const TickInputs in = tick_inputs(plan, res, pr.build.core.get());
+  const TickInputs in = tick_inputs(plan, res, pr.build.core.get(), &pr.build.tx_deadband);
   RunObserver observer;
   observer.rt_ready = [&](const std::string& summary, const std::vector<std::string>& warnings) {
     if (!summary.empty() && !log.quiet) std::cerr << summary << (summary.back() == '\n' ? "" : "\n");

@@ -13,6 +13,7 @@
 #include "platform/periodic_loop.hpp"
 #include "platform/telemetry.hpp"
 #include "rt/station.hpp"
+#include "rt/tx_deadband.hpp"
 
 namespace haptic::firmware {
 
@@ -29,6 +30,7 @@ struct TraceRec {
 // Built at start-up; the tick only reads these (the objects pointed to are the tick's to use).
 struct TickInputs {
   rt::StationCore* core = nullptr;
+  rt::TxDeadband* tx_deadband = nullptr;  // null: send every tick
   net::Endpoint* ep = nullptr;
   drivers::HapticDevice* device = nullptr;
   drivers::SimulatedDevice* simulated = nullptr;  // non-null: owner-stepped, service() per tick

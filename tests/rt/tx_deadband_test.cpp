@@ -1,0 +1,72 @@
+// The transmission deadband (rt/tx_deadband): off sends every tick; on, a state within the band
+// is held back, one outside it is sent at once, and the gap between sent states never exceeds
+// max_interval_ticks (what the index-delay bound Nbar_ij adds for it).
+#include <CppUTest/TestHarness.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+#include "rt/tx_deadband.hpp"
+
+using haptic::rt::TxDeadband;
+using haptic::rt::TxDeadbandConfig;
+
+TEST_GROUP(TxDeadband){};
+
+TEST(TxDeadband, off_sends_every_tick) {
+  TxDeadband d(TxDeadbandConfig{}, 6);
+  std::vector<double> x(6, 0.0);
+  for (int k = 0; k < 50; ++k) CHECK_TRUE(d.should_send(k, x.data()));
+  CHECK_EQUAL(0, TxDeadbandConfig{}.added_index_delay_ticks());
+}
+
+TEST(TxDeadband, a_still_state_is_sent_exactly_every_max_interval_ticks) {
+  TxDeadbandConfig c;
+  c.position_deadband_m = 1e-5;
+  c.max_interval_ticks = 7;
+  CHECK_EQUAL(6, c.added_index_delay_ticks());
+  TxDeadband d(c, 6);
+  std::vector<double> x(6, 0.01);
+  std::int64_t last = -1;
+  int sent = 0;
+  for (int k = 0; k < 700; ++k) {
+    x[3] = 0.01 + 0.9e-5 * std::sin(0.1 * k);  // wobbles inside the band
+    if (d.should_send(k, x.data())) {
+      if (last >= 0) CHECK_EQUAL(7, k - last);
+      last = k;
+      ++sent;
+    }
+  }
+  CHECK_EQUAL(100, sent);
+}
+
+TEST(TxDeadband, a_move_beyond_the_band_is_sent_at_once_and_becomes_the_reference) {
+  TxDeadbandConfig c;
+  c.position_deadband_m = 1e-4;
+  c.max_interval_ticks = 100;
+  TxDeadband d(c, 3);
+  std::vector<double> x = {0, 0, 0};
+  CHECK_TRUE(d.should_send(0, x.data()));
+  x[1] = 0.8e-4;
+  CHECK_FALSE(d.should_send(1, x.data()));
+  x[1] = 1.2e-4;  // beyond the band from the last SENT state
+  CHECK_TRUE(d.should_send(2, x.data()));
+  x[1] = 1.9e-4;  // within the band of the new reference
+  CHECK_FALSE(d.should_send(3, x.data()));
+  x[2] = NAN;  // a non-finite state is never held back
+  CHECK_TRUE(d.should_send(4, x.data()));
+  CHECK_EQUAL(3u, d.sent());
+  CHECK_EQUAL(2u, d.skipped());
+}
+
+TEST(TxDeadband, bad_configuration_names_the_key) {
+  TxDeadbandConfig c;
+  c.max_interval_ticks = 0;
+  try {
+    c.validate();
+    FAIL("expected a configuration error");
+  } catch (const std::invalid_argument& e) {
+    STRCMP_CONTAINS("max_interval_ticks", e.what());
+  }
+}

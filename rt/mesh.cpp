@@ -118,35 +118,41 @@ TetMesh make_paper_ball(double radius_m) {
 }
 
 namespace {
-// Nodes of the lattice ball with spacing h: corners of the cubes whose 8 corners are inside the
-// sphere (the mesh below uses exactly these). Counting needs no mesh: a flag per lattice point.
-long lattice_ball_node_count(double h, double R) {
+// Calls f(i, j, k) for every lattice cube (corner (i, j, k), spacing h) whose 8 corners are inside
+// the sphere of radius R; returns the half-width K of the scanned lattice.
+template <class F>
+int for_each_inside_cube(double h, double R, F&& f) {
   const int K = static_cast<int>(std::ceil(R / h)) + 1;
-  const int W = 2 * K + 1;
   auto inside = [&](int i, int j, int k) { return std::sqrt(double(i * i + j * j + k * k)) * h <= R * (1 + 1e-9); };
-  std::vector<unsigned char> used(static_cast<std::size_t>(W) * W * W, 0);
-  long count = 0;
   for (int i = -K; i < K; ++i)
     for (int j = -K; j < K; ++j)
       for (int k = -K; k < K; ++k) {
         bool all = true;
         for (int c = 0; c < 8 && all; ++c) all = inside(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
-        if (!all) continue;
-        for (int c = 0; c < 8; ++c) {
-          const auto at = (static_cast<std::size_t>(i + (c & 1) + K) * W + static_cast<std::size_t>(j + ((c >> 1) & 1) + K)) * W +
-                          static_cast<std::size_t>(k + ((c >> 2) & 1) + K);
-          count += used[at] == 0;
-          used[at] = 1;
-        }
+        if (all) f(i, j, k);
       }
+  return K;
+}
+
+// Nodes of the lattice ball with spacing h (the corners of the inside cubes, which the mesh below
+// uses exactly). Counting needs no mesh: a flag per lattice point.
+long lattice_ball_node_count(double h, double R) {
+  const int K = static_cast<int>(std::ceil(R / h)) + 1;
+  const auto W = static_cast<std::size_t>(2 * K + 1);
+  std::vector<unsigned char> used(W * W * W, 0);
+  long count = 0;
+  for_each_inside_cube(h, R, [&](int i, int j, int k) {
+    for (int c = 0; c < 8; ++c) {
+      const auto at = (static_cast<std::size_t>(i + (c & 1) + K) * W + static_cast<std::size_t>(j + ((c >> 1) & 1) + K)) * W +
+                      static_cast<std::size_t>(k + ((c >> 2) & 1) + K);
+      count += used[at] == 0;
+      used[at] = 1;
+    }
+  });
   return count;
 }
 
 TetMesh lattice_ball_with_spacing(double h, double R) {
-  const int K = static_cast<int>(std::ceil(R / h)) + 1;
-  auto inside = [&](int i, int j, int k) {
-    return std::sqrt(double(i * i + j * j + k * k)) * h <= R * (1 + 1e-9);
-  };
   std::map<std::array<int, 3>, int> index;
   TetMesh m;
   auto node = [&](int i, int j, int k) {
@@ -157,12 +163,7 @@ TetMesh lattice_ball_with_spacing(double h, double R) {
   // Kuhn split of the unit cube along the main diagonal 0 -> 7: six tetrahedra, one per
   // permutation of the axes; identical on shared faces of neighbouring cubes.
   static const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  for (int i = -K; i < K; ++i)
-    for (int j = -K; j < K; ++j)
-      for (int k = -K; k < K; ++k) {
-        bool all = true;
-        for (int c = 0; c < 8 && all; ++c) all = inside(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
-        if (!all) continue;
+  for_each_inside_cube(h, R, [&](int i, int j, int k) {
         for (const auto& p : perms) {
           std::array<int, 3> v = {i, j, k};
           std::array<int, 4> t{};
@@ -173,7 +174,7 @@ TetMesh lattice_ball_with_spacing(double h, double R) {
           }
           m.tets.push_back(t);
         }
-      }
+  });
   finish_mesh(m);
   // Project boundary nodes radially onto the sphere (springs only depend on connectivity and
   // rest offsets, so this changes the shape, not the validity of the model).

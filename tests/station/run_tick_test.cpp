@@ -117,3 +117,20 @@ TEST(RunTick, TheJitterWorkloadIsTheRealStationTickAndAllocatesNothing) {
   CHECK(w.core().in_contact());
   CHECK((w.flags_seen() & rt::kDiverged) == 0);
 }
+
+TEST(RunTick, TheCoreTicksTheCallersCycleIndexSoSkippedCyclesCountAsDelay) {
+  const firmware::BuiltScenario b = firmware::build_scenario(firmware::make_scenario("paper-best"));
+  rt::StationConfig sc = b.station_config(0);
+  for (auto& n : sc.neighbors) n.index_delay_bound_ticks = 5;
+  rt::StationCore core(sc);
+  const int dofs = b.scene.dofs;
+  std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + dofs), v0(static_cast<std::size_t>(dofs), 0.0);
+  const rt::Vec3 q = b.vp_start[0];
+  for (int n = 0; n < core.neighbor_count(); ++n) core.rx(n).offer(0, 0.0, x0.data(), v0.data(), dofs);
+  CHECK((core.tick(0, q).flags & rt::kEdgeDropped) == 0);
+  LONGS_EQUAL(0, core.sequence());
+  // The loop skipped cycles 1..19 (an overrun): cycle 20 sees data 20 cycles old, beyond the bound.
+  CHECK((core.tick(20, q).flags & rt::kEdgeDropped) != 0);
+  LONGS_EQUAL(20, core.sequence());
+  LONGS_EQUAL(20, core.rx(0).counters().max_index_delay);
+}

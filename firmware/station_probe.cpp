@@ -54,6 +54,12 @@ ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const s
     r.message = "stopped by a signal while probing";
     return r;
   }
+  if (r.loop_ticks * 2 < static_cast<std::uint64_t>(plan.times.probe_ticks)) {  // opening the device/endpoint took most of it
+    r.status = PhaseStatus::kFailed;
+    r.message = "probing: only " + std::to_string(r.loop_ticks) + " of " + std::to_string(plan.times.probe_ticks) +
+                " probing ticks ran: the station was ready too late for the common epoch (station.start_at / --start-at, station.start_delay_s)";
+    return r;
+  }
   const bool all = ep.finish_probing();
   collect_probe_result(plan, ep, all, "station.probe_s = " + std::to_string(plan.file.station.probe_s) + " s", r);
   if (r.status == PhaseStatus::kOk) check_clock(plan, plan.times.epoch_ns, r);

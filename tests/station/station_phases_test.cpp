@@ -4,6 +4,7 @@
 #include <CppUTest/TestHarness.h>
 
 #include <atomic>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -32,6 +33,9 @@ json station_json(const std::string& dir, int id) {
   std::ifstream in(dir + "/station-" + std::to_string(id) + ".json");
   return json::parse(in);
 }
+
+// A number of the summary, NaN when it is null or missing (so a failed run fails a check, not the binary).
+double number(const json& v) { return v.is_number() ? v.get<double>() : std::nan(""); }
 
 bool has(const json& list, const std::string& name) {
   for (const auto& v : list)
@@ -108,10 +112,10 @@ TEST(StationPhases, FourStationsOnThreadsRunEveryPhaseAndExitZero) {
     CHECK(j["conditions"].empty());
     CHECK(j["passivity_condition_met"].get<bool>());
     CHECK_FALSE(j["diverged"].get<bool>());
-    CHECK(j["ticks_run"].get<int>() > 400);  // 500 planned; an overrun may skip a few
-    CHECK(j["rx_offered"].get<int>() > 300);
-    CHECK(j["no_neighbour_fraction"].get<double>() < 0.5);  // measured, not zero by construction
-    CHECK(j["probe_loop"]["ticks"].get<int>() > 0);  // the probing phase ran (150 ticks when on time)
+    CHECK(number(j["ticks_run"]) > 400);  // 500 planned; an overrun may skip a few
+    CHECK(number(j["rx_offered"]) > 300);
+    CHECK(number(j["no_neighbour_fraction"]) < 0.5);  // measured, not zero by construction
+    CHECK(number(j["probe_loop"]["ticks"]) > 0);  // the probing phase ran (150 ticks when on time)
     CHECK(j["error"].is_null());
   }
   std::filesystem::remove_all(dir);
@@ -139,20 +143,21 @@ TEST(StationPhases, DampingBelowEq18OnTheMeasuredBoundsExitsPassivityNotMet) {
   const json j = station_json(dir, 1);
   CHECK(has(j["conditions"], "passivity_condition_not_met"));
   CHECK_FALSE(j["passivity_condition_met"].get<bool>());
-  CHECK(j["damping_Ns_per_m"].get<double>() < j["damping_min_Ns_per_m"].get<double>());
+  CHECK(number(j["damping_Ns_per_m"]) < number(j["damping_min_Ns_per_m"]));
   for (int i = 2; i <= 4; ++i) CHECK_FALSE(has(station_json(dir, i)["conditions"], "passivity_condition_not_met"));
   std::filesystem::remove_all(dir);
 }
 
 TEST(StationPhases, AHubWhoseNeighboursLeaveEarlyExitsNoNeighbour) {
   const std::string dir = test::fresh_dir("left");
-  const std::string leaf = "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 0.3\npush_start_s = 0.05\npush_end_s = 0.1\nrelease_s = 0.2\n";
+  const std::string leaf =
+      "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 0.3\npush_start_s = 0.05\npush_end_s = 0.1\nrelease_s = 0.2\nmax_no_neighbour_fraction = 1.0\n";
   const std::string hub = "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 1.2\npush_start_s = 0.05\npush_end_s = 0.1\nrelease_s = 0.2\n";
   const std::vector<int> codes = run_four(dir, 105, {hub, leaf, leaf, leaf});
   LONGS_EQUAL(kExitNoNeighbour, codes[0]);
   const json j = station_json(dir, 1);
   CHECK(has(j["conditions"], "no_neighbour"));
-  CHECK(j["no_neighbour_fraction"].get<double>() > 0.5);
+  CHECK(number(j["no_neighbour_fraction"]) > 0.5);
   for (int i = 2; i <= 4; ++i) LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
   std::filesystem::remove_all(dir);
 }

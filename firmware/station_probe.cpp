@@ -31,6 +31,7 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
       [&](const platform::TickInfo& info) {
         const std::int64_t k = (info.scheduled_ns - t.epoch_ns + t.period_ns / 2) / t.period_ns;
         if (k >= t.probe_ticks) return false;
+        if (r.first_probe_k < 0) r.first_probe_k = k;
         ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
           r.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, b.spec.period_s);  // the neighbour's tick grid
         });
@@ -54,10 +55,10 @@ ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const s
     r.message = "stopped by a signal while probing";
     return r;
   }
-  if (r.loop_ticks * 2 < static_cast<std::uint64_t>(plan.times.probe_ticks)) {  // opening the device/endpoint took most of it
+  if (r.first_probe_k < 0 || r.first_probe_k * 2 > plan.times.probe_ticks) {  // opening the device/endpoint took most of it
     r.status = PhaseStatus::kFailed;
-    r.message = "probing: only " + std::to_string(r.loop_ticks) + " of " + std::to_string(plan.times.probe_ticks) +
-                " probing ticks ran: the station was ready too late for the common epoch (station.start_at / --start-at, station.start_delay_s)";
+    r.message = "probing began at tick " + std::to_string(r.first_probe_k) + " of " + std::to_string(plan.times.probe_ticks) +
+                ": the station was ready too late for the common epoch (station.start_at / --start-at, station.start_delay_s)";
     return r;
   }
   const bool all = ep.finish_probing();

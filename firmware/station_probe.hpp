@@ -27,6 +27,7 @@ struct ProbeResult {
   std::vector<int> missing;                     // neighbours (station ids) without a bound
   std::uint64_t push_failures = 0;
   std::uint64_t loop_ticks = 0, loop_overruns = 0, loop_missed_cycles = 0;  // the probing loop's counters
+  std::int64_t first_probe_k = -1;              // epoch index of the first probing tick (0 when on time)
   net::EndpointStats stats_at_end{};            // the endpoint's statistics when probing ended
   NeighbourGrid grid;                           // each neighbour's tick grid, from the probes it sent
   ClockCheck clock;                             // tick-grid offsets against ours (station.clock_offset_max_ms)

@@ -26,27 +26,14 @@ double to_double(const std::string& tok, const std::string& what) {
     bad(what + ": '" + tok + "' is not a number");
   }
 }
-std::vector<std::string> split(const std::string& s, char sep) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, sep)) out.push_back(item);
-  return out;
-}
 }  // namespace
-
-Eigen::MatrixXd paper_delay_matrix_ms() {
-  Eigen::MatrixXd D(4, 4);
-  D << 0, 4, 4, 4, 8, 0, 80, 200, 4, 100, 0, 200, 6, 240, 200, 0;
-  return D;
-}
 
 std::vector<std::string> scenario_names() { return {"paper-best", "paper-worst", "paper-unstable"}; }
 
 ScenarioSpec make_scenario(const std::string& name) {
   ScenarioSpec s;
   s.name = name;
-  s.delay_ms = paper_delay_matrix_ms();
+  s.delay_ms = model::paper_delay_matrix_ms();
   if (name == "paper-best") {
     // Fig. 7 best: the star on user 1 (our optimizer's ranking agrees; see tools/topology).
     s.topology = {{0, 1}, {0, 2}, {0, 3}};
@@ -80,24 +67,7 @@ void ScenarioSpec::validate() const {
   for (int i = 0; i < users; ++i)
     for (int j = 0; j < users; ++j)
       if (!(delay_ms(i, j) >= 0 && delay_ms(i, j) <= 10000)) bad("--delay-matrix entries must be in [0, 10000] ms");
-  if (topology.empty()) bad("--topology needs at least one link");
-  std::vector<int> parent(static_cast<std::size_t>(users));
-  for (int i = 0; i < users; ++i) parent[static_cast<std::size_t>(i)] = i;
-  auto find = [&](int a) {
-    while (parent[static_cast<std::size_t>(a)] != a) a = parent[static_cast<std::size_t>(a)];
-    return a;
-  };
-  for (std::size_t e = 0; e < topology.size(); ++e) {
-    const auto& l = topology[e];
-    if (l[0] < 0 || l[1] < 0 || l[0] >= users || l[1] >= users || l[0] == l[1])
-      bad("--topology: link " + std::to_string(l[0] + 1) + "-" + std::to_string(l[1] + 1) + " is not between two different users 1.." + std::to_string(users));
-    for (std::size_t f = 0; f < e; ++f)
-      if ((topology[f][0] == l[0] && topology[f][1] == l[1]) || (topology[f][0] == l[1] && topology[f][1] == l[0]))
-        bad("--topology: link " + std::to_string(l[0] + 1) + "-" + std::to_string(l[1] + 1) + " is listed twice");
-    parent[static_cast<std::size_t>(find(l[0]))] = find(l[1]);
-  }
-  for (int i = 1; i < users; ++i)
-    if (find(i) != find(0)) bad("--topology must connect all users (Theorem 1 needs a connected graph)");
+  model::validate_graph(topology, users, "--topology");
   if (damping_Ns_per_m) {
     if (static_cast<int>(damping_Ns_per_m->size()) != users) bad("--damping needs one value per user");
     for (double b : *damping_Ns_per_m)
@@ -114,37 +84,11 @@ void ScenarioSpec::validate() const {
   scene.validate();
 }
 
-std::vector<std::array<int, 2>> parse_topology(const std::string& text, int users) {
-  std::vector<std::array<int, 2>> out;
-  for (const auto& tok : split(text, ',')) {
-    const auto parts = split(trim(tok), '-');
-    if (parts.size() != 2) bad("--topology: '" + tok + "' is not a link like 1-2");
-    const double a = to_double(parts[0], "--topology"), b = to_double(parts[1], "--topology");
-    if (a != std::floor(a) || b != std::floor(b) || a < 1 || b < 1 || a > users || b > users)
-      bad("--topology: '" + tok + "' must join users numbered 1.." + std::to_string(users));
-    out.push_back({static_cast<int>(a) - 1, static_cast<int>(b) - 1});
-  }
-  if (out.empty()) bad("--topology is empty");
-  return out;
-}
-
-Eigen::MatrixXd parse_delay_matrix(const std::string& text, int users) {
-  const auto rows = split(text, ';');
-  if (static_cast<int>(rows.size()) != users)
-    bad("--delay-matrix needs " + std::to_string(users) + " rows separated by ';' (got " + std::to_string(rows.size()) + ")");
-  Eigen::MatrixXd D(users, users);
-  for (int i = 0; i < users; ++i) {
-    const auto cols = split(rows[static_cast<std::size_t>(i)], ',');
-    if (static_cast<int>(cols.size()) != users)
-      bad("--delay-matrix row " + std::to_string(i + 1) + " needs " + std::to_string(users) + " values");
-    for (int j = 0; j < users; ++j) D(i, j) = to_double(cols[static_cast<std::size_t>(j)], "--delay-matrix");
-  }
-  return D;
-}
-
 std::vector<double> parse_list(const std::string& text, const std::string& what) {
   std::vector<double> out;
-  for (const auto& tok : split(text, ',')) out.push_back(to_double(tok, what));
+  std::stringstream ss(text);
+  std::string tok;
+  while (std::getline(ss, tok, ',')) out.push_back(to_double(tok, what));
   return out;
 }
 
@@ -171,40 +115,24 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
   b.gains.reserve(spec.topology.size());
   for (std::size_t e = 0; e < spec.topology.size(); ++e)
     b.gains.push_back(e == 0 ? rt::paper_edge_gains(b.scene, spec.p_gain_N_per_m, spec.d_gain_Ns_per_m) : b.gains[0]);
-  b.neighbors.assign(static_cast<std::size_t>(N), {});
-  b.neighbor_edge.assign(static_cast<std::size_t>(N), {});
-  for (std::size_t e = 0; e < spec.topology.size(); ++e) {
-    const auto& l = spec.topology[e];
-    b.neighbors[static_cast<std::size_t>(l[0])].push_back(l[1]);
-    b.neighbor_edge[static_cast<std::size_t>(l[0])].push_back(static_cast<int>(e));
-    b.neighbors[static_cast<std::size_t>(l[1])].push_back(l[0]);
-    b.neighbor_edge[static_cast<std::size_t>(l[1])].push_back(static_cast<int>(e));
-  }
+  const model::Adjacency adj = model::adjacency(spec.topology, N);
+  b.neighbors = adj.neighbours;
+  b.neighbor_edge = adj.link_of;
   for (int i = 0; i < N; ++i)
     if (static_cast<int>(b.neighbors[static_cast<std::size_t>(i)].size()) > rt::kMaxNeighbors)
       bad("--topology: user " + std::to_string(i + 1) + " has more than " + std::to_string(rt::kMaxNeighbors) + " links");
-  b.nbar_ticks = Eigen::MatrixXi::Zero(N, N);
-  for (int i = 0; i < N; ++i)
-    for (int j = 0; j < N; ++j)
-      if (i != j) {
-        const double max_delay_s = spec.delay_ms(i, j) * 1e-3 * (1.0 + spec.jitter_fraction);
-        // the sender's deadband may hold its state up to max_interval - 1 extra ticks
-        b.nbar_ticks(i, j) = static_cast<int>(std::ceil(max_delay_s / T - 1e-9)) + spec.loss_allowance_ticks +
-                             spec.tx_deadband.added_index_delay_ticks();
-      }
-  b.round_trip_sum_ms.assign(static_cast<std::size_t>(N), 0.0);
+  // The sender's deadband may hold its state up to max_interval - 1 extra ticks: extra allowance.
+  b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T,
+                                                 spec.loss_allowance_ticks + spec.tx_deadband.added_index_delay_ticks());
+  const Eigen::VectorXd half_sums = model::round_trip_half_sums_ms(spec.topology, b.nbar_ticks, T);
+  b.round_trip_sum_ms.assign(half_sums.data(), half_sums.data() + half_sums.size());
   b.damping_min.assign(static_cast<std::size_t>(N), 0.0);
   b.damping.assign(static_cast<std::size_t>(N), 0.0);
   b.passivity_condition_met = true;
   for (int i = 0; i < N; ++i) {
-    std::vector<rt::Eq18Neighbor> nb;
-    for (std::size_t n = 0; n < b.neighbors[static_cast<std::size_t>(i)].size(); ++n) {
-      const int j = b.neighbors[static_cast<std::size_t>(i)][n];
-      const double rt_ticks = b.nbar_ticks(i, j) + b.nbar_ticks(j, i);
-      b.round_trip_sum_ms[static_cast<std::size_t>(i)] += rt_ticks * T / 2.0 * 1e3;
-      nb.push_back({rt_ticks, T, &b.gains[static_cast<std::size_t>(b.neighbor_edge[static_cast<std::size_t>(i)][n])]});
-    }
-    b.damping_min[static_cast<std::size_t>(i)] = rt::damping_min_eq18(T, nb);
+    std::vector<double> sums;
+    for (int j : b.neighbors[static_cast<std::size_t>(i)]) sums.push_back(b.nbar_ticks(i, j) + b.nbar_ticks(j, i));
+    b.damping_min[static_cast<std::size_t>(i)] = b.damping_min_eq18(i, sums);
     b.damping[static_cast<std::size_t>(i)] = spec.damping_Ns_per_m ? (*spec.damping_Ns_per_m)[static_cast<std::size_t>(i)]
                                                                    : (1.0 + spec.damping_margin) * b.damping_min[static_cast<std::size_t>(i)];
     if (b.damping[static_cast<std::size_t>(i)] < b.damping_min[static_cast<std::size_t>(i)] * (1 - 1e-12))
@@ -229,6 +157,15 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
   b.trace_node = spec.trace_node >= 0 ? spec.trace_node : b.contact_nodes[std::min(1, N - 1)][0];
   if (b.trace_node >= b.scene.nodes) bad("--trace-node must be below the node count " + std::to_string(b.scene.nodes));
   return b;
+}
+
+double BuiltScenario::damping_min_eq18(int user, const std::vector<double>& round_trip_sum_ticks) const {
+  const auto& edges = neighbor_edge[static_cast<std::size_t>(user)];
+  if (round_trip_sum_ticks.size() != edges.size()) throw std::invalid_argument("damping_min_eq18: one round trip per neighbour needed");
+  std::vector<rt::Eq18Neighbor> nb;
+  for (std::size_t n = 0; n < edges.size(); ++n)
+    nb.push_back({round_trip_sum_ticks[n], spec.period_s, &gains[static_cast<std::size_t>(edges[n])]});
+  return rt::damping_min_eq18(spec.period_s, nb);
 }
 
 rt::StationConfig BuiltScenario::station_config(int i) const {

@@ -10,6 +10,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "firmware/model/delay_model.hpp"
+#include "firmware/model/graph.hpp"
 #include "rt/gains.hpp"
 #include "rt/scene.hpp"
 #include "rt/station.hpp"
@@ -40,7 +42,7 @@ struct ScenarioSpec {
   double period_s = 0.002;
   double duration_s = 20.0;
   std::uint64_t seed = 1;
-  std::vector<std::array<int, 2>> topology;  // undirected links, 0-based
+  model::Graph topology;                     // undirected links, 0-based (firmware/model/graph.hpp)
   Eigen::MatrixXd delay_ms;                  // mean one-way delay, row i receives from column j
   double jitter_fraction = 0.5;
   double loss_probability = 0.05;
@@ -59,7 +61,7 @@ struct ScenarioSpec {
   rt::HandParams hand{};
   std::optional<std::vector<double>> damping_Ns_per_m;  // B_i override (one per user)
   double damping_margin = 0.05;          // B_i = (1 + margin) * eq. (18) minimum
-  int loss_allowance_ticks = 1;          // Nbar_ij = ceil(max one-way delay / T) + this
+  int loss_allowance_ticks = 1;          // Nbar_ij = ceil(max one-way delay / T) + this (firmware/model/delay_model.hpp)
   rt::TxDeadbandConfig tx_deadband{};    // transmission deadband (off); Nbar_ij adds its interval - 1
   UserScriptSpec script{};
   int trace_node = -1;                   // -1: first node of user 2's contact mesh (paper: node 19)
@@ -71,12 +73,10 @@ struct ScenarioSpec {
 // the valid names when unknown).
 std::vector<std::string> scenario_names();
 ScenarioSpec make_scenario(const std::string& name);
-Eigen::MatrixXd paper_delay_matrix_ms();
 
-// Parsers for command-line overrides (throw std::invalid_argument with a clear message).
-std::vector<std::array<int, 2>> parse_topology(const std::string& text, int users);  // "1-2,1-3,1-4"
-Eigen::MatrixXd parse_delay_matrix(const std::string& text, int users);            // "0,4;8,0" rows by ';'
-std::vector<double> parse_list(const std::string& text, const std::string& what);  // "1,2,3"
+// "1,2,3" (throws std::invalid_argument naming `what`). Topologies and delay matrices are parsed
+// by firmware/model (parse_graph_1based, parse_delay_matrix).
+std::vector<double> parse_list(const std::string& text, const std::string& what);
 
 // Everything built from a spec: the scene, one gain set per edge, per-user bounds and dampings.
 struct BuiltScenario {
@@ -85,8 +85,8 @@ struct BuiltScenario {
   std::vector<rt::EdgeGains> gains;             // one per link in spec.topology
   std::vector<std::vector<int>> neighbors;      // neighbors[i] = peers of i (0-based)
   std::vector<std::vector<int>> neighbor_edge;  // edge index of neighbors[i][n]
-  Eigen::MatrixXi nbar_ticks;                   // Nbar_ij bound used by eq. (18) and the guard
-  std::vector<double> round_trip_sum_ms;        // sum_j (Nbar_ij + Nbar_ji) T / 2, per user
+  Eigen::MatrixXi nbar_ticks;                   // Nbar_ij bound used by eq. (18) and the guard (model::index_delay_bounds_ticks)
+  std::vector<double> round_trip_sum_ms;        // sum_j (Nbar_ij + Nbar_ji) T / 2, per user (model::round_trip_half_sums_ms)
   std::vector<double> damping_min;              // eq. (18), per user
   std::vector<double> damping;                  // B_i used
   std::vector<std::vector<int>> contact_nodes;  // contact mesh per user
@@ -95,6 +95,9 @@ struct BuiltScenario {
   int trace_node = 0;
   bool passivity_condition_met = false;
 
+  // eq. (18) minimum B_i of `user` for the given Nbar_ij + Nbar_ji (ticks), one per neighbour in
+  // neighbors[user] order: the model's bounds (build_scenario) or measured ones (the station).
+  double damping_min_eq18(int user, const std::vector<double>& round_trip_sum_ticks) const;
   rt::StationConfig station_config(int user) const;
   rt::GoalScript goal_script(int user) const;
 };

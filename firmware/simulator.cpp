@@ -10,6 +10,7 @@
 #include <queue>
 #include <stdexcept>
 
+#include "firmware/link_impairment.hpp"
 #include "net/impairment.hpp"
 #include "net/wire.hpp"
 #include "rt/tx_deadband.hpp"
@@ -29,7 +30,7 @@ struct InFlight {
 
 struct Channel {
   int to = 0, from = 0, rx_index = 0;
-  net::ImpairedLink link;
+  net::SendImpairment link;
   std::priority_queue<InFlight, std::vector<InFlight>, std::greater<>> queue;
   std::int64_t max_seq_delivered = -1;
   LinkStats stats;
@@ -69,6 +70,11 @@ File open_out(const std::string& path) {
 
 }  // namespace
 
+net::SendImpairment simulator_channel(const ScenarioSpec& spec, int receiver, int sender) {
+  const LinkSetup ls = scenario_link(spec, receiver, sender, spec.seed);
+  return net::SendImpairment(ls.model, ls.seed, 0);
+}
+
 SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
   const auto wall0 = std::chrono::steady_clock::now();
   const auto& spec = b.spec;
@@ -107,11 +113,7 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
       c.to = i;
       c.from = b.neighbors[static_cast<std::size_t>(i)][r];
       c.rx_index = static_cast<int>(r);
-      net::LinkImpairment m = net::LinkImpairment::paper(spec.delay_ms(i, c.from) * 1e-3);
-      m.jitter_fraction = spec.jitter_fraction;
-      m.loss_probability = spec.loss_probability;
-      m.duplicate_probability = spec.duplicate_probability;
-      c.link = net::ImpairedLink(m, spec.seed * 1000003ULL + static_cast<std::uint64_t>(i * 64 + c.from));
+      c.link = simulator_channel(spec, i, c.from);
       c.stats.to = i;
       c.stats.from = c.from;
       c.stats.sent_ticks.reserve(static_cast<std::size_t>(ticks));
@@ -198,7 +200,7 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
       for (std::size_t e = 0; e < spec.topology.size(); ++e) {
         // phi_pq(0) = |x_p(0) - x_q(0)|_P^2 / 4 (all copies start equal: zero)
         const auto& l = spec.topology[e];
-        Eigen::VectorXd dx = st[static_cast<std::size_t>(l[0])]->x() - st[static_cast<std::size_t>(l[1])]->x();
+        Eigen::VectorXd dx = st[static_cast<std::size_t>(l.a)]->x() - st[static_cast<std::size_t>(l.b)]->x();
         Eigen::VectorXd Pdx = Eigen::VectorXd::Zero(dofs);
         b.gains[e].P.multiply_add(1.0, dx.data(), Pdx.data());
         d2 += dx.dot(Pdx) / 4.0;
@@ -216,7 +218,7 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
         ++c.stats.sent;
         c.stats.bytes_sent += state_bytes;
         c.stats.sent_ticks.push_back(k);
-        const auto fate = c.link.next_packet();
+        const auto fate = c.link.fate(static_cast<std::uint64_t>(s.sequence()), t);
         if (fate.lost) ++c.stats.lost;
         if (fate.duplicated) ++c.stats.duplicated;
         for (int cp = 0; cp < fate.copies; ++cp) c.queue.push(InFlight{t + fate.delay_s[cp], order++, s.sequence(), t, payload});
@@ -363,7 +365,7 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["simulated_s"] = static_cast<double>(r.ticks) * s.period_s;
   j["seed"] = s.seed;
   json topo = json::array();
-  for (const auto& l : s.topology) topo.push_back({l[0] + 1, l[1] + 1});
+  for (const auto& l : s.topology) topo.push_back({l.a + 1, l.b + 1});
   j["topology"] = topo;
   j["scene_nodes"] = b.scene.nodes;
   j["scene_edges"] = b.scene.mesh.edges.size();

@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 
 #include "firmware/scenario.hpp"
+#include "net/impairment.hpp"
 
 namespace haptic::firmware {
 
@@ -54,6 +55,10 @@ struct SimOptions {
 };
 
 SimResult run_simulation(const BuiltScenario& scenario, const SimOptions& options);
+
+// The impaired channel sender -> receiver (0-based) as run_simulation() draws it: the scenario's
+// link set-up (firmware/link_impairment.hpp), run packet k = the core's sequence number k.
+net::SendImpairment simulator_channel(const ScenarioSpec& spec, int receiver, int sender);
 
 // summary.json contract (README): writes DIR/summary.json.
 void write_summary_json(const std::string& path, const BuiltScenario& b, const SimResult& r);

@@ -147,8 +147,8 @@ int run_command(const RunArgs& a) {
 int sim_command(const SimArgs& a) {
   try {
     ScenarioSpec spec = make_scenario(a.scenario);
-    if (!a.delay_matrix.empty()) spec.delay_ms = parse_delay_matrix(a.delay_matrix, spec.users);
-    if (!a.topology.empty()) spec.topology = parse_topology(a.topology, spec.users);
+    if (!a.delay_matrix.empty()) spec.delay_ms = haptic::model::parse_delay_matrix(a.delay_matrix, "--delay-matrix", spec.users);
+    if (!a.topology.empty()) spec.topology = haptic::model::parse_graph_1based(a.topology, spec.users, "--topology");
     if (!a.damping.empty()) spec.damping_Ns_per_m = parse_list(a.damping, "--damping");
     if (a.push_end >= 0) spec.script.push_end_s = a.push_end;
     if (a.release >= 0) spec.script.release_s = a.release;

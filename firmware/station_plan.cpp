@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "firmware/link_impairment.hpp"
 #include "net/transport_udp.hpp"
 #include "net/wire.hpp"
 
@@ -68,31 +69,6 @@ struct Fnv1a {
   }
 };
 
-// The [net] impairment per directed link as the simulator draws it (seed rule receiver*64 + sender).
-void apply_link_impairments(const StationFile& f, const ScenarioSpec& spec, int me, net::NetConfig& nc) {
-  const std::uint64_t seed_base = f.impairment_seed_set ? 0 : f.station.seed;
-  for (auto& l : nc.endpoint.peers) {
-    if (!l.impaired) continue;
-    const int u = l.station_id - 1;
-    bool mean_given = false;
-    for (const auto& [id, given] : f.peer_mean_delay_set)
-      if (id == l.station_id) mean_given = given;
-    if (!mean_given) {
-      auto keep = l.impairment;
-      l.impairment = net::LinkImpairment::preset(f.impairment_preset, spec.delay_ms(u, me) * 1e-3);
-      l.impairment.delay_trace = keep.delay_trace;
-      l.impairment.blackout_start_s = keep.blackout_start_s;
-      l.impairment.blackout_length_s = keep.blackout_length_s;
-    }
-    if (f.impairment_preset == "paper") {
-      l.impairment.jitter_fraction = spec.jitter_fraction;
-      l.impairment.loss_probability = spec.loss_probability;
-      l.impairment.duplicate_probability = spec.duplicate_probability;
-    }
-    if (!f.impairment_seed_set) l.seed = seed_base * 1000003ULL + static_cast<std::uint64_t>(u * 64 + me);
-  }
-}
-
 drivers::DeviceSelection device_selection(const StationFile& f, const BuiltScenario& built, int me) {
   drivers::DeviceSelection sel;
   sel.kind = f.device.kind;
@@ -144,13 +120,14 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   check_address_families(f, p->net);
   check_io_cpu(f, p->net);
   check_tx_spin(f, p->net);
-  apply_link_impairments(f, spec, p->me, p->net);
+  apply_station_impairments(f, spec, p->net);  // the simulator's link set-up and seed rule
   p->times = plan_times(f, o, spec, now);
   if (p->times.rejoin)
     p->warnings.push_back("started " + std::to_string(-p->times.epoch_in_s) + " s after the common epoch (" +
                           (o.start_at >= 0 ? std::string("--start-at") : std::string("station.start_at")) +
                           "), past half the probing phase: rejoining the running session");
   p->net.endpoint.impairment_epoch_s = static_cast<double>(p->times.run_epoch_ns()) * 1e-9;
+  p->net.endpoint.impairment_first_run_seq = static_cast<std::uint64_t>(p->times.run_k0);  // run packet k draws the simulator's fate k
   p->net.endpoint.tx_period_s = spec.period_s;  // tick-synchronous TX (net.tx_spin) needs the tick period
   p->device = device_selection(f, *p->built, p->me);
   p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
@@ -171,7 +148,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   ScenarioSpec spec = make_scenario(s.scenario);
   if (!s.topology.empty()) {
     try {
-      spec.topology = parse_topology(s.topology, spec.users);
+      spec.topology = model::parse_graph_1based(s.topology, spec.users, "topology");
     } catch (const std::invalid_argument& e) {
       bad("station.topology = \"" + s.topology + "\": " + e.what());
     }

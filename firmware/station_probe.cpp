@@ -112,17 +112,15 @@ MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const s
   const auto& nbrs = b.neighbors[static_cast<std::size_t>(user)];
   if (rtt_ticks.size() != nbrs.size()) throw std::invalid_argument("bounds_from_round_trips: one bound per neighbour needed");
   MeasuredBounds m;
-  std::vector<rt::Eq18Neighbor> nb;
-  const double T = b.spec.period_s;
+  std::vector<double> sums;
   for (std::size_t n = 0; n < nbrs.size(); ++n) {
     const int R = static_cast<int>(rtt_ticks[n]) + allowance;
     m.round_trip_ticks.push_back(R);
-    m.index_guard_ticks.push_back((R + 1) / 2);
-    m.assumed_sum_ticks.push_back(2 * ((R + 1) / 2) + agreement);
-    nb.push_back({static_cast<double>(m.assumed_sum_ticks.back()), T,
-                  &b.gains[static_cast<std::size_t>(b.neighbor_edge[static_cast<std::size_t>(user)][n])]});
+    m.index_guard_ticks.push_back(model::index_guard_from_round_trip(R));
+    m.assumed_sum_ticks.push_back(model::assumed_round_trip_sum_ticks(R, agreement));
+    sums.push_back(m.assumed_sum_ticks.back());
   }
-  m.damping_min_Ns_per_m = rt::damping_min_eq18(T, nb);
+  m.damping_min_Ns_per_m = b.damping_min_eq18(user, sums);
   m.damping_Ns_per_m = override_B >= 0 ? override_B : (1.0 + margin) * m.damping_min_Ns_per_m;
   return m;
 }

@@ -24,7 +24,7 @@ json scenario_json(const StationPlan& p) {
   j["duration_s"] = spec.duration_s;
   j["seed"] = spec.seed;
   json topo = json::array();
-  for (const auto& l : spec.topology) topo.push_back({l[0] + 1, l[1] + 1});
+  for (const auto& l : spec.topology) topo.push_back({l.a + 1, l.b + 1});
   j["topology"] = topo;
   j["scene_nodes"] = b.scene.nodes;
   j["trace_node"] = b.trace_node;

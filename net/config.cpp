@@ -108,6 +108,8 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
     preset = text(imp["preset"], P + "impairment.preset", "none");
     LinkImpairment::preset(preset, 0.0, P + "impairment.preset");  // validates the name
     seed = integer<std::uint64_t>(imp["seed"], P + "impairment.seed", 1, 0, (1ll << 62));
+    c.impairment_seed = seed;
+    c.impairment_seed_given = static_cast<bool>(imp["seed"]);
     const std::string tf = text(imp["trace_file"], P + "impairment.trace_file", "");
     if (!tf.empty()) trace = load_delay_trace(tf);
     bo_start = real(imp["blackout_start_s"], P + "impairment.blackout_start_s", 0.0, 0.0, 1e6);
@@ -133,8 +135,8 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
       l.impairment.delay_trace = trace;
       l.impairment.blackout_start_s = bo_start;
       l.impairment.blackout_length_s = bo_len;
-      // Same seed scheme as the deterministic simulator (receiver*64 + sender).
-      l.seed = seed * 1000003ULL + static_cast<std::uint64_t>(l.station_id) * 64 + self;
+      // The simulator's seed rule (net::link_seed; wire ids are user numbers, index + 1).
+      l.seed = link_seed(seed, static_cast<int>(l.station_id) - 1, static_cast<int>(self) - 1);
       ImpairedLink check(l.impairment, l.seed);  // validates the model now, naming the key
       (void)check;
     }

@@ -24,7 +24,7 @@
 //   rtt_min_probe_samples = 20     # >= 1
 //   [net.impairment]               # optional: emulate the link in our send path
 //   preset = "none"                # "none" | "paper" | "bursty"
-//   seed = 1                       # link seed = seed*1000003 + peer*64 + self (as the simulator)
+//   seed = 1                       # run seed: link seeds by net::link_seed (the simulator's rule)
 //   trace_file = ""                # optional recorded delays (ms per line), replaces the uniform draw
 //   blackout_start_s = 0.0         # with blackout_length_s > 0: total loss in that window
 //   blackout_length_s = 0.0
@@ -52,6 +52,8 @@ struct NetConfig {
   std::string interface;
   std::vector<UdpPeer> udp_peers;
   std::vector<RawPeer> raw_peers;
+  std::uint64_t impairment_seed = 1;   // [net.impairment] seed (run seed of net::link_seed)
+  bool impairment_seed_given = false;  // the key was in the file
   // Opens the socket (throws std::system_error, e.g. without CAP_NET_RAW for "raw").
   std::unique_ptr<Transport> make_transport() const;
 };

@@ -104,7 +104,7 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
   for (const auto& l : cfg.peers) {
     auto p = std::make_unique<PeerState>();
     p->link = l;
-    if (l.impaired) p->impaired = ImpairedLink(l.impairment, l.seed);
+    if (l.impaired) p->impaired = SendImpairment(l.impairment, l.seed, cfg.impairment_first_run_seq);
     p->rtt = RttEstimator(cfg.rtt);
     p->stats.station_id = l.station_id;
     p->box.writer_publish(p->stats);
@@ -611,7 +611,7 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
       PacketFate fate;
       fate.copies = 1;
       if (p.link.impaired) {
-        fate = p.impaired.next_packet_at(static_cast<double>(now_ns) * 1e-9 - epoch_s_);
+        fate = p.impaired.fate(m.seq, static_cast<double>(now_ns) * 1e-9 - epoch_s_);
         if (fate.lost) ++p.stats.impair_lost;
         if (fate.duplicated) ++p.stats.impair_duplicated;
       }

@@ -91,6 +91,10 @@ struct EndpointConfig {
   double tx_spin_lead_s = 100e-6;
   double tx_spin_tail_s = 300e-6;
   double impairment_epoch_s = -1.0;  // blackout times are relative to this (monotonic_s); <0: start()
+  // Sequence number of the first run packet: earlier ones (probing) draw their fates from a
+  // stream of their own, run packet seq draws fate seq - this of the link's stream, as the
+  // simulator's channel does (net::SendImpairment).
+  std::uint64_t impairment_first_run_seq = 0;
 };
 
 // Statistics of one neighbor (a copy; read from any non-RT thread).
@@ -280,7 +284,7 @@ class Endpoint {
   };
   struct PeerState {
     PeerLink link;
-    ImpairedLink impaired;
+    SendImpairment impaired;
     RttEstimator rtt;
     // The newest packet received from this peer and the one before it, with their receive
     // times. A state is echoed only with a packet received by its own send stamp, so the

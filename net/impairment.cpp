@@ -127,6 +127,29 @@ double ImpairedLink::draw_delay() {
 
 PacketFate ImpairedLink::next_packet() { return draw(false); }
 
+std::uint64_t link_seed(std::uint64_t run_seed, int receiver_index, int sender_index) {
+  return run_seed * 1000003ULL + static_cast<std::uint64_t>(static_cast<std::int64_t>(receiver_index) * 64 + sender_index);
+}
+
+PacketFate ImpairedLink::fate_of(std::uint64_t seq, double send_time_s) {
+  if (seq > next_seq_ && seq - next_seq_ <= kMaxSkippedFates) {
+    while (next_seq_ < seq) {
+      (void)draw(false);
+      ++next_seq_;
+    }
+  }
+  next_seq_ = std::max(next_seq_, seq) + 1;
+  return next_packet_at(send_time_s);
+}
+
+SendImpairment::SendImpairment(const LinkImpairment& model, std::uint64_t link_seed_value, std::uint64_t first_run_seq)
+    : probe_(model, link_seed_value ^ 0x9E3779B97F4A7C15ULL), run_(model, link_seed_value), first_run_seq_(first_run_seq) {}
+
+PacketFate SendImpairment::fate(std::uint64_t seq, double send_time_s) {
+  if (seq < first_run_seq_) return probe_.next_packet_at(send_time_s);
+  return run_.fate_of(seq - first_run_seq_, send_time_s);
+}
+
 PacketFate ImpairedLink::next_packet_at(double send_time_s) {
   const bool blacked = model_.blackout_length_s > 0.0 && send_time_s >= model_.blackout_start_s &&
                        send_time_s < model_.blackout_start_s + model_.blackout_length_s;

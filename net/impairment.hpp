@@ -87,6 +87,12 @@ struct PacketFate {
   bool reordered = false;      // held back by reorder_extra_delay_s
 };
 
+// The seed of the impaired directed link sender -> receiver of a run:
+//   run_seed * 1000003 + receiver * 64 + sender      (receiver, sender: 0-based user indices;
+// a station's wire id is its user number, index + 1). The one rule for the simulator's channels
+// and the station's send-side emulator, so both draw the same packet fates for one run seed.
+std::uint64_t link_seed(std::uint64_t run_seed, int receiver_index, int sender_index);
+
 class ImpairedLink {
  public:
   ImpairedLink() = default;
@@ -96,6 +102,14 @@ class ImpairedLink {
   PacketFate next_packet();
   // Same, for a packet sent at send_time_s (seconds on the caller's clock; blackout applies).
   PacketFate next_packet_at(double send_time_s);
+  // Fate of the packet with sequence number `seq`, counted from this link's first packet (0):
+  // the fates of skipped sequence numbers are drawn and discarded first (at most
+  // kMaxSkippedFates, beyond that the stream resynchronizes without drawing), so packet `seq`
+  // meets the same fate whether or not its sender sent every earlier one. A `seq` already drawn
+  // (a resend) takes the next fate in line. Blackout by send_time_s as next_packet_at().
+  // RT-safe (no allocation; bounded loop).
+  PacketFate fate_of(std::uint64_t seq, double send_time_s);
+  static constexpr std::uint64_t kMaxSkippedFates = 1u << 16;
   const LinkImpairment& model() const { return model_; }
   bool in_burst() const { return bad_state_; }
 
@@ -106,6 +120,25 @@ class ImpairedLink {
   Rng rng_{1};
   bool bad_state_ = false;
   std::size_t trace_index_ = 0;
+  std::uint64_t next_seq_ = 0;  // fate_of(): sequence number the next draw belongs to
+};
+
+// The send-side emulator of one directed link as a station runs it (net::Endpoint) and as the
+// simulator's channel runs it: packets before the run (seq < first_run_seq: probing) draw from a
+// stream of their own; run packets draw fate_of(seq - first_run_seq) from the link seed's
+// stream. So run packet k meets the same fate in a station and in the simulator (first_run_seq
+// = 0) for the same link seed (tests/firmware/packet_fate_test.cpp).
+class SendImpairment {
+ public:
+  SendImpairment() = default;
+  SendImpairment(const LinkImpairment& model, std::uint64_t link_seed, std::uint64_t first_run_seq);  // throws on a bad model
+  // send_time_s: seconds since the run start (blackouts). RT-safe (no allocation).
+  PacketFate fate(std::uint64_t seq, double send_time_s);
+  const LinkImpairment& model() const { return run_.model(); }
+
+ private:
+  ImpairedLink probe_, run_;
+  std::uint64_t first_run_seq_ = 0;
 };
 
 }  // namespace haptic::net

@@ -46,10 +46,10 @@ TEST(Scenario, contact_meshes_are_symmetric_so_a_steady_hold_exists) {
 
 TEST(Scenario, parsers_reject_bad_input_with_a_clear_message) {
   STRCMP_CONTAINS("unknown scenario 'x' (valid: paper-best", error_of([] { make_scenario("x"); }).c_str());
-  STRCMP_CONTAINS("1..4", error_of([] { parse_topology("1-5", 4); }).c_str());
-  STRCMP_CONTAINS("not a link like 1-2", error_of([] { parse_topology("12", 4); }).c_str());
-  STRCMP_CONTAINS("needs 4 rows", error_of([] { parse_delay_matrix("0,1;1,0", 4); }).c_str());
-  STRCMP_CONTAINS("row 2 needs 2 values", error_of([] { parse_delay_matrix("0,1;1", 2); }).c_str());
+  STRCMP_CONTAINS("1..4", error_of([] { haptic::model::parse_graph_1based("1-5", 4, "--topology"); }).c_str());
+  STRCMP_CONTAINS("not a link like 1-2", error_of([] { haptic::model::parse_graph_1based("12", 4, "--topology"); }).c_str());
+  STRCMP_CONTAINS("needs 4 rows", error_of([] { haptic::model::parse_delay_matrix("0,1;1,0", "--delay-matrix", 4); }).c_str());
+  STRCMP_CONTAINS("row 2 needs 2 values", error_of([] { haptic::model::parse_delay_matrix("0,1;1", "--delay-matrix", 2); }).c_str());
   STRCMP_CONTAINS("not a number", error_of([] { parse_list("1,x", "--damping"); }).c_str());
   auto s = make_scenario("paper-best");
   s.topology = {{0, 1}, {2, 3}};

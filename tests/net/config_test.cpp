@@ -42,7 +42,7 @@ TEST(NetConfig, UdpConfigParsesWithPaperImpairmentAndSimulatorSeeds) {
   DOUBLES_EQUAL(0.200, c.endpoint.peers[1].impairment.mean_delay_s, 1e-12);
   DOUBLES_EQUAL(0.05, c.endpoint.peers[1].impairment.loss_probability, 1e-12);
   // Link 2 -> 3 is the simulator's (receiver 3, sender 2).
-  CHECK_EQUAL(5ull * 1000003ull + 3 * 64 + 2, c.endpoint.peers[1].seed);
+  CHECK_EQUAL(5ull * 1000003ull + 2 * 64 + 1, c.endpoint.peers[1].seed);  // net::link_seed(5, receiver 3 -> index 2, sender 2 -> index 1)
   CHECK_EQUAL(std::string("127.0.0.1:7003"), c.udp_peers[1].address);
   auto t = c.make_transport();
   CHECK_EQUAL(std::string("udp4"), t->name());

@@ -1,0 +1,48 @@
+#pragma once
+// The delay model around the tick, one implementation for the simulator, the real station, the
+// multi-process merge and tools/topology:
+//  - the paper's mean one-way delay matrix (Section V) and a text parser for such matrices;
+//  - the index-delay bound of eq. (18): Nbar_ij = ceil(max one-way delay_ij / T) + loss
+//    allowance, with max delay = (1 + jitter fraction) x mean for the paper's uniform jitter;
+//  - eq. (18)'s per-user sum  sum_j (Nbar_ij + Nbar_ji) T / 2;
+//  - the same bounds from a round trip R_ij a station measured itself (ticks): guard
+//    Nbar_ij = ceil(R_ij / 2), assumed Nbar_ij + Nbar_ji = 2 ceil(R_ij / 2) + agreement ticks;
+//  - the mixing model's N_ij = round(mean_ij / T) of Section IV (eq. 27).
+// Row i receives from column j everywhere. Start-up/offline code (allocates; not RT-safe).
+#include <string>
+
+#include <Eigen/Core>
+
+#include "firmware/model/graph.hpp"
+
+namespace haptic::model {
+
+// The paper's mean one-way delays (ms), Section V: [[0,4,4,4],[8,0,80,200],[4,100,0,200],[6,240,200,0]].
+Eigen::MatrixXd paper_delay_matrix_ms();
+
+// "0,4;8,0": rows separated by ';', entries by ','; blanks and [ ] ignored; "inf" = no link.
+// users > 0: exactly that many rows and columns ("needs N rows", "row r needs N values");
+// users <= 0: any square N >= 2. Throws std::invalid_argument naming `key`.
+Eigen::MatrixXd parse_delay_matrix(const std::string& text, const std::string& key, int users = 0);
+
+// eq. (18) index-delay bound for one directed link whose packets arrive at most max_delay_ms
+// after they were sent: ceil(max_delay / T) + loss_allowance_ticks (ticks).
+int index_delay_bound_ticks(double max_delay_ms, double period_s, int loss_allowance_ticks);
+// The same for every ordered pair of a mean delay matrix with uniform jitter
+// (max = (1 + jitter_fraction) mean); diagonal 0.
+Eigen::MatrixXi index_delay_bounds_ticks(const Eigen::MatrixXd& mean_delay_ms, double jitter_fraction, double period_s,
+                                         int loss_allowance_ticks);
+// eq. (18) bookkeeping: per user sum over its links of (Nbar_ij + Nbar_ji) T / 2, in ms.
+Eigen::VectorXd round_trip_half_sums_ms(const Graph& g, const Eigen::MatrixXi& nbar_ticks, double period_s);
+
+// Bounds from a round trip R (ticks, measured by the station itself, loss allowance included):
+// the guard the rt core enforces, Nbar_ij = ceil(R / 2) ...
+int index_guard_from_round_trip(int round_trip_ticks);
+// ... and the Nbar_ij + Nbar_ji eq. (18) assumes: 2 ceil(R/2) + agreement_ticks, which covers
+// the peer's guard ceil(R_ji / 2) while R_ji <= R_ij + 2 agreement_ticks.
+int assumed_round_trip_sum_ticks(int round_trip_ticks, int agreement_ticks);
+
+// Section IV mixing model (eq. 27): N_ij = round(mean_ij / T); diagonal 0; +inf (no link) -> -1.
+Eigen::MatrixXi mean_delay_steps(const Eigen::MatrixXd& mean_delay_ms, double period_s);
+
+}  // namespace haptic::model

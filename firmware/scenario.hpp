@@ -44,7 +44,7 @@ struct ScenarioSpec {
   std::uint64_t seed = 1;
   model::Graph topology;                     // undirected links, 0-based (firmware/model/graph.hpp)
   Eigen::MatrixXd delay_ms;                  // mean one-way delay, row i receives from column j
-  double jitter_fraction = 0.5;
+  double jitter_fraction = model::kPaperJitterFraction;
   double loss_probability = 0.05;
   double duplicate_probability = 0.01;
   int scene_nodes = 33;                      // 33: the paper's ball; otherwise a lattice ball
@@ -61,7 +61,7 @@ struct ScenarioSpec {
   rt::HandParams hand{};
   std::optional<std::vector<double>> damping_Ns_per_m;  // B_i override (one per user)
   double damping_margin = 0.05;          // B_i = (1 + margin) * eq. (18) minimum
-  int loss_allowance_ticks = 1;          // Nbar_ij = ceil(max one-way delay / T) + this (firmware/model/delay_model.hpp)
+  int loss_allowance_ticks = model::kDefaultLossAllowanceTicks;  // Nbar_ij = ceil(max one-way delay / T) + this (firmware/model/delay_model.hpp)
   rt::TxDeadbandConfig tx_deadband{};    // transmission deadband (off); Nbar_ij adds its interval - 1
   UserScriptSpec script{};
   int trace_node = -1;                   // -1: first node of user 2's contact mesh (paper: node 19)

@@ -17,6 +17,12 @@
 
 namespace haptic::model {
 
+// The paper's per-packet delay spread (Section V: uniform in 50-150 % of the mean) and the
+// default loss allowance of Nbar (one lost packet per direction): the defaults of scenarios
+// (firmware/scenario.hpp) and of haptic-topology, so both compute the same Nbar.
+inline constexpr double kPaperJitterFraction = 0.5;
+inline constexpr int kDefaultLossAllowanceTicks = 1;
+
 // The paper's mean one-way delays (ms), Section V: [[0,4,4,4],[8,0,80,200],[4,100,0,200],[6,240,200,0]].
 Eigen::MatrixXd paper_delay_matrix_ms();
 

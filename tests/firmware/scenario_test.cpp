@@ -4,20 +4,11 @@
 #include <string>
 
 #include "firmware/scenario.hpp"
+#include "tests/support/error_of.hpp"
 
 using namespace haptic::firmware;
 
-namespace {
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "";
-}
-}  // namespace
+using haptic::test::error_of;
 
 TEST_GROUP(Scenario){};
 

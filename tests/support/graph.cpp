@@ -1,22 +1,16 @@
 #include "tests/support/graph.hpp"
 
-#include <numeric>
+#include "firmware/model/graph.hpp"
+
 #include <stdexcept>
 
 namespace haptic::test {
 
 bool UndirectedGraph::connected() const {
   if (vertices <= 1) return true;
-  std::vector<int> parent(static_cast<std::size_t>(vertices));
-  std::iota(parent.begin(), parent.end(), 0);
-  auto find = [&](int a) {
-    while (parent[static_cast<std::size_t>(a)] != a) a = parent[static_cast<std::size_t>(a)];
-    return a;
-  };
-  for (const auto& e : edges) parent[static_cast<std::size_t>(find(e[0]))] = find(e[1]);
-  for (int v = 1; v < vertices; ++v)
-    if (find(v) != find(0)) return false;
-  return true;
+  model::Graph g;
+  for (const auto& e : edges) g.push_back({e[0], e[1]});
+  return model::is_connected(g, vertices);
 }
 
 Eigen::MatrixXd incidence_matrix(const UndirectedGraph& g) {

@@ -55,10 +55,11 @@ TEST(TopologyIo, SummaryWithoutLinkStatsNamesTheKey) {
 }
 
 TEST(TopologyIo, MatrixTextParsesRowsAndInf) {
-  const Eigen::MatrixXd m = parse_matrix("0,4,inf; 8,0,80; 4,100,0", "--delays");
+  using haptic::model::parse_delay_matrix;  // the simulator's --delay-matrix parser
+  const Eigen::MatrixXd m = parse_delay_matrix("0,4,inf; 8,0,80; 4,100,0", "--delays");
   LONGS_EQUAL(3, m.rows());
   DOUBLES_EQUAL(80.0, m(1, 2), 0);
   CHECK(std::isinf(m(0, 2)));
-  CHECK_THROWS(std::invalid_argument, parse_matrix("0,4;8", "--delays"));
-  CHECK_THROWS(std::invalid_argument, parse_matrix("0,x;8,0", "--delays"));
+  CHECK_THROWS(std::invalid_argument, parse_delay_matrix("0,4;8", "--delays"));
+  CHECK_THROWS(std::invalid_argument, parse_delay_matrix("0,x;8,0", "--delays"));
 }

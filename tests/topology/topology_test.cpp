@@ -44,7 +44,7 @@ TEST_GROUP(LiftedMatrix){};
 
 TEST(LiftedMatrix, ConnectedGraphHasOneEigenvalueAtOneAndTheRestStrictlyInside) {
   const Eigen::MatrixXd d = small_delays();
-  const Eigen::MatrixXi steps = delay_steps(d, 0.002);
+  const Eigen::MatrixXi steps = haptic::model::mean_delay_steps(d, 0.002);
   for (const Graph& g : enumerate_connected_graphs(4, 4, 0, 1000)) {
     const Eigen::MatrixXd w = mixing_weights(g, 4, Eigen::MatrixXd::Ones(4, 4));
     const Eigen::VectorXcd ev = eigenvalues_by_modulus(lifted_scalar_matrix(g, w, steps, 0.3));
@@ -63,7 +63,7 @@ TEST(LiftedMatrix, MatrixStateHasNEigenvaluesAtOneWithConsensusEigenvectors) {
     for (int j = 0; j < 4; ++j)
       dg.blocks[i * 4 + j] = (1.0 + 0.3 * i + 0.1 * j) * Eigen::MatrixXd::Identity(n, n) + (0.5 + 0.2 * j) * kh;
   const Graph g = parse_graph_1based("1-2,1-3,1-4,2-3", 4);
-  const Eigen::MatrixXi steps = delay_steps(small_delays(), 0.002);
+  const Eigen::MatrixXi steps = haptic::model::mean_delay_steps(small_delays(), 0.002);
   const Eigen::MatrixXd J = lifted_dense_matrix(g, 4, dg, steps, 0.0);
   const Eigen::VectorXcd ev = eigenvalues_by_modulus(J);
   LONGS_EQUAL(n, count_near_one(ev, 1e-7));
@@ -219,13 +219,18 @@ TEST(FeasibleSet, EnumerationCountsMatchCayleyAndTheDegreeCap) {
 
 TEST(FeasibleSet, Eq18SumsForThePaperStar) {
   const Graph star = parse_graph_1based("1-2,1-3,1-4", 4);
-  const Eigen::VectorXd s = eq18_round_trip_sums_ms(star, paper_delay_matrix_ms(), 0.002, 1.5, 0);
+  // The delay model of the simulator and the station (firmware/model), as haptic-topology uses it.
+  const auto sums = [&](int allowance) {
+    return haptic::model::round_trip_half_sums_ms(
+        star, haptic::model::index_delay_bounds_ticks(paper_delay_matrix_ms(), 0.5, 0.002, allowance), 0.002);
+  };
+  const Eigen::VectorXd s = sums(0);
   // Nbar = ceil(1.5 mean / T): 1-2: 3 + 6, 1-3: 3 + 3, 1-4: 3 + 5 (x T/2 = 1 ms)
   DOUBLES_EQUAL(23.0, s(0), 1e-12);
   DOUBLES_EQUAL(9.0, s(1), 1e-12);
   DOUBLES_EQUAL(6.0, s(2), 1e-12);
   DOUBLES_EQUAL(8.0, s(3), 1e-12);
-  const Eigen::VectorXd s1 = eq18_round_trip_sums_ms(star, paper_delay_matrix_ms(), 0.002, 1.5, 1);
+  const Eigen::VectorXd s1 = sums(1);
   DOUBLES_EQUAL(29.0, s1(0), 1e-12);  // + one step each way per link
 }
 

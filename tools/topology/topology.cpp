@@ -390,83 +390,6 @@ const char* to_string(EigenMethod m) {
   return "?";
 }
 
-Graph normalized(Graph g) {
-  for (Edge& e : g) {
-    if (e.a == e.b) throw std::invalid_argument("graph: self link " + std::to_string(e.a + 1));
-    if (e.a > e.b) std::swap(e.a, e.b);
-  }
-  std::sort(g.begin(), g.end(), [](const Edge& x, const Edge& y) {
-    return x.a != y.a ? x.a < y.a : x.b < y.b;
-  });
-  for (std::size_t i = 1; i < g.size(); ++i) {
-    if (g[i].a == g[i - 1].a && g[i].b == g[i - 1].b) {
-      throw std::invalid_argument("graph: duplicate link " + std::to_string(g[i].a + 1) + "-" +
-                                  std::to_string(g[i].b + 1));
-    }
-  }
-  return g;
-}
-
-bool is_connected(const Graph& g, int users) {
-  UnionFind uf(users);
-  int comps = users;
-  for (const Edge& e : g) {
-    if (e.a < 0 || e.b < 0 || e.a >= users || e.b >= users) return false;
-    if (uf.unite(e.a, e.b)) --comps;
-  }
-  return comps == 1;
-}
-
-std::string to_string_1based(const Graph& g) {
-  std::ostringstream os;
-  for (std::size_t i = 0; i < g.size(); ++i) {
-    if (i) os << ' ';
-    os << g[i].a + 1 << '-' << g[i].b + 1;
-  }
-  return os.str();
-}
-
-Graph parse_graph_1based(const std::string& s, int users) {
-  Graph g;
-  std::string tok;
-  std::istringstream is(s);
-  while (std::getline(is, tok, ',')) {
-    tok.erase(std::remove_if(tok.begin(), tok.end(), ::isspace), tok.end());
-    if (tok.empty()) continue;
-    const auto dash = tok.find('-');
-    if (dash == std::string::npos) throw std::invalid_argument("graph: link '" + tok + "' is not 'i-j'");
-    int a = 0, b = 0;
-    try {
-      a = std::stoi(tok.substr(0, dash));
-      b = std::stoi(tok.substr(dash + 1));
-    } catch (const std::exception&) {
-      throw std::invalid_argument("graph: link '" + tok + "' is not 'i-j' with integers");
-    }
-    if (a < 1 || b < 1 || a > users || b > users) {
-      throw std::invalid_argument("graph: link '" + tok + "' outside users 1.." + std::to_string(users));
-    }
-    g.push_back({a - 1, b - 1});
-  }
-  return normalized(g);
-}
-
-Eigen::MatrixXi delay_steps(const Eigen::MatrixXd& mean_delay_ms, double period_s) {
-  check_square(mean_delay_ms, "delay matrix");
-  if (!(period_s > 0)) throw std::invalid_argument("period: T must be > 0 s");
-  const double t_ms = period_s * 1e3;
-  Eigen::MatrixXi s(mean_delay_ms.rows(), mean_delay_ms.cols());
-  for (int i = 0; i < s.rows(); ++i) {
-    for (int j = 0; j < s.cols(); ++j) {
-      const double d = mean_delay_ms(i, j);
-      if (i != j && !(d >= 0)) {
-        throw std::invalid_argument("delay matrix: entry (" + std::to_string(i + 1) + "," +
-                                    std::to_string(j + 1) + ") must be >= 0 ms (+inf: no link)");
-      }
-      s(i, j) = i == j ? 0 : (std::isfinite(d) ? static_cast<int>(std::lround(d / t_ms)) : -1);
-    }
-  }
-  return s;
-}
 
 PolynomialGains uniform_gains(int users, double a, double b, const Eigen::VectorXd& mode_values) {
   PolynomialGains g;
@@ -619,7 +542,7 @@ GraphScore score_graph(const Graph& g, const Eigen::MatrixXd& mean_delay_ms, dou
       gains.b.cols() != users) {
     throw std::invalid_argument("gains: a and b must be N x N (N = " + std::to_string(users) + ")");
   }
-  const Eigen::MatrixXi steps = delay_steps(mean_delay_ms, period_s);
+  const Eigen::MatrixXi steps = model::mean_delay_steps(mean_delay_ms, period_s);
   check_links_available(g, steps);
   // distinct modes
   std::vector<double> mu(gains.mode_values.data(), gains.mode_values.data() + gains.mode_values.size());
@@ -685,7 +608,7 @@ GraphScore score_graph_dense(const Graph& g, const Eigen::MatrixXd& mean_delay_m
   const int users = static_cast<int>(mean_delay_ms.rows());
   check_graph(g, users);
   check_self_weight(opt.self_weight);
-  const Eigen::MatrixXi steps = delay_steps(mean_delay_ms, period_s);
+  const Eigen::MatrixXi steps = model::mean_delay_steps(mean_delay_ms, period_s);
   check_links_available(g, steps);
   const Eigen::MatrixXd J = lifted_dense_matrix(g, users, gains, steps, opt.self_weight);
   const Eigen::VectorXcd ev = eigenvalues_by_modulus(J);
@@ -698,22 +621,6 @@ GraphScore score_graph_dense(const Graph& g, const Eigen::MatrixXd& mean_delay_m
   return sc;
 }
 
-Eigen::VectorXd eq18_round_trip_sums_ms(const Graph& g, const Eigen::MatrixXd& delay_ms,
-                                        double period_s, double jitter_factor,
-                                        int loss_allowance_steps) {
-  check_square(delay_ms, "delay matrix");
-  const double t_ms = period_s * 1e3;
-  auto nbar = [&](int i, int j) {
-    return static_cast<int>(std::ceil(jitter_factor * delay_ms(i, j) / t_ms - 1e-9)) + loss_allowance_steps;
-  };
-  Eigen::VectorXd s = Eigen::VectorXd::Zero(delay_ms.rows());
-  for (const Edge& e : g) {
-    const double rt = (nbar(e.a, e.b) + nbar(e.b, e.a)) * t_ms / 2.0;
-    s(e.a) += rt;
-    s(e.b) += rt;
-  }
-  return s;
-}
 
 std::vector<Graph> enumerate_connected_graphs(int users, int links, int degree_cap,
                                               std::uint64_t max_candidates,
@@ -989,10 +896,5 @@ Eigen::MatrixXd synthetic_delays_ms(int users, const SyntheticMap& map, Eigen::M
   return d;
 }
 
-Eigen::MatrixXd paper_delay_matrix_ms() {
-  Eigen::MatrixXd d(4, 4);
-  d << 0, 4, 4, 4, 8, 0, 80, 200, 4, 100, 0, 200, 6, 240, 200, 0;
-  return d;
-}
 
 }  // namespace haptic::topology

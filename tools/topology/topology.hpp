@@ -35,6 +35,9 @@
 //
 // Offline tool math: allocates freely, NOT real-time safe, never called from the tick.
 #include <Eigen/Core>
+
+#include "firmware/model/delay_model.hpp"
+#include "firmware/model/graph.hpp"
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -42,20 +45,15 @@
 
 namespace haptic::topology {
 
-// Undirected link between users a < b (0-based).
-struct Edge {
-  int a = 0;
-  int b = 0;
-};
-using Graph = std::vector<Edge>;
-
-Graph normalized(Graph g);                       // a < b, sorted, duplicates rejected (throws)
-bool is_connected(const Graph& g, int users);
-std::string to_string_1based(const Graph& g);    // "1-2 1-3 1-4"
-Graph parse_graph_1based(const std::string& s, int users);  // "1-2,1-3,1-4" (throws on bad input)
-
-// N_ij = round(mean_ij / T) (Section IV); diagonal is 0; a +inf delay (no link) gives -1.
-Eigen::MatrixXi delay_steps(const Eigen::MatrixXd& mean_delay_ms, double period_s);
+// The graph type, its parser and the delay model are the simulator's and the station's
+// (firmware/model): one implementation, used here by name.
+using Edge = model::Link;
+using Graph = model::Graph;
+using model::is_connected;
+using model::normalized;
+using model::parse_graph_1based;
+using model::to_string_1based;
+using model::paper_delay_matrix_ms;
 
 // Per-edge gains as polynomials in one symmetric matrix K_hat: P_ij = a(i,j) I + b(i,j) K_hat.
 // mode_values: the eigenvalues of K_hat (any multiplicities; n = size). When empty, n = 1 and
@@ -136,13 +134,6 @@ GraphScore score_graph(const Graph& g, const Eigen::MatrixXd& mean_delay_ms, dou
 GraphScore score_graph_dense(const Graph& g, const Eigen::MatrixXd& mean_delay_ms, double period_s,
                              const DenseGains& gains, const SpectrumOptions& opt);
 
-// eq. (18) bookkeeping: per user sum_{j in N_i} (Nbar_ij + Nbar_ji) T / 2 in ms, with
-// Nbar_ij = ceil(jitter_factor * delay_ij / T) + loss_allowance_steps. Pass max delays with
-// jitter_factor 1 for measured statistics.
-Eigen::VectorXd eq18_round_trip_sums_ms(const Graph& g, const Eigen::MatrixXd& delay_ms,
-                                        double period_s, double jitter_factor,
-                                        int loss_allowance_steps);
-
 // Feasible set: every connected graph on `users` with exactly `links` undirected links, each
 // degree <= degree_cap (0: no cap), using only pairs with allowed(i,j) (empty: all pairs).
 // Throws when more than max_candidates link subsets would have to be examined.
@@ -195,8 +186,5 @@ struct SyntheticMap {
   std::uint64_t seed = 1;
 };
 Eigen::MatrixXd synthetic_delays_ms(int users, const SyntheticMap& map, Eigen::MatrixXd* positions_km);
-
-// The paper's mean one-way delay matrix (Section V), ms, row i receives from column j.
-Eigen::MatrixXd paper_delay_matrix_ms();
 
 }  // namespace haptic::topology

@@ -50,46 +50,6 @@ Eigen::MatrixXd json_matrix(const json& j, const std::string& key) {
 
 }  // namespace
 
-Eigen::MatrixXd parse_matrix(const std::string& text, const std::string& key) {
-  std::vector<std::vector<double>> rows;
-  std::istringstream rs(text);
-  std::string row;
-  while (std::getline(rs, row, ';')) {
-    std::vector<double> vals;
-    std::istringstream cs(row);
-    std::string cell;
-    while (std::getline(cs, cell, ',')) {
-      const auto b = cell.find_first_not_of(" \t[]");
-      const auto e = cell.find_last_not_of(" \t[]");
-      if (b == std::string::npos) continue;
-      const std::string t = cell.substr(b, e - b + 1);
-      if (t == "inf") {
-        vals.push_back(std::numeric_limits<double>::infinity());
-        continue;
-      }
-      try {
-        std::size_t used = 0;
-        vals.push_back(std::stod(t, &used));
-        if (used != t.size()) throw std::invalid_argument(t);
-      } catch (const std::exception&) {
-        throw std::invalid_argument(key + ": '" + t + "' is not a number");
-      }
-    }
-    if (!vals.empty()) rows.push_back(vals);
-  }
-  const auto n = static_cast<Eigen::Index>(rows.size());
-  if (n < 2) throw std::invalid_argument(key + ": need an N x N matrix with N >= 2, rows separated by ';'");
-  Eigen::MatrixXd m(n, n);
-  for (Eigen::Index r = 0; r < n; ++r) {
-    if (static_cast<Eigen::Index>(rows[r].size()) != n) {
-      throw std::invalid_argument(key + ": row " + std::to_string(r + 1) + " has " +
-                                  std::to_string(rows[r].size()) + " entries, expected " + std::to_string(n));
-    }
-    for (Eigen::Index c = 0; c < n; ++c) m(r, c) = rows[r][c];
-  }
-  return m;
-}
-
 Eigen::MatrixXd read_delay_file(const std::string& path) {
   const json j = load_json(path, "--delays-file");
   if (j.is_object()) {

@@ -8,9 +8,6 @@
 
 namespace haptic::tools::topology {
 
-// "0,4,4,4;8,0,80,200;..." (rows separated by ';'), ms. "inf" marks a missing link.
-Eigen::MatrixXd parse_matrix(const std::string& text, const std::string& key);
-
 // Delay matrix from a JSON file: either a bare N x N array or {"mean_delay_ms": [[...]]}.
 Eigen::MatrixXd read_delay_file(const std::string& path);
 

@@ -106,8 +106,9 @@ int main(int argc, char** argv) {
   bool force_search = false;
   double gain_a = 500.0, gain_b = 500.0;
   std::vector<double> mode_values;
-  double self_weight = 0.0, jitter_factor = 1.5;
-  int loss_allowance = 0;
+  // eq. (18) defaults: the simulator's (firmware/model/delay_model.hpp).
+  double self_weight = 0.0, jitter_factor = 1.0 + haptic::model::kPaperJitterFraction;
+  int loss_allowance = haptic::model::kDefaultLossAllowanceTicks;
   std::string method = "auto";
   topo::SyntheticMap map;
 
@@ -173,7 +174,7 @@ int main(int argc, char** argv) {
       source = "paper Section V";
       if (links == 0) links = 3;
     } else if (!delays_text.empty()) {
-      nominal = tio::parse_matrix(delays_text, "--delays");
+      nominal = haptic::model::parse_delay_matrix(delays_text, "--delays");
       source = "--delays";
     } else if (!delays_file.empty()) {
       nominal = tio::read_delay_file(delays_file);
@@ -295,7 +296,9 @@ int main(int argc, char** argv) {
     if (!searched) {
       for (auto& r : rows) r.score = score(r.graph);
     }
-    for (auto& r : rows) r.eq18_ms = topo::eq18_round_trip_sums_ms(r.graph, eq18_delay, period_s, eq18_factor, loss_allowance);
+    // eq. (18) sums with the simulator's and the station's delay model (firmware/model).
+    const Eigen::MatrixXi nbar = haptic::model::index_delay_bounds_ticks(eq18_delay, eq18_factor - 1.0, period_s, loss_allowance);
+    for (auto& r : rows) r.eq18_ms = haptic::model::round_trip_half_sums_ms(r.graph, nbar, period_s);
     // rank: |lambda_{n+1}| ascending; ties (periodic graphs all at 1) by the largest eq. (18) sum
     if (!searched) {
       std::stable_sort(rows.begin(), rows.end(), [](const Row& x, const Row& y) {

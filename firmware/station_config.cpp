@@ -75,7 +75,7 @@ void parse_station_section(View root, StationFile& f) {
   if (!st) bad("[station]", "present (with at least id = 1..users)");
   only_keys(st, "station", {"id", "scenario", "topology", "nodes", "duration_s", "seed", "push_start_s", "push_end_s", "release_s",
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
-                            "loss_allowance_ticks", "tx_deadband_mm", "tx_max_interval_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority",
+                            "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
                             "rejoin_probe_s"});
   StationSection& s = f.station;
@@ -98,6 +98,8 @@ void parse_station_section(View root, StationFile& f) {
   s.setup_gap_s = real(st["setup_gap_s"], "station.setup_gap_s", 0.5, 0.05, 10);
   s.damping_margin = real(st["damping_margin"], "station.damping_margin", 0.05, 0, 10);
   s.loss_allowance_ticks = static_cast<int>(integer(st["loss_allowance_ticks"], "station.loss_allowance_ticks", 1, 0, 1000));
+  s.solver = text(st["solver"], "station.solver", "auto");
+  if (s.solver != "auto" && s.solver != "direct" && s.solver != "iterative") bad("station.solver", "\"auto\", \"direct\" or \"iterative\"");
   s.tx_deadband_mm = real(st["tx_deadband_mm"], "station.tx_deadband_mm", 0.0, 0.0, 99.999);
   s.tx_max_interval_ticks = static_cast<int>(integer(st["tx_max_interval_ticks"], "station.tx_max_interval_ticks", 1, 1, 1000));
   s.agreement_ticks = static_cast<int>(integer(st["agreement_ticks"], "station.agreement_ticks", 2, 0, 1000));

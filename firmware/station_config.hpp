@@ -23,6 +23,8 @@
 //   setup_gap_s = 0.5                # from the end of probing to the run start (StationCore built meanwhile), [0.05, 10]
 //   damping_margin = 0.05            # B_i = (1 + margin) x eq. (18) of the MEASURED bounds, [0, 10]
 //   loss_allowance_ticks = 1         # ticks added to the measured round-trip bound, [0, 1000]
+//   solver = "auto"                  # linear step: "auto" (direct LDL^T below 600 nodes, Jacobi-PCG above),
+//                                    # "direct" or "iterative" (rt/step_solver)
 //   tx_deadband_mm = 0               # > 0: send a state only when some node moved more than this since the
 //                                    # last one sent (rt/tx_deadband), [0, 100); 0 = every tick
 //   tx_max_interval_ticks = 1        # with tx_deadband_mm: a state at least every this many ticks; the
@@ -87,6 +89,7 @@ struct StationSection {
   double setup_gap_s = 0.5;
   double damping_margin = 0.05;
   int loss_allowance_ticks = 1;
+  std::string solver = "auto";
   double tx_deadband_mm = 0;
   int tx_max_interval_ticks = 1;
   int agreement_ticks = 2;

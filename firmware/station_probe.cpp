@@ -138,6 +138,7 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
     rt::StationConfig sc = built.station_config(plan.me);
     sc.damping_Ns_per_m = r.bounds.damping_Ns_per_m;
     sc.device_damping_Ns_per_m = b_d;
+    sc.solver.kind = rt::parse_step_solver_kind(S.solver);
     for (std::size_t n = 0; n < sc.neighbors.size(); ++n) sc.neighbors[n].index_delay_bound_ticks = r.bounds.index_guard_ticks[n];
     r.core = std::make_unique<rt::StationCore>(sc);
     r.tx_deadband = rt::TxDeadband(built.spec.tx_deadband, built.scene.dofs);

@@ -75,6 +75,10 @@ TEST(StationConfig, UnknownKeysAreRejectedByName) {
 TEST(StationConfig, BadValuesNameTheKeyAndTheRange) {
   std::string e = error_of("[station]\nid = 1\nprobe_s = 0.01\n" + kNet);
   CHECK(contains(e, "station.probe_s") && contains(e, "[0.2, 60]"));
+  e = error_of("[station]\nid = 1\nsolver = \"cg\"\n" + kNet);
+  CHECK(contains(e, "station.solver") && contains(e, "\"iterative\""));
+  e = error_of("[station]\nid = 1\ntx_max_interval_ticks = 0\n" + kNet);
+  CHECK(contains(e, "station.tx_max_interval_ticks") && contains(e, "[1, 1000]"));
   e = error_of("[station]\nid = 0\n" + kNet);
   CHECK(contains(e, "station.id") && contains(e, "[1, 64]"));
   e = error_of("[station]\nscenario = \"paper-best\"\n" + kNet);

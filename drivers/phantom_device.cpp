@@ -1,4 +1,5 @@
 #include "drivers/phantom_device.hpp"
+#include "platform/clock.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -27,11 +28,7 @@ std::string hd_error_text(const hd::HDErrorInfo& e) {
                 e.internalErrorCode);
   return buf;
 }
-double monotonic_s() {
-  timespec t{};
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-}
+using platform::monotonic_s;
 }  // namespace
 
 PhantomDevice::PhantomDevice(const PhantomConfig& config, const SafetyLimits& limits)

@@ -1,4 +1,5 @@
 #include "drivers/simulated_device.hpp"
+#include "platform/clock.hpp"
 
 #include <cerrno>
 #include <stdexcept>
@@ -33,14 +34,6 @@ const SimulatedDeviceConfig& checked(const SimulatedDeviceConfig& c) {
   return c;
 }
 
-timespec add_ns(timespec t, long ns) {
-  t.tv_nsec += ns;
-  while (t.tv_nsec >= 1000000000L) {
-    t.tv_nsec -= 1000000000L;
-    ++t.tv_sec;
-  }
-  return t;
-}
 }  // namespace
 
 SimulatedDevice::SimulatedDevice(const SimulatedDeviceConfig& config, const SafetyLimits& limits)
@@ -97,15 +90,13 @@ void SimulatedDevice::service(double t_s, double dt_s) { step(t_s, dt_s); }
 void SimulatedDevice::thread_main() {
   const long period_ns = static_cast<long>(1e9 / config_.servo_rate_hz);
   const double dt_s = static_cast<double>(period_ns) * 1e-9;
-  timespec next{};
-  clock_gettime(CLOCK_MONOTONIC, &next);
+  std::int64_t next_ns = platform::monotonic_ns();
   std::uint64_t k = 0;
   while (running_.load(std::memory_order_acquire)) {
     step(static_cast<double>(k) * dt_s, dt_s);
     ++k;
-    next = add_ns(next, period_ns);
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr) == EINTR) {
-    }
+    next_ns += period_ns;
+    platform::sleep_until_monotonic_ns(next_ns);
   }
 }
 

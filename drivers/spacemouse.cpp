@@ -1,4 +1,5 @@
 #include "drivers/spacemouse.hpp"
+#include "platform/clock.hpp"
 
 #include <hidapi/hidapi.h>
 
@@ -56,11 +57,7 @@ const SpaceMouseConfig& checked(const SpaceMouseConfig& c) {
   return c;
 }
 
-double monotonic_s() {
-  timespec t{};
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-}
+using platform::monotonic_s;
 }  // namespace
 
 bool decode_spacemouse_report(const std::uint8_t* d, std::size_t n, SpaceMouseState& s) {
@@ -195,17 +192,11 @@ void SpaceMouseDevice::poll(double t_s) {
 
 void SpaceMouseDevice::thread_main() {
   const long period_ns = static_cast<long>(1e9 / config_.sample_rate_hz);
-  timespec next{};
-  clock_gettime(CLOCK_MONOTONIC, &next);
+  std::int64_t next_ns = platform::monotonic_ns();
   while (running_.load(std::memory_order_acquire)) {
     poll(monotonic_s());
-    next.tv_nsec += period_ns;
-    while (next.tv_nsec >= 1000000000L) {
-      next.tv_nsec -= 1000000000L;
-      ++next.tv_sec;
-    }
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr) == EINTR) {
-    }
+    next_ns += period_ns;
+    platform::sleep_until_monotonic_ns(next_ns);
   }
 }
 

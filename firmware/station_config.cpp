@@ -1,6 +1,6 @@
 #include "firmware/station_config.hpp"
 
-#include <toml++/toml.h>
+#include "platform/toml_config.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -14,61 +14,13 @@ namespace haptic::firmware {
 
 namespace {
 
-using View = toml::node_view<const toml::node>;
-
-[[noreturn]] void bad(const std::string& key, const std::string& range) {
-  throw std::invalid_argument("config: " + key + " must be " + range);
-}
-
-std::string num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
-
-long long integer(View n, const std::string& key, long long def, long long lo, long long hi) {
-  if (!n) return def;
-  const auto v = n.value<long long>();
-  if (!n.is_integer() || !v || *v < lo || *v > hi) bad(key, "an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
-  return *v;
-}
-
-double real(View n, const std::string& key, double def, double lo, double hi, const std::string& extra = "") {
-  if (!n) return def;
-  const auto v = n.value<double>();
-  if (!v || !std::isfinite(*v) || *v < lo || *v > hi) bad(key, "a number in [" + num(lo) + ", " + num(hi) + "]" + extra);
-  return *v;
-}
-
-std::string text(View n, const std::string& key, const std::string& def) {
-  if (!n) return def;
-  if (!n.is_string()) bad(key, "a string");
-  return *n.value<std::string>();
-}
-
-bool boolean(View n, const std::string& key, bool def) {
-  if (!n) return def;
-  if (!n.is_boolean()) bad(key, "true or false");
-  return *n.value<bool>();
-}
-
-// Rejects keys of table `t` that are not in `known`, naming the first unknown one.
-void only_keys(View t, const std::string& where, std::initializer_list<const char*> known) {
-  if (!t) return;
-  if (!t.is_table()) bad("[" + where + "]", "a table");
-  for (const auto& [k, v] : *t.as_table()) {
-    (void)v;
-    const std::string key(k.str());
-    if (std::none_of(known.begin(), known.end(), [&](const char* s) { return key == s; })) {
-      std::string list;
-      for (const char* s : known) {
-        if (!list.empty()) list += ", ";
-        list += s;
-      }
-      throw std::invalid_argument("config: unknown key " + (where.empty() ? key : where + "." + key) + " (known keys: " + list + ")");
-    }
-  }
-}
+using platform::config::bad;
+using platform::config::boolean;
+using platform::config::integer;
+using platform::config::only_keys;
+using platform::config::real;
+using platform::config::text;
+using platform::config::View;
 
 void parse_station_section(View root, StationFile& f) {
   const View st = root["station"];
@@ -199,14 +151,7 @@ void parse_net_keys(const toml::table& cd, View root, StationFile& f) {
 }  // namespace
 
 StationFile parse_station_file(std::string_view toml_text) {
-  toml::table doc;
-  try {
-    doc = toml::parse(toml_text);
-  } catch (const toml::parse_error& e) {
-    std::ostringstream os;
-    os << "config: TOML parse error: " << e.description() << " at line " << e.source().begin.line;
-    throw std::invalid_argument(os.str());
-  }
+  const toml::table doc = platform::config::parse_document(toml_text);
   const toml::table& cd = doc;
   const View root{cd};
   only_keys(root, "", {"station", "device", "rt", "loop", "gpio", "telemetry", "trace", "net", "network"});
@@ -230,11 +175,7 @@ std::string StationFile::peer_key(std::size_t index, const std::string& field) c
 }
 
 StationFile load_station_file(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::invalid_argument("config: cannot open " + path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  StationFile f = parse_station_file(ss.str());
+  StationFile f = parse_station_file(platform::config::read_file(path));
   f.path = path;
   return f;
 }

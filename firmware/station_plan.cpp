@@ -15,6 +15,7 @@
 #include "firmware/link_impairment.hpp"
 #include "net/transport_udp.hpp"
 #include "net/wire.hpp"
+#include "platform/clock.hpp"
 
 namespace haptic::firmware {
 
@@ -23,11 +24,7 @@ namespace {
 constexpr std::size_t kMaxTraceRecords = 4'000'000;
 constexpr std::size_t kMaxStateValues = 64'000'000;  // 512 MB of doubles: refuse above
 
-std::int64_t clock_ns(clockid_t id) {
-  timespec ts{};
-  clock_gettime(id, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+using platform::clock_ns;
 
 [[noreturn]] void bad(const std::string& what) { throw std::invalid_argument("config: " + what); }
 

@@ -7,15 +7,12 @@
 
 #include <Eigen/Core>
 
+#include "platform/clock.hpp"
+
 namespace haptic::firmware {
 
 namespace {
 
-void sleep_until_ns(std::int64_t t) {
-  const timespec ts{static_cast<time_t>(t / 1'000'000'000), static_cast<long>(t % 1'000'000'000)};
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
-}
 
 // Step 1's loop: provisional pushes every period, neighbours' packets into the grid.
 void provisional_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, RejoinResult& r) {
@@ -36,7 +33,7 @@ void provisional_probes(const StationPlan& plan, net::Endpoint& ep, const std::a
         ep.push_state(r.provisional_pushes, net::monotonic_s(), x0.data(), v0.data()))
       ++r.provisional_pushes;
     next += period;
-    sleep_until_ns(next);
+    platform::sleep_until_monotonic_ns(next);
   }
   r.probe.loop_ticks = r.provisional_pushes;
 }

@@ -2,7 +2,7 @@
 
 #include <sched.h>
 
-#include <toml++/toml.h>
+#include "platform/toml_config.hpp"
 
 #include <cmath>
 #include <fstream>
@@ -13,50 +13,21 @@ namespace haptic::net {
 
 namespace {
 
-[[noreturn]] void bad(const std::string& key, const std::string& range) {
-  throw std::invalid_argument("config: " + key + " must be " + range);
-}
+using platform::config::bad;
+using platform::config::boolean;
+using platform::config::real;
+using platform::config::text;
+using platform::config::View;
 
 template <class T>
-T integer(const toml::node_view<const toml::node>& n, const std::string& key, T def, long long lo, long long hi) {
-  if (!n) return def;
-  const auto v = n.value<long long>();
-  if (!v || !n.is_integer() || *v < lo || *v > hi) bad(key, "an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
-  return static_cast<T>(*v);
-}
-
-double real(const toml::node_view<const toml::node>& n, const std::string& key, double def, double lo, double hi) {
-  if (!n) return def;
-  const auto v = n.value<double>();  // accepts integers too
-  if (!v || !std::isfinite(*v) || *v < lo || *v > hi)
-    bad(key, "a number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
-  return *v;
-}
-
-std::string text(const toml::node_view<const toml::node>& n, const std::string& key, const std::string& def) {
-  if (!n) return def;
-  const auto v = n.value<std::string>();
-  if (!v || !n.is_string()) bad(key, "a string");
-  return *v;
-}
-
-bool boolean(const toml::node_view<const toml::node>& n, const std::string& key, bool def) {
-  if (!n) return def;
-  if (!n.is_boolean()) bad(key, "true or false");
-  return *n.value<bool>();
+T integer(View n, const std::string& key, T def, long long lo, long long hi) {
+  return static_cast<T>(platform::config::integer(n, key, static_cast<long long>(def), lo, hi));
 }
 
 }  // namespace
 
 NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count) {
-  toml::table doc;
-  try {
-    doc = toml::parse(toml_text);
-  } catch (const toml::parse_error& e) {
-    std::ostringstream os;
-    os << "config: TOML parse error: " << e.description() << " at line " << e.source().begin.line;
-    throw std::invalid_argument(os.str());
-  }
+  const toml::table doc = platform::config::parse_document(toml_text);
   // The section is [net]; [network] (firmware/deploy's lab configs) is accepted as an alias,
   // with `listen` for `bind` and peers' `station` for `id`.
   const bool alias = !std::as_const(doc)["net"] && std::as_const(doc)["network"];
@@ -157,11 +128,7 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
 }
 
 NetConfig load_net_config(const std::string& path, std::uint32_t value_count) {
-  std::ifstream in(path);
-  if (!in) throw std::invalid_argument("config: cannot open " + path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_net_config(ss.str(), value_count);
+  return parse_net_config(platform::config::read_file(path), value_count);
 }
 
 std::unique_ptr<Transport> NetConfig::make_transport() const {

@@ -18,20 +18,15 @@
 #include <thread>
 
 #include "platform/rt_thread.hpp"
+#include "platform/clock.hpp"
 
 namespace haptic::net {
 
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return std::int64_t{ts.tv_sec} * 1'000'000'000 + ts.tv_nsec;
-}
-double monotonic_s() { return static_cast<double>(monotonic_ns()) * 1e-9; }
+std::int64_t monotonic_ns() { return platform::monotonic_ns(); }
+double monotonic_s() { return platform::monotonic_s(); }
 
 namespace {
-timespec to_timespec(std::int64_t ns) {
-  return timespec{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
-}
+using platform::to_timespec;
 inline void cpu_relax() {
 #if defined(__x86_64__) || defined(__i386__)
   __builtin_ia32_pause();
@@ -193,9 +188,7 @@ void Endpoint::start() {
 double Endpoint::io_thread_cpu_s() const {
   const std::int64_t id = io_clock_.load(std::memory_order_acquire);
   if (!thread_ || id < 0) return static_cast<double>(io_cpu_at_stop_ns_.load(std::memory_order_relaxed)) * 1e-9;
-  timespec ts{};
-  if (clock_gettime(static_cast<clockid_t>(id), &ts) != 0) return 0.0;
-  return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
+  return static_cast<double>(platform::clock_ns(static_cast<clockid_t>(id))) * 1e-9;
 }
 
 void Endpoint::stop() {
@@ -398,10 +391,8 @@ void Endpoint::run() {
   // Final snapshot, and the CPU time for stats() after the thread is gone.
   publish_stats();
   clockid_t cid{};
-  timespec ts{};
-  if (pthread_getcpuclockid(pthread_self(), &cid) == 0 && clock_gettime(cid, &ts) == 0)
-    io_cpu_at_stop_ns_.store(static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000'000u + static_cast<std::uint64_t>(ts.tv_nsec),
-                             std::memory_order_relaxed);
+  if (pthread_getcpuclockid(pthread_self(), &cid) == 0)
+    io_cpu_at_stop_ns_.store(static_cast<std::uint64_t>(platform::clock_ns(cid)), std::memory_order_relaxed);
   io_clock_.store(-1, std::memory_order_release);
 }
 

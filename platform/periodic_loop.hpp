@@ -18,23 +18,14 @@
 #include "platform/latency_histogram.hpp"
 #include "platform/latest_mailbox.hpp"
 #include "platform/trace.hpp"
+#include "platform/clock.hpp"
 
 namespace haptic::platform {
 
 // The real clock. now_ns() and sleep_until_ns() are RT-safe (vDSO read, one syscall).
 struct MonotonicClock {
-  std::int64_t now_ns() const {
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-  }
-  void sleep_until_ns(std::int64_t deadline_ns) const {
-    timespec ts{};
-    ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
-    ts.tv_nsec = static_cast<long>(deadline_ns % 1'000'000'000);
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-    }
-  }
+  std::int64_t now_ns() const { return monotonic_ns(); }
+  void sleep_until_ns(std::int64_t deadline_ns) const { sleep_until_monotonic_ns(deadline_ns); }
 };
 
 struct LoopConfig {

@@ -1,4 +1,5 @@
 #include "platform/telemetry.hpp"
+#include "platform/clock.hpp"
 
 #include <time.h>
 
@@ -107,8 +108,7 @@ void Telemetry::dump(FaultKind kind, std::uint64_t tick) {
 }
 
 void Telemetry::logger_main() {
-  timespec next{};
-  clock_gettime(CLOCK_MONOTONIC, &next);
+  std::int64_t next_ns = monotonic_ns();
   for (;;) {
     const bool stopping = stop_.load(std::memory_order_acquire);
     const std::uint64_t flush_wanted = flush_request_.load(std::memory_order_acquire);
@@ -120,13 +120,8 @@ void Telemetry::logger_main() {
     }
     flush_done_.store(flush_wanted, std::memory_order_release);
     if (stopping) break;
-    next.tv_nsec += static_cast<long>(config_.drain_period_ns);
-    while (next.tv_nsec >= 1'000'000'000) {
-      next.tv_nsec -= 1'000'000'000;
-      ++next.tv_sec;
-    }
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr) == EINTR) {
-    }
+    next_ns += static_cast<std::int64_t>(config_.drain_period_ns);
+    sleep_until_monotonic_ns(next_ns);
   }
 }
 

@@ -38,6 +38,7 @@
 #include <thread>
 #include <vector>
 
+#include "platform/clock.hpp"
 #include "net/endpoint.hpp"
 #include "net/transport_udp.hpp"
 #include "net/wire.hpp"
@@ -283,11 +284,7 @@ void periodic_receivers(int oneway_udp, std::vector<std::unique_ptr<UdpTransport
     }
 }
 
-void sleep_until_ns(std::int64_t t) {
-  timespec ts{static_cast<time_t>(t / 1'000'000'000), static_cast<long>(t % 1'000'000'000)};
-  while (::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
-}
+void sleep_until_ns(std::int64_t t) { haptic::platform::sleep_until_monotonic_ns(t); }
 
 void start_echo_process();
 

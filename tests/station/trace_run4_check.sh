@@ -5,6 +5,7 @@
 # cycles), and the tick's per-stage breakdown must hold every stage the station emits
 # (device_read, rx_drain, solve, publish, tx, monitor) with stage time <= tick execution time.
 # Fails with the reason when tracing is impossible here (LTTng compiled out or lttng missing).
+# Counts only its own four processes (their PIDs from run4.sh's station-pids.txt).
 set -euo pipefail
 bin="$1"; out="$2"
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -18,7 +19,10 @@ set +e
 rc=$?
 set -e
 if [ $rc -ne 0 ]; then cat "$out/record.log"; echo "FAILED: record.sh around run4.sh exited $rc (3 = tracing impossible here)"; exit 1; fi
-/usr/bin/python3 "$repo/tools/trace/analyze.py" "$out/trace" --procname haptic-station --json "$out/analysis.json" > "$out/analyze.log" 2>&1 \
+# Only this run's own station processes (the PIDs run4.sh started), not other haptic-station
+# processes traced meanwhile on a shared machine.
+[ -s "$out/run/station-pids.txt" ] || { echo "FAILED: run4.sh wrote no station-pids.txt"; exit 1; }
+/usr/bin/python3 "$repo/tools/trace/analyze.py" "$out/trace" --procname haptic-station --vpids "@$out/run/station-pids.txt" --json "$out/analysis.json" > "$out/analyze.log" 2>&1 \
   || { cat "$out/analyze.log"; echo "FAILED: analyze.py"; exit 1; }
 /usr/bin/python3 - "$out" <<'PY'
 import json, sys, os

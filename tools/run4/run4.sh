@@ -127,6 +127,7 @@ for i in 1 2 3 4; do
 done
 
 # Common epoch on CLOCK_MONOTONIC (all processes share it, namespaces included).
+rm -f "$out/station-pids.txt"
 start_at=$(/usr/bin/python3 -c 'import time; print("%.3f" % (time.monotonic() + 2.0))')
 echo "run4.sh: $transport, scenario $scenario, $duration s (push end $push_end s, release $release s), seed $seed, epoch $start_at, out $out"
 for i in 1 2 3 4; do
@@ -134,6 +135,7 @@ for i in 1 2 3 4; do
   if [ "$transport" = raw ]; then cmd=(ip netns exec "$(ns $((i - 1)))" "${cmd[@]}"); fi
   "${cmd[@]}" > "$out/station-$i.log" 2>&1 &
   pids+=($!)
+  echo "$!" >> "$out/station-pids.txt"  # every station process this run started (trace filters use it)
 done
 if [ -n "$kill_spec" ]; then
   IFS=: read -r kill_i kill_s restart_s <<< "$kill_spec"
@@ -149,6 +151,7 @@ if [ -n "$kill_spec" ]; then
   if [ "$transport" = raw ]; then cmd=(ip netns exec "$(ns $((kill_i - 1)))" "${cmd[@]}"); fi
   "${cmd[@]}" > "$out/station-$kill_i-restart.log" 2>&1 &
   pids[$((kill_i - 1))]=$!
+  echo "$!" >> "$out/station-pids.txt"
   echo "{\"station\": $kill_i, \"kill_run_s\": $kill_s, \"restart_run_s\": $restart_s, \"restart_monotonic_s\": $restart_mono, \"run_start_monotonic_s\": $run0}" > "$out/restart.json"
   echo "run4.sh: restarted station $kill_i at run time $restart_s s"
 fi

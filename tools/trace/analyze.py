@@ -193,13 +193,21 @@ def main():
     ap.add_argument("--json", help="write the results as JSON to this file ('-' = stdout)")
     ap.add_argument("--plots", help="write histogram PNGs into this directory")
     ap.add_argument("--procname", help="only analyse processes with this name")
+    ap.add_argument("--vpids", help="only analyse these processes: comma-separated PIDs, or @FILE with one PID a line "
+                    "(tools/run4/run4.sh writes station-pids.txt), so other programs traced meanwhile do not count")
     args = ap.parse_args()
+    only = None
+    if args.vpids:
+        text = open(args.vpids[1:]).read() if args.vpids.startswith("@") else args.vpids
+        only = {int(t) for t in text.replace(",", " ").split()}
 
     stations, discarded = read_trace(args.trace)
     results = []
     for vpid in sorted(stations):
         st = stations[vpid]
         if args.procname and st.procname != args.procname:
+            continue
+        if only is not None and vpid not in only:
             continue
         r = analyze_station(st)
         r["_station"] = st

@@ -59,29 +59,33 @@ struct SplitMix {
   }
 };
 
+// Left eigenvector u at 1 of the lifted operator, lag-major (u[l*n + j] multiplies x_j(k - l)),
+// normalized so that u^T 1 = 1: u_l = sum_{m >= l} A_m^T pi, pi the left Perron vector of
+// W_total = s I + (1-s) W (pi^T (W_total - I) = 0, sum pi = 1).
+Eigen::VectorXd left_eigenvector_at_one(int n, const std::vector<DirectedLink>& links, int depth, double s) {
+  Eigen::MatrixXd wt = Eigen::MatrixXd::Identity(n, n) * s;
+  for (const auto& l : links) wt(l.i, l.j) += (1.0 - s) * l.w;
+  Eigen::MatrixXd a = wt.transpose() - Eigen::MatrixXd::Identity(n, n);
+  a.row(n - 1).setOnes();
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n);
+  rhs(n - 1) = 1.0;
+  const Eigen::VectorXd pi = a.fullPivLu().solve(rhs);
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(n * depth);
+  for (int j = 0; j < n; ++j) u(j) += s * pi(j);
+  for (const auto& l : links) {
+    for (int lag = 0; lag <= l.steps; ++lag) u(lag * n + l.j) += (1.0 - s) * pi(l.i) * l.w;
+  }
+  u /= u.sum();
+  return u;
+}
+
 // The scalar lifted operator J (matrix-free) and its deflation by the eigenvalue at 1:
 // J' = J - 1 u^T / (u^T 1), u the left eigenvector at 1 built from the left Perron vector pi
 // of W_total = s I + (1-s) W: u_l = sum_{m >= l} A_m^T pi.
 class ScalarOperator {
  public:
   ScalarOperator(int users, const std::vector<DirectedLink>& links, int nbar, double self_weight)
-      : n_(users), nbar_(nbar), s_(self_weight), links_(links) {
-    Eigen::MatrixXd wt = Eigen::MatrixXd::Identity(n_, n_) * s_;
-    for (const auto& l : links_) wt(l.i, l.j) += (1.0 - s_) * l.w;
-    // Left Perron vector: pi^T (W_total - I) = 0, sum pi = 1.
-    Eigen::MatrixXd a = wt.transpose() - Eigen::MatrixXd::Identity(n_, n_);
-    a.row(n_ - 1).setOnes();
-    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n_);
-    rhs(n_ - 1) = 1.0;
-    Eigen::VectorXd pi = a.fullPivLu().solve(rhs);
-    u_ = Eigen::VectorXd::Zero(size());
-    for (int j = 0; j < n_; ++j) u_(j) += s_ * pi(j);
-    for (const auto& l : links_) {
-      for (int lag = 0; lag <= l.steps; ++lag) u_(lag * n_ + l.j) += (1.0 - s_) * pi(l.i) * l.w;
-    }
-    const double u1 = u_.sum();
-    u_ /= u1;
-  }
+      : n_(users), nbar_(nbar), s_(self_weight), links_(links), u_(left_eigenvector_at_one(users, links, nbar + 1, self_weight)) {}
   int size() const { return n_ * (nbar_ + 1); }
 
   // y = J' x. O(N Nbar + |E|).
@@ -255,20 +259,7 @@ ScalarSpectrum power_second_modulus(int n, const std::vector<DirectedLink>& link
   out.method = EigenMethod::Power;
   const double s = opt.self_weight;
   const int depth = nbar + 1;
-  // left eigenvector at 1 (lag-major: u[l*n + j] multiplies x_j(k - l))
-  Eigen::MatrixXd wt = Eigen::MatrixXd::Identity(n, n) * s;
-  for (const auto& l : links) wt(l.i, l.j) += (1.0 - s) * l.w;
-  Eigen::MatrixXd a = wt.transpose() - Eigen::MatrixXd::Identity(n, n);
-  a.row(n - 1).setOnes();
-  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n);
-  rhs(n - 1) = 1.0;
-  const Eigen::VectorXd pi = a.fullPivLu().solve(rhs);
-  Eigen::VectorXd u = Eigen::VectorXd::Zero(n * depth);
-  for (int j = 0; j < n; ++j) u(j) += s * pi(j);
-  for (const auto& l : links) {
-    for (int lag = 0; lag <= l.steps; ++lag) u(lag * n + l.j) += (1.0 - s) * pi(l.i) * l.w;
-  }
-  u /= u.sum();
+  const Eigen::VectorXd u = left_eigenvector_at_one(n, links, depth, s);
   // ring buffer: slot (k mod depth) holds x(k)
   Eigen::MatrixXd ring(n, depth);
   SplitMix rng{987654321};

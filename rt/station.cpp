@@ -37,6 +37,7 @@ void StationConfig::validate() const {
     if (!n.gains) bad("neighbors[].gains", "set");
     if (n.gains->P.dofs() != scene->dofs) bad("neighbors[].gains", "sized like the scene");
     if (n.index_delay_bound_ticks < 0) bad("neighbors[].index_delay_bound_ticks", ">= 0");
+    if (!(n.damping_share >= 0 && std::isfinite(n.damping_share))) bad("neighbors[].damping_share", "finite and >= 0");
   }
   if (!(vp.mass_kg > 0)) bad("vp.mass_kg", "> 0");
   if (!(vp.contact_damping_Ns_per_m >= 0)) bad("vp.contact_damping_Ns_per_m", ">= 0");
@@ -91,6 +92,11 @@ StationCore::StationCore(const StationConfig& config)
   active_.assign(static_cast<std::size_t>(nn), 0);
   edge_was_dropped_.assign(static_cast<std::size_t>(nn), 0);
   edge_drops_.assign(static_cast<std::size_t>(nn), 0);
+  {
+    std::vector<double> shares;
+    for (const auto& nb : cfg_.neighbors) shares.push_back(nb.damping_share);
+    edge_energy_.init(nn, shares);
+  }
   y_ = cfg_.vp_initial_position_m;
   q_prev_ = y_;
   anchor_.assign(cfg_.contact_nodes.size(), Vec3::Zero());
@@ -316,29 +322,31 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
   // Schur step solves the contact/VP part exactly on top, so r is y0's residual).
   if (!solver_->exact()) energy_.solver_residual_J -= v_hat_.dot(resid_) * T_;
   // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)   (eq. 15),
-  // with x_hat_j := x(k), delta_ij = 0 for an over-bound edge.
-  double ctrl = -cfg_.damping_Ns_per_m * v_hat_.squaredNorm();
+  // with x_hat_j := x(k), delta_ij = 0 for an over-bound edge. Split per edge (rt/edge_energy.hpp):
+  // D_ij, P_ij are symmetric, so v_hat^T D u = (D v_hat)^T u: one D v_hat and one P v_hat per gain
+  // set, then two dot products per edge.
+  const double damping_J = -cfg_.damping_Ns_per_m * v_hat_.squaredNorm() * T_;
+  double ctrl_J = damping_J;
   for (int j = 0; j < nn; ++j) {
     if (!first_of_gain(j)) continue;
     const EdgeGains* eg = cfg_.neighbors[j].gains;
-    tmp_.setZero();   // sum (v_hat - delta v_hat_j)
-    tmp2_.setZero();  // sum (x_hat - x_hat_j)
+    tmp_.setZero();   // D v_hat
+    tmp2_.setZero();  // P v_hat
+    eg->D.multiply_add(1.0, v_hat_.data(), tmp_.data());
+    eg->P.multiply_add(1.0, v_hat_.data(), tmp2_.data());
     for (int i2 = j; i2 < nn; ++i2) {
       if (cfg_.neighbors[i2].gains != eg) continue;
       const double delta = (active_[i2] && views_[i2].fresh) ? 1.0 : 0.0;
       const double* vj = views_[i2].v_hat;
       const double* xj = active_[i2] ? views_[i2].x_hat : x_.data();
-      for (int i = 0; i < dofs_; ++i) {
-        tmp_[i] += v_hat_[i] - delta * vj[i];
-        tmp2_[i] += x_hat_[i] - xj[i];
-      }
+      double e = 0;
+      for (int i = 0; i < dofs_; ++i) e += tmp_[i] * (v_hat_[i] - delta * vj[i]) + tmp2_[i] * (x_hat_[i] - xj[i]);
+      edge_tick_J_[static_cast<std::size_t>(i2)] = -e * T_;
+      ctrl_J -= e * T_;
     }
-    scratch_.setZero();
-    eg->D.multiply_add(1.0, tmp_.data(), scratch_.data());
-    eg->P.multiply_add(1.0, tmp2_.data(), scratch_.data());
-    ctrl -= v_hat_.dot(scratch_);
   }
-  energy_.controller_J += ctrl * T_;
+  edge_energy_.record_tick(std::span<const double>(edge_tick_J_.data(), static_cast<std::size_t>(nn)), damping_J);
+  energy_.controller_J += ctrl_J;
 
   // --- 7. advance the state (eq. 9, eq. 21) ---
   x_ += T_ * v_hat_;

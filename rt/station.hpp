@@ -20,10 +20,12 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
 
+#include "rt/edge_energy.hpp"
 #include "rt/gains.hpp"
 #include "rt/rx_link.hpp"
 #include "rt/scene.hpp"
@@ -35,6 +37,7 @@ using Vec3 = Eigen::Vector3d;
 
 inline constexpr int kMaxContactNodes = 8;
 inline constexpr int kMaxNeighbors = 16;
+static_assert(kMaxNeighbors <= kMaxEdgeAccounts, "one energy account per neighbour");
 
 struct VirtualProxyParams {
   double mass_kg = 0.001;                    // m_i (eq. 21)
@@ -51,6 +54,9 @@ struct NeighborConfig {
   // delta_ij = 0), so the edge acts as the damper D_ij + T/2 P_ij until a packet within the bound
   // arrives (counted as a bound violation).
   std::int64_t index_delay_bound_ticks = 1 << 30;
+  // This edge's share of B_i in the per-edge energy account (rt/edge_energy.hpp); shares are
+  // normalized over the neighbours, all 0 (default): equal shares.
+  double damping_share = 0;
 };
 
 struct StationConfig {
@@ -136,6 +142,9 @@ class StationCore {
   const Vec3& contact_force_on_vp_N() const { return f_contact_vp_; }
   bool in_contact() const { return in_contact_; }
   const EnergyMonitor& energy() const { return energy_; }
+  // eq. (14)'s controller energy split per edge (neighbour index n = edge n); sums to
+  // energy().controller_J.
+  const EdgeEnergyAccount& edge_energy() const { return edge_energy_; }
   const StationConfig& config() const { return cfg_; }
   std::uint64_t edge_drop_events() const {
     std::uint64_t total = 0;
@@ -181,6 +190,8 @@ class StationCore {
   std::vector<Vec3> anchor_;  // r_p: contact node offset from the VP at onset
   double normal_sign_ = 1.0;
   EnergyMonitor energy_{};
+  EdgeEnergyAccount edge_energy_{};
+  std::array<double, kMaxNeighbors> edge_tick_J_{};  // this tick's coupling energy per edge
   std::uint64_t safe_state_ticks_ = 0;
   std::vector<unsigned char> edge_was_dropped_;
   std::vector<std::uint64_t> edge_drops_;

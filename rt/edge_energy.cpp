@@ -1,0 +1,49 @@
+#include "rt/edge_energy.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace haptic::rt {
+
+void EdgeEnergyAccount::init(int edges, std::span<const double> damping_share) {
+  if (edges < 0 || edges > kMaxEdgeAccounts)
+    throw std::invalid_argument("edge energy account: edges must be in [0, " + std::to_string(kMaxEdgeAccounts) + "]");
+  if (!damping_share.empty() && static_cast<int>(damping_share.size()) != edges)
+    throw std::invalid_argument("edge energy account: one damping share per edge needed");
+  *this = EdgeEnergyAccount{};
+  edges_ = edges;
+  double sum = 0;
+  for (double s : damping_share) {
+    if (!(s >= 0 && std::isfinite(s))) throw std::invalid_argument("edge energy account: damping shares must be finite and >= 0");
+    sum += s;
+  }
+  for (int j = 0; j < edges; ++j)
+    share_[idx(j)] = sum > 0 ? damping_share[idx(j)] / sum : 1.0 / static_cast<double>(edges);
+}
+
+void EdgeEnergyAccount::record_tick(std::span<const double> coupling_J, double damping_J) {
+  ++ticks_;
+  if (edges_ == 0) {
+    unshared_ += damping_J;
+    return;
+  }
+  const int n = std::min(edges_, static_cast<int>(coupling_J.size()));
+  for (int j = 0; j < n; ++j) {
+    const double d = share_[idx(j)] * damping_J;
+    const double c = coupling_J[idx(j)];
+    coupling_[idx(j)] += c;
+    damping_[idx(j)] += d;
+    last_[idx(j)] = c + d;
+    peak_[idx(j)] = std::max(peak_[idx(j)], coupling_[idx(j)] + damping_[idx(j)]);
+  }
+}
+
+double EdgeEnergyAccount::total_J() const {
+  double t = unshared_;
+  for (int j = 0; j < edges_; ++j) t += edge_J(j);
+  return t;
+}
+
+}  // namespace haptic::rt

@@ -23,7 +23,7 @@ const char* fault_name(DeviceFault fault) {
 namespace {
 void require(bool ok, const char* key, const char* range, double value) {
   if (!ok)
-    throw std::invalid_argument(std::string("drivers.safety.") + key + " = " + std::to_string(value) +
+    throw std::invalid_argument(std::string("device.") + key + " = " + std::to_string(value) +
                                 " is out of range; allowed " + range);
 }
 }  // namespace

@@ -57,7 +57,7 @@ enum class DeviceFault : std::uint8_t {
 // Static name of a fault ("unplugged", ...). RT-safe.
 const char* fault_name(DeviceFault fault);
 
-// Safety configuration (TOML table [drivers.safety] in the station config). Defaults documented
+// Safety configuration (keys of the [device] table of the station file, same names). Defaults documented
 // per field; validate_limits() throws std::invalid_argument naming the key and allowed range.
 struct SafetyLimits {
   double max_force_N = 1.0e9;        // extra clamp below capabilities.max_force_N; (0, inf)

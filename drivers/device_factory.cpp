@@ -12,6 +12,11 @@ OpenedDevice::~OpenedDevice() {
 }
 
 namespace {
+constexpr const char* kMissingHint =
+    "Check the device with `haptic-devices` (permissions, vendor library, udev rules). To run this station with a "
+    "SIMULATED user instead (it plays the scenario's scripted push, which the other stations feel), say so "
+    "explicitly: device.kind = \"simulated\".";
+
 std::string usb_line(const UsbDeviceInfo& d) {
   char buf[160];
   std::snprintf(buf, sizeof buf, "%04x:%04x %s (bus %03u addr %03u, serial \"%s\")", d.vendor_id, d.product_id,
@@ -95,7 +100,7 @@ OpenedDevice open_device(const DeviceSelection& sel) {
     }
   bool ok = false;
   if (k == "touch" || (k == "auto" && touch_usb != nullptr)) ok = try_touch(sel, out, touch_usb);
-  if (!ok && k == "touch") throw std::runtime_error("device.kind = \"touch\": " + out.report);
+  if (!ok && k == "touch") throw DeviceMissing("device.kind = \"touch\": no Touch could be started:\n" + out.report + kMissingHint);
   if (!ok && (k == "spacemouse" || k == "auto")) {
     bool have_hid = !sel.spacemouse.hidraw_path.empty();
     for (const HidDeviceInfo& h : list_hid_devices(true)) {
@@ -103,9 +108,10 @@ OpenedDevice open_device(const DeviceSelection& sel) {
       have_hid = have_hid || h.kind == DeviceKind::kSpaceMouse;
     }
     if (k == "spacemouse" || have_hid) ok = try_spacemouse(sel, out);
-    if (!ok && k == "spacemouse") throw std::runtime_error("device.kind = \"spacemouse\": " + out.report);
+    if (!ok && k == "spacemouse")
+      throw DeviceMissing("device.kind = \"spacemouse\": no SpaceMouse could be started:\n" + out.report + kMissingHint);
   }
-  if (!ok) use_simulated(sel, out);
+  if (!ok) throw DeviceMissing("device.kind = \"auto\": no haptic or input device could be started:\n" + out.report + kMissingHint);
   if (out.monitor) out.monitor->start();
   return out;
 }

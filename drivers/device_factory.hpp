@@ -1,10 +1,12 @@
 #pragma once
 // Picks, opens and starts the station's device from the [device] config table, and explains
 // every choice (what was found, why a backend could not be used). Non-RT, start-up only.
-//   kind = "auto"       : first Touch whose HD library starts, else first SpaceMouse, else simulated
-//   kind = "touch"      : PhantomDevice (OpenHaptics HD library) or an error saying what is missing
+//   kind = "auto"       : first Touch whose HD library starts, else first SpaceMouse; NEVER a
+//                         simulated user: nothing found is a DeviceMissing error
+//   kind = "touch"      : PhantomDevice (OpenHaptics HD library) or DeviceMissing saying what is missing
 //   kind = "spacemouse" : SpaceMouseDevice (position input only, NO force feedback)
-//   kind = "simulated"  : SimulatedDevice (owner-stepped: the station must call service())
+//   kind = "simulated"  : SimulatedDevice (owner-stepped: the station must call service()); a
+//                         simulated user is only ever what the configuration asked for
 // A started Touch or SpaceMouse that has a USB identity is watched by a UsbMonitor (hotplug or
 // re-enumeration), so unplugging it puts the device in the safe state.
 #include "drivers/device.hpp"
@@ -14,6 +16,7 @@
 #include "drivers/usb_monitor.hpp"
 
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -39,8 +42,16 @@ struct OpenedDevice {
   ~OpenedDevice();
 };
 
+// No requested device could be started (what() says what was found, why each backend failed,
+// and which key fixes it). The station exits with its own code for this (firmware/station_phase.hpp).
+class DeviceMissing : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // Throws std::invalid_argument for a bad kind (naming device.kind and the allowed values) and
-// std::runtime_error when an explicitly requested backend cannot start (with the reason).
+// DeviceMissing when no real device of the requested kind starts ("auto" included: a station
+// never falls back to a simulated user on its own).
 OpenedDevice open_device(const DeviceSelection& selection);
 
 }  // namespace haptic::drivers

@@ -44,9 +44,11 @@ namespace {
 std::string missing_message(const std::string& path, const char* why) {
   return "OpenHaptics HD library not available: dlopen(\"" + path + "\") failed: " + (why ? why : "?") +
          ". The Phantom/Touch servo loop needs the vendor's OpenHaptics for Linux (libHD.so) and its "
-         "device driver; install them, or point drivers.hd_library_path / HAPTIC_HD_LIBRARY at "
-         "libHD.so. Without it this station can use the simulated device or a SpaceMouse (no force "
-         "feedback).";
+         "device driver; install them, then name the library in the station file: "
+         "device.hd_library_path = \"/path/to/libHD.so\" (or the environment variable HAPTIC_HD_LIBRARY; "
+         "haptic-devices --hd-library PATH checks it). Without it this station can only run a "
+         "SpaceMouse (device.kind = \"spacemouse\", no force feedback) or, explicitly, a simulated "
+         "user (device.kind = \"simulated\").";
 }
 }  // namespace
 

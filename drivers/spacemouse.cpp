@@ -126,8 +126,8 @@ void SpaceMouseDevice::start() {
       }
     if (path_.empty())
       throw std::runtime_error(
-          "no 3Dconnexion SpaceMouse found among the hidraw devices (drivers.spacemouse.hidraw_path is "
-          "empty, so the first one is used); run build/bin/haptic-devices to see what is connected");
+          "no 3Dconnexion SpaceMouse found among the hidraw devices (device.hidraw_path is "
+          "empty, so the first one is used); run haptic-devices to see what is connected");
   }
   dev_ = hid_open_path(path_.c_str());
   if (dev_ == nullptr) {

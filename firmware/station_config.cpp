@@ -70,12 +70,20 @@ void parse_station_section(View root, StationFile& f) {
 
 void parse_device_section(View root, StationFile& f) {
   const View dv = root["device"];
-  only_keys(dv, "device", {"kind", "max_force_N", "max_power_W", "max_speed_m_per_s", "sim_max_force_N"});
+  only_keys(dv, "device", {"kind", "hd_library_path", "hd_device_name", "hidraw_path", "max_force_N", "max_power_W", "max_speed_m_per_s", "max_stale_reads",
+                          "max_reads_before_first_sample", "workspace_margin", "sim_max_force_N"});
   DeviceSection& d = f.device;
   d.kind = text(dv["kind"], "device.kind", "auto");
   if (d.kind != "auto" && d.kind != "touch" && d.kind != "spacemouse" && d.kind != "simulated")
     bad("device.kind", "\"auto\", \"touch\", \"spacemouse\" or \"simulated\"");
+  d.hd_library_path = text(dv["hd_library_path"], "device.hd_library_path", "");
+  d.hd_device_name = text(dv["hd_device_name"], "device.hd_device_name", "");
+  d.hidraw_path = text(dv["hidraw_path"], "device.hidraw_path", "");
   d.max_force_N = real(dv["max_force_N"], "device.max_force_N", 1e9, 1e-6, 1e12);
+  d.max_stale_reads = static_cast<int>(integer(dv["max_stale_reads"], "device.max_stale_reads", 5, 1, 100000));
+  d.max_reads_before_first_sample =
+      static_cast<int>(integer(dv["max_reads_before_first_sample"], "device.max_reads_before_first_sample", 500, 1, 10000000));
+  d.workspace_margin = real(dv["workspace_margin"], "device.workspace_margin", 1.5, 1, 100);
   d.max_power_W = real(dv["max_power_W"], "device.max_power_W", 3.0, 0, 1000);
   d.max_speed_m_per_s = real(dv["max_speed_m_per_s"], "device.max_speed_m_per_s", 3.0, 1e-6, 1000);
   d.sim_max_force_N = real(dv["sim_max_force_N"], "device.sim_max_force_N", 3.3, 1e-6, 1000);

@@ -47,10 +47,18 @@
 //                                    # session: it probes this long (round trips, the neighbours' epoch), adopts the
 //                                    # session's epoch and a neighbour's object state, then couples, [0.1, 10]
 //   [device]                         (drivers/: device_factory.hpp)
-//   kind = "auto"                    # "auto" | "touch" | "spacemouse" | "simulated" (simulated user of the scenario script)
-//   max_force_N = 1e9                # extra output clamp, > 0
+//   kind = "auto"                    # "auto" (first Touch, else SpaceMouse) | "touch" | "spacemouse" | "simulated".
+//                                    # A device that cannot be started is an error (exit 9), never a silent simulated
+//                                    # user; "simulated" (the scenario's scripted user) is a warning and in the summary
+//   hd_library_path = ""             # the vendor's OpenHaptics libHD.so; "" = $HAPTIC_HD_LIBRARY, else "libHD.so"
+//   hd_device_name = ""              # OpenHaptics device configuration name; "" = the default device
+//   hidraw_path = ""                 # SpaceMouse hidraw node; "" = the first SpaceMouse found
+//   max_force_N = 1e9                # extra output clamp below the device's own limit, > 0
 //   max_power_W = 3.0                # cap on F.v into the hand, [0, 1000], 0 disables
-//   max_speed_m_per_s = 3.0          # (0, 1000]
+//   max_speed_m_per_s = 3.0          # a faster sample is out of range (safe state), (0, 1000]
+//   max_stale_reads = 5              # ticks without a new sample before the safe state, [1, 100000]
+//   max_reads_before_first_sample = 500  # start-up grace before the first sample, [1, 10000000]
+//   workspace_margin = 1.5           # |p| beyond this x the device's workspace radius is out of range, [1, 100]
 //   sim_max_force_N = 3.3            # simulated device capability, (0, 1000]
 //   [rt]       priority = 80 (1..98), cpu = -1, lock_memory = true, hold_dma_latency = false, require_rt = false,
 //              isolate_cpu = true (with cpu >= 0: every other thread of the process moved off that cpu)
@@ -106,9 +114,15 @@ struct StationSection {
 
 struct DeviceSection {
   std::string kind = "auto";
+  std::string hd_library_path;
+  std::string hd_device_name;
+  std::string hidraw_path;
   double max_force_N = 1e9;
   double max_power_W = 3.0;
   double max_speed_m_per_s = 3.0;
+  int max_stale_reads = 5;
+  int max_reads_before_first_sample = 500;
+  double workspace_margin = 1.5;
   double sim_max_force_N = 3.3;
 };
 

@@ -10,13 +10,15 @@ enum class PhaseStatus {
   kOk = 0,
   kConfigError,   // the configuration is wrong (plan): exit 2
   kNoNeighbour,   // probing: no neighbour answered at all
-  kFailed,        // any other run-time failure (socket, device, a neighbour missing, core not ready)
+  kDeviceMissing, // open: the configured device could not be started (never replaced by a simulated user): exit 9
+  kFailed,        // any other run-time failure (socket, device fault, a neighbour missing, core not ready)
   kStopped,       // SIGINT/SIGTERM before the phase finished
 };
 
 // Process exit codes of `haptic-station run` (also in --help and firmware/README.md). When
 // several conditions hold, the code is the first of this list that holds:
-//   2 configuration error, 4 diverged, 5 safe state latched, 6 passivity condition not met,
+//   2 configuration error, 9 device missing (device.kind names a device that could not be
+//   started; a station never substitutes a simulated user), 4 diverged, 5 safe state latched, 6 passivity condition not met,
 //   7 no neighbour (none answered probing, or none within its bound for more than
 //     station.max_no_neighbour_fraction of the run), 3 other run-time failure,
 //   8 the run ended before the scripted release; 0 otherwise.
@@ -29,6 +31,7 @@ enum ExitCode : int {
   kExitPassivityNotMet = 6,
   kExitNoNeighbour = 7,
   kExitBeforeRelease = 8,
+  kExitDeviceMissing = 9,
 };
 
 // One paragraph for --help and the README. Not RT-safe.

@@ -72,6 +72,12 @@ drivers::DeviceSelection device_selection(const StationFile& f, const BuiltScena
   sel.safety.max_force_N = f.device.max_force_N;
   sel.safety.max_power_W = f.device.max_power_W;
   sel.safety.max_speed_m_per_s = f.device.max_speed_m_per_s;
+  sel.safety.max_stale_reads = static_cast<std::uint32_t>(f.device.max_stale_reads);
+  sel.safety.max_reads_before_first_sample = static_cast<std::uint32_t>(f.device.max_reads_before_first_sample);
+  sel.safety.workspace_margin = f.device.workspace_margin;
+  sel.touch.hd_library_path = f.device.hd_library_path;
+  sel.touch.device_name = f.device.hd_device_name;
+  sel.spacemouse.hidraw_path = f.device.hidraw_path;
   sel.simulated.device = built.spec.device;
   sel.simulated.hand = built.spec.hand;
   sel.simulated.script = built.goal_script(me);
@@ -135,6 +141,9 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   p->base_path = p->out_dir + "/station-" + std::to_string(f.station.id);
   plan_records(*p);
   plan_release_warning(*p);
+  if (f.device.kind == "simulated")
+    p->warnings.push_back("device.kind = \"simulated\": a SIMULATED user plays user " + std::to_string(f.station.id) +
+                          "'s scripted push/hold/release; the other stations feel it as if a person pushed");
   return p;
 }
 

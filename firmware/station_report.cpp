@@ -189,6 +189,7 @@ void write_state_csv(const std::string& path, const TickRecords& rec, int dofs) 
 
 std::vector<std::string> RunConditions::names() const {
   std::vector<std::string> n;
+  if (device_missing) n.push_back("device_missing");
   if (diverged) n.push_back("diverged");
   if (safe_state_latched) n.push_back("safe_state_latched");
   if (passivity_not_met) n.push_back("passivity_condition_not_met");
@@ -202,13 +203,15 @@ RunConditions run_conditions(const StationOutcome& o) {
   RunConditions c;
   const StationPlan& p = *o.plan;
   const TickCounters* k = o.counters;
+  c.device_missing = o.failure_status == PhaseStatus::kDeviceMissing;
   c.diverged = k && k->diverged;
   c.safe_state_latched = (o.run && o.run->loop_exception) || (!o.device_fault.empty() && o.device_fault != "none");
   c.passivity_not_met = o.build && o.build->status == PhaseStatus::kOk && !o.build->passivity_condition_met;
   if (k && k->ticks_run > 0) c.no_neighbour_fraction = static_cast<double>(k->no_neighbour_ticks) / static_cast<double>(k->ticks_run);
   c.no_neighbour = o.failure_status == PhaseStatus::kNoNeighbour ||
                    (c.no_neighbour_fraction && *c.no_neighbour_fraction > p.file.station.max_no_neighbour_fraction);
-  c.failed = !o.failure.empty() && o.failure_status != PhaseStatus::kNoNeighbour && !(o.run && o.run->loop_exception);
+  c.failed = !o.failure.empty() && o.failure_status != PhaseStatus::kNoNeighbour && o.failure_status != PhaseStatus::kDeviceMissing &&
+             !(o.run && o.run->loop_exception);
   const auto& sc = p.built->spec.script;
   // Run time reached: a rejoined station's run starts late (first_run_k > run_k0) and ends on time.
   const std::int64_t first_kr = o.run && o.run->first_run_k >= 0 ? o.run->first_run_k - p.times.run_k0 : 0;
@@ -220,6 +223,7 @@ RunConditions run_conditions(const StationOutcome& o) {
 }
 
 int exit_code(const RunConditions& c) {
+  if (c.device_missing) return kExitDeviceMissing;
   if (c.diverged) return kExitDiverged;
   if (c.safe_state_latched) return kExitSafeState;
   if (c.passivity_not_met) return kExitPassivityNotMet;

@@ -38,6 +38,7 @@ struct StationOutcome {
 
 // The degraded conditions of a run (each is also a key of station-<id>.json's "conditions").
 struct RunConditions {
+  bool device_missing = false;          // the configured device could not be started (exit 9)
   bool diverged = false;
   bool safe_state_latched = false;      // loop-boundary exception, or a latched device fault
   bool passivity_not_met = false;       // B_i used < eq. (18) on the measured bounds

@@ -233,10 +233,16 @@ bool adopt_state(const StationPlan& plan, StationResources& res, PhaseResults& p
 void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
   try {
     open_resources(plan, res, log);
+  } catch (const drivers::DeviceMissing& e) {
+    pr.fail(PhaseStatus::kDeviceMissing, std::string("start-up: ") + e.what());
+    return;
   } catch (const std::exception& e) {
     pr.fail(PhaseStatus::kFailed, std::string("start-up: ") + e.what());
     return;
   }
+  pr.lifecycle["device"] = {{"kind", plan.device.kind},
+                            {"name", res.dev.device->capabilities().name},
+                            {"simulated_user", plan.device.kind == "simulated"}};
   say_plan(plan, log);
   if (plan.times.rejoin) {
     if (!rejoin_session(plan, res, pr, stop, log)) return;
@@ -303,6 +309,8 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
 
 std::string exit_code_help() {
   return "Exit codes (when several hold, the first in this list): 0 done; 2 configuration error (the key is named as written in the file); "
+         "9 device missing (device.kind names a device that could not be started; a station never substitutes a simulated user: "
+         "device.kind = \"simulated\" asks for one); "
          "4 diverged; 5 safe state latched (loop exception or device fault); 6 passivity condition not met (B_i below eq. (18) on the measured "
          "round-trip bounds); 7 no neighbour (none answered probing, or none within its bound for more than station.max_no_neighbour_fraction "
          "of the run); 3 other run-time failure; 8 the run ended before the scripted release (e.g. --duration shorter than station.release_s). "

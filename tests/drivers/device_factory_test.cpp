@@ -41,8 +41,21 @@ TEST(DeviceFactory, RequestedTouchWithoutTheVendorLibrarySaysExactlyThat) {
     FAIL("expected std::runtime_error");
   } catch (const std::invalid_argument&) {
     FAIL("kind is valid");
-  } catch (const std::runtime_error& e) {
+  } catch (const DeviceMissing& e) {
     CHECK(std::string(e.what()).find("OpenHaptics HD library not available") != std::string::npos);
+    CHECK(std::string(e.what()).find("hd_library_path") != std::string::npos);
+  }
+}
+
+TEST(DeviceFactory, AutoWithNoDeviceIsAnErrorNotASimulatedUser) {
+  DeviceSelection sel;  // kind "auto"
+  sel.touch.hd_library_path = "/nonexistent/libHD.so";
+  sel.spacemouse.hidraw_path = "/nonexistent/hidraw99";
+  try {
+    OpenedDevice d = open_device(sel);
+    FAIL("expected DeviceMissing, got a device");
+  } catch (const DeviceMissing& e) {
+    CHECK_TEXT(std::string(e.what()).find("device.kind = \"simulated\"") != std::string::npos, e.what());
   }
 }
 

@@ -265,7 +265,7 @@ TEST(DeviceInterface, BadSafetyConfigNamesTheKeyAndRange) {
     FAIL("expected std::invalid_argument");
   } catch (const std::invalid_argument& e) {
     const std::string what = e.what();
-    CHECK(what.find("drivers.safety.max_power_W") != std::string::npos);
+    CHECK(what.find("device.max_power_W") != std::string::npos);
     CHECK(what.find("[0, 1000]") != std::string::npos);
   }
 }

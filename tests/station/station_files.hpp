@@ -29,9 +29,10 @@ struct StationText {
   std::string out_dir = ".";
   std::string station_extra;       // more [station] lines
   std::string net_extra;           // more [net] lines
+  std::string device = "kind = \"simulated\"\nsim_max_force_N = 50.0\nmax_power_W = 0\n";  // the [device] lines
   std::string text() const {
     std::string t = "[station]\nid = " + std::to_string(id) + "\nout_dir = \"" + out_dir + "\"\nio_priority = 0\n" + station_extra;
-    t += "[device]\nkind = \"simulated\"\nsim_max_force_N = 50.0\nmax_power_W = 0\n";
+    t += "[device]\n" + device;
     t += "[rt]\nlock_memory = false\n";
     t += "[net]\ntransport = \"udp\"\nsession_id = " + std::to_string(session) + "\n";
     t += "session_key = \"000102030405060708090a0b0c0d0e0f101112131415161718191a1b1c1d1e1f\"\n";

@@ -216,7 +216,50 @@ TEST(StationPhases, ExitCodesFollowTheDocumentedOrder) {
   LONGS_EQUAL(kExitSafeState, exit_code(c));
   c.diverged = true;
   LONGS_EQUAL(kExitDiverged, exit_code(c));
-  LONGS_EQUAL(6u, c.names().size());
+  c.device_missing = true;
+  LONGS_EQUAL(kExitDeviceMissing, exit_code(c));
+  LONGS_EQUAL(7u, c.names().size());
+}
+
+// No silent stand-in (issue 12): a configured device that cannot be started ends the run with its
+// own exit code before any socket traffic; the station never plays a simulated user instead.
+TEST(StationPhases, AMissingDeviceIsAnErrorNotASimulatedUser) {
+  const std::string dir = test::fresh_dir("nodevice");
+  test::StationText s;
+  s.id = 2;
+  s.peers = {1};
+  s.port_base = test::station_port_base();
+  s.session = 102;
+  s.out_dir = dir;
+  s.station_extra = kShort;
+  s.device = "kind = \"touch\"\nhd_library_path = \"/nonexistent/libHD.so\"\n";
+  std::atomic<bool> stop{false};
+  RunOverrides o;
+  o.quiet = true;
+  LONGS_EQUAL(kExitDeviceMissing, run_station(parse_station_file(s.text()), o, stop));
+  const json j = station_json(dir, 2);
+  CHECK(has(j["conditions"], "device_missing"));
+  const std::string err = j["error"].get<std::string>();
+  CHECK_TEXT(err.find("/nonexistent/libHD.so") != std::string::npos, err.c_str());
+  CHECK_TEXT(err.find("device.hd_library_path") != std::string::npos, err.c_str());  // the key that fixes it, as the file spells it
+  CHECK_TEXT(err.find("device.kind = \"simulated\"") != std::string::npos, err.c_str());
+  LONGS_EQUAL(0, j["ticks_run"].get<int>());
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, ASimulatedUserIsAWarningAtStartAndRecordedInTheSummary) {
+  test::StationText s;
+  s.id = 3;
+  s.peers = {1};
+  s.out_dir = "/tmp";
+  const PlanResult pr = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  CHECK(pr.status == PhaseStatus::kOk);
+  bool warned = false;
+  for (const auto& w : pr.plan->warnings) warned = warned || w.find("SIMULATED user plays user 3") != std::string::npos;
+  CHECK(warned);
+  s.device = "kind = \"touch\"\n";
+  const PlanResult real = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  for (const auto& w : real.plan->warnings) CHECK(w.find("SIMULATED") == std::string::npos);
 }
 
 TEST(StationPhases, ALatchedDeviceFaultIsASafeStateCondition) {

@@ -142,6 +142,7 @@ int main(int argc, char** argv) {
   std::printf("\nsummary: %d haptic device(s), %d position-input device(s) (no force feedback), %d without access\n",
               haptic, input, blocked);
   if (haptic + input == 0)
-    std::printf("no device found: the station can still run with the simulated device (drivers.device = \"simulated\")\n");
+    std::printf("no device found: a station with device.kind = \"auto\" or a device kind will refuse to start (exit 9);\n"
+                "a simulated user must be asked for explicitly: device.kind = \"simulated\"\n");
   return 0;
 }

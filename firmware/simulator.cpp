@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "firmware/link_impairment.hpp"
+#include "firmware/session_recorder.hpp"
 #include "net/impairment.hpp"
 #include "net/wire.hpp"
 #include "rt/tx_deadband.hpp"
@@ -68,6 +69,29 @@ File open_out(const std::string& path) {
   return f;
 }
 
+// One lossless session recorder per station when opt.record (each station's initial state
+// recorded before its first tick). Not RT-safe.
+std::vector<std::unique_ptr<SessionRecorder>> open_sim_recorders(const BuiltScenario& b, const SimOptions& opt,
+                                                                 const std::vector<std::unique_ptr<rt::StationCore>>& st) {
+  std::vector<std::unique_ptr<SessionRecorder>> rec;
+  if (!opt.record) return rec;
+  if (opt.out_dir.empty()) throw std::invalid_argument("--record needs --out");
+  for (std::size_t i = 0; i < st.size(); ++i) {
+    RecorderConfig rc;
+    rc.path = opt.out_dir + "/station-" + std::to_string(i + 1) + ".h5";
+    rc.lossless = true;
+    rc.max_bytes = ~0ull;
+    SessionInfo info;
+    info.source = "sim";
+    info.station_id = static_cast<int>(i) + 1;
+    info.config_text = opt.command_line;
+    info.fingerprint = "scene nodes " + std::to_string(b.scene.nodes) + ", scenario " + b.spec.name;
+    rec.push_back(std::make_unique<SessionRecorder>(rc, info, st[i]->config()));
+    rec.back()->rt_initial_state(st[i]->x().data(), st[i]->v().data());
+  }
+  return rec;
+}
+
 }  // namespace
 
 net::SendImpairment simulator_channel(const ScenarioSpec& spec, int receiver, int sender) {
@@ -122,6 +146,7 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
       out_channels[static_cast<std::size_t>(ch.back().from)].push_back(static_cast<int>(ch.size()) - 1);
     }
 
+  std::vector<std::unique_ptr<SessionRecorder>> rec = open_sim_recorders(b, opt, st);
   File trace, series;
   if (!opt.out_dir.empty()) {
     trace = open_out(opt.out_dir + "/trace.csv");
@@ -183,11 +208,13 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
         if (p.seq < c.max_seq_delivered) ++c.stats.reordered;
         c.max_seq_delivered = std::max(c.max_seq_delivered, p.seq);
         rx.offer(p.seq, p.send_s, p.payload->data(), p.payload->data() + dofs, dofs);
+        if (!rec.empty()) rec[static_cast<std::size_t>(c.to)]->rt_packet(k, c.rx_index, p.seq, p.send_s, p.payload->data(), p.payload->data() + dofs);
       }
     }
     // 2. every station ticks with its device sampled at t_k
     for (int i = 0; i < N; ++i) {
       const auto out = st[static_cast<std::size_t>(i)]->tick(users[static_cast<std::size_t>(i)].position_m());
+      if (!rec.empty()) rec[static_cast<std::size_t>(i)]->rt_tick(make_tick_record(*st[static_cast<std::size_t>(i)], k, users[static_cast<std::size_t>(i)].position_m(), out));
       forces[static_cast<std::size_t>(i)] = out.device_force_N;
       flags[static_cast<std::size_t>(i)] = out.flags;
       if (out.flags & rt::kDiverged) {
@@ -343,6 +370,7 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
     r.final_controller_J.push_back(st[static_cast<std::size_t>(i)]->energy().controller_J);
     r.final_x.push_back(st[static_cast<std::size_t>(i)]->x());
   }
+  for (auto& recorder : rec) recorder->finish();
   r.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   if (!opt.out_dir.empty() && !snap_times.empty()) {
     nlohmann::json js;

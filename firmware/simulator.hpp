@@ -52,6 +52,8 @@ struct SimOptions {
   int trace_every = 1;        // write every k-th tick to trace.csv
   bool progress = false;      // progress lines on stderr
   std::vector<double> snapshot_times_s;  // node positions of every copy at these times
+  bool record = false;        // session logs out_dir/station-<i>.h5 (firmware/session_log.hpp), lossless
+  std::string command_line;   // stored in each log as its config_text
 };
 
 SimResult run_simulation(const BuiltScenario& scenario, const SimOptions& options);

@@ -29,7 +29,7 @@ void parse_station_section(View root, StationFile& f) {
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
                             "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
-                            "rejoin_probe_s"});
+                            "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "view_port", "view_bind", "view_rate_hz"});
   StationSection& s = f.station;
   if (!st["id"]) bad("station.id", "present: this station's user number, 1..users");
   s.id = static_cast<int>(integer(st["id"], "station.id", 1, 1, 64));
@@ -156,6 +156,17 @@ void parse_net_keys(const toml::table& cd, View root, StationFile& f) {
     bad(P + ".station_id", "absent or equal to station.id (" + std::to_string(f.station.id) + "): wire ids are the user numbers");
 }
 
+// station.record* (the session log, firmware/session_recorder.hpp) and station.view* (the live web view).
+void parse_record_view_keys(View st, StationFile& f) {
+  f.record.enabled = boolean(st["record"], "station.record", false);
+  f.record.max_mb = real(st["record_max_mb"], "station.record_max_mb", 1024.0, 1.0, 1e6);
+  f.record.deflate = static_cast<int>(integer(st["record_deflate"], "station.record_deflate", 0, 0, 9));
+  f.view.port = static_cast<int>(integer(st["view_port"], "station.view_port", 0, 0, 65535));
+  f.view.bind = text(st["view_bind"], "station.view_bind", "127.0.0.1");
+  if (f.view.bind.empty()) bad("station.view_bind", "an interface address, e.g. \"127.0.0.1\" (the default) or \"0.0.0.0\"");
+  f.view.rate_hz = real(st["view_rate_hz"], "station.view_rate_hz", 30.0, 1.0, 60.0);
+}
+
 }  // namespace
 
 StationFile parse_station_file(std::string_view toml_text) {
@@ -171,6 +182,7 @@ StationFile parse_station_file(std::string_view toml_text) {
   parse_station_section(root, f);
   parse_device_section(root, f);
   parse_platform_sections(root, f);
+  parse_record_view_keys(root["station"], f);
   only_keys(root["trace"], "trace", {});
   // [net] / [network]: only key names here; values are net/'s (net/config.hpp).
   parse_net_keys(cd, root, f);

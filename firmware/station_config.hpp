@@ -43,6 +43,13 @@
 //                                    # from NTP-style echoes, net/README.md): a larger offset, beyond the measurement's
 //                                    # own uncertainty (half the round trip), is warned about, [0, 1e6]
 //   clock_offset_refuse = false      # true: refuse to couple instead (exit 3) when the bound is exceeded
+//   record = false                   # true: the session log out_dir/station-<id>.h5 (HDF5, firmware/session_log.hpp;
+//                                    # `haptic-station replay` re-runs it bit-exactly)
+//   record_max_mb = 1024             # rows past this many MB are not written (the log says from which tick), [1, 1e6]
+//   record_deflate = 0               # HDF5 deflate level of the recorded packet values, 0 = none, [0, 9]
+//   view_port = 0                    # > 0: serve the live web view (HTTP + WebSocket) on this port, [0, 65535]
+//   view_bind = "127.0.0.1"          # interface the view listens on (localhost by default; another only by configuration)
+//   view_rate_hz = 30                # frames per second sent to each browser, [1, 60]
 //   rejoin_probe_s = 0.4             # a station started after its epoch's probing phase rejoins the running
 //                                    # session: it probes this long (round trips, the neighbours' epoch), adopts the
 //                                    # session's epoch and a neighbour's object state, then couples, [0.1, 10]
@@ -126,6 +133,18 @@ struct DeviceSection {
   double sim_max_force_N = 3.3;
 };
 
+struct RecordSection {
+  bool enabled = false;
+  double max_mb = 1024.0;
+  int deflate = 0;
+};
+
+struct ViewSection {
+  int port = 0;
+  std::string bind = "127.0.0.1";
+  double rate_hz = 30.0;
+};
+
 struct StationFile {
   std::string path;           // where it came from ("" for text)
   std::string text;           // the whole TOML text (net/ parses its section from it)
@@ -135,6 +154,8 @@ struct StationFile {
   platform::LoopConfig loop{};
   platform::GpioConfig gpio{};
   platform::TelemetryConfig telemetry{};
+  RecordSection record{};
+  ViewSection view{};
   // [net]/[network] facts the station needs before net/ parses the section.
   bool net_station_id_set = false;
   bool impairment_seed_set = false;

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "firmware/scenario.hpp"
+#include "firmware/session_replay.hpp"
 #include "firmware/simulator.hpp"
 #include "firmware/station_config.hpp"
 #include "firmware/station_phase.hpp"
@@ -59,7 +60,13 @@ struct SimArgs {
   std::uint64_t seed = 1;
   int nodes = -1, trace_every = 1, allowance = -1, trace_node = -1, tx_interval = 1;
   double tx_deadband_mm = 0;
-  bool no_plots = false, quiet = false;
+  bool no_plots = false, quiet = false, record = false;
+  std::string command_line;
+};
+
+struct ReplayArgs {
+  std::string log, trace;
+  double damping = -1, p_scale = 1, d_scale = 1;
 };
 
 struct RunArgs {
@@ -98,6 +105,7 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)");
   sim->add_option("--release", a.release, "Push-hold-release script: release time in s (default: the scenario's, 12 for paper-best)");
   sim->add_flag("--no-plots", a.no_plots, "Do not draw the PNG figures");
+  sim->add_flag("--record", a.record, "Write each station's session log OUT/station-<i>.h5 (HDF5; `haptic-station replay` re-runs it bit-exactly)");
   sim->add_flag("--quiet", a.quiet, "No progress lines");
 
   return sim;
@@ -116,6 +124,41 @@ CLI::App* add_run_options(CLI::App& app, RunArgs& a) {
   run->add_flag("--quiet", a.quiet, "Only the final line");
 
   return run;
+}
+
+// The `replay` subcommand's options into `a`. Not RT-safe.
+CLI::App* add_replay_options(CLI::App& app, ReplayArgs& a) {
+  auto* rp = app.add_subcommand("replay", "Re-run a station's core from its session log (sim --record, [record] enabled) and compare every tick's state hash");
+  rp->add_option("log", a.log, "Session log (station-<id>.h5)")->required()->check(CLI::ExistingFile);
+  rp->add_option("--damping", a.damping, "Re-run with this B_i in N s/m instead of the recorded one (no bit-exact comparison)");
+  rp->add_option("--p-scale", a.p_scale, "Re-run with P_ij scaled by this factor (default 1)");
+  rp->add_option("--d-scale", a.d_scale, "Re-run with D_ij scaled by this factor (default 1)");
+  rp->add_option("--trace", a.trace, "Write the replayed ticks to this CSV (force, VP, energies, the recorded force, hash match)");
+  rp->footer("Exit status: 0 bit-exact at every tick (or, with changed gains, re-run done); 3 a tick's state differs from the recording, "
+             "or the log's inputs are incomplete (dropped records, size bound); 2 not a session log or bad options.");
+  return rp;
+}
+
+// `haptic-station replay`: 0 bit-exact / re-run done, 3 differs or incomplete, 2 bad log. Not RT-safe.
+int replay_command(const ReplayArgs& a) {
+  ReplayOptions o;
+  o.damping_Ns_per_m = a.damping;
+  o.p_scale = a.p_scale;
+  o.d_scale = a.d_scale;
+  o.trace_csv = a.trace;
+  if (!(o.p_scale > 0) || !(o.d_scale >= 0)) {
+    std::cerr << "haptic-station replay: error: --p-scale must be > 0 and --d-scale >= 0\n";
+    return kExitConfigError;
+  }
+  try {
+    const ReplayResult r = replay_session(a.log, o);
+    std::cout << r.summary() << "\n";
+    if (r.gains_changed) return r.ticks > 0 ? 0 : kExitRunFailed;
+    return r.bit_exact() && r.inputs_end < 0 ? 0 : kExitRunFailed;
+  } catch (const std::exception& e) {
+    std::cerr << "haptic-station replay: error: " << a.log << ": " << e.what() << "\n";
+    return kExitConfigError;
+  }
 }
 
 // `haptic-station run`: returns the exit code (firmware/station_phase.hpp). Not RT-safe.
@@ -174,6 +217,8 @@ int sim_command(const SimArgs& a) {
     opt.out_dir = a.out;
     opt.trace_every = a.trace_every;
     opt.progress = !a.quiet;
+    opt.record = a.record;
+    opt.command_line = a.command_line;
     const auto& sc = spec.script;
     if (sc.kind == UserScriptSpec::Kind::kPushHoldRelease)
       opt.snapshot_times_s = {0.0, sc.push_end_s, 0.5 * (sc.push_end_s + sc.release_s), sc.release_s, spec.duration_s};
@@ -195,6 +240,7 @@ int sim_command(const SimArgs& a) {
               << ", hold |sum u| " << fmt(r.hold_force_sum_N, 4) << " N vs mean |u_i| " << fmt(r.hold_force_mean_N, 4) << " N"
               << ", min port energy " << fmt(r.port_energy_min_J, 6) << " J (bound -" << fmt(r.passivity_bound_J, 6) << " J)\n";
     std::cout << "wrote " << a.out << "/summary.json, trace.csv, series.csv\n";
+    if (a.record) std::cout << "wrote " << a.out << "/station-<i>.h5 (session logs)\n";
     if (!a.no_plots && make_plots(a.out)) std::cout << "wrote " << a.out << "/*.png\n";
     return 0;
   } catch (const std::exception& e) {
@@ -210,13 +256,17 @@ int main(int argc, char** argv) {
       "haptic-station: a station of the consensus-based peer-to-peer multi-user haptics runtime\n"
       "(Huang & Lee, IEEE T-RO 2013). Subcommands:\n"
       "  sim  run N stations in one process in simulated time over the paper's stochastic network\n"
-      "  run  run one station in real time over real sockets (--config FILE.toml)"};
+      "  run  run one station in real time over real sockets (--config FILE.toml)\n"
+      "  replay  re-run a station's core from its session log, bit-exactly (LOG.h5)"};
   app.require_subcommand(1);
 
   SimArgs sim_args;
   RunArgs run_args;
+  ReplayArgs replay_args;
   CLI::App* sim = add_sim_options(app, sim_args);
   CLI::App* run = add_run_options(app, run_args);
+  CLI::App* replay = add_replay_options(app, replay_args);
+  for (int i = 0; i < argc; ++i) sim_args.command_line += (i ? " " : "") + std::string(argv[i]);
 
   try {
     app.parse(argc, argv);
@@ -227,5 +277,6 @@ int main(int argc, char** argv) {
 
   if (run->parsed()) return run_command(run_args);
   if (sim->parsed()) return sim_command(sim_args);
+  if (replay->parsed()) return replay_command(replay_args);
   return 0;
 }

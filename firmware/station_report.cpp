@@ -147,6 +147,7 @@ void add_links_json(const StationOutcome& o, json& j) {
   const net::EndpointStats st = o.endpoint->stats();
   j.update(endpoint_json(st, o.plan->net.endpoint, o.io_sched));
   if (!o.lifecycle.is_null()) j["lifecycle"] = o.lifecycle;
+  if (!o.recording.is_null()) j["recording"] = o.recording;
   json links = json::array();
   for (std::size_t n = 0; n < o.plan->neighbours().size(); ++n) {
     const auto p = static_cast<std::size_t>(o.plan->peers.nbr_to_peer[n]);

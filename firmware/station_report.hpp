@@ -34,6 +34,7 @@ struct StationOutcome {
   std::string io_sched;             // scheduling of the endpoint's I/O thread
   double wall_time_s = 0;
   nlohmann::json lifecycle;         // rejoin, neighbour clock offsets and events (station_run.cpp)
+  nlohmann::json recording;         // the session log's counters ([record] enabled)
 };
 
 // The degraded conditions of a run (each is also a key of station-<id>.json's "conditions").

@@ -14,6 +14,7 @@
 #include "drivers/device_factory.hpp"
 #include "firmware/station_neighbours.hpp"
 #include "firmware/station_rejoin.hpp"
+#include "firmware/session_recorder.hpp"
 #include "platform/gpio.hpp"
 #include "platform/telemetry.hpp"
 
@@ -37,6 +38,7 @@ struct StationResources {
   std::unique_ptr<net::Endpoint> ep;
   std::unique_ptr<platform::GpioToggler> gpio;
   std::unique_ptr<platform::Telemetry> telemetry;
+  std::unique_ptr<SessionRecorder> recorder;  // [record] enabled: the session log
   std::string io_sched = "not started";
 };
 
@@ -120,6 +122,7 @@ TickInputs tick_inputs(const StationPlan& plan, StationResources& res, rt::Stati
   in.simulated = res.dev.simulated;
   in.gpio = res.gpio.get();
   in.telemetry = res.telemetry.get();
+  in.recorder = res.recorder.get();
   in.sender_to_nbr = plan.peers.sender_to_nbr.data();
   in.dofs = plan.built->scene.dofs;
   in.trace_node = plan.built->trace_node;
@@ -130,6 +133,24 @@ TickInputs tick_inputs(const StationPlan& plan, StationResources& res, rt::Stati
   return in;
 }
 
+// The session log of this station (record.enabled): header and core configuration written here,
+// before the RT thread exists. Not RT-safe.
+std::unique_ptr<SessionRecorder> open_recorder(const StationPlan& plan, const rt::StationCore& core) {
+  RecorderConfig rc;
+  rc.path = plan.base_path + ".h5";
+  rc.max_bytes = static_cast<std::uint64_t>(plan.file.record.max_mb * 1024 * 1024);
+  rc.deflate_level = plan.file.record.deflate;
+  SessionInfo info;
+  info.source = "station";
+  info.station_id = plan.station_id;
+  info.config_text = plan.file.text;
+  const auto& f = plan.fingerprint;
+  info.fingerprint = "protocol " + std::to_string(f.protocol_version) + ", nodes " + std::to_string(f.scene_nodes) + ", period_ns " +
+                     std::to_string(f.period_ns) + ", scene hash " + std::to_string(f.scene_hash) + ", gains hash " + std::to_string(f.gains_hash);
+  info.packets_float32 = plan.net.endpoint.wire.encoding == net::ValueEncoding::float32;
+  return std::make_unique<SessionRecorder>(rc, info, core.config());
+}
+
 // run: refuses a core that is ready more than a second after the run start; else the loop.
 void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
   const double late_s = static_cast<double>(read_clocks().monotonic_ns - plan.times.run_epoch_ns()) * 1e-9;
@@ -138,6 +159,15 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
     return;
   }
   pr.records.reserve(plan.trace_capacity, plan.state_capacity, plan.built->scene.dofs);
+  if (plan.file.record.enabled) {
+    try {
+      res.recorder = open_recorder(plan, *pr.build.core);
+      log.say("recording the session to " + res.recorder->path());
+    } catch (const std::exception& e) {
+      pr.fail(PhaseStatus::kFailed, std::string("session log: ") + e.what());
+      return;
+    }
+  }
   const TickInputs in = tick_inputs(plan, res, pr.build.core.get(), &pr.build.tx_deadband);
   RunObserver observer;
   observer.rt_ready = [&](const std::string& summary, const std::vector<std::string>& warnings) {
@@ -261,6 +291,11 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
   run_phase(plan, res, pr, stop, log);
 }
 
+nlohmann::json recording_json(const RecorderStats& s, const std::string& path) {
+  return {{"path", path}, {"ticks", s.ticks}, {"packets", s.packets}, {"dropped_records", s.dropped_records}, {"bytes", s.bytes},
+          {"truncated_at_tick", s.truncated_at_tick}, {"lossy_packet_values", s.lossy_packet_values}, {"error", s.error}};
+}
+
 // report: stop what was opened, name the conditions, write the outputs; returns the exit code.
 int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, double wall_s, const Log& log) {
   StationOutcome o;
@@ -284,6 +319,7 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
   if (res.ep) res.ep->stop();
   if (res.dev.device) res.dev.device->stop();
   if (res.telemetry) res.telemetry->flush();
+  if (res.recorder) o.recording = recording_json(res.recorder->finish(), res.recorder->path());
   if (!pr.failure.empty()) log.error(pr.failure);
   const RunConditions c = run_conditions(o);
   const int code = exit_code(c);

@@ -29,7 +29,7 @@ rt::Vec3 read_device(const TickInputs& in, TickCounters& cnt) {
 }
 
 // Drains the RX ring into the receive links; sequence numbers become run indices (seq - run_k0). RT-safe.
-void drain_rx(const TickInputs& in, TickCounters& cnt) {
+void drain_rx(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
   StageScope stage(Stage::rx_drain);
   in.ep->drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double* x, const double* v, std::uint32_t count) {
     const int n = in.sender_to_nbr[sender];
@@ -43,6 +43,7 @@ void drain_rx(const TickInputs& in, TickCounters& cnt) {
     }
     platform::trace::packet_rx(static_cast<std::uint32_t>(sender), seq, static_cast<std::uint32_t>(count));
     in.core->rx(n).offer(static_cast<std::int64_t>(seq) - in.run_k0, send_time_s, x, v, static_cast<int>(count));
+    if (in.recorder && static_cast<int>(count) == in.dofs) in.recorder->rt_packet(kr, n, static_cast<std::int64_t>(seq) - in.run_k0, send_time_s, x, v);
     ++cnt.rx_offered;
   });
 }
@@ -141,7 +142,8 @@ bool any_neighbour_within_bound(rt::StationCore& core, std::int64_t kr) {
 std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt, std::int64_t k, std::int64_t kr, const platform::TickInfo& info) {
   if (in.gpio) in.gpio->tick_high();  // the loop already emitted tick_begin
   const rt::Vec3 q = read_device(in, cnt);
-  drain_rx(in, cnt);
+  if (in.recorder && cnt.ticks_run == 0) in.recorder->rt_initial_state(in.core->x().data(), in.core->v().data());
+  drain_rx(in, cnt, kr);
   platform::trace::solve_begin();
   const auto out = in.core->tick(kr, q);  // the coupled VO + VP step at run cycle kr
   platform::trace::solve_end();
@@ -164,6 +166,12 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
     record_state(in, rec, kr);
   }
   record_telemetry(in, F, q, out.flags, info);
+  if (in.recorder) {
+    TickRecord row = make_tick_record(*in.core, kr, q, out);
+    row.wake_latency_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.wake_latency_ns, INT32_MAX));
+    row.exec_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.prev_exec_ns, INT32_MAX));
+    in.recorder->rt_tick(row);
+  }
   ++cnt.ticks_run;
   if (in.gpio) in.gpio->tick_low();
   return out.flags;

@@ -8,6 +8,7 @@
 
 #include "drivers/device.hpp"
 #include "drivers/simulated_device.hpp"
+#include "firmware/session_recorder.hpp"
 #include "net/endpoint.hpp"
 #include "platform/gpio.hpp"
 #include "platform/periodic_loop.hpp"
@@ -36,6 +37,7 @@ struct TickInputs {
   drivers::SimulatedDevice* simulated = nullptr;  // non-null: owner-stepped, service() per tick
   platform::GpioToggler* gpio = nullptr;          // may be null
   platform::Telemetry* telemetry = nullptr;       // may be null
+  SessionRecorder* recorder = nullptr;            // may be null: the session log (station.record)
   const int* sender_to_nbr = nullptr;             // [65536]: wire sender id -> neighbour index, -1 = none
   int dofs = 0, trace_node = 0, trace_every = 1, state_every = 1;
   double period_s = 0.002;
@@ -69,7 +71,9 @@ bool any_neighbour_within_bound(rt::StationCore& core, std::int64_t kr);
 // links use, so a packet's sequence number seq becomes seq - run_k0 and nothing else). In the order
 // of DESIGN.md: GPIO high, newest device sample (none: NaN, the core's safe state for the tick),
 // drain RX into rx(n).offer, core.tick(kr), command force (+ service() of a simulated device),
-// push_state(k, t, x_hat, v_hat), monitor, records, telemetry, GPIO low. Returns the core's
+// push_state(k, t, x_hat, v_hat), monitor, records, telemetry, GPIO low. With a recorder, the
+// first tick hands it the core's initial state, every offered packet is recorded with kr, and
+// every tick its row (device sample, force, flags, state hash; firmware/session_log.hpp). Returns the core's
 // TickFlags. RT-safe: no allocation, lock or blocking call (tests/station checks it).
 std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt, std::int64_t k, std::int64_t kr, const platform::TickInfo& info);
 

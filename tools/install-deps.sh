@@ -27,6 +27,8 @@ PKGS=(
   nlohmann-json3-dev
   # network namespace reachability check (tools/netns/netns.sh check)
   iputils-ping
+  # session logs and bit-exact replay (firmware/session_log.hpp): HDF5, xxHash state hashes, h5py readers
+  libhdf5-dev libxxhash-dev python3-h5py
 )
 apt-get update -qq
 apt-get install -y -qq --no-install-recommends "${PKGS[@]}"

@@ -6,6 +6,8 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
@@ -13,6 +15,7 @@
 #include "drivers/device_factory.hpp"
 #include "firmware/scenario.hpp"
 #include "tools/jitter/station_workload.hpp"
+#include "firmware/session_replay.hpp"
 #include "firmware/station_run.hpp"
 #include "net/config.hpp"
 #include "tests/support/alloc_counter.hpp"
@@ -27,73 +30,116 @@ std::string net_toml(int self, int port_base, const std::vector<int>& peers) {
   for (int p : peers) t += "[[net.peers]]\nid = " + std::to_string(p) + "\naddress = \"127.0.0.1:" + std::to_string(port_base + p) + "\"\n";
   return t;
 }
+
+// Station 1 of the paper's scene with a real UDP endpoint, a neighbour stand-in (a second
+// endpoint in this process) sending states, the simulated device and the 33-node core.
+struct OneStationRig {
+  firmware::BuiltScenario b = firmware::build_scenario(firmware::make_scenario("paper-best"));
+  int dofs = b.scene.dofs;
+  int port_base = 48000 + static_cast<int>(getpid() % 400) * 5;
+  net::NetConfig c1, c2;
+  std::unique_ptr<net::Endpoint> ep1, ep2;
+  drivers::OpenedDevice dev;
+  rt::StationCore core{b.station_config(0)};
+  std::vector<int> sender_to_nbr = std::vector<int>(65536, -1);
+  firmware::TickRecords rec;
+  firmware::TickCounters cnt;
+  firmware::TickInputs in;
+  std::vector<double> x0, v0;
+  platform::TickInfo info;
+
+  explicit OneStationRig(int ticks) {
+    c1 = net::parse_net_config(net_toml(1, port_base, {2, 3, 4}), static_cast<std::uint32_t>(dofs));
+    c2 = net::parse_net_config(net_toml(2, port_base, {1}), static_cast<std::uint32_t>(dofs));
+    // As the station does: the endpoint is told the tick period (for net.tx_spin).
+    c1.endpoint.tx_period_s = c2.endpoint.tx_period_s = b.spec.period_s;
+    ep1 = std::make_unique<net::Endpoint>(c1.endpoint, c1.make_transport());
+    ep2 = std::make_unique<net::Endpoint>(c2.endpoint, c2.make_transport());
+    ep1->start();
+    ep2->start();
+    drivers::DeviceSelection sel;
+    sel.kind = "simulated";
+    sel.simulated.device = b.spec.device;
+    sel.simulated.hand = b.spec.hand;
+    sel.simulated.script = b.goal_script(0);
+    for (int a = 0; a < 3; ++a) sel.simulated.start_position_m[a] = b.vp_start[0][a];
+    dev = drivers::open_device(sel);
+    for (std::size_t n = 0; n < b.neighbors[0].size(); ++n) sender_to_nbr[static_cast<std::size_t>(b.neighbors[0][n] + 1)] = static_cast<int>(n);
+    rec.reserve(static_cast<std::size_t>(ticks), static_cast<std::size_t>(ticks), dofs);
+    in.core = &core;
+    in.ep = ep1.get();
+    in.device = dev.device.get();
+    in.simulated = dev.simulated;
+    in.sender_to_nbr = sender_to_nbr.data();
+    in.dofs = dofs;
+    in.trace_node = b.trace_node;
+    in.period_s = b.spec.period_s;
+    x0.assign(b.scene.x_d.data(), b.scene.x_d.data() + dofs);
+    v0.assign(static_cast<std::size_t>(dofs), 0.0);
+  }
+  ~OneStationRig() {
+    ep1->stop();
+    ep2->stop();
+  }
+  void step(std::int64_t k) {
+    ep2->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data());
+    std::this_thread::sleep_for(std::chrono::microseconds(1500));  // let the I/O threads deliver
+    info.index = static_cast<std::uint64_t>(k);
+    firmware::run_tick(in, rec, cnt, k, k, info);
+  }
+};
 }  // namespace
 
 TEST_GROUP(RunTick){};
 
 TEST(RunTick, OneLoopIterationAllocatesNothingAndUsesTheNeighboursPackets) {
   CHECK(test::allocation_counter_works());
-  const firmware::BuiltScenario b = firmware::build_scenario(firmware::make_scenario("paper-best"));
-  const int dofs = b.scene.dofs;
-  const int port_base = 48000 + static_cast<int>(getpid() % 400) * 5;
-  net::NetConfig c1 = net::parse_net_config(net_toml(1, port_base, {2, 3, 4}), static_cast<std::uint32_t>(dofs));
-  net::NetConfig c2 = net::parse_net_config(net_toml(2, port_base, {1}), static_cast<std::uint32_t>(dofs));
-  // As the station does: the endpoint is told the tick period (for net.tx_spin).
-  c1.endpoint.tx_period_s = c2.endpoint.tx_period_s = b.spec.period_s;
-  net::Endpoint ep1(c1.endpoint, c1.make_transport());
-  net::Endpoint ep2(c2.endpoint, c2.make_transport());
-  ep1.start();
-  ep2.start();
-
-  drivers::DeviceSelection sel;
-  sel.kind = "simulated";
-  sel.simulated.device = b.spec.device;
-  sel.simulated.hand = b.spec.hand;
-  sel.simulated.script = b.goal_script(0);
-  for (int a = 0; a < 3; ++a) sel.simulated.start_position_m[a] = b.vp_start[0][a];
-  drivers::OpenedDevice dev = drivers::open_device(sel);
-  CHECK(dev.simulated != nullptr);
-  rt::StationCore core(b.station_config(0));
-
-  std::vector<int> sender_to_nbr(65536, -1);
-  for (std::size_t n = 0; n < b.neighbors[0].size(); ++n) sender_to_nbr[static_cast<std::size_t>(b.neighbors[0][n] + 1)] = static_cast<int>(n);
   const int ticks = 300;
-  firmware::TickRecords rec;
-  rec.reserve(ticks, ticks, dofs);
-  firmware::TickCounters cnt;
-  firmware::TickInputs in;
-  in.core = &core;
-  in.ep = &ep1;
-  in.device = dev.device.get();
-  in.simulated = dev.simulated;
-  in.sender_to_nbr = sender_to_nbr.data();
-  in.dofs = dofs;
-  in.trace_node = b.trace_node;
-  in.period_s = b.spec.period_s;
-
-  std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + dofs), v0(static_cast<std::size_t>(dofs), 0.0);
-  platform::TickInfo info;
-  auto step = [&](std::int64_t k) {
-    ep2.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data());
-    std::this_thread::sleep_for(std::chrono::microseconds(1500));  // let the I/O threads deliver
-    info.index = static_cast<std::uint64_t>(k);
-    firmware::run_tick(in, rec, cnt, k, k, info);
-  };
-  for (std::int64_t k = 0; k < 50; ++k) step(k);  // warm-up: first contact solve, first packets
-  const std::uint64_t offered_before = cnt.rx_offered;
+  OneStationRig r(ticks);
+  CHECK(r.dev.simulated != nullptr);
+  for (std::int64_t k = 0; k < 50; ++k) r.step(k);  // warm-up: first contact solve, first packets
+  const std::uint64_t offered_before = r.cnt.rx_offered;
   std::uint64_t allocations = 0;
   {
     test::AllocationCounter counter;
-    for (std::int64_t k = 50; k < ticks - 10; ++k) step(k);
+    for (std::int64_t k = 50; k < ticks - 10; ++k) r.step(k);
     allocations = counter.allocations();
   }
-  ep1.stop();
-  ep2.stop();
   LONGS_EQUAL(0, allocations);
-  CHECK(cnt.rx_offered - offered_before > 100);  // the neighbour's packets went into rx(n).offer
-  LONGS_EQUAL(ticks - 10, cnt.ticks_run);
-  CHECK_FALSE(cnt.diverged);
-  LONGS_EQUAL(0, cnt.device_fault_ticks);
+  CHECK(r.cnt.rx_offered - offered_before > 100);  // the neighbour's packets went into rx(n).offer
+  LONGS_EQUAL(ticks - 10, r.cnt.ticks_run);
+  CHECK_FALSE(r.cnt.diverged);
+  LONGS_EQUAL(0, r.cnt.device_fault_ticks);
+}
+
+// The tick with the session recorder on still allocates nothing, and what it recorded (real UDP
+// packets, the simulated device) replays bit-exactly.
+TEST(RunTick, RecordingAllocatesNothingInTheTickAndTheLogReplaysBitExactly) {
+  const int ticks = 300;
+  OneStationRig r(ticks);
+  const std::string path = "/tmp/haptic-run-tick-" + std::to_string(getpid()) + ".h5";
+  firmware::RecorderConfig rc;
+  rc.path = path;
+  firmware::SessionInfo si;
+  si.packets_float32 = r.c1.endpoint.wire.encoding == net::ValueEncoding::float32;
+  firmware::SessionRecorder recorder(rc, si, r.core.config());
+  r.in.recorder = &recorder;
+  for (std::int64_t k = 0; k < 50; ++k) r.step(k);
+  std::uint64_t allocations = 0;
+  {
+    test::AllocationCounter counter;
+    for (std::int64_t k = 50; k < ticks; ++k) r.step(k);
+    allocations = counter.allocations();
+  }
+  LONGS_EQUAL(0, allocations);
+  const firmware::RecorderStats st = recorder.finish();
+  LONGS_EQUAL(ticks, st.ticks);
+  LONGS_EQUAL(0, st.dropped_records);
+  CHECK(st.packets > 100);
+  const firmware::ReplayResult rr = firmware::replay_session(path, {});
+  std::remove(path.c_str());
+  LONGS_EQUAL(ticks, rr.ticks);
+  CHECK_TRUE(rr.bit_exact());
 }
 
 TEST(RunTick, TheJitterWorkloadIsTheRealStationTickAndAllocatesNothing) {

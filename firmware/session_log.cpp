@@ -199,16 +199,19 @@ void write_session_header(hid_t file, const SessionInfo& info, const rt::Station
   h5::Id g = h5::create_group(file, "core");
   write_core_attrs(g.get(), c);
   std::vector<std::int64_t> contact(c.contact_nodes.begin(), c.contact_nodes.end()), peer, bound, gain_of;
+  std::vector<double> share;
   h5::write(g.get(), "contact_nodes", Type::kI64, contact.data(), contact.size());
   h5::write(g.get(), "vp_initial_position_m", Type::kF64, c.vp_initial_position_m.data(), 3);
   for (const auto& n : c.neighbors) {
     peer.push_back(n.peer_id);
     bound.push_back(n.index_delay_bound_ticks);
+    share.push_back(n.damping_share);
   }
   const auto gains = distinct_gains(c, gain_of);
   h5::write(g.get(), "neighbour_peer", Type::kI64, peer.data(), peer.size());
   h5::write(g.get(), "neighbour_index_delay_bound_ticks", Type::kI64, bound.data(), bound.size());
   h5::write(g.get(), "neighbour_gain", Type::kI64, gain_of.data(), gain_of.size());
+  h5::write(g.get(), "neighbour_damping_share", Type::kF64, share.data(), share.size());
   write_scene(g.get(), *c.scene);
   h5::Id gg = h5::create_group(g.get(), "gains");
   for (std::size_t e = 0; e < gains.size(); ++e) {
@@ -237,6 +240,7 @@ std::unique_ptr<CoreSetup> read_core_setup(hid_t file) {
   s->config.vp_initial_position_m = rt::Vec3(vp0.at(0), vp0.at(1), vp0.at(2));
   const auto peer = h5::read_i64(g.get(), "neighbour_peer"), bound = h5::read_i64(g.get(), "neighbour_index_delay_bound_ticks"),
              gain_of = h5::read_i64(g.get(), "neighbour_gain");
+  const auto share = h5::read_f64(g.get(), "neighbour_damping_share");
   h5::Id gg = h5::open_group(g.get(), "gains");
   const std::int64_t ngains = gain_of.empty() ? 0 : *std::max_element(gain_of.begin(), gain_of.end()) + 1;
   s->gains.resize(static_cast<std::size_t>(ngains));
@@ -253,6 +257,7 @@ std::unique_ptr<CoreSetup> read_core_setup(hid_t file) {
     rt::NeighborConfig nc;
     nc.peer_id = static_cast<int>(peer[n]);
     nc.index_delay_bound_ticks = bound.at(n);
+    nc.damping_share = share.at(n);
     nc.gains = &s->gains.at(static_cast<std::size_t>(gain_of.at(n)));
     s->config.neighbors.push_back(nc);
   }

@@ -182,6 +182,7 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
     nc.index_delay_bound_ticks = nbar_ticks(i, nc.peer_id);
     c.neighbors.push_back(nc);
   }
+  c.rx_rule = spec.receive_rule;
   c.vp = spec.vp;
   c.contact_nodes = contact_nodes[static_cast<std::size_t>(i)];
   c.vp_initial_position_m = vp_start[static_cast<std::size_t>(i)];

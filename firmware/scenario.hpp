@@ -63,6 +63,7 @@ struct ScenarioSpec {
   double damping_margin = 0.05;          // B_i = (1 + margin) * eq. (18) minimum
   int loss_allowance_ticks = model::kDefaultLossAllowanceTicks;  // Nbar_ij = ceil(max one-way delay / T) + this (firmware/model/delay_model.hpp)
   rt::TxDeadbandConfig tx_deadband{};    // transmission deadband (off); Nbar_ij adds its interval - 1
+  rt::RxRule receive_rule = rt::RxRule::kNewestBySequence;  // --receive-rule newest|paper (rt/rx_link.hpp)
   UserScriptSpec script{};
   int trace_node = -1;                   // -1: first node of user 2's contact mesh (paper: node 19)
 

@@ -404,6 +404,7 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["damping_margin"] = s.damping_margin;
   j["loss_allowance_ticks"] = s.loss_allowance_ticks;
   j["passivity_condition_met"] = b.passivity_condition_met;
+  j["receive_rule"] = rt::rx_rule_name(s.receive_rule);
   j["release_time_s"] = r.release_time_s;
   j["consensus_error_m"] = r.consensus_error_m;
   j["max_consensus_error_m"] = r.max_consensus_error_m;

@@ -55,7 +55,7 @@ std::string fmt(double v, int prec = 3) {
 }
 
 struct SimArgs {
-  std::string scenario, out, topology, damping, delay_matrix;
+  std::string scenario, out, topology, damping, delay_matrix, receive_rule = "newest";
   double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1, push_end = -1, release = -1;
   std::uint64_t seed = 1;
   int nodes = -1, trace_every = 1, allowance = -1, trace_node = -1, tx_interval = 1;
@@ -100,6 +100,8 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
                   "Send a state only when some node moved more than this since the last one sent, in mm (default 0: every tick)");
   sim->add_option("--tx-max-interval", a.tx_interval,
                   "With --tx-deadband-mm: a state at least every this many ticks; Nbar_ij grows by this - 1 (default 1)");
+  sim->add_option("--receive-rule", a.receive_rule,
+                  "Which packet a tick uses: newest (by sequence number) or paper (the most recently received, Fig. 4; late data used) (default newest)");
   sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
   sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)");
   sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)");
@@ -211,6 +213,7 @@ int sim_command(const SimArgs& a) {
     spec.tx_deadband.position_deadband_m = a.tx_deadband_mm * 1e-3;
     spec.tx_deadband.max_interval_ticks = a.tx_interval;
     spec.trace_node = a.trace_node;
+    spec.receive_rule = haptic::rt::parse_rx_rule(a.receive_rule, "--receive-rule");
     const BuiltScenario built = build_scenario(spec);
     fs::create_directories(a.out);
     SimOptions opt;

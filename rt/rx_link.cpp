@@ -6,13 +6,45 @@
 
 namespace haptic::rt {
 
-void RxLink::init(int dofs, const double* x0, const double* v0, std::int64_t initial_sequence) {
+RxRule parse_rx_rule(const std::string& text, const std::string& key) {
+  if (text == "newest") return RxRule::kNewestBySequence;
+  if (text == "paper") return RxRule::kMostRecentlyReceived;
+  throw std::invalid_argument(key + " must be newest or paper, not '" + text + "'");
+}
+
+const char* rx_rule_name(RxRule rule) { return rule == RxRule::kNewestBySequence ? "newest" : "paper"; }
+
+bool RxLink::was_used(std::int64_t seq) const {
+  if (seq < 0 || seq > max_used_) return false;
+  if (seq <= max_used_ - kUsedWindow) return true;  // beyond the window: treated as used (delta = 0)
+  const auto bit = static_cast<std::uint64_t>(seq) % kUsedWindow;
+  return (used_[bit / 64] >> (bit % 64)) & 1u;
+}
+
+void RxLink::mark_used(std::int64_t seq) {
+  if (seq < 0) return;
+  while (max_used_ < seq) {  // clear the bits the window slides over (at most kUsedWindow of them)
+    ++max_used_;
+    if (seq - max_used_ >= kUsedWindow) max_used_ = seq - kUsedWindow + 1;
+    const auto bit = static_cast<std::uint64_t>(max_used_) % kUsedWindow;
+    used_[bit / 64] &= ~(std::uint64_t{1} << (bit % 64));
+  }
+  if (seq <= max_used_ - kUsedWindow) return;
+  const auto bit = static_cast<std::uint64_t>(seq) % kUsedWindow;
+  used_[bit / 64] |= std::uint64_t{1} << (bit % 64);
+}
+
+void RxLink::init(int dofs, const double* x0, const double* v0, std::int64_t initial_sequence, RxRule rule) {
   if (dofs <= 0) throw std::invalid_argument("RxLink: dofs must be > 0");
   dofs_ = dofs;
   x_hat_.assign(x0, x0 + dofs);
   if (v0) v_hat_.assign(v0, v0 + dofs);
   else v_hat_.assign(static_cast<std::size_t>(dofs), 0.0);
   newest_seq_ = initial_sequence;
+  max_seen_ = initial_sequence;
+  rule_ = rule;
+  used_.fill(0);
+  max_used_ = -1;
   unused_ = false;  // the assumed initial state carries no velocity sample to use
   counters_ = RxCounters{};
   last_tick_ = INT64_MIN;
@@ -27,15 +59,18 @@ RxVerdict RxLink::offer(std::int64_t seq, double send_time_s, const double* x_ha
     ++counters_.duplicate;
     return RxVerdict::kDuplicate;
   }
-  if (seq < newest_seq_) {
+  if (seq < max_seen_) {
     ++counters_.stale;
-    return RxVerdict::kStale;
+    if (rule_ == RxRule::kNewestBySequence) return RxVerdict::kStale;
   }
   std::memcpy(x_hat_.data(), x_hat, sizeof(double) * static_cast<std::size_t>(dofs_));
   std::memcpy(v_hat_.data(), v_hat, sizeof(double) * static_cast<std::size_t>(dofs_));
   newest_seq_ = seq;
+  max_seen_ = std::max(max_seen_, seq);
   newest_send_time_ = send_time_s;
-  unused_ = true;
+  // Newest rule: a newer sequence was never used. Paper's rule: a late packet may repeat a
+  // sample already used (a duplicate arriving after a newer packet): delta = 0 then.
+  unused_ = rule_ == RxRule::kNewestBySequence || !was_used(seq);
   ++counters_.accepted;
   return RxVerdict::kAccepted;
 }
@@ -44,6 +79,7 @@ RxLink::TickView RxLink::begin_tick(std::int64_t k) {
   TickView v;
   v.index_delay = k - newest_seq_;
   v.fresh = unused_;
+  if (unused_ && rule_ == RxRule::kMostRecentlyReceived) mark_used(newest_seq_);
   if (!unused_ && k != last_tick_) ++counters_.sustained_ticks;
   unused_ = false;
   last_tick_ = k;

@@ -1,23 +1,34 @@
 #pragma once
 // Receive-side bookkeeping for one neighbour j of station i (Section III-B, Fig. 4, eq. 17).
 // A pure object fed with (sequence, send time, payload) by whoever delivers packets (the
-// deterministic simulator or the real network), so both feed the same code.
-//  - keeps the newest packet by sequence number; older ones arriving late (data swapping) and
-//    repeats of the newest (duplication) are counted and dropped;
+// deterministic simulator or the real network), so both feed the same code. Two receive rules:
+//  - kNewestBySequence (default): keeps the newest packet by sequence number; older ones arriving
+//    late (data swapping) and repeats of the newest (duplication) are counted and dropped;
+//  - kMostRecentlyReceived (the paper's Fig. 4): keeps the packet that arrived last, even when it
+//    is older than the one held (data swapping uses late data; N_ij^k = k - its sequence grows);
+//    a repeat of the held packet changes nothing;
 //  - at each tick k: if nothing newer arrived the previous packet is held (packet sustainment)
 //    and the indexing delay N_ij^k = k - seq grows;
-//  - delta_ij^k = 1 only the first tick a velocity sample is used (duplication avoidance, eq. 17).
+//  - delta_ij^k = 1 only the first tick a velocity sample is used (duplication avoidance, eq. 17);
+//    under the paper's rule a window of the last kUsedWindow sequences remembers which samples
+//    were used (older ones count as used: delta = 0, the passive choice).
 // offer() and begin_tick() never allocate: RT-safe.
+#include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace haptic::rt {
 
 enum class RxVerdict : std::uint8_t { kAccepted, kStale, kDuplicate, kBadSize };
+enum class RxRule : std::uint8_t { kNewestBySequence, kMostRecentlyReceived };
+// "newest" / "paper" (throws std::invalid_argument naming `key`), and back.
+RxRule parse_rx_rule(const std::string& text, const std::string& key);
+const char* rx_rule_name(RxRule rule);
 
 struct RxCounters {
   std::uint64_t accepted = 0;
-  std::uint64_t stale = 0;       // older than the newest held (swapped/late)
+  std::uint64_t stale = 0;       // older than the newest seen (swapped/late): dropped, or used under the paper's rule
   std::uint64_t duplicate = 0;   // same sequence as the newest held
   std::uint64_t bad_size = 0;
   std::uint64_t sustained_ticks = 0;  // ticks that held the previous packet
@@ -37,10 +48,14 @@ class RxLink {
   RxLink() = default;
   // Start-up: payload size and the state assumed before the first packet (all copies start
   // from the same configuration at rest, v_j(k) = 0 for k <= 0). Allocates.
-  void init(int dofs, const double* x_hat0, const double* v_hat0, std::int64_t initial_sequence = -1);
+  void init(int dofs, const double* x_hat0, const double* v_hat0, std::int64_t initial_sequence = -1,
+            RxRule rule = RxRule::kNewestBySequence);
   RxVerdict offer(std::int64_t sequence, double send_time_s, const double* x_hat, const double* v_hat, int dofs);
   TickView begin_tick(std::int64_t k);
-  std::int64_t newest_sequence() const { return newest_seq_; }
+  std::int64_t newest_sequence() const { return newest_seq_; }  // sequence of the held packet (the one a tick uses)
+  std::int64_t max_sequence_seen() const { return max_seen_; }
+  RxRule rule() const { return rule_; }
+  static constexpr int kUsedWindow = 4096;
   const RxCounters& counters() const { return counters_; }
   int dofs() const { return dofs_; }
 
@@ -48,6 +63,12 @@ class RxLink {
   int dofs_ = 0;
   std::vector<double> x_hat_, v_hat_;
   std::int64_t newest_seq_ = -1;
+  std::int64_t max_seen_ = -1;
+  RxRule rule_ = RxRule::kNewestBySequence;
+  std::array<std::uint64_t, kUsedWindow / 64> used_{};  // paper's rule: sequences whose velocity was used
+  std::int64_t max_used_ = -1;
+  bool was_used(std::int64_t seq) const;
+  void mark_used(std::int64_t seq);
   double newest_send_time_ = 0;
   bool unused_ = false;  // newest velocity sample not yet used by a tick
   std::int64_t last_tick_ = INT64_MIN;

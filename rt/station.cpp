@@ -87,7 +87,7 @@ StationCore::StationCore(const StationConfig& config)
   scratch_.resize(dofs_);
   resid_ = Eigen::VectorXd::Zero(dofs_);
   rx_.resize(static_cast<std::size_t>(nn));
-  for (auto& r : rx_) r.init(dofs_, x_.data(), v_.data());
+  for (auto& r : rx_) r.init(dofs_, x_.data(), v_.data(), -1, cfg_.rx_rule);
   views_.resize(static_cast<std::size_t>(nn));
   active_.assign(static_cast<std::size_t>(nn), 0);
   edge_was_dropped_.assign(static_cast<std::size_t>(nn), 0);

@@ -66,6 +66,7 @@ struct StationConfig {
   const Scene* scene = nullptr;
   double damping_Ns_per_m = 0;   // B_i = beta I (eq. 15), set from eq. (18)
   std::vector<NeighborConfig> neighbors;
+  RxRule rx_rule = RxRule::kNewestBySequence;  // receive rule of every neighbour (rt/rx_link.hpp)
   VirtualProxyParams vp{};
   std::vector<int> contact_nodes;     // the contact mesh C_i (node indices)
   StepSolverConfig solver{};          // the linear step's solver (auto: by scene size)

@@ -70,3 +70,29 @@ TEST(Theorem1ClosedLoop, tight_case_diverges_at_0_45_of_eq18_and_the_energy_moni
   CHECK_TRUE(r.controller_energy_max_J > r.passivity_bound_J + 1.0);
   CHECK_TRUE(r.port_energy_min_J < -r.passivity_bound_J - 0.1);
 }
+
+TEST_GROUP(ReceiveRule){};
+
+TEST(ReceiveRule, the_papers_rule_uses_late_data_so_index_delays_grow_on_the_worst_topology) {
+  // Fig. 4's "most recently received" against newest-by-sequence on the same seeded network: the
+  // paper's rule keeps swapped (late) packets, so measured index delays are at least as large on
+  // every link and larger on some (issue 15: 659 vs 386 ms round-trip half sum for user 4 over 80 s).
+  ScenarioSpec s = make_scenario("paper-worst");
+  s.duration_s = 10.0;
+  const SimResult newest = run_simulation(build_scenario(s), SimOptions{});
+  s.receive_rule = haptic::rt::RxRule::kMostRecentlyReceived;
+  const SimResult paper = run_simulation(build_scenario(s), SimOptions{});
+  CHECK_FALSE(newest.diverged);
+  CHECK_FALSE(paper.diverged);
+  bool larger = false;
+  std::uint64_t v_new = 0, v_paper = 0;
+  for (std::size_t l = 0; l < newest.links.size(); ++l) {
+    CHECK_EQUAL(newest.links[l].sent, paper.links[l].sent);  // the same network
+    CHECK_TRUE(paper.links[l].max_index_delay >= newest.links[l].max_index_delay);
+    larger = larger || paper.links[l].max_index_delay > newest.links[l].max_index_delay;
+    v_new += newest.links[l].bound_violations;
+    v_paper += paper.links[l].bound_violations;
+  }
+  CHECK_TRUE(larger);
+  CHECK_TRUE(v_paper > v_new);
+}

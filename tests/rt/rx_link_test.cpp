@@ -2,6 +2,7 @@
 // data swapping and duplication give the indexing delay N_ij^k and duplication avoidance (17).
 #include <CppUTest/TestHarness.h>
 
+#include <stdexcept>
 #include <vector>
 
 #include "rt/rx_link.hpp"
@@ -12,7 +13,7 @@ namespace {
 struct Harness {
   RxLink rx;
   std::vector<double> x0 = {0, 0, 0}, v0 = {0, 0, 0};
-  Harness() { rx.init(3, x0.data(), v0.data()); }
+  explicit Harness(RxRule rule = RxRule::kNewestBySequence) { rx.init(3, x0.data(), v0.data(), -1, rule); }
   RxVerdict send(std::int64_t seq) {
     const double x[3] = {double(seq), 0, 0}, v[3] = {double(seq) * 10, 0, 0};
     return rx.offer(seq, seq * 0.002, x, v, 3);
@@ -99,4 +100,73 @@ TEST(RxLinkFig4, before_any_packet_the_shared_initial_state_is_held) {
   CHECK_EQUAL(1, v.index_delay);  // initial sequence -1
   CHECK_FALSE(v.fresh);
   DOUBLES_EQUAL(0.0, v.x_hat[0], 0);
+}
+
+// The paper's rule (Fig. 4: N_ij^k from the most recently RECEIVED packet) on the same cases, side
+// by side with newest-by-sequence.
+TEST_GROUP(RxLinkPaperRule){};
+
+TEST(RxLinkPaperRule, two_packets_in_one_tick_the_last_received_is_used_even_if_older) {
+  Harness paper(RxRule::kMostRecentlyReceived), newest;
+  for (Harness* h : {&paper, &newest}) {
+    h->send(2);
+    h->send(1);  // 1 overtaken by 2 inside the same tick
+  }
+  auto p = paper.rx.begin_tick(4), n = newest.rx.begin_tick(4);
+  CHECK_EQUAL(3, p.index_delay);
+  DOUBLES_EQUAL(1.0, p.x_hat[0], 0);
+  CHECK_TRUE(p.fresh);
+  CHECK_EQUAL(2, n.index_delay);
+  DOUBLES_EQUAL(2.0, n.x_hat[0], 0);
+}
+
+TEST(RxLinkPaperRule, swapped_packet_arriving_late_is_used_with_its_larger_index_delay) {
+  Harness paper(RxRule::kMostRecentlyReceived), newest;
+  for (Harness* h : {&paper, &newest}) {
+    h->send(5);
+    CHECK_TRUE(h->rx.begin_tick(6).fresh);
+  }
+  CHECK_TRUE(paper.send(4) == RxVerdict::kAccepted);  // data swapping: late data used
+  CHECK_TRUE(newest.send(4) == RxVerdict::kStale);
+  auto p = paper.rx.begin_tick(7), n = newest.rx.begin_tick(7);
+  CHECK_EQUAL(3, p.index_delay);
+  DOUBLES_EQUAL(4.0, p.x_hat[0], 0);
+  CHECK_TRUE(p.fresh);  // 4's velocity had not been used
+  CHECK_EQUAL(2, n.index_delay);
+  CHECK_FALSE(n.fresh);
+  CHECK_EQUAL(1u, paper.rx.counters().stale);
+  CHECK_EQUAL(6, paper.rx.max_sequence_seen() + 1);
+}
+
+TEST(RxLinkPaperRule, loss_sustains_and_duplicates_are_never_used_twice) {
+  Harness h(RxRule::kMostRecentlyReceived);
+  h.send(3);
+  CHECK_TRUE(h.rx.begin_tick(4).fresh);
+  auto v = h.rx.begin_tick(5);  // lost: sustained
+  CHECK_FALSE(v.fresh);
+  CHECK_EQUAL(2, v.index_delay);
+  CHECK_TRUE(h.send(3) == RxVerdict::kDuplicate);  // repeat of the held packet
+  CHECK_FALSE(h.rx.begin_tick(6).fresh);
+  h.send(4);
+  CHECK_TRUE(h.rx.begin_tick(7).fresh);
+  h.send(3);  // a duplicate of 3 arriving after 4: held (most recently received), velocity not reused
+  v = h.rx.begin_tick(8);
+  CHECK_EQUAL(5, v.index_delay);
+  DOUBLES_EQUAL(3.0, v.x_hat[0], 0);
+  CHECK_FALSE(v.fresh);
+}
+
+TEST(RxLinkPaperRule, samples_older_than_the_window_count_as_used) {
+  Harness h(RxRule::kMostRecentlyReceived);
+  h.send(10);
+  CHECK_TRUE(h.rx.begin_tick(11).fresh);
+  const std::int64_t far = 10 + RxLink::kUsedWindow + 5;
+  h.send(far);
+  CHECK_TRUE(h.rx.begin_tick(far + 1).fresh);
+  h.send(12);  // never used, but older than the window: delta = 0 (the passive choice)
+  CHECK_FALSE(h.rx.begin_tick(far + 2).fresh);
+  h.send(far - 3);  // inside the window, never used
+  CHECK_TRUE(h.rx.begin_tick(far + 3).fresh);
+  CHECK_THROWS(std::invalid_argument, parse_rx_rule("latest", "--receive-rule"));
+  CHECK_TRUE(parse_rx_rule("paper", "x") == RxRule::kMostRecentlyReceived);
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <set>
@@ -44,30 +45,74 @@ int TetMesh::face_towards(const Eigen::Vector3d& direction) const {
   return best;
 }
 
+int TetMesh::surface_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, Eigen::Vector3d* point) const {
+  const Eigen::Vector3d d = direction.normalized();
+  int best = -1;
+  double best_t = std::numeric_limits<double>::infinity();
+  for (int f = 0; f < static_cast<int>(surface.size()); ++f) {
+    const auto& t = surface[static_cast<std::size_t>(f)];
+    const Eigen::Vector3d& a = nodes[t[0]];
+    const Eigen::Vector3d e1 = nodes[t[1]] - a, e2 = nodes[t[2]] - a;
+    const Eigen::Vector3d p = d.cross(e2);
+    const double det = e1.dot(p);
+    if (std::abs(det) < 1e-300) continue;
+    const Eigen::Vector3d s = origin - a;
+    const double u = s.dot(p) / det;
+    const Eigen::Vector3d q = s.cross(e1);
+    const double v = d.dot(q) / det;
+    const double tol = 1e-12;
+    if (u < -tol || v < -tol || u + v > 1 + tol) continue;
+    const double dist = e2.dot(q) / det;
+    if (dist >= 0 && dist < best_t) {
+      best_t = dist;
+      best = f;
+    }
+  }
+  if (best >= 0 && point) *point = origin + best_t * d;
+  return best;
+}
+
+double TetMesh::bounding_radius() const {
+  const Eigen::Vector3d c = centroid();
+  double r = 0;
+  for (const auto& p : nodes) r = std::max(r, (p - c).norm());
+  return r;
+}
+
+double TetMesh::tet_volume(int t) const {
+  const auto& q = tets.at(static_cast<std::size_t>(t));
+  return (nodes[q[1]] - nodes[q[0]]).cross(nodes[q[2]] - nodes[q[0]]).dot(nodes[q[3]] - nodes[q[0]]) / 6.0;
+}
+
 void finish_mesh(TetMesh& m) {
   std::set<std::array<int, 2>> edges;
-  std::map<std::array<int, 3>, std::pair<int, std::array<int, 3>>> faces;  // sorted -> (count, oriented)
+  struct FaceUse {
+    int count = 0;
+    std::array<int, 3> face{};
+    int opposite = 0;  // the tetrahedron's fourth node
+  };
+  std::map<std::array<int, 3>, FaceUse> faces;  // sorted corners -> uses
   for (const auto& t : m.tets) {
     for (int a = 0; a < 4; ++a)
       for (int b = a + 1; b < 4; ++b) edges.insert({std::min(t[a], t[b]), std::max(t[a], t[b])});
     const std::array<std::array<int, 3>, 4> fs = {{{t[0], t[1], t[2]}, {t[0], t[1], t[3]}, {t[0], t[2], t[3]}, {t[1], t[2], t[3]}}};
-    for (const auto& f : fs) {
-      auto key = f;
+    const std::array<int, 4> opposite = {t[3], t[2], t[1], t[0]};
+    for (std::size_t i = 0; i < fs.size(); ++i) {
+      auto key = fs[i];
       std::sort(key.begin(), key.end());
       auto& e = faces[key];
-      e.first++;
-      e.second = f;
+      e.count++;
+      e.face = fs[i];
+      e.opposite = opposite[i];
     }
   }
   m.edges.assign(edges.begin(), edges.end());
   m.surface.clear();
-  const Eigen::Vector3d c = m.centroid();
-  for (const auto& [key, val] : faces) {
-    if (val.first != 1) continue;
-    auto f = val.second;
+  for (const auto& [key, use] : faces) {
+    if (use.count != 1) continue;
+    auto f = use.face;
     const Eigen::Vector3d n = (m.nodes[f[1]] - m.nodes[f[0]]).cross(m.nodes[f[2]] - m.nodes[f[0]]);
-    const Eigen::Vector3d fc = (m.nodes[f[0]] + m.nodes[f[1]] + m.nodes[f[2]]) / 3.0;
-    if (n.dot(fc - c) < 0) std::swap(f[1], f[2]);
+    if (n.dot(m.nodes[f[0]] - m.nodes[use.opposite]) < 0) std::swap(f[1], f[2]);
     m.surface.push_back(f);
   }
 }

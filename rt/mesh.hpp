@@ -21,6 +21,14 @@ struct TetMesh {
   Eigen::Vector3d face_center(int face) const;
   // Index of the boundary face whose outward normal is closest to `direction`.
   int face_towards(const Eigen::Vector3d& direction) const;
+  // Where a proxy moving from `origin` along `direction` first touches the surface: the index of
+  // the boundary triangle the ray hits first (Moller-Trumbore), -1 if it misses; `*point` gets
+  // the touch point. Start-up only.
+  int surface_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, Eigen::Vector3d* point) const;
+  // Largest distance of a node from the centroid (m).
+  double bounding_radius() const;
+  // Signed volume of tetrahedron t: (b-a) x (c-a) . (d-a) / 6 (> 0 for the positive orientation).
+  double tet_volume(int t) const;
 };
 
 // The paper's reference scene (Section V, Fig. 3): a 33-node ball. The paper does not publish
@@ -36,7 +44,8 @@ TetMesh make_paper_ball(double radius_m = 0.05);
 // target. Deterministic.
 TetMesh make_lattice_ball(int target_nodes, double radius_m = 0.05);
 
-// Fills edges and surface from nodes + tets (surface oriented outward w.r.t. the centroid).
+// Fills edges and surface from nodes + tets; each boundary triangle is oriented away from its
+// tetrahedron's fourth node (outward for any shape, convex or not).
 void finish_mesh(TetMesh& mesh);
 
 }  // namespace haptic::rt

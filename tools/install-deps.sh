@@ -29,6 +29,8 @@ PKGS=(
   iputils-ping
   # session logs and bit-exact replay (firmware/session_log.hpp): HDF5, xxHash state hashes, h5py readers
   libhdf5-dev libxxhash-dev python3-h5py
+  # scenes from files: TetGen tetrahedralizes surface meshes; Gmsh makes the tests' meshes
+  tetgen gmsh
 )
 apt-get update -qq
 apt-get install -y -qq --no-install-recommends "${PKGS[@]}"

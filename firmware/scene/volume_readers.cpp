@@ -1,6 +1,7 @@
 // Tetrahedral mesh readers: Gmsh .msh (ASCII 2.2 and 4.1), TetGen .node/.ele, legacy VTK
 // unstructured grid (ASCII). Start-up only (allocates, reads files). Not RT-safe.
 #include <string_view>
+#include <utility>
 #include <unordered_map>
 
 #include "firmware/scene/mesh_io.hpp"
@@ -139,14 +140,24 @@ void skip_section(TextCursor& c, std::string_view name) {
   }
 }
 
+// One file holding nodes and elements (Gmsh, VTK): its text, the mesh and the cursor over it.
+struct SingleFile {
+  std::string text;
+  RawTetMesh m;
+  TextCursor c;
+  NodeTable nodes;
+  SingleFile(const std::string& path, const MeshLimits& limits) : text(read_limited(path, limits)), c(text, path), nodes{m, {}} {
+    m.node_file = m.element_file = path;
+  }
+};
+
 }  // namespace
 
 RawTetMesh read_gmsh(const std::string& path, const MeshLimits& limits) {
-  const std::string text = read_limited(path, limits);
-  TextCursor c(text, path);
-  RawTetMesh m;
-  m.node_file = m.element_file = path;
-  NodeTable nodes{m, {}};
+  SingleFile f(path, limits);
+  TextCursor& c = f.c;
+  RawTetMesh& m = f.m;
+  NodeTable& nodes = f.nodes;
   c.expect("$MeshFormat");
   const std::string version(c.token("the format version"));
   const bool v2 = version.rfind("2.", 0) == 0, v41 = version == "4.1";
@@ -169,7 +180,7 @@ RawTetMesh read_gmsh(const std::string& path, const MeshLimits& limits) {
       c.fail("expected a section ($Nodes, $Elements, ...), found '" + std::string(section) + "'");
     }
   }
-  return m;
+  return std::move(m);
 }
 
 RawTetMesh read_tetgen(const std::string& path, const MeshLimits& limits) {
@@ -210,11 +221,10 @@ RawTetMesh read_tetgen(const std::string& path, const MeshLimits& limits) {
 }
 
 RawTetMesh read_vtk(const std::string& path, const MeshLimits& limits) {
-  const std::string text = read_limited(path, limits);
-  TextCursor c(text, path);
-  RawTetMesh m;
-  m.node_file = m.element_file = path;
-  NodeTable nodes{m, {}};
+  SingleFile f(path, limits);
+  TextCursor& c = f.c;
+  RawTetMesh& m = f.m;
+  NodeTable& nodes = f.nodes;
   const std::string_view header = c.line_rest();
   if (header.rfind("# vtk DataFile Version", 0) != 0) c.fail("not a legacy VTK file (first line '# vtk DataFile Version ...')");
   if (header.find("Version 5") != std::string_view::npos) c.fail("VTK legacy 5.x (OFFSETS/CONNECTIVITY) not supported: write version 4.2 or lower");
@@ -252,7 +262,7 @@ RawTetMesh read_vtk(const std::string& path, const MeshLimits& limits) {
     add_tet(c, m, nodes, i, q, limits);
     m.tet_line.back() = line[static_cast<std::size_t>(i)];
   }
-  return m;  // POINT_DATA / CELL_DATA after this are ignored
+  return std::move(m);  // POINT_DATA / CELL_DATA after this are ignored
 }
 
 }  // namespace haptic::scene

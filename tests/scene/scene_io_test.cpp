@@ -27,14 +27,19 @@ bool tetgen_available() { return std::system("command -v tetgen > /dev/null 2>&1
 
 }  // namespace
 
-TEST_GROUP(SceneReaders) {
+// A scratch folder and a Kuhn box of n^3 cubes, side 1.
+struct BoxFolder : Utest {
   std::string dir;
   test::BoxMesh box;
-  void setup() override {
-    dir = test::scratch_dir("readers");
-    box = test::kuhn_box(2, 1.0);
+  void make(const char* name, int n) {
+    dir = test::scratch_dir(name);
+    box = test::kuhn_box(n, 1.0);
   }
   void teardown() override { std::filesystem::remove_all(dir); }
+};
+
+TEST_GROUP_BASE(SceneReaders, BoxFolder) {
+  void setup() override { make("readers", 2); }
 };
 
 TEST(SceneReaders, every_volume_format_reads_the_same_box_scaled_by_the_unit) {
@@ -85,14 +90,8 @@ TEST(SceneReaders, surface_faces_point_outward_and_the_proxy_ray_finds_the_touch
   CHECK_EQUAL(-1, m.surface_hit(Eigen::Vector3d(3, 3, 5), Eigen::Vector3d(0, 0, -1), nullptr));
 }
 
-TEST_GROUP(BadMeshes) {
-  std::string dir;
-  test::BoxMesh box;
-  void setup() override {
-    dir = test::scratch_dir("bad");
-    box = test::kuhn_box(1, 1.0);
-  }
-  void teardown() override { std::filesystem::remove_all(dir); }
+TEST_GROUP_BASE(BadMeshes, BoxFolder) {
+  void setup() override { make("bad", 1); }
   std::string read_error(const test::BoxMesh& b, const scene::MeshLimits& limits = {}) {
     test::write_text(dir + "/bad.msh", test::msh2(b));
     scene::MeshReadOptions o;

@@ -1,7 +1,8 @@
 #pragma once
 // Deterministic multi-station simulator: N stations in one process in simulated time, each
 // directed link an impaired channel (net/impairment.hpp, seeded), each user a simulated passive
-// device + hand (rt/user_model.hpp). Runs the same rt::StationCore as the real-time station.
+// device + hand (rt/user_model.hpp). Runs the same rt::StationCore as the real-time station and
+// takes the run metrics with the same code as the multi-process merge (firmware/run_metrics.hpp).
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -10,6 +11,7 @@
 
 #include <Eigen/Core>
 
+#include "firmware/run_metrics.hpp"
 #include "firmware/scenario.hpp"
 #include "net/impairment.hpp"
 
@@ -26,20 +28,8 @@ struct LinkStats {
 };
 
 struct SimResult {
-  double release_time_s = 0;
-  double consensus_error_m = 0;             // at the end
-  std::optional<double> consensus_time_s;   // after release, error stays < 1 mm
-  double hold_force_sum_N = 0, hold_force_mean_N = 0;
-  double hold_window_start_s = 0, hold_window_end_s = 0;
-  double port_energy_min_J = 0;             // min over time of the cumulative total (13)
-  double controller_energy_max_J = 0;       // max over time of the cumulative total (14)
+  RunMetricsResult metrics;                 // consensus, hold force, deformation, energies, divergence
   double passivity_bound_J = 0;             // d^2 of eq. (13) from the initial energies
-  bool diverged = false;
-  double diverged_at_s = -1;
-  double max_node_speed_m_per_s = 0;
-  double deformation_hold_m = 0;            // mean shape deformation over the hold window
-  std::optional<double> deformation_rise_time_s;  // to 90% of the hold deformation
-  double max_consensus_error_m = 0;
   std::vector<LinkStats> links;
   std::uint64_t ticks = 0;
   double wall_time_s = 0;
@@ -56,13 +46,14 @@ struct SimOptions {
   std::string command_line;   // stored in each log as its config_text
 };
 
+// Runs the scenario for its duration (or until 0.5 s after a divergence). Not RT-safe.
 SimResult run_simulation(const BuiltScenario& scenario, const SimOptions& options);
 
 // The impaired channel sender -> receiver (0-based) as run_simulation() draws it: the scenario's
 // link set-up (firmware/link_impairment.hpp), run packet k = the core's sequence number k.
 net::SendImpairment simulator_channel(const ScenarioSpec& spec, int receiver, int sender);
 
-// summary.json contract (README): writes DIR/summary.json.
+// summary.json contract (README, firmware/run_summary.hpp): writes path. Not RT-safe.
 void write_summary_json(const std::string& path, const BuiltScenario& b, const SimResult& r);
 
 }  // namespace haptic::firmware

@@ -11,6 +11,7 @@
 #include <iostream>
 #include <string>
 
+#include "firmware/run_merge.hpp"
 #include "firmware/scenario.hpp"
 #include "firmware/session_replay.hpp"
 #include "firmware/simulator.hpp"
@@ -52,6 +53,22 @@ std::string fmt(double v, int prec = 3) {
   char b[64];
   std::snprintf(b, sizeof b, "%.*f", prec, v);
   return b;
+}
+
+std::string opt_fmt(const std::optional<double>& v, double scale, int prec, const std::string& unit, const std::string& none) {
+  return v ? fmt(*v * scale, prec) + unit : none;
+}
+
+// The one-line result of `sim`. Not RT-safe.
+std::string sim_result_line(const std::string& name, const SimResult& r) {
+  const RunMetricsResult& m = r.metrics;
+  return "scenario " + name + ": " + (m.diverged ? "DIVERGED at " + fmt(m.diverged_at_s.value_or(0), 2) + " s" : std::string("stable")) +
+         ", consensus error at end " + opt_fmt(m.consensus_error_m, 1e3, 4, " mm", "n/a") + ", consensus time after release " +
+         opt_fmt(m.consensus_time_s, 1, 2, " s", "never") + " (< 1 mm), " + opt_fmt(m.consensus_time_10pct_s, 1, 2, " s", "never") + " (10 %), " +
+         opt_fmt(m.consensus_time_1pct_s, 1, 2, " s", "never") + " (1 %) of the error at release " +
+         opt_fmt(m.consensus_error_at_release_m, 1e3, 3, " mm", "n/a") + ", hold |sum u| " + opt_fmt(m.hold_force_sum_N, 1, 4, " N", "n/a") +
+         " vs mean |u_i| " + opt_fmt(m.hold_force_mean_N, 1, 4, " N", "n/a") + ", min port energy " + opt_fmt(m.port_energy_min_J, 1, 6, " J", "n/a") +
+         " (bound -" + fmt(r.passivity_bound_J, 6) + " J)";
 }
 
 struct SimArgs {
@@ -237,11 +254,7 @@ int sim_command(const SimArgs& a) {
     }
     const SimResult r = run_simulation(built, opt);
     write_summary_json(a.out + "/summary.json", built, r);
-    std::cout << "scenario " << spec.name << ": " << (r.diverged ? "DIVERGED at " + fmt(r.diverged_at_s, 2) + " s" : "stable")
-              << ", consensus error at end " << fmt(r.consensus_error_m * 1e3, 4) << " mm"
-              << ", consensus time after release " << (r.consensus_time_s ? fmt(*r.consensus_time_s, 2) + " s" : std::string("never"))
-              << ", hold |sum u| " << fmt(r.hold_force_sum_N, 4) << " N vs mean |u_i| " << fmt(r.hold_force_mean_N, 4) << " N"
-              << ", min port energy " << fmt(r.port_energy_min_J, 6) << " J (bound -" << fmt(r.passivity_bound_J, 6) << " J)\n";
+    std::cout << sim_result_line(spec.name, r) << "\n";
     std::cout << "wrote " << a.out << "/summary.json, trace.csv, series.csv\n";
     if (a.record) std::cout << "wrote " << a.out << "/station-<i>.h5 (session logs)\n";
     if (!a.no_plots && make_plots(a.out)) std::cout << "wrote " << a.out << "/*.png\n";
@@ -249,6 +262,29 @@ int sim_command(const SimArgs& a) {
   } catch (const std::exception& e) {
     std::cerr << "haptic-station sim: error: " << e.what() << "\n";
     return 2;
+  }
+}
+
+// The `merge` subcommand's options into `dir`. Not RT-safe.
+CLI::App* add_merge_options(CLI::App& app, std::string& dir) {
+  auto* merge = app.add_subcommand(
+      "merge", "Merge the outputs of N `run` processes (DIR/station-<i>.json, -trace.csv, -state.csv) into DIR/summary.json, trace.csv, "
+               "series.csv: the simulator's contract and metrics");
+  merge->add_option("DIR", dir, "The stations' common output directory (station.out_dir)")->required();
+  merge->footer("Exit status: 0 merged; 2 usage error; 3 the directory cannot be merged (missing or inconsistent station files, "
+                "a station that reported an error, no tick recorded by every station).");
+  return merge;
+}
+
+// `haptic-station merge DIR`: 0 merged, 3 not mergeable. Not RT-safe.
+int merge_command(const std::string& dir) {
+  try {
+    const auto summary = merge_run(dir);
+    std::cout << "haptic-station merge: " << merge_result_line(summary) << "\nwrote " << dir << "/summary.json, trace.csv, series.csv\n";
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "haptic-station merge: error: " << e.what() << "\n";
+    return kExitRunFailed;
   }
 }
 
@@ -260,7 +296,8 @@ int main(int argc, char** argv) {
       "(Huang & Lee, IEEE T-RO 2013). Subcommands:\n"
       "  sim  run N stations in one process in simulated time over the paper's stochastic network\n"
       "  run  run one station in real time over real sockets (--config FILE.toml)\n"
-      "  replay  re-run a station's core from its session log, bit-exactly (LOG.h5)"};
+      "  replay  re-run a station's core from its session log, bit-exactly (LOG.h5)\n"
+      "  merge  merge the outputs of N run processes into the simulator's summary.json, trace.csv, series.csv"};
   app.require_subcommand(1);
 
   SimArgs sim_args;
@@ -270,6 +307,8 @@ int main(int argc, char** argv) {
   CLI::App* run = add_run_options(app, run_args);
   CLI::App* replay = add_replay_options(app, replay_args);
   for (int i = 0; i < argc; ++i) sim_args.command_line += (i ? " " : "") + std::string(argv[i]);
+  std::string merge_dir;
+  CLI::App* merge = add_merge_options(app, merge_dir);
 
   try {
     app.parse(argc, argv);
@@ -281,5 +320,6 @@ int main(int argc, char** argv) {
   if (run->parsed()) return run_command(run_args);
   if (sim->parsed()) return sim_command(sim_args);
   if (replay->parsed()) return replay_command(replay_args);
+  if (merge->parsed()) return merge_command(merge_dir);
   return 0;
 }

@@ -1,8 +1,9 @@
 #include "firmware/station_report.hpp"
 
+#include "firmware/run_summary.hpp"
+
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <stdexcept>
 
 namespace haptic::firmware {
@@ -13,21 +14,11 @@ using nlohmann::json;
 
 json or_null(bool has, double v) { return has ? json(v) : json(nullptr); }
 
-json scenario_json(const StationPlan& p) {
+// The run's scenario part (firmware/run_summary.hpp, shared with summary.json) and the station's own.
+json station_scenario_json(const StationPlan& p) {
   const BuiltScenario& b = *p.built;
-  const ScenarioSpec& spec = b.spec;
-  json j;
+  json j = scenario_json(b);
   j["station"] = p.station_id;
-  j["scenario"] = spec.name;
-  j["users"] = spec.users;
-  j["dt_s"] = spec.period_s;
-  j["duration_s"] = spec.duration_s;
-  j["seed"] = spec.seed;
-  json topo = json::array();
-  for (const auto& l : spec.topology) topo.push_back({l.a + 1, l.b + 1});
-  j["topology"] = topo;
-  j["scene_nodes"] = b.scene.nodes;
-  j["trace_node"] = b.trace_node;
   j["x_d"] = std::vector<double>(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs);
   j["transport"] = p.net.transport;
   j["impairment_preset"] = p.file.impairment_preset;
@@ -35,12 +26,8 @@ json scenario_json(const StationPlan& p) {
   j["probe_ticks"] = p.times.probe_ticks;
   j["run_k0"] = p.times.run_k0;
   j["run_ticks_planned"] = p.times.run_ticks;
-  j["release_time_s"] = spec.script.release_s;
-  j["push_end_s"] = spec.script.push_end_s;
   j["damping_model_Ns_per_m"] = b.damping[static_cast<std::size_t>(p.me)];
   j["damping_model_min_Ns_per_m"] = b.damping_min[static_cast<std::size_t>(p.me)];
-  j["damping_margin"] = p.file.station.damping_margin;
-  j["loss_allowance_ticks"] = p.file.station.loss_allowance_ticks;
   j["agreement_ticks"] = p.file.station.agreement_ticks;
   j["fingerprint"] = {{"protocol_version", p.fingerprint.protocol_version}, {"scene_nodes", p.fingerprint.scene_nodes},
                       {"period_ns", p.fingerprint.period_ns}, {"scene_hash", p.fingerprint.scene_hash}, {"gains_hash", p.fingerprint.gains_hash}};
@@ -235,7 +222,7 @@ int exit_code(const RunConditions& c) {
 }
 
 nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c) {
-  json j = scenario_json(*o.plan);
+  json j = station_scenario_json(*o.plan);
   add_bounds_json(o, j);
   add_run_json(o, j);
   add_links_json(o, j);
@@ -251,11 +238,7 @@ nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c) 
 
 void write_station_outputs(const StationOutcome& o, const RunConditions& c) {
   const std::string& base = o.plan->base_path;
-  {
-    std::ofstream jf(base + ".json");
-    if (!jf) throw std::runtime_error("cannot write " + base + ".json");
-    jf << station_summary(o, c).dump(2) << "\n";
-  }
+  write_json_file(base + ".json", station_summary(o, c));
   static const TickRecords kNone{};
   const TickRecords& rec = o.records ? *o.records : kNone;
   write_trace_csv(base + "-trace.csv", rec, o.plan->built->spec.period_s);

@@ -50,9 +50,9 @@ TEST(ClosedLoop, damping_from_eq18_meets_the_condition_for_the_best_topology) {
 
 TEST(ClosedLoop, n_port_passive_eq13_and_controller_passive_eq14_under_the_impaired_network) {
   const auto& r = best_result();
-  CHECK_FALSE(r.diverged);
-  CHECK_TRUE(r.port_energy_min_J >= -r.passivity_bound_J - 1e-12);
-  CHECK_TRUE(r.controller_energy_max_J <= r.passivity_bound_J + 1e-12);
+  CHECK_FALSE(r.metrics.diverged);
+  CHECK_TRUE(*r.metrics.port_energy_min_J >= -r.passivity_bound_J - 1e-12);
+  CHECK_TRUE(*r.metrics.controller_energy_max_J <= r.passivity_bound_J + 1e-12);
   // the network really was impaired
   std::uint64_t lost = 0, sent = 0, reordered = 0, dup = 0;
   for (const auto& l : r.links) {
@@ -69,9 +69,9 @@ TEST(ClosedLoop, n_port_passive_eq13_and_controller_passive_eq14_under_the_impai
 TEST(ClosedLoop, consensus_after_release_eq19) {
   const auto& b = best();
   const auto& r = best_result();
-  CHECK_TRUE(r.max_consensus_error_m > 1e-4);  // the users really deformed their copies differently
-  CHECK_TRUE(r.consensus_error_m < 1e-6);
-  CHECK_TRUE(r.consensus_time_s.has_value());
+  CHECK_TRUE(*r.metrics.max_consensus_error_m > 1e-4);  // the users really deformed their copies differently
+  CHECK_TRUE(*r.metrics.consensus_error_m < 1e-6);
+  CHECK_TRUE(r.metrics.consensus_time_s.has_value());
   // [P + I_N (x) K/N](x - 1_N (x) x_d) -> 0, with P the stiffness matrix (6) of the topology
   const int N = 4, dofs = b.scene.dofs;
   double residual = 0, scale = 0;
@@ -89,14 +89,14 @@ TEST(ClosedLoop, consensus_after_release_eq19) {
   }
   // The slowest deformation mode decays at about 1/s under the heavy local damping: four seconds
   // after the release the residual force is ~2e-5 N against ~2.6 N per user during the hold.
-  CHECK_TRUE(residual < 1e-4 * r.hold_force_mean_N);
+  CHECK_TRUE(residual < 1e-4 * *r.metrics.hold_force_mean_N);
   CHECK_TRUE(scale > 1e-4);     // the ball floated away from x_d: consensus on a translated shape
 }
 
 TEST(ClosedLoop, force_balance_during_the_steady_hold_eq20) {
   const auto& r = best_result();
-  CHECK_TRUE(r.hold_force_mean_N > 1.0);  // users really push
-  CHECK_TRUE(r.hold_force_sum_N < 0.05 * r.hold_force_mean_N);
+  CHECK_TRUE(*r.metrics.hold_force_mean_N > 1.0);  // users really push
+  CHECK_TRUE(*r.metrics.hold_force_sum_N < 0.05 * *r.metrics.hold_force_mean_N);
 }
 
 TEST(ClosedLoop, passive_under_random_user_motion_and_5_percent_loss) {
@@ -108,8 +108,8 @@ TEST(ClosedLoop, passive_under_random_user_motion_and_5_percent_loss) {
     s.script.random_seed = seed;
     const auto b = build_scenario(s);
     const auto r = run_simulation(b, SimOptions{});
-    CHECK_FALSE(r.diverged);
-    CHECK_TRUE(r.port_energy_min_J >= -r.passivity_bound_J - 1e-12);
+    CHECK_FALSE(r.metrics.diverged);
+    CHECK_TRUE(*r.metrics.port_energy_min_J >= -r.passivity_bound_J - 1e-12);
     double supplied = 0;
     for (double e : r.final_port_J) supplied += e;
     CHECK_TRUE(supplied > 1e-4);  // contact really happened and energy flowed in
@@ -142,7 +142,7 @@ TEST(ClosedLoop, deadband_keeps_every_index_delay_within_its_bound_on_a_loss_fre
   s.tx_deadband.position_deadband_m = 1e-5;
   s.tx_deadband.max_interval_ticks = 8;
   const auto r = run_simulation(build_scenario(s), SimOptions{});
-  CHECK_FALSE(r.diverged);
+  CHECK_FALSE(r.metrics.diverged);
   std::uint64_t sent = 0;
   for (const auto& l : r.links) {
     CHECK_EQUAL(0u, l.bound_violations);
@@ -150,5 +150,5 @@ TEST(ClosedLoop, deadband_keeps_every_index_delay_within_its_bound_on_a_loss_fre
     sent += l.sent;
   }
   CHECK_TRUE(sent < r.ticks * r.links.size() / 2);
-  CHECK_TRUE(r.consensus_time_s.has_value());
+  CHECK_TRUE(r.metrics.consensus_time_s.has_value());
 }

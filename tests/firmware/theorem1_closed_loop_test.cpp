@@ -52,23 +52,23 @@ TEST(Theorem1ClosedLoop, tight_case_eq18_damping_matches_an_independent_evaluati
 TEST(Theorem1ClosedLoop, tight_case_is_stable_and_passive_at_eq18) {
   const BuiltScenario b = build_scenario(tight_spec(1.0));
   const SimResult r = run_simulation(b, SimOptions{});
-  CHECK_FALSE(r.diverged);
-  CHECK_TRUE(r.controller_energy_max_J <= r.passivity_bound_J + 1e-9);
-  CHECK_TRUE(r.port_energy_min_J >= -r.passivity_bound_J - 1e-9);
-  CHECK_TRUE(r.max_consensus_error_m > 1e-5);  // the perturbation really moved user 1's copy
-  CHECK_TRUE(r.consensus_error_m < 0.1 * r.max_consensus_error_m);
+  CHECK_FALSE(r.metrics.diverged);
+  CHECK_TRUE(*r.metrics.controller_energy_max_J <= r.passivity_bound_J + 1e-9);
+  CHECK_TRUE(*r.metrics.port_energy_min_J >= -r.passivity_bound_J - 1e-9);
+  CHECK_TRUE(*r.metrics.max_consensus_error_m > 1e-5);  // the perturbation really moved user 1's copy
+  CHECK_TRUE(*r.metrics.consensus_error_m < 0.1 * *r.metrics.max_consensus_error_m);
 }
 
 TEST(Theorem1ClosedLoop, tight_case_diverges_at_0_45_of_eq18_and_the_energy_monitors_show_it) {
   const BuiltScenario b = build_scenario(tight_spec(0.45));
   CHECK_FALSE(b.passivity_condition_met);
   const SimResult r = run_simulation(b, SimOptions{});
-  CHECK_TRUE(r.diverged);
-  CHECK_TRUE(r.diverged_at_s > 2.5);  // after the perturbation, growing from it
+  CHECK_TRUE(r.metrics.diverged);
+  CHECK_TRUE(*r.metrics.diverged_at_s > 2.5);  // after the perturbation, growing from it
   // the controller ports generated energy far beyond c^2 (eq. 14 broken), the device ports
   // gave out energy beyond d^2 (eq. 13 broken)
-  CHECK_TRUE(r.controller_energy_max_J > r.passivity_bound_J + 1.0);
-  CHECK_TRUE(r.port_energy_min_J < -r.passivity_bound_J - 0.1);
+  CHECK_TRUE(*r.metrics.controller_energy_max_J > r.passivity_bound_J + 1.0);
+  CHECK_TRUE(*r.metrics.port_energy_min_J < -r.passivity_bound_J - 0.1);
 }
 
 TEST_GROUP(ReceiveRule){};

@@ -11,7 +11,7 @@ if [ "$mode" = raw ]; then
   if [ "$(id -u)" -ne 0 ]; then echo "SKIPPED: raw-Ethernet run needs root (network namespaces, AF_PACKET)"; exit 77; fi
   if ! command -v ip >/dev/null || ! ip netns list >/dev/null 2>&1; then echo "SKIPPED: 'ip netns' (iproute2) is not available"; exit 77; fi
 fi
-[ -x /usr/bin/python3 ] || { echo "SKIPPED: /usr/bin/python3 (Debian python3-numpy) missing for the merge"; exit 77; }
+[ -x /usr/bin/python3 ] || { echo "SKIPPED: /usr/bin/python3 missing for the checks"; exit 77; }
 rm -rf "$out"; mkdir -p "$out"
 port_base=$(( 47300 + ($$ % 100) * 5 ))
 "$repo/tools/run4/run4.sh" --transport "$mode" --bin "$bin" --out "$out" --duration 4 --push-end 1.5 --release 2.5 \

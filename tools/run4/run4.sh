@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The paper's four stations as four `haptic-station run` processes, in real time, simulated users,
 # the paper's impairment preset in every sender, then one merged summary.json/trace.csv/series.csv
-# (the simulator's contract, tools/run4/merge_run.py) and the simulator's figures.
+# (the simulator's contract and metrics, `haptic-station merge`) and the simulator's figures.
 #   --transport udp : UDP on 127.0.0.1 (no root needed)
 #   --transport raw : AF_PACKET raw Ethernet (EtherType 0x88B5) between four network namespaces
 #                     joined by veth pairs and a bridge (tools/netns/netns.sh, prefix hpr; root)
@@ -173,7 +173,7 @@ logs=("$out/station-1.log" "$out/station-2.log" "$out/station-3.log" "$out/stati
 for l in "${logs[@]}"; do tail -n 1 "$l"; done
 [ "$rc" -eq 0 ] || { for l in "${logs[@]}"; do echo "--- $l"; tail -n 20 "$l"; done >&2; exit 1; }
 if [ -n "$kill_spec" ]; then exit 0; fi  # a rejoin run: tools/run4/rejoin_check.py checks it
-/usr/bin/python3 "$here/merge_run.py" "$out"
+"$bin" merge "$out"
 if [ "$plots" -eq 1 ]; then
   /usr/bin/python3 "$repo/tools/plots/plot_run.py" "$out" && echo "run4.sh: figures in $out/*.png" || echo "run4.sh: figure script failed" >&2
 fi

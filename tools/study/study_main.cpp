@@ -383,8 +383,10 @@ int main(int argc, char** argv) {
               spec.damping_Ns_per_m = B;
               const auto built = firmware::build_scenario(spec);
               const auto r = firmware::run_simulation(built, firmware::SimOptions{});
-              const std::string cls = r.diverged ? "diverged"
-                                      : r.port_energy_min_J < -r.passivity_bound_J ? "energy-generated"
+              const auto& m = r.metrics;
+              const double port_min = m.port_energy_min_J.value_or(0.0);
+              const std::string cls = m.diverged ? "diverged"
+                                      : port_min < -r.passivity_bound_J ? "energy-generated"
                                                                                   : "stable";
               std::uint64_t violations = 0, lost = 0;
               for (const auto& l : r.links) {
@@ -392,9 +394,9 @@ int main(int argc, char** argv) {
                 lost += l.lost;
               }
               const double bmax = *std::max_element(probe.damping_min.begin(), probe.damping_min.end());
-              f << P << ',' << D << ',' << bs << ',' << ds << ',' << loss << ',' << num(bmax) << ',' << r.diverged << ','
-                << num(r.port_energy_min_J) << ',' << num(r.passivity_bound_J) << ',' << cls << ','
-                << num(r.max_node_speed_m_per_s) << ',' << violations << ',' << lost << '\n';
+              f << P << ',' << D << ',' << bs << ',' << ds << ',' << loss << ',' << num(bmax) << ',' << m.diverged << ','
+                << num(port_min) << ',' << num(r.passivity_bound_J) << ',' << cls << ','
+                << num(m.max_node_speed_m_per_s.value_or(0.0)) << ',' << violations << ',' << lost << '\n';
               f.flush();
               summary.push_back({{"P", P}, {"D", D}, {"damping_scale", bs}, {"delay_scale", ds}, {"loss", loss},
                                  {"damping_min", probe.damping_min}, {"class", cls}});

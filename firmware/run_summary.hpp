@@ -1,0 +1,76 @@
+#pragma once
+// The run output contract shared by the simulator (`haptic-station sim`) and the multi-process
+// merge (`haptic-station merge`): summary.json (scenario, metrics, per-link packets), trace.csv
+// (one row per station and recorded tick) and series.csv (one row per recorded tick). The real
+// station's station-<id>.json starts with the same scenario part. Values over an empty window are
+// null. Not RT-safe.
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "firmware/run_metrics.hpp"
+#include "firmware/scenario.hpp"
+
+namespace haptic::firmware {
+
+// The scenario part: name, users, dt_s, duration_s, seed, topology (1-based), scene size, margin,
+// loss allowance, deadband, script times and the metrics windows (what the merge needs to take
+// the same metrics from the stations' records).
+nlohmann::json scenario_json(const BuiltScenario& b);
+// The keys scenario_json() writes (the merge copies them from station-<id>.json).
+const std::vector<std::string>& scenario_json_keys();
+// The metrics windows as scenario_json() wrote them ("metrics_windows"); throws
+// std::invalid_argument naming the missing key.
+MetricsWindows metrics_windows_from_json(const nlohmann::json& scenario);
+
+// The metrics part of summary.json (nulls for empty windows; a speed that is not finite is "inf").
+nlohmann::json metrics_json(const RunMetricsResult& m);
+
+// One directed link, row `to` receives from column `from` (1-based), as summary.json's link_stats.
+struct LinkSummary {
+  int to = 0, from = 0;
+  std::uint64_t sent = 0, delivered = 0, lost = 0, duplicated = 0, reordered = 0;
+  std::optional<double> mean_delay_ms, max_delay_ms;  // null when nothing arrived
+  std::optional<std::int64_t> max_index_delay_ticks;  // max N_ij^k at the receiver
+  std::optional<std::uint64_t> bound_violations;      // edge drop events at the receiver
+  std::optional<std::int64_t> index_delay_bound_ticks;
+};
+nlohmann::json link_json(const LinkSummary& l);
+// summary.json's "packets": totals over the links.
+nlohmann::json packets_json(const std::vector<LinkSummary>& links);
+
+// trace.csv: one row per station (user from 1) and recorded tick, at t = (k + 1) T.
+struct TraceRow {
+  double t_s = 0;
+  int user = 0;
+  double node[3], force[3], vp[3], device[3];
+  double port_J = 0, ctrl_J = 0, vo_J = 0;
+  bool contact = false;
+};
+// series.csv: the whole system at one recorded tick.
+struct SeriesRow {
+  double t_s = 0, consensus_error_m = 0, deformation_m = 0, port_total_J = 0, ctrl_total_J = 0, force_sum_x_N = 0, force_sum_norm_N = 0;
+};
+void write_trace_header(std::FILE* f);
+void write_trace_row(std::FILE* f, const TraceRow& r);
+void write_series_header(std::FILE* f);
+void write_series_row(std::FILE* f, const SeriesRow& r);
+
+// A file opened for writing, closed when it goes; open_out_file throws std::runtime_error naming it.
+struct FileCloser {
+  void operator()(std::FILE* f) const {
+    if (f) std::fclose(f);
+  }
+};
+using OutFile = std::unique_ptr<std::FILE, FileCloser>;
+OutFile open_out_file(const std::string& path);
+
+// Writes j to path (2-space indent); throws std::runtime_error naming the file it cannot write.
+void write_json_file(const std::string& path, const nlohmann::json& j);
+
+}  // namespace haptic::firmware

@@ -1,0 +1,249 @@
+// The run metrics (firmware/run_metrics.hpp) shared by the simulator and the multi-process merge
+// (firmware/run_merge.hpp): empty windows give null, consensus times to the absolute threshold and
+// to 10 % / 1 % of the error at release, and the merge of station files on their common ticks.
+#include <CppUTest/TestHarness.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "firmware/run_merge.hpp"
+#include "firmware/run_metrics.hpp"
+#include "firmware/run_summary.hpp"
+
+using namespace haptic::firmware;
+using nlohmann::json;
+
+namespace {
+
+MetricsWindows windows(double hold0, double hold1, double release) {
+  MetricsWindows w;
+  w.hold_start_s = hold0;
+  w.hold_end_s = hold1;
+  w.release_s = release;
+  w.push_start_s = 0;
+  return w;
+}
+
+CopiesSample err(double e) { return CopiesSample{e, 0.001}; }
+
+// Error 2 mm up to the release at 1 s, then 2 mm x exp(-(t - 1) / 0.5), sampled every tick of 10 ms.
+RunMetricsResult decaying_run(bool sample_before_release) {
+  const double T = 0.01;
+  RunMetrics m(windows(0.5, 1.0, 1.0), T);
+  for (std::int64_t k = sample_before_release ? 0 : 100; k < 500; ++k) {
+    const double t_next = static_cast<double>(k + 1) * T;
+    m.add_copies(k, err(t_next <= 1.0 ? 2e-3 : 2e-3 * std::exp(-(t_next - 1.0) / 0.5)));
+  }
+  return m.result(500);
+}
+
+}  // namespace
+
+TEST_GROUP(RunMetrics){};
+
+TEST(RunMetrics, MetricsOverAnEmptyWindowAreNullNeverZero) {
+  // Samples only before the hold window, no forces, no energies, nothing after the release.
+  RunMetrics m(windows(1.0, 2.0, 2.0), 0.01);
+  for (std::int64_t k = 0; k < 50; ++k) m.add_copies(k, err(1e-3));
+  const RunMetricsResult r = m.result(50);
+  CHECK_FALSE(r.hold_force_sum_N.has_value());
+  CHECK_FALSE(r.hold_force_mean_N.has_value());
+  CHECK_FALSE(r.hold_force_balance_ratio.has_value());
+  CHECK_FALSE(r.deformation_hold_m.has_value());
+  CHECK_FALSE(r.deformation_rise_time_s.has_value());
+  CHECK_FALSE(r.consensus_time_s.has_value());
+  CHECK_FALSE(r.consensus_time_10pct_s.has_value());
+  CHECK_FALSE(r.port_energy_min_J.has_value());
+  CHECK_FALSE(r.max_node_speed_m_per_s.has_value());
+  const json j = metrics_json(r);
+  for (const char* k : {"hold_force_sum_N", "hold_force_mean_N", "hold_force_balance_ratio", "deformation_hold_m", "consensus_time_s",
+                        "consensus_time_10pct_s", "consensus_time_1pct_s", "port_energy_min_J", "controller_energy_max_J", "max_node_speed_m_per_s"})
+    CHECK_TEXT(j[k].is_null(), k);
+  // A run with no sample at all has no consensus error either.
+  const json none = metrics_json(RunMetrics(windows(1.0, 2.0, 2.0), 0.01).result(0));
+  CHECK(none["consensus_error_m"].is_null());
+  CHECK(none["max_consensus_error_m"].is_null());
+}
+
+TEST(RunMetrics, HoldForceIsTheMeanOverTheTicksInTheHoldWindow) {
+  RunMetrics m(windows(0.1, 0.2, 0.2), 0.01);
+  const std::vector<Eigen::Vector3d> f = {{1, 0, 0}, {-0.9, 0, 0}};
+  for (std::int64_t k = 0; k < 30; ++k) m.add_forces(k, f);  // ticks 10..19 start in [0.1, 0.2)
+  const RunMetricsResult r = m.result(30);
+  DOUBLES_EQUAL(0.1, *r.hold_force_sum_N, 1e-12);
+  DOUBLES_EQUAL(0.95, *r.hold_force_mean_N, 1e-12);
+  DOUBLES_EQUAL(0.1 / 0.95, *r.hold_force_balance_ratio, 1e-12);
+}
+
+TEST(RunMetrics, ConsensusTimesToOneMillimetreAndToTenAndOnePercentOfTheErrorAtRelease) {
+  const RunMetricsResult r = decaying_run(true);
+  DOUBLES_EQUAL(2e-3, *r.consensus_error_at_release_m, 1e-15);
+  // e(t) = 2 mm exp(-t/0.5) crosses 1 mm at 0.5 ln 2, 0.2 mm at 0.5 ln 10, 0.02 mm at 0.5 ln 100
+  // (to within the 10 ms sampling).
+  DOUBLES_EQUAL(0.5 * std::log(2.0), *r.consensus_time_s, 0.01);
+  DOUBLES_EQUAL(0.5 * std::log(10.0), *r.consensus_time_10pct_s, 0.01);
+  DOUBLES_EQUAL(0.5 * std::log(100.0), *r.consensus_time_1pct_s, 0.01);
+  DOUBLES_EQUAL(0.01, *r.consensus_time_resolution_s, 1e-12);
+}
+
+TEST(RunMetrics, RelativeConsensusTimesAreNullWithoutASampleAtTheRelease) {
+  const RunMetricsResult r = decaying_run(false);
+  CHECK_FALSE(r.consensus_error_at_release_m.has_value());
+  CHECK_FALSE(r.consensus_time_10pct_s.has_value());
+  CHECK_FALSE(r.consensus_time_1pct_s.has_value());
+  CHECK_TRUE(r.consensus_time_s.has_value());  // the absolute one needs no reference
+}
+
+TEST(RunMetrics, AnErrorThatComesBackAboveTheLevelCountsFromItsLastCrossing) {
+  RunMetrics m(windows(0, 0, 1.0), 0.1);
+  const double e[] = {2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3,  // to the release at 1 s
+                      1e-4, 1e-4, 5e-4, 1e-4, 1e-4, 1e-4};                          // back above 10 % once, at 1.3 s
+  for (std::int64_t k = 0; k < 16; ++k) m.add_copies(k, err(e[k]));
+  const RunMetricsResult r = m.result(16);
+  DOUBLES_EQUAL(0.0, *r.consensus_time_s, 1e-12);       // below 1 mm from the first sample after release
+  DOUBLES_EQUAL(0.3, *r.consensus_time_10pct_s, 1e-9);  // last at or above 0.2 mm: the sample at 1.3 s
+  CHECK_FALSE(r.consensus_time_1pct_s.has_value());     // 0.1 mm never gets below 20 um
+}
+
+TEST(RunMetrics, ADivergedRunHasNoConsensusTime) {
+  RunMetrics m(windows(0, 0, 0.05), 0.1);
+  for (std::int64_t k = 0; k < 5; ++k) m.add_copies(k, err(1e-6));
+  m.add_divergence(0.3);
+  const RunMetricsResult r = m.result(5);
+  CHECK_TRUE(r.diverged);
+  DOUBLES_EQUAL(0.3, *r.diverged_at_s, 0);
+  CHECK_FALSE(r.consensus_time_s.has_value());
+}
+
+TEST(RunMetrics, CopiesSampleIsTheLargestNodeDistanceAndTheShapeDeformation) {
+  Eigen::VectorXd x_d = Eigen::VectorXd::Zero(6);  // two nodes at the origin
+  x_d[3] = 1.0;
+  Eigen::VectorXd a = x_d, b = x_d;
+  a[0] += 0.003;  // node 0 of copy a moved 3 mm in x
+  b.array() += 0.5;  // copy b translated: no shape change
+  const CopiesSample s = measure_copies({a.data(), b.data()}, x_d);
+  DOUBLES_EQUAL(std::sqrt(0.75), s.consensus_error_m, 1e-12);  // node 1: the translation, the larger
+  // mean copy: node 0 moved 1.5 mm more than node 1: deformation = rms distance from the mean displacement
+  DOUBLES_EQUAL(0.75e-3, s.deformation_m, 1e-12);
+}
+
+// ---- the merge of station files --------------------------------------------------------------
+
+namespace {
+
+namespace fs = std::filesystem;
+
+json station_json(int id, int users, double dt) {
+  json j;
+  j["station"] = id;
+  j["users"] = users;
+  j["scenario"] = "paper-best";
+  j["dt_s"] = dt;
+  j["transport"] = "udp";
+  j["error"] = nullptr;
+  j["x_d"] = {0.0, 0.0, 0.0, 1.0, 0.0, 0.0};
+  j["metrics_windows"] = {{"release_s", 0.045}, {"hold_start_s", 0.02}, {"hold_end_s", 0.045}, {"push_start_s", 0.0}, {"consensus_threshold_m", 1e-3}};
+  j["diverged"] = false;
+  j["max_node_speed_m_per_s"] = 0.1 * id;
+  j["ticks_run"] = 10;
+  j["loop"] = {{"overruns", 0}, {"missed_cycles", 0}};
+  j["rt"] = {{"fully_real_time", false}, {"warnings", json::array()}};
+  j["stopped_by_signal"] = false;
+  j["device"] = "simulated";
+  j["wall_time_s"] = 1.0;
+  j["passivity_condition_met"] = true;
+  j["links"] = json::array({{{"peer", 3 - id},
+                             {"tx_packets_run", 10},
+                             {"tx_impair_lost_run", 1},
+                             {"tx_impair_duplicated_run", 0},
+                             {"rx_packets_run", 9},
+                             {"one_way_mean_ms", 4.0},
+                             {"one_way_max_ms", 6.0},
+                             {"index_delay_bound_ticks", 3},
+                             {"assumed_round_trip_ticks", 8}}});
+  return j;
+}
+
+// Two stations, ticks 0..9 traced, states every 2 ticks; copy 2's node 0 is `gap(k)` m off in x.
+std::string write_two_stations(const std::string& name, double (*gap)(std::int64_t)) {
+  const std::string dir = (fs::temp_directory_path() / name).string();
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  for (int id = 1; id <= 2; ++id) {
+    const std::string base = dir + "/station-" + std::to_string(id);
+    std::ofstream(base + ".json") << station_json(id, 2, 0.01).dump();
+    std::ofstream tr(base + "-trace.csv");
+    tr << "k,t_s,node_x_m,node_y_m,node_z_m,force_x_N,force_y_N,force_z_N,vp_x_m,vp_y_m,vp_z_m,device_x_m,device_y_m,device_z_m,"
+          "port_energy_J,controller_energy_J,vo_energy_J,contact,flags,max_speed_m_per_s,wake_latency_ns\n";
+    for (int k = 0; k < 10; ++k)
+      tr << k << "," << (k + 1) * 0.01 << ",0,0,0," << (id == 1 ? 1.0 : -1.0) << ",0,0,0,0,0,0,0,0," << -0.001 * k << ",0,0.5,1,0,0,0\n";
+    std::ofstream st(base + "-state.csv");
+    st << "k,x0,x1,x2,x3,x4,x5\n";
+    for (int k = 0; k < 10; k += 2) st << k << "," << (id == 2 ? gap(k) : 0.0) << ",0,0,1,0,0\n";
+  }
+  return dir;
+}
+
+double shrinking_gap(std::int64_t k) { return k < 5 ? 4e-3 : 4e-3 / static_cast<double>(k * k); }
+
+}  // namespace
+
+TEST_GROUP(RunMerge){};
+
+TEST(RunMerge, MergesStationFilesWithTheSimulatorsMetrics) {
+  const std::string dir = write_two_stations("haptic-metrics-merge", shrinking_gap);
+  const json s = merge_run(dir);
+  // States at k = 0, 2, 4, 6, 8: the gap at the last one, 4 mm / 64.
+  DOUBLES_EQUAL(4e-3 / 64, s["consensus_error_m"].get<double>(), 1e-12);
+  DOUBLES_EQUAL(4e-3, s["max_consensus_error_m"].get<double>(), 1e-12);
+  DOUBLES_EQUAL(4e-3, s["consensus_error_at_release_m"].get<double>(), 1e-12);  // k = 2 ends at 0.03 s, before 0.045 s
+  // After the release: 4 mm at 0.05 s, 0.11 mm at 0.07 s, 0.0625 mm at 0.09 s.
+  DOUBLES_EQUAL(0.005, s["consensus_time_s"].get<double>(), 1e-12);
+  DOUBLES_EQUAL(0.005, s["consensus_time_10pct_s"].get<double>(), 1e-12);  // 0.4 mm
+  CHECK_TRUE(s["consensus_time_1pct_s"].is_null());                         // 40 um: not reached
+  DOUBLES_EQUAL(0.02, s["consensus_time_resolution_s"].get<double>(), 1e-12);
+  // Forces +1 and -1 along x in the hold window [0.02, 0.045): balanced.
+  DOUBLES_EQUAL(0.0, s["hold_force_sum_N"].get<double>(), 1e-12);
+  DOUBLES_EQUAL(1.0, s["hold_force_mean_N"].get<double>(), 1e-12);
+  DOUBLES_EQUAL(-0.018, s["port_energy_min_J"].get<double>(), 1e-12);  // two stations at k = 9
+  DOUBLES_EQUAL(1.0, s["passivity_bound_J"].get<double>(), 1e-12);
+  DOUBLES_EQUAL(0.2, s["max_node_speed_m_per_s"].get<double>(), 1e-12);
+  CHECK_EQUAL(20u, s["packets"]["sent"].get<unsigned>());
+  CHECK_EQUAL(18u, s["packets"]["delivered"].get<unsigned>());
+  CHECK_EQUAL(2u, s["link_stats"].size());
+  DOUBLES_EQUAL(0.1, s["link_stats"][0]["loss_rate"].get<double>(), 1e-12);
+  CHECK_TRUE(s["bounds_consistent_all_links"].get<bool>());  // 3 + 3 <= 8
+  CHECK_TRUE(s["passivity_condition_met"].get<bool>());
+  CHECK_TRUE(fs::exists(dir + "/trace.csv") && fs::exists(dir + "/series.csv"));
+  // The file contract: 20 trace rows + header, 5 series rows + header.
+  std::ifstream tr(dir + "/trace.csv"), se(dir + "/series.csv");
+  std::string line;
+  int rows = 0;
+  while (std::getline(tr, line)) ++rows;
+  CHECK_EQUAL(21, rows);
+  rows = 0;
+  while (std::getline(se, line)) ++rows;
+  CHECK_EQUAL(6, rows);
+}
+
+TEST(RunMerge, AMissingOrFailedStationIsRefusedNamingIt) {
+  const std::string dir = write_two_stations("haptic-metrics-merge-bad", shrinking_gap);
+  fs::remove(dir + "/station-2.json");
+  try {
+    merge_run(dir);
+    FAIL("merged without station-2.json");
+  } catch (const MergeError& e) {
+    CHECK_TEXT(std::string(e.what()).find("station-2.json") != std::string::npos, e.what());
+  }
+  json s2 = station_json(2, 2, 0.01);
+  s2["error"] = "no neighbour answered";
+  std::ofstream(dir + "/station-2.json") << s2.dump();
+  try {
+    merge_run(dir);
+    FAIL("merged a station that reported an error");
+  } catch (const MergeError& e) {
+    CHECK_TEXT(std::string(e.what()).find("station 2 reported an error: no neighbour answered") != std::string::npos, e.what());
+  }
+}

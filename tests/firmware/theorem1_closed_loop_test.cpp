@@ -82,8 +82,8 @@ TEST(ReceiveRule, the_papers_rule_uses_late_data_so_index_delays_grow_on_the_wor
   const SimResult newest = run_simulation(build_scenario(s), SimOptions{});
   s.receive_rule = haptic::rt::RxRule::kMostRecentlyReceived;
   const SimResult paper = run_simulation(build_scenario(s), SimOptions{});
-  CHECK_FALSE(newest.diverged);
-  CHECK_FALSE(paper.diverged);
+  CHECK_FALSE(newest.metrics.diverged);
+  CHECK_FALSE(paper.metrics.diverged);
   bool larger = false;
   std::uint64_t v_new = 0, v_paper = 0;
   for (std::size_t l = 0; l < newest.links.size(); ++l) {

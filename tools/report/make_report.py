@@ -93,6 +93,11 @@ def main(out):
             w("| time to similar deformation (90 %% of hold) | %s | %s s | %s |" % (name, pr["rise_s"], fmt(r.get("deformation_rise_time_s"), 3, " s")))
             w("| release | %s | %s s | %s s |" % (name, pr["release_s"], r["release_time_s"]))
             w("| consensus after release (error < 1 mm) | %s | reached | %s after release; error at end %s m |" % (name, fmt(r.get("consensus_time_s"), 3, " s"), fmt(r["consensus_error_m"])))
+            left = "not within the %s s after release" % fmt(r["simulated_s"] - r["release_time_s"], 3)
+            ct = lambda k: fmt(r.get(k), 3, " s") if r.get(k) is not None else left
+            w("| consensus after release to 10 %% / 1 %% of the error at release (%s mm) | %s | | %s / %s |" % (
+                fmt(1e3 * r["consensus_error_at_release_m"]) if r.get("consensus_error_at_release_m") is not None else "n/a", name,
+                ct("consensus_time_10pct_s"), ct("consensus_time_1pct_s")))
             w("| force balance in the hold: mean abs(sum u_i) / mean abs(u_i) | %s | sum u_x = 0 | %s / %s N = %s |" % (
                 name, fmt(r["hold_force_sum_N"]), fmt(r["hold_force_mean_N"]), fmt(r.get("hold_force_balance_ratio"))))
         w("| stability | %s | %s | %s |" % (name, pr["stable"], ("DIVERGED at %s s" % r["diverged_at_s"]) if r["diverged"] else

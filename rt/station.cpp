@@ -76,6 +76,16 @@ StationCore::StationCore(const StationConfig& config)
     }
     SpatialMatrix A = combine(terms);
     solver_ = make_step_solver(cfg_.solver, iso ? SparseColMajor(A.S) : SparseColMajor(A.as_full()), w_);
+    std::vector<const SpatialMatrix*> rhs_terms = {&scene_.M, &scene_.K};
+    if (nn > 0) {
+      const EdgeGains* g0 = cfg_.neighbors[0].gains;
+      rhs_terms.push_back(&g0->P);
+      rhs_terms.push_back(&g0->D);
+      dp_op_ = MultiTermOperator({&g0->D, &g0->P});
+    }
+    rhs_op_ = MultiTermOperator(rhs_terms);
+    for (int j = 0; j < nn; ++j)
+      if (first_of_gain(j)) group_leaders_.push_back(j);
   }
   x_ = scene_.x_d;
   v_ = Eigen::VectorXd::Zero(dofs_);
@@ -169,9 +179,87 @@ void StationCore::prepare_contact_solve() {
   lu_.compute(G);
 }
 
+void StationCore::sum_group(int g, double* sx, double* sv, double* d) const {
+  const EdgeGains* eg = cfg_.neighbors[static_cast<std::size_t>(g)].gains;
+  const double* xs[kMaxNeighbors];
+  const double* vs[kMaxNeighbors];
+  int na = 0, nf = 0;
+  for (int j = g; j < neighbor_count(); ++j) {
+    if (!active_[static_cast<std::size_t>(j)] || cfg_.neighbors[static_cast<std::size_t>(j)].gains != eg) continue;
+    xs[na++] = views_[static_cast<std::size_t>(j)].x_hat;
+    if (views_[static_cast<std::size_t>(j)].fresh) vs[nf++] = views_[static_cast<std::size_t>(j)].v_hat;
+  }
+  const double* x = x_.data();
+  const double* xd = scene_.x_d.data();
+  for (int i = 0; i < dofs_; ++i) {
+    double a = na * x[i], s = 0;
+    for (int n = 0; n < na; ++n) a -= xs[n][i];
+    for (int n = 0; n < nf; ++n) s += vs[n][i];
+    sx[i] = a;
+    sv[i] = s;
+    if (d) d[i] = x[i] - xd[i];
+  }
+}
+
+void StationCore::build_rhs() {
+  const double N = cfg_.users;
+  double quad[MultiTermOperator::kMaxTerms] = {};
+  // Terms [M, K, P_0, D_0] on [v, d = x - x_d, sx_0, sv_0] (an over-bound edge contributes nothing:
+  // x - x_hat_j = 0, delta_ij = 0).
+  const double* u[4] = {v_.data(), tmp_.data(), tmp2_.data(), scratch_.data()};
+  const double to_b[4] = {2.0 / (N * T_), -1.0 / N, -1.0, 1.0};
+  if (neighbor_count() > 0) {
+    sum_group(0, tmp2_.data(), scratch_.data(), tmp_.data());
+  } else {
+    tmp_ = x_ - scene_.x_d;
+  }
+  rhs_op_.apply(u, to_b, nullptr, rhs_.data(), nullptr, quad);
+  // E_i(k) = 1/N (|v|_M^2 / 2 + |x - x_d|_K^2 / 2) at the start of the tick (eq. 12)
+  energy_.vo_J = 0.5 * (quad[0] + quad[1]) / N;
+  // Further gain groups (edges with their own gains; rare): two matvecs each.
+  for (std::size_t gi = 1; gi < group_leaders_.size(); ++gi) {
+    const int g = group_leaders_[gi];
+    const EdgeGains* eg = cfg_.neighbors[static_cast<std::size_t>(g)].gains;
+    sum_group(g, tmp2_.data(), scratch_.data(), nullptr);
+    eg->P.multiply_add(-1.0, tmp2_.data(), rhs_.data());
+    eg->D.multiply_add(1.0, scratch_.data(), rhs_.data());
+  }
+}
+
+double StationCore::predict_and_count_residual() {
+  const double* vh = v_hat_.data();
+  const double* r = resid_.data();
+  const double* x = x_.data();
+  double* xh = x_hat_.data();
+  double vv = 0, vr = 0;
+  for (int i = 0; i < dofs_; ++i) {
+    const double a = vh[i];
+    vv += a * a;
+    vr += a * r[i];
+    xh[i] = x[i] + (T_ / 2.0) * a;
+  }
+  // The VO rows' residual r of an inexact solve acted as the extra force -r (A v_hat = b - r; the
+  // Schur step solves the contact/VP part exactly on top, so r is y0's residual).
+  if (!solver_->exact()) energy_.solver_residual_J -= vr * T_;
+  return vv;
+}
+
+double StationCore::advance_state() {
+  const double* vh = v_hat_.data();
+  double* x = x_.data();
+  double* v = v_.data();
+  double vmax = 0, nonfinite = 0;  // nonfinite: 0 unless some x or v is inf/NaN
+  for (int i = 0; i < dofs_; ++i) {
+    x[i] += T_ * vh[i];
+    v[i] = 2.0 * vh[i] - v[i];
+    vmax = std::max(vmax, std::abs(v[i]));
+    nonfinite += 0.0 * x[i] + 0.0 * v[i];
+  }
+  return nonfinite == 0.0 ? vmax : std::nan("");
+}
+
 StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
   TickOutput out;
-  const double N = cfg_.users;
   const auto& g = cfg_.vp.coupling;
   const double kc = cfg_.vp.contact_stiffness_N_per_m, bc = cfg_.vp.contact_damping_Ns_per_m;
   const double c = bc + kc * T_ / 2.0;
@@ -231,43 +319,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
 
   // --- 4. right-hand side b (DESIGN.md) ---
   // b = (1/N)((2M/T) v - K(x - x_d)) + sum_j delta_ij D_ij v_hat_j - sum_j P_ij (x - x_hat_j)
-  double* b = rhs_.data();
-  rhs_.setZero();
-  scene_.M.multiply_add(2.0 / (N * T_), v_.data(), b);
-  tmp_ = x_ - scene_.x_d;
-  tmp2_.setZero();
-  scene_.K.multiply_add(1.0, tmp_.data(), tmp2_.data());  // K (x - x_d)
-  rhs_.noalias() -= tmp2_ / N;
-  {
-    // E_i(k) = 1/N (|v|_M^2 / 2 + |x - x_d|_K^2 / 2) at the start of the tick (eq. 12)
-    double ek = 0.5 * tmp_.dot(tmp2_);
-    scratch_.setZero();
-    scene_.M.multiply_add(1.0, v_.data(), scratch_.data());
-    ek += 0.5 * v_.dot(scratch_);
-    energy_.vo_J = ek / N;
-  }
-  // Edges sharing one gain object (the usual case) are summed first: one matvec per gain set.
-  // An over-bound edge contributes nothing to b (x - x_hat_j = 0, delta_ij = 0).
-  for (int j = 0; j < nn; ++j) {
-    if (!first_of_gain(j)) continue;
-    const EdgeGains* eg = cfg_.neighbors[j].gains;
-    tmp_.setZero();   // sum (x - x_hat_j)
-    tmp2_.setZero();  // sum delta v_hat_j
-    bool any_fresh = false, any_active = false;
-    for (int i2 = j; i2 < nn; ++i2) {
-      if (!active_[i2] || cfg_.neighbors[i2].gains != eg) continue;
-      any_active = true;
-      const double* xj = views_[i2].x_hat;
-      for (int i = 0; i < dofs_; ++i) tmp_[i] += x_[i] - xj[i];
-      if (views_[i2].fresh) {
-        any_fresh = true;
-        const double* vj = views_[i2].v_hat;
-        for (int i = 0; i < dofs_; ++i) tmp2_[i] += vj[i];
-      }
-    }
-    if (any_active) eg->P.multiply_add(-1.0, tmp_.data(), b);
-    if (any_fresh) eg->D.multiply_add(1.0, tmp2_.data(), b);
-  }
+  build_rhs();
   Vec3 bw = (2.0 * cfg_.vp.mass_kg / T_) * w_vp_ + g.B_vc_Ns_per_m * vq - g.K_vc_N_per_m * (y_ - qk);
   if (in_contact_) {
     for (std::size_t a = 0; a < cn.size(); ++a) {
@@ -305,7 +357,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
   }
 
   // --- 6. predicted states, contact force, energies (13), (14) ---
-  x_hat_ = x_ + (T_ / 2.0) * v_hat_;
+  const double vv = predict_and_count_residual();
   const Vec3 y_hat = y_ + (T_ / 2.0) * w_hat;
   double port_power = 0;
   f_contact_vp_.setZero();
@@ -318,22 +370,25 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
     }
   }
   energy_.port_J += port_power * T_;
-  // The VO rows' residual r of an inexact solve acted as the extra force -r (A v_hat = b - r; the
-  // Schur step solves the contact/VP part exactly on top, so r is y0's residual).
-  if (!solver_->exact()) energy_.solver_residual_J -= v_hat_.dot(resid_) * T_;
   // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)   (eq. 15),
   // with x_hat_j := x(k), delta_ij = 0 for an over-bound edge. Split per edge (rt/edge_energy.hpp):
   // D_ij, P_ij are symmetric, so v_hat^T D u = (D v_hat)^T u: one D v_hat and one P v_hat per gain
   // set, then two dot products per edge.
-  const double damping_J = -cfg_.damping_Ns_per_m * v_hat_.squaredNorm() * T_;
+  const double damping_J = -cfg_.damping_Ns_per_m * vv * T_;
   double ctrl_J = damping_J;
   for (int j = 0; j < nn; ++j) {
     if (!first_of_gain(j)) continue;
     const EdgeGains* eg = cfg_.neighbors[j].gains;
-    tmp_.setZero();   // D v_hat
-    tmp2_.setZero();  // P v_hat
-    eg->D.multiply_add(1.0, v_hat_.data(), tmp_.data());
-    eg->P.multiply_add(1.0, v_hat_.data(), tmp2_.data());
+    if (j == 0) {  // D v_hat -> tmp_, P v_hat -> tmp2_ in one pass
+      const double* u[2] = {v_hat_.data(), v_hat_.data()};
+      static constexpr double kD[2] = {1.0, 0.0}, kP[2] = {0.0, 1.0};
+      dp_op_.apply(u, kD, kP, tmp_.data(), tmp2_.data(), nullptr);
+    } else {
+      tmp_.setZero();   // D v_hat
+      tmp2_.setZero();  // P v_hat
+      eg->D.multiply_add(1.0, v_hat_.data(), tmp_.data());
+      eg->P.multiply_add(1.0, v_hat_.data(), tmp2_.data());
+    }
     for (int i2 = j; i2 < nn; ++i2) {
       if (cfg_.neighbors[i2].gains != eg) continue;
       const double delta = (active_[i2] && views_[i2].fresh) ? 1.0 : 0.0;
@@ -349,8 +404,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
   energy_.controller_J += ctrl_J;
 
   // --- 7. advance the state (eq. 9, eq. 21) ---
-  x_ += T_ * v_hat_;
-  v_ = 2.0 * v_hat_ - v_;
+  const double vmax_seen = advance_state();
   y_ += T_ * w_hat;
   w_vp_ = 2.0 * w_hat - w_vp_;
   w_hat_prev_ = w_hat;
@@ -359,9 +413,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
   stepped_ = true;
 
   // --- 8. safety: divergence -> safe state (zero force), reported through flags ---
-  const double vmax = cfg_.divergence_speed_m_per_s;
-  bool finite = x_.allFinite() && v_.allFinite() && y_.allFinite();
-  if (!finite || v_.cwiseAbs().maxCoeff() > vmax) safe_state_ = true;
+  if (!(vmax_seen <= cfg_.divergence_speed_m_per_s) || !y_.allFinite()) safe_state_ = true;
   if (safe_state_) out.flags |= kDiverged | kSafeState;
   if (out.flags & kSafeState) {
     ++safe_state_ticks_;

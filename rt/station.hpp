@@ -27,6 +27,7 @@
 
 #include "rt/edge_energy.hpp"
 #include "rt/gains.hpp"
+#include "rt/multi_term_operator.hpp"
 #include "rt/rx_link.hpp"
 #include "rt/scene.hpp"
 #include "rt/step_solver.hpp"
@@ -165,6 +166,16 @@ class StationCore {
   void prepare_contact_solve();  // start-up: Z, G and its LU
   void engage_contact();
   bool first_of_gain(int j) const;  // first neighbour using this gain object
+  // Step 4 without contact: b and energy_.vo_J in one fused pass for the first gain group (+ two
+  // matvecs per further group). RT-safe.
+  void build_rhs();
+  // Sums of gain group g (neighbours sharing cfg_.neighbors[g].gains): sx = sum_active (x - x_hat_j),
+  // sv = sum_{active, fresh} v_hat_j, and (if d) d = x - x_d, in one pass. RT-safe.
+  void sum_group(int g, double* sx, double* sv, double* d) const;
+  // Step 6: x_hat = x + T/2 v_hat and the residual's energy; returns |v_hat|^2. RT-safe.
+  double predict_and_count_residual();
+  // Step 7 for the VO: x += T v_hat, v = 2 v_hat - v; returns max |v| (NaN if x or v not finite). RT-safe.
+  double advance_state();
 
   StationConfig cfg_;
   const Scene& scene_;
@@ -196,6 +207,11 @@ class StationCore {
   std::uint64_t safe_state_ticks_ = 0;
   std::vector<unsigned char> edge_was_dropped_;
   std::vector<std::uint64_t> edge_drops_;
+
+  // The right-hand side's matrices [M, K, P_0, D_0] (P_0, D_0: the first gain group's) in one
+  // fused pass, and [D_0, P_0] for D v_hat and P v_hat of the controller energy (rt/README.md).
+  MultiTermOperator rhs_op_, dp_op_;
+  std::vector<int> group_leaders_;  // first neighbour of each gain group, in order
 
   // Scratch (sized at start-up)
   Eigen::VectorXd rhs_, tmp_, tmp2_, scratch_, resid_;

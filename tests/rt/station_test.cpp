@@ -72,10 +72,11 @@ namespace {
 // Drives a StationCore and its dense reference with the same device motion and the same random
 // neighbour packets; returns the max state difference.
 double compare_with_dense(bool impaired_neighbors, int ticks, StepSolverKind solver = StepSolverKind::kDirect,
-                          std::uint64_t* over_bound_ticks = nullptr) {
+                          std::uint64_t* over_bound_ticks = nullptr, const EdgeGains* second_edge_gains = nullptr) {
   const auto& w = PaperWorld::get();
   const auto dir = test::tetra_dirs()[0];
   auto cfg = w.station(0, 4, {1, 2}, 20.0, dir, impaired_neighbors ? 2 : (1 << 30));
+  if (second_edge_gains) cfg.neighbors[1].gains = second_edge_gains;
   cfg.solver.kind = solver;
   cfg.solver.relative_tolerance = 1e-13;
   StationCore st(cfg);
@@ -124,6 +125,15 @@ TEST(Station, matches_the_dense_solve_with_lost_swapped_packets_and_over_bound_e
   const double d = compare_with_dense(true, 400, StepSolverKind::kDirect, &over_bound);
   CHECK_TRUE(over_bound >= 20);  // the over-bound action (edge as a damper) is exercised
   CHECK_TRUE(d < 1e-10);
+}
+
+TEST(Station, edges_with_their_own_gains_match_the_dense_solve) {
+  // The second neighbour's edge has its own gain object (another P_ij, D_ij): the right-hand side
+  // and the controller energy take the per-group path besides the fused one.
+  const auto& w = PaperWorld::get();
+  const EdgeGains other = paper_edge_gains(w.scene, 1300.0, 1.5);
+  CHECK_TRUE(compare_with_dense(false, 400, StepSolverKind::kDirect, nullptr, &other) < 1e-10);
+  CHECK_TRUE(compare_with_dense(true, 400, StepSolverKind::kDirect, nullptr, &other) < 1e-10);
 }
 
 TEST(Station, iterative_solver_matches_the_dense_solve_through_contact_losses_and_over_bound_edges) {

@@ -1,0 +1,147 @@
+#include "rt/multi_term_operator.hpp"
+
+#include <map>
+#include <string>
+#include <stdexcept>
+
+namespace haptic::rt {
+
+MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& terms) {
+  if (terms.empty() || static_cast<int>(terms.size()) > kMaxTerms)
+    throw std::invalid_argument("MultiTermOperator: 1 to " + std::to_string(kMaxTerms) + " terms");
+  bool iso = true;
+  for (const auto* m : terms) {
+    iso = iso && m->is_isotropic();
+    if (m->dofs() != terms[0]->dofs()) throw std::invalid_argument("MultiTermOperator: size mismatch");
+  }
+  width_ = iso ? 3 : 1;
+  terms_ = static_cast<int>(terms.size());
+  std::vector<SparseRowMajor> S;
+  for (const auto* m : terms) S.push_back(iso ? m->S : m->as_full());
+  rows_ = static_cast<int>(S[0].rows());
+  diag_.assign(static_cast<std::size_t>(rows_) * static_cast<std::size_t>(terms_), 0.0);
+  // Which terms have off-diagonal entries, and the union pattern (rows sorted by column).
+  std::vector<bool> has_off(static_cast<std::size_t>(terms_), false);
+  std::vector<std::map<int, std::vector<double>>> row_entries(static_cast<std::size_t>(rows_));
+  for (int t = 0; t < terms_; ++t)
+    for (int r = 0; r < rows_; ++r)
+      for (SparseRowMajor::InnerIterator it(S[static_cast<std::size_t>(t)], r); it; ++it) {
+        const int c = static_cast<int>(it.col());
+        if (c == r) {
+          diag_[static_cast<std::size_t>(r) * static_cast<std::size_t>(terms_) + static_cast<std::size_t>(t)] += it.value();
+        } else if (it.value() != 0.0) {
+          has_off[static_cast<std::size_t>(t)] = true;
+          auto& v = row_entries[static_cast<std::size_t>(r)][c];
+          v.resize(static_cast<std::size_t>(terms_), 0.0);
+          v[static_cast<std::size_t>(t)] += it.value();
+        }
+      }
+  for (int t = 0; t < terms_; ++t)
+    if (has_off[static_cast<std::size_t>(t)]) off_term_.push_back(t);
+  off_terms_ = static_cast<int>(off_term_.size());
+  rowptr_.assign(static_cast<std::size_t>(rows_) + 1, 0);
+  for (int r = 0; r < rows_; ++r) {
+    for (const auto& [c, v] : row_entries[static_cast<std::size_t>(r)]) {
+      col_.push_back(c);
+      for (int s = 0; s < off_terms_; ++s) off_.push_back(v[static_cast<std::size_t>(off_term_[static_cast<std::size_t>(s)])]);
+    }
+    rowptr_[static_cast<std::size_t>(r) + 1] = static_cast<int>(col_.size());
+  }
+}
+
+long MultiTermOperator::stored_doubles() const {
+  return static_cast<long>(diag_.size() + off_.size()) + static_cast<long>(rowptr_.size() + col_.size()) / 2;
+}
+
+// TT, S: number of terms and of off-diagonal slots known at compile time (the common cases), or
+// -1 (run-time counts).
+template <int W, int TT, int S>
+static void apply_kernel(int rows, int terms_rt, int off_terms_rt, const int* off_term, const double* diag, const int* rowptr,
+                         const int* col, const double* off, const double* const* u, const double* to_y, const double* to_h,
+                         double* y, double* h, double* quad) {
+  constexpr int kT = MultiTermOperator::kMaxTerms;
+  const int off_terms = S >= 0 ? S : off_terms_rt;
+  const int terms = TT >= 0 ? TT : terms_rt;
+  constexpr int kA = TT > 0 ? TT : kT;  // accumulators: exactly the terms when known
+  double q[kT] = {};
+  const double* up[kT];
+  for (int t = 0; t < terms; ++t) up[t] = u[t];
+  for (int i = 0; i < rows; ++i) {
+    double acc[kA][W];
+    const double* di = diag + static_cast<long>(i) * terms;
+    for (int t = 0; t < terms; ++t)
+      for (int c = 0; c < W; ++c) acc[t][c] = di[t] * up[t][static_cast<long>(i) * W + c];
+    // Off-diagonal sums per slot (compile-time index: kept in registers), then added to their terms.
+    constexpr int kS = S > 0 ? S : (S == 0 ? 1 : kT);
+    double oacc[kS][W];
+    const double* us[kS];
+    for (int s = 0; s < off_terms; ++s) {
+      us[s] = up[off_term[s]];
+      for (int c = 0; c < W; ++c) oacc[s][c] = 0.0;
+    }
+    for (int e = rowptr[i]; e < rowptr[i + 1]; ++e) {
+      const long j = static_cast<long>(col[e]) * W;
+      const double* ov = off + static_cast<long>(e) * off_terms;
+      for (int s = 0; s < off_terms; ++s) {
+        const double a = ov[s];
+        const double* uj = us[s] + j;
+        for (int c = 0; c < W; ++c) oacc[s][c] += a * uj[c];
+      }
+    }
+    for (int s = 0; s < off_terms; ++s)
+      for (int c = 0; c < W; ++c) acc[off_term[s]][c] += oacc[s][c];
+    for (int c = 0; c < W; ++c) {
+      double sy = 0, sh = 0;
+      for (int t = 0; t < terms; ++t) {
+        sy += to_y[t] * acc[t][c];
+        sh += to_h[t] * acc[t][c];
+      }
+      if (y) y[static_cast<long>(i) * W + c] = sy;
+      if (h) h[static_cast<long>(i) * W + c] = sh;
+    }
+    if (quad)
+      for (int t = 0; t < terms; ++t)
+        for (int c = 0; c < W; ++c) q[t] += up[t][static_cast<long>(i) * W + c] * acc[t][c];
+  }
+  if (quad)
+    for (int t = 0; t < terms; ++t) quad[t] = q[t];
+}
+
+template <int W>
+void MultiTermOperator::apply_w(const double* const* u, const double* to_y, const double* to_h, double* y, double* h,
+                                double* quad) const {
+  static constexpr double kZeros[kMaxTerms] = {};
+  if (!to_h) to_h = kZeros;
+  const auto args = [&](auto kernel) {
+    kernel(rows_, terms_, off_terms_, off_term_.data(), diag_.data(), rowptr_.data(), col_.data(), off_.data(), u, to_y, to_h, y,
+           h, quad);
+  };
+  const int key = 10 * terms_ + off_terms_;
+  switch (key) {
+    case 10: args(apply_kernel<W, 1, 0>); break;
+    case 11: args(apply_kernel<W, 1, 1>); break;
+    case 21: args(apply_kernel<W, 2, 1>); break;
+    case 41: args(apply_kernel<W, 4, 1>); break;
+    case 42: args(apply_kernel<W, 4, 2>); break;
+    default: args(apply_kernel<W, -1, -1>); break;
+  }
+}
+
+void MultiTermOperator::apply(const double* const* u, const double* to_y, const double* to_h, double* y, double* h,
+                              double* quad) const {
+  if (width_ == 3)
+    apply_w<3>(u, to_y, to_h, y, h, quad);
+  else
+    apply_w<1>(u, to_y, to_h, y, h, quad);
+}
+
+double MultiTermOperator::quadratic_form(const double* u) const {
+  const double* us[kMaxTerms];
+  for (int t = 0; t < terms_; ++t) us[t] = u;
+  static constexpr double kZeros[kMaxTerms] = {};
+  double q[kMaxTerms] = {};
+  apply(us, kZeros, nullptr, nullptr, nullptr, q);
+  return q[0];
+}
+
+}  // namespace haptic::rt

@@ -1,0 +1,47 @@
+#pragma once
+// Several sparse matrices A_1..A_T of one scene applied to their own vectors in ONE pass over a
+// shared sparsity pattern (the tick's right-hand side and energies, DESIGN.md "The linear step"):
+//
+//   y = sum_t to_y[t] A_t u_t,   h = sum_t to_h[t] A_t u_t,   quad[t] = u_t^T A_t u_t
+//
+// Each A_t is stored as its diagonal (one value per row) plus its off-diagonal values on the
+// union of the terms' off-diagonal patterns; a term with no off-diagonal entries (M, B, D = d I in
+// the paper) costs only its diagonal. Compared with one multiply_add per matrix this reads the
+// pattern and writes y once instead of T times. Isotropic terms (S (x) I3) work on node rows with
+// three interleaved columns; if any term is not isotropic every term is expanded to 3n x 3n.
+#include <vector>
+
+#include "rt/spatial_matrix.hpp"
+
+namespace haptic::rt {
+
+class MultiTermOperator {
+ public:
+  static constexpr int kMaxTerms = 8;
+  MultiTermOperator() = default;
+  // Start-up (allocates). Throws std::invalid_argument on size mismatch or more than kMaxTerms.
+  explicit MultiTermOperator(const std::vector<const SpatialMatrix*>& terms);
+
+  int terms() const { return terms_; }
+  int width() const { return width_; }  // 3: node rows with three columns; 1: dof rows
+  long stored_doubles() const;
+
+  // One pass: u[t] is term t's input (3n interleaved); y and h (each if not null; written, not
+  // accumulated) receive the weighted sums; quad (if not null, terms() values, written) receives
+  // u_t^T A_t u_t. RT-safe: no allocation, one pass over the pattern.
+  void apply(const double* const* u, const double* to_y, const double* to_h, double* y, double* h, double* quad) const;
+
+  // u^T A_0 u for a one-term operator (or term 0 of several). RT-safe, one pass, writes nothing.
+  double quadratic_form(const double* u) const;
+
+ private:
+  template <int W>
+  void apply_w(const double* const* u, const double* to_y, const double* to_h, double* y, double* h, double* quad) const;
+  int rows_ = 0, width_ = 3, terms_ = 0, off_terms_ = 0;
+  std::vector<int> off_term_;   // slot s -> term index (terms that have off-diagonal entries)
+  std::vector<double> diag_;    // rows x terms
+  std::vector<int> rowptr_, col_;
+  std::vector<double> off_;     // nnz x off_terms (values of each slot on the union pattern)
+};
+
+}  // namespace haptic::rt

@@ -3,6 +3,9 @@
 #include "net/impairment.hpp"
 
 #include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <numbers>
 #include <sstream>
 #include <stdexcept>
 
@@ -26,6 +29,37 @@ double to_double(const std::string& tok, const std::string& what) {
     bad(what + ": '" + tok + "' is not a number");
   }
 }
+
+// Unit push directions (outward, from the object's centre towards the user) for N users whose
+// sum is zero by construction: the 4-user tetrahedral pattern of the paper's scene (the face
+// towards (1,1,1) and its images under the three half-turns about the axes); for other N,
+// antipodal pairs on a golden-angle spiral of the upper hemisphere, plus a planar triangle
+// (120 degrees apart, about z) when N is odd. Start-up only.
+std::vector<Eigen::Vector3d> spread_directions(int N, const Eigen::Vector3d& c0) {
+  std::vector<Eigen::Vector3d> d;
+  if (N == 4) {
+    const std::array<Eigen::Vector3d, 4> flips = {Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(1, -1, -1), Eigen::Vector3d(-1, 1, -1),
+                                                  Eigen::Vector3d(-1, -1, 1)};
+    for (const auto& f : flips) d.push_back(f.cwiseProduct(c0).normalized());
+    return d;
+  }
+  const int pairs = (N % 2 == 0) ? N / 2 : (N - 3) / 2;
+  const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
+  for (int k = 0; k < pairs; ++k) {
+    const double z = 1.0 - (k + 0.5) / pairs;  // (0, 1): upper hemisphere, never the equator
+    const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+    const Eigen::Vector3d u(r * std::cos(golden * k + 0.3), r * std::sin(golden * k + 0.3), z);
+    d.push_back(u);
+    d.push_back(-u);
+  }
+  if (N % 2 == 1)
+    for (int k = 0; k < 3; ++k) {
+      const double a = 0.2 + 2.0 * std::numbers::pi * k / 3.0;
+      d.push_back(Eigen::Vector3d(std::cos(a), std::sin(a), 0.0));
+    }
+  return d;
+}
+void assign_pushes(BuiltScenario& b);
 }  // namespace
 
 std::vector<std::string> scenario_names() { return {"paper-best", "paper-worst", "paper-unstable"}; }
@@ -81,6 +115,8 @@ void ScenarioSpec::validate() const {
   if (loss_allowance_ticks < 0 || loss_allowance_ticks > 1000) bad("loss allowance must be in [0, 1000] ticks");
   if (!(tx_deadband.position_deadband_m >= 0 && tx_deadband.position_deadband_m < 0.1)) bad("--tx-deadband-mm must be in [0, 100)");
   if (tx_deadband.max_interval_ticks < 1 || tx_deadband.max_interval_ticks > 1000) bad("--tx-max-interval must be in [1, 1000]");
+  if (!(script.asymmetry_tilt_deg >= 0 && script.asymmetry_tilt_deg <= 90)) bad("asymmetry tilt must be in [0, 90] degrees");
+  if (!(script.asymmetry_depth >= 0 && script.asymmetry_depth <= 0.9)) bad("asymmetry depth must be in [0, 0.9]");
   scene.validate();
 }
 
@@ -138,25 +174,104 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
     if (b.damping[static_cast<std::size_t>(i)] < b.damping_min[static_cast<std::size_t>(i)] * (1 - 1e-12))
       b.passivity_condition_met = false;
   }
-  // Contact meshes: user 1 takes the boundary face towards (1,1,1); users 2-4 the images of that
-  // face under the three half-turns about the coordinate axes (symmetries of both built-in
-  // balls), so the four pushes sum to zero, span space positively, and a steady collaborative
-  // hold exists for the floating ball. Users beyond 4 reuse the pattern rotated about z.
-  const std::array<Eigen::Vector3d, 4> flips = {Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(1, -1, -1),
-                                                Eigen::Vector3d(-1, 1, -1), Eigen::Vector3d(-1, -1, 1)};
-  const Eigen::Vector3d c0 = b.scene.mesh.face_center(b.scene.mesh.face_towards(Eigen::Vector3d(1, 1, 1))) - b.scene.mesh.centroid();
-  for (int i = 0; i < N; ++i) {
-    Eigen::Vector3d d = flips[static_cast<std::size_t>(i % 4)].cwiseProduct(c0);
-    if (i >= 4) d = Eigen::AngleAxisd(0.7 * (i / 4), Eigen::Vector3d::UnitZ()) * d;
-    const int f = b.scene.mesh.face_towards(d);
-    const auto& face = b.scene.mesh.surface[static_cast<std::size_t>(f)];
-    b.contact_nodes.push_back({face[0], face[1], face[2]});
-    b.push_direction.push_back(-b.scene.mesh.face_normal(f));
-    b.vp_start.push_back(b.scene.mesh.face_center(f));
-  }
+  assign_pushes(b);
   b.trace_node = spec.trace_node >= 0 ? spec.trace_node : b.contact_nodes[std::min(1, N - 1)][0];
   if (b.trace_node >= b.scene.nodes) bad("--trace-node must be below the node count " + std::to_string(b.scene.nodes));
   return b;
+}
+
+namespace {
+// Each user's contact face, push direction, depth and proxy start (ScenarioSpec's push pattern),
+// and the imbalance of the intended pushes. Start-up only.
+void assign_pushes(BuiltScenario& b) {
+  const auto& spec = b.spec;
+  const int N = spec.users;
+  const auto& mesh = b.scene.mesh;
+  const Eigen::Vector3d c0 = mesh.face_center(mesh.face_towards(Eigen::Vector3d(1, 1, 1))) - mesh.centroid();
+  std::vector<Eigen::Vector3d> dirs = spread_directions(N, c0);
+  std::vector<double> depth(static_cast<std::size_t>(N), spec.script.push_depth_m);
+  if (spec.script.push_pattern == UserScriptSpec::PushPattern::kAsymmetric) {
+    net::Rng rng(spec.script.push_seed * 104729ULL + 17);
+    const double tilt = spec.script.asymmetry_tilt_deg * std::numbers::pi / 180.0;
+    for (int i = 0; i < N; ++i) {
+      Eigen::Vector3d axis;
+      for (int a = 0; a < 3; ++a) axis[a] = 2 * rng.uniform01() - 1;
+      axis = axis.cross(dirs[static_cast<std::size_t>(i)]);  // a random axis perpendicular to the direction
+      if (axis.norm() < 1e-9) axis = dirs[static_cast<std::size_t>(i)].unitOrthogonal();
+      dirs[static_cast<std::size_t>(i)] = Eigen::AngleAxisd(tilt * rng.uniform01(), axis.normalized()) * dirs[static_cast<std::size_t>(i)];
+      depth[static_cast<std::size_t>(i)] *= 1.0 + spec.script.asymmetry_depth * (2 * rng.uniform01() - 1);
+    }
+  }
+  Eigen::Vector3d intended = Eigen::Vector3d::Zero();
+  double depth_sum = 0;
+  for (int i = 0; i < N; ++i) {
+    const int f = mesh.face_towards(dirs[static_cast<std::size_t>(i)]);
+    const auto& face = mesh.surface[static_cast<std::size_t>(f)];
+    b.contact_nodes.push_back({face[0], face[1], face[2]});
+    // N = 4 spread: the paper's pattern pushes along the face normals (cancel by the ball's symmetry);
+    // otherwise along -d, so spread pushes cancel exactly whatever faces the mesh offers.
+    const bool paper_pattern = N == 4 && spec.script.push_pattern == UserScriptSpec::PushPattern::kSpread;
+    b.push_direction.push_back(paper_pattern ? Eigen::Vector3d(-mesh.face_normal(f)) : Eigen::Vector3d(-dirs[static_cast<std::size_t>(i)]));
+    b.push_depth_m.push_back(depth[static_cast<std::size_t>(i)]);
+    b.vp_start.push_back(mesh.face_center(f));
+    intended += depth[static_cast<std::size_t>(i)] * b.push_direction.back();
+    depth_sum += depth[static_cast<std::size_t>(i)];
+  }
+  b.push_imbalance_ratio = depth_sum > 0 ? intended.norm() / (depth_sum / N) : 0.0;
+}
+}  // namespace
+
+model::Graph default_tree(int users) {
+  model::Graph g;
+  for (int k = 1; k < users; ++k) g.push_back({(k - 1) / 3, k});
+  return model::normalized(g);
+}
+
+void set_user_count(ScenarioSpec& spec, int users, const std::string& key) {
+  if (users < 2 || users > 64) bad(key + " = " + std::to_string(users) + " must be in [2, 64]");
+  if (users == spec.users) return;
+  spec.users = users;
+  spec.delay_ms = Eigen::MatrixXd::Constant(users, users, kDefaultNUserMeanDelayMs);
+  spec.delay_ms.diagonal().setZero();
+  spec.topology = default_tree(users);
+}
+
+void apply_topology_file(ScenarioSpec& spec, const std::string& path, const std::string& key) {
+  const std::string where = key + " = \"" + path + "\"";
+  std::ifstream in(path);
+  if (!in) bad(where + ": cannot open the file");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const std::exception& e) {
+    bad(where + ": not JSON (" + e.what() + ")");
+  }
+  if (!j.is_object() || !j.contains("users") || !j.contains("mean_delay_ms") || !j.contains("ranked") || j["ranked"].empty())
+    bad(where + ": not a haptic-topology --json file (needs users, mean_delay_ms and a non-empty ranked)");
+  try {
+    set_user_count(spec, j["users"].get<int>(), where + ": users");
+    model::Graph g;
+    for (const auto& e : j["ranked"][0]["edges"]) g.push_back({e[0].get<int>() - 1, e[1].get<int>() - 1});
+    model::validate_graph(g, spec.users, where + ": ranked[0].edges");
+    spec.topology = model::normalized(g);
+    const auto& m = j["mean_delay_ms"];
+    if (!m.is_array() || static_cast<int>(m.size()) != spec.users) bad(where + ": mean_delay_ms must be users x users");
+    for (int r = 0; r < spec.users; ++r) {
+      if (!m[r].is_array() || static_cast<int>(m[r].size()) != spec.users) bad(where + ": mean_delay_ms must be users x users");
+      for (int c = 0; c < spec.users; ++c) spec.delay_ms(r, c) = m[r][c].is_null() ? 0.0 : m[r][c].get<double>();
+    }
+    for (const auto& l : spec.topology)
+      if (m[l.a][l.b].is_null() || m[l.b][l.a].is_null())
+        bad(where + ": link " + std::to_string(l.a + 1) + "-" + std::to_string(l.b + 1) + " has no delay in mean_delay_ms");
+  } catch (const nlohmann::json::exception& e) {
+    bad(where + ": " + e.what());
+  }
+}
+
+UserScriptSpec::PushPattern parse_push_pattern(const std::string& text, const std::string& key) {
+  if (text == "spread") return UserScriptSpec::PushPattern::kSpread;
+  if (text == "asymmetric") return UserScriptSpec::PushPattern::kAsymmetric;
+  bad(key + " = \"" + text + "\" must be \"spread\" or \"asymmetric\"");
 }
 
 double BuiltScenario::damping_min_eq18(int user, const std::vector<double>& round_trip_sum_ticks) const {
@@ -194,12 +309,13 @@ rt::GoalScript BuiltScenario::goal_script(int i) const {
   const auto& s = spec.script;
   const Eigen::Vector3d p0 = vp_start[static_cast<std::size_t>(i)];
   const Eigen::Vector3d in = push_direction[static_cast<std::size_t>(i)];
+  const double depth = push_depth_m[static_cast<std::size_t>(i)];
   rt::GoalScript g(p0);
   switch (s.kind) {
     case UserScriptSpec::Kind::kPushHoldRelease:
       g.add(s.push_start_s, p0);
-      g.add(s.push_end_s, p0 + s.push_depth_m * in);
-      g.add(s.release_s, p0 + s.push_depth_m * in);
+      g.add(s.push_end_s, p0 + depth * in);
+      g.add(s.release_s, p0 + depth * in);
       g.add(s.release_s + s.retract_s, p0 - s.retract_depth_m * in);
       break;
     case UserScriptSpec::Kind::kPerturb:

@@ -34,6 +34,16 @@ struct UserScriptSpec {
   double perturb_duration_s = 0.2;
   std::uint64_t random_seed = 1;  // kRandom: every user's goal wanders through random keyframes
   double random_amplitude_m = 0.02;
+  // Where the users push (build_scenario). kSpread: directions whose sum is zero by construction
+  // (N = 4: the paper's tetrahedral pattern; other N: antipodal pairs, plus one planar triangle
+  // when N is odd), all at push_depth_m. kAsymmetric: each direction tilted by up to
+  // asymmetry_tilt_deg about a seeded random axis and each depth scaled by a seeded factor in
+  // [1 - asymmetry_depth, 1 + asymmetry_depth], so the users' intended pushes do not cancel and
+  // the hold-force balance (eq. 20) is a measurement, not a symmetry.
+  enum class PushPattern { kSpread, kAsymmetric } push_pattern = PushPattern::kSpread;
+  std::uint64_t push_seed = 1;
+  double asymmetry_tilt_deg = 30.0;
+  double asymmetry_depth = 0.5;
 };
 
 struct ScenarioSpec {
@@ -75,6 +85,20 @@ struct ScenarioSpec {
 std::vector<std::string> scenario_names();
 ScenarioSpec make_scenario(const std::string& name);
 
+// N users (2..64) for a scenario made for 4: the delay matrix becomes uniform at
+// default_mean_delay_ms and the topology the tree of degree <= 4 user k -> user (k - 2) / 3 + 1
+// (1-based), unless the caller sets its own (e.g. apply_topology_file). users == spec.users: no
+// change. Throws std::invalid_argument naming `key` when out of range. Not RT-safe.
+inline constexpr double kDefaultNUserMeanDelayMs = 10.0;
+void set_user_count(ScenarioSpec& spec, int users, const std::string& key = "--users");
+model::Graph default_tree(int users);
+// The eq. (27) optimizer's choice: haptic-topology's --json output (users, mean_delay_ms, ranked
+// best first). Sets spec.users, spec.delay_ms (no link = null: 0 where the graph has no link) and
+// spec.topology = ranked[0].edges. Throws std::invalid_argument naming `key` and the file.
+void apply_topology_file(ScenarioSpec& spec, const std::string& path, const std::string& key = "--topology-file");
+// "spread" | "asymmetric" (throws std::invalid_argument naming `key`).
+UserScriptSpec::PushPattern parse_push_pattern(const std::string& text, const std::string& key);
+
 // "1,2,3" (throws std::invalid_argument naming `what`). Topologies and delay matrices are parsed
 // by firmware/model (parse_graph_1based, parse_delay_matrix).
 std::vector<double> parse_list(const std::string& text, const std::string& what);
@@ -92,9 +116,13 @@ struct BuiltScenario {
   std::vector<double> damping;                  // B_i used
   std::vector<std::vector<int>> contact_nodes;  // contact mesh per user
   std::vector<Eigen::Vector3d> push_direction;  // inward, per user
+  std::vector<double> push_depth_m;             // hand goal travel into the object, per user
   std::vector<Eigen::Vector3d> vp_start;        // light contact point per user
   int trace_node = 0;
   bool passivity_condition_met = false;
+  // |sum_i depth_i d_i| / mean_i depth_i of the users' intended pushes (d_i = push_direction):
+  // ~0 for kSpread, clearly > 0 for kAsymmetric; the hold-force balance is measured against it.
+  double push_imbalance_ratio = 0;
 
   // eq. (18) minimum B_i of `user` for the given Nbar_ij + Nbar_ji (ticks), one per neighbour in
   // neighbors[user] order: the model's bounds (build_scenario) or measured ones (the station).

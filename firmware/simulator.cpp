@@ -387,6 +387,9 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["damping_min_Ns_per_m"] = b.damping_min;
   j["round_trip_half_sum_ms"] = b.round_trip_sum_ms;
   j["passivity_condition_met"] = b.passivity_condition_met;
+  j["push_pattern"] = s.script.push_pattern == UserScriptSpec::PushPattern::kAsymmetric ? "asymmetric" : "spread";
+  j["push_depth_m"] = b.push_depth_m;
+  j["push_imbalance_ratio"] = b.push_imbalance_ratio;
   j.update(metrics_json(r.metrics));
   j["passivity_bound_J"] = r.passivity_bound_J;
   j["port_energy_final_J"] = r.final_port_J;

@@ -25,7 +25,7 @@ using platform::config::View;
 void parse_station_section(View root, StationFile& f) {
   const View st = root["station"];
   if (!st) bad("[station]", "present (with at least id = 1..users)");
-  only_keys(st, "station", {"id", "scenario", "topology", "nodes", "duration_s", "seed", "push_start_s", "push_end_s", "release_s",
+  only_keys(st, "station", {"id", "scenario", "users", "topology", "delay_matrix", "pushes", "push_seed", "nodes", "duration_s", "seed", "push_start_s", "push_end_s", "release_s",
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
                             "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
@@ -34,7 +34,13 @@ void parse_station_section(View root, StationFile& f) {
   if (!st["id"]) bad("station.id", "present: this station's user number, 1..users");
   s.id = static_cast<int>(integer(st["id"], "station.id", 1, 1, 64));
   s.scenario = text(st["scenario"], "station.scenario", s.scenario);
+  s.users = static_cast<int>(integer(st["users"], "station.users", 0, 0, 64));
+  if (s.users == 1) bad("station.users", "0 (the scenario's) or a number of users in [2, 64]");
   s.topology = text(st["topology"], "station.topology", "");
+  s.delay_matrix = text(st["delay_matrix"], "station.delay_matrix", "");
+  s.pushes = text(st["pushes"], "station.pushes", "spread");
+  if (s.pushes != "spread" && s.pushes != "asymmetric") bad("station.pushes", "\"spread\" or \"asymmetric\"");
+  s.push_seed = static_cast<std::uint64_t>(integer(st["push_seed"], "station.push_seed", 1, 0, 1ll << 40));
   s.nodes = static_cast<int>(integer(st["nodes"], "station.nodes", 33, 4, 5000));
   s.duration_s = real(st["duration_s"], "station.duration_s", 0.0, 0.0, 3600.0, " (0 = the scenario's)");
   s.seed = static_cast<std::uint64_t>(integer(st["seed"], "station.seed", 1, 0, 1ll << 40));

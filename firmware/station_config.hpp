@@ -6,7 +6,14 @@
 //   [station]                        (firmware/)
 //   id = 1                           # this station's user number, 1..users of the scenario (required)
 //   scenario = "paper-best"          # built-in scene, gains, topology, delays, user scripts
+//   users = 0                        # number of users 2..64; 0 = the scenario's (4). Other N: uniform 10 ms
+//                                    # delays and a tree of degree <= 4 unless topology / delay_matrix are given
 //   topology = ""                    # "" = the scenario's; else e.g. "1-2,1-3,1-4" (same on all stations)
+//   delay_matrix = ""                # mean one-way delays in ms, users x users, "0,4;8,0" (row i receives from j):
+//                                    # the impairment emulator's means; "" = the scenario's (same on all stations)
+//   pushes = "spread"                # user scripts' push directions: "spread" (cancel by construction) or
+//                                    # "asymmetric" (tilted, unequal depths; scenario.hpp) (same on all stations)
+//   push_seed = 1                    # seed of the asymmetric pushes, [0, 2^40]
 //   nodes = 33                       # scene size (33 = the paper's ball), 4..5000
 //   duration_s = 0                   # run time from the run start, (0, 3600]; 0 = the scenario's
 //   seed = 1                         # run seed: impairment link seeds as the simulator's
@@ -91,7 +98,11 @@ namespace haptic::firmware {
 struct StationSection {
   int id = 1;
   std::string scenario = "paper-best";
+  int users = 0;
   std::string topology;
+  std::string delay_matrix;
+  std::string pushes = "spread";
+  std::uint64_t push_seed = 1;
   int nodes = 33;
   double duration_s = 0.0;
   std::uint64_t seed = 1;

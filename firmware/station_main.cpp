@@ -72,7 +72,9 @@ std::string sim_result_line(const std::string& name, const SimResult& r) {
 }
 
 struct SimArgs {
-  std::string scenario, out, topology, damping, delay_matrix, receive_rule = "newest";
+  std::string scenario, out, topology, damping, delay_matrix, topology_file, pushes = "spread", receive_rule = "newest";
+  int users = 0;
+  std::uint64_t push_seed = 1;
   double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1, push_end = -1, release = -1;
   std::uint64_t seed = 1;
   int nodes = -1, trace_every = 1, allowance = -1, trace_node = -1, tx_interval = 1;
@@ -99,6 +101,15 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   for (const auto& n : scenario_names()) names += (names.empty() ? "" : ", ") + n;
   sim->add_option("--scenario", a.scenario, "Scenario: " + names)->required();
   sim->add_option("--out", a.out, "Output directory (created): summary.json, trace.csv, series.csv, snapshots.json, *.png")->required();
+  sim->add_option("--users", a.users,
+                  "Number of users 2..64 (default: the scenario's 4; other N: uniform 10 ms delays and a tree of degree <= 4 "
+                  "unless --topology-file, --topology or --delay-matrix say otherwise)");
+  sim->add_option("--topology-file", a.topology_file,
+                  "haptic-topology --json output: its users, mean delays and best graph (eq. 27) replace the scenario's");
+  sim->add_option("--pushes", a.pushes,
+                  "spread: push directions summing to zero by construction; asymmetric: each tilted by up to 30 deg and its depth "
+                  "scaled in [0.5, 1.5] (seeded by --push-seed), so hold-force balance is measured (default spread)");
+  sim->add_option("--push-seed", a.push_seed, "Seed of the asymmetric pushes (default 1)");
   sim->add_option("--topology", a.topology, "Links overriding the scenario's, users from 1, e.g. 1-2,1-3,1-4");
   sim->add_option("--damping", a.damping, "Local damping B_i in N s/m, one per user, e.g. 14,5,4,5 (default: eq. (18) plus the margin)");
   sim->add_option("--duration", a.duration, "Simulated time in s (default: the scenario's: 20, 80 or 10)");
@@ -209,6 +220,14 @@ int run_command(const RunArgs& a) {
 int sim_command(const SimArgs& a) {
   try {
     ScenarioSpec spec = make_scenario(a.scenario);
+    if (!a.topology_file.empty()) apply_topology_file(spec, a.topology_file, "--topology-file");
+    if (a.users != 0) {
+      if (!a.topology_file.empty() && a.users != spec.users)
+        throw std::invalid_argument("--users " + std::to_string(a.users) + " differs from the " + std::to_string(spec.users) + " users of --topology-file");
+      set_user_count(spec, a.users, "--users");
+    }
+    spec.script.push_pattern = parse_push_pattern(a.pushes, "--pushes");
+    spec.script.push_seed = a.push_seed;
     if (!a.delay_matrix.empty()) spec.delay_ms = haptic::model::parse_delay_matrix(a.delay_matrix, "--delay-matrix", spec.users);
     if (!a.topology.empty()) spec.topology = haptic::model::parse_graph_1based(a.topology, spec.users, "--topology");
     if (!a.damping.empty()) spec.damping_Ns_per_m = parse_list(a.damping, "--damping");

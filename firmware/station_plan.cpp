@@ -37,7 +37,7 @@ std::string num(double v) {
 // ScenarioSpec::validate() names the simulator's flags; a station file writes them as [station] keys.
 std::string as_station_keys(std::string message) {
   static const std::pair<const char*, const char*> kKeys[] = {{"--topology", "station.topology"}, {"--nodes", "station.nodes"},
-                                                              {"--duration", "station.duration_s"}, {"--release", "station.release_s"},
+                                                              {"--duration", "station.duration_s"}, {"--release", "station.release_s"}, {"--delay-matrix", "station.delay_matrix"},
                                                               {"--push-end", "station.push_end_s"}};
   for (const auto& [flag, key] : kKeys)
     for (auto at = message.find(flag); at != std::string::npos; at = message.find(flag, at)) message.replace(at, std::strlen(flag), key);
@@ -152,6 +152,16 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
 ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) {
   const StationSection& s = f.station;
   ScenarioSpec spec = make_scenario(s.scenario);
+  if (s.users != 0) set_user_count(spec, s.users, "station.users");
+  if (!s.delay_matrix.empty()) {
+    try {
+      spec.delay_ms = model::parse_delay_matrix(s.delay_matrix, "delay_matrix", spec.users);
+    } catch (const std::invalid_argument& e) {
+      bad("station.delay_matrix: " + std::string(e.what()));
+    }
+  }
+  spec.script.push_pattern = parse_push_pattern(s.pushes, "station.pushes");
+  spec.script.push_seed = s.push_seed;
   if (!s.topology.empty()) {
     try {
       spec.topology = model::parse_graph_1based(s.topology, spec.users, "topology");

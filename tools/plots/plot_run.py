@@ -33,6 +33,9 @@ def main(run):
         "topology " + " ".join("%d-%d" % tuple(l) for l in summary["topology"]),
         ", ".join("%.1f" % b for b in summary["damping_Ns_per_m"]),
     )
+    if users > 8:  # a long title would cover the figure
+        b = summary["damping_Ns_per_m"]
+        title = "%s: %d users, %d links, B = %.1f..%.1f N s/m" % (summary["scenario"], users, len(summary["topology"]), min(b), max(b))
     rel = summary.get("release_time_s", None)
 
     def mark(ax):
@@ -48,7 +51,8 @@ def main(run):
     ax.set_xlabel("time (s)")
     ax.set_ylabel("node x-position (mm)")
     ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=8)
+    if users <= 8:
+        ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(os.path.join(run, "fig_node_position.png"), dpi=110)
     plt.close(fig)
@@ -60,7 +64,7 @@ def main(run):
         axs[0].plot(tr["t_s"][m], tr["force_x_N"][m], lw=1, label="u_x user %d" % u)
     axs[0].plot(se["t_s"], se["force_sum_x_N"], "k", lw=1.2, label="sum u_x")
     axs[0].set_ylabel("device force x (N)")
-    axs[0].legend(fontsize=7, ncol=3)
+    axs[0].legend(fontsize=7, ncol=3) if users <= 8 else None
     axs[0].set_title(title, fontsize=9)
     axs[1].plot(se["t_s"], se["force_sum_norm_N"], "k", lw=1)
     axs[1].set_ylabel("|sum_i u_i| (N)")
@@ -79,7 +83,7 @@ def main(run):
     axs[0].plot(se["t_s"], 1e3 * se["port_energy_total_J"], "k", lw=1.4, label="total")
     axs[0].axhline(-1e3 * summary["passivity_bound_J"], color="r", ls=":", lw=1, label="-d^2 (eq. 13)")
     axs[0].set_ylabel("port energy sum v^T f T (mJ)")
-    axs[0].legend(fontsize=7, ncol=3)
+    axs[0].legend(fontsize=7, ncol=3) if users <= 8 else None
     axs[0].set_title(title, fontsize=9)
     axs[1].plot(se["t_s"], 1e3 * se["controller_energy_total_J"], "k", lw=1.2, label="consensus controller (eq. 14)")
     axs[1].set_ylabel("controller energy (mJ)")
@@ -114,10 +118,10 @@ def main(run):
         contacts = sn["contact_nodes"]
         if snaps:
             x0 = np.array(snaps[0]["x_m"][0]).reshape(-1, 3)
-            rows, cols = len(snaps), users
+            rows, cols = len(snaps), min(users, 8)  # at most 8 copies drawn (a 64-user run: users 1-8)
             fig = plt.figure(figsize=(2.2 * cols, 2.1 * rows))
             for r, s in enumerate(snaps):
-                for u in range(users):
+                for u in range(cols):
                     ax = fig.add_subplot(rows, cols, r * cols + u + 1, projection="3d")
                     x = np.array(s["x_m"][u]).reshape(-1, 3)
                     c = x.mean(axis=0)

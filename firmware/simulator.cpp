@@ -387,7 +387,7 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["damping_min_Ns_per_m"] = b.damping_min;
   j["round_trip_half_sum_ms"] = b.round_trip_sum_ms;
   j["passivity_condition_met"] = b.passivity_condition_met;
-  j["push_pattern"] = s.script.push_pattern == UserScriptSpec::PushPattern::kAsymmetric ? "asymmetric" : "spread";
+  j["push_pattern"] = b.spec.script.push_pattern == UserScriptSpec::PushPattern::kAsymmetric ? "asymmetric" : "spread";
   j["push_depth_m"] = b.push_depth_m;
   j["push_imbalance_ratio"] = b.push_imbalance_ratio;
   j.update(metrics_json(r.metrics));

@@ -1,5 +1,7 @@
 #include "firmware/station_probe.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <sstream>
 #include <stdexcept>
 
@@ -9,6 +11,8 @@
 namespace haptic::firmware {
 
 namespace {
+
+std::int64_t bound_ticks(double bound_s, double T);
 
 std::string id_list(const std::vector<int>& ids) {
   std::string s;
@@ -26,12 +30,17 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
   const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);
   platform::LoopConfig lc = plan.file.loop;
   platform::PeriodicLoop<> loop(lc);
+  bool frozen = false;
   loop.clock().sleep_until_ns(t.epoch_ns - t.period_ns);  // the loop's first deadline is one period on: k = 0
   loop.run(
       [&](const platform::TickInfo& info) {
         const std::int64_t k = (info.scheduled_ns - t.epoch_ns + t.period_ns / 2) / t.period_ns;
         if (k >= t.probe_ticks) return false;
         if (r.first_probe_k < 0) r.first_probe_k = k;
+        if (k >= probe_freeze_tick(t.probe_ticks) && !frozen) {  // the bounds freeze; the last third exchanges them
+          frozen = true;
+          r.all_bounds_at_freeze = ep.finish_probing();
+        }
         ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
           r.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, b.spec.period_s);  // the neighbour's tick grid
         });
@@ -44,7 +53,12 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
   r.loop_missed_cycles = loop.stats().missed_cycles;
 }
 
+// A round trip in ticks of T (ceil), as net::RttEstimator::bound_ticks.
+std::int64_t bound_ticks(double bound_s, double T) { return static_cast<std::int64_t>(std::ceil(bound_s / T - 1e-9)); }
+
 }  // namespace
+
+std::int64_t probe_freeze_tick(std::int64_t probe_ticks) { return probe_ticks - probe_ticks / 3; }
 
 ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
   ProbeResult r;
@@ -61,8 +75,7 @@ ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const s
                 ": the station was ready too late for the common epoch (station.start_at / --start-at, station.start_delay_s)";
     return r;
   }
-  const bool all = ep.finish_probing();
-  collect_probe_result(plan, ep, all, "station.probe_s = " + std::to_string(plan.file.station.probe_s) + " s", r);
+  collect_probe_result(plan, ep, r.all_bounds_at_freeze, "station.probe_s = " + std::to_string(plan.file.station.probe_s) + " s", r);
   if (r.status == PhaseStatus::kOk) check_clock(plan, plan.times.epoch_ns, r);
   return r;
 }
@@ -74,7 +87,13 @@ void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, 
   for (std::size_t n = 0; n < nbrs.size(); ++n) {
     const auto p = static_cast<std::size_t>(plan.peers.nbr_to_peer[n]);
     if (!r.stats_at_end.peers[p].rtt_has_bound) r.missing.push_back(nbrs[n] + 1);
-    r.rtt_bound_ticks.push_back(ep.rtt_bound_ticks(p, T));
+    const net::PeerStats& ps = r.stats_at_end.peers[p];
+    r.own_rtt_bound_ticks.push_back(bound_ticks(ps.rtt_probe_bound_s, T));
+    r.peer_rtt_bound_ticks.push_back(ps.peer_rtt_probe_bound_s > 0 ? bound_ticks(ps.peer_rtt_probe_bound_s, T) : -1);
+    r.rtt_bound_ticks.push_back(static_cast<std::uint32_t>(std::max(r.own_rtt_bound_ticks.back(), r.peer_rtt_bound_ticks.back())));
+    if (ps.rtt_has_bound && r.peer_rtt_bound_ticks.back() < 0)
+      r.warnings.push_back("station " + std::to_string(nbrs[n] + 1) + "'s round-trip bound did not arrive while probing: ours alone is used, "
+                           "so the two ends may assume different bounds (station.agreement_ticks is the margin for that)");
   }
   const std::string after = " after " + after_what;
   // A neighbour with another scene, period, gains or protocol: say which, before anything else

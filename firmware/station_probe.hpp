@@ -23,7 +23,12 @@ namespace haptic::firmware {
 struct ProbeResult {
   PhaseStatus status = PhaseStatus::kFailed;
   std::string message;                          // why it failed ("" when ok)
-  std::vector<std::uint32_t> rtt_bound_ticks;   // per neighbour (net/: measured max x (1 + margin) + margin_s, in ticks)
+  // Per neighbour, in ticks: the round-trip bound both ends use, the larger of ours and the
+  // neighbour's (each: measured max x (1 + margin) + margin_s, fixed when its probing froze), and
+  // the two it came from (peer: -1 when its bound did not arrive: then ours alone).
+  std::vector<std::uint32_t> rtt_bound_ticks;
+  std::vector<std::int64_t> own_rtt_bound_ticks, peer_rtt_bound_ticks;
+  bool all_bounds_at_freeze = false;            // every neighbour had a bound when probing froze
   std::vector<int> missing;                     // neighbours (station ids) without a bound
   std::uint64_t push_failures = 0;
   std::uint64_t loop_ticks = 0, loop_overruns = 0, loop_missed_cycles = 0;  // the probing loop's counters
@@ -35,12 +40,16 @@ struct ProbeResult {
 };
 
 // Runs the probing ticks on the calling thread (absolute deadlines from the plan's epoch; the
-// endpoint must be started and in probing mode), then ends probing. kNoNeighbour when no
+// endpoint must be started and in probing mode). Round trips are measured over the first two
+// thirds (then probing is finished: the bounds freeze); in the last third each end learns the
+// other's frozen bound (net/ fingerprint messages), so both use the same, the larger. kNoNeighbour when no
 // neighbour answered at all, kFailed when some did not, kStopped on `stop`.
 // Before any round-trip complaint it compares the neighbours' fingerprints (refusing, kFailed,
 // with the fields that differ) and, after, checks the clock offset of each neighbour's tick grid
 // (warning, or kFailed with station.clock_offset_refuse).
 ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop);
+// The probing tick at which the round-trip bounds freeze: after two thirds of the probing ticks.
+std::int64_t probe_freeze_tick(std::int64_t probe_ticks);
 
 // After probing has been finished on `ep` (`all`: every neighbour has a bound): statistics,
 // bounds, missing neighbours, the fingerprint comparison and the status. `after` names how long

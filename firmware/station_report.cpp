@@ -115,6 +115,10 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
     l["index_delay_bound_ticks"] = o.build->bounds.index_guard_ticks[n];
     l["assumed_round_trip_ticks"] = o.build->bounds.assumed_sum_ticks[n];
   }
+  if (o.probe && n < o.probe->own_rtt_bound_ticks.size()) {  // each end's frozen probing bound; both use the larger
+    l["round_trip_bound_ticks_own"] = o.probe->own_rtt_bound_ticks[n];
+    l["round_trip_bound_ticks_peer"] = o.probe->peer_rtt_bound_ticks[n] >= 0 ? json(o.probe->peer_rtt_bound_ticks[n]) : json(nullptr);
+  }
   l["model_index_delay_bound_ticks"] = p.built->nbar_ticks(p.me, p.neighbours()[n]);
   if (o.build && o.build->core) {
     rt::StationCore& core = *o.build->core;

@@ -288,6 +288,7 @@ void Endpoint::publish_stats() {
     ps.rtt_min_s = p.rtt.min_s();
     ps.rtt_max_s = p.rtt.max_s();
     ps.rtt_bound_s = p.rtt.bound_s();
+    ps.rtt_probe_bound_s = p.rtt.probe_bound_s();
     ps.rtt_probing = p.rtt.probing();
     ps.rtt_has_bound = p.rtt.has_bound();
     ps.rtt_over_bound_events = p.rtt.over_bound_events();
@@ -432,6 +433,7 @@ void Endpoint::on_incarnation(PeerState& p, std::uint64_t incarnation) {
     p.previous_echo = {};
     p.stats.packets_received_incarnation = 0;
     p.offset_window_n = 0;
+    p.stats.peer_rtt_probe_bound_s = 0.0;  // its new probing fixes a new bound
   }
   p.has_incarnation = true;
   p.stats.incarnation = incarnation;
@@ -521,6 +523,7 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
       ++counters_.fingerprints_received;
       p.stats.has_fingerprint = true;
       p.stats.fingerprint = st.fingerprint;
+      if (st.round_trip_bound_ns != 0) p.stats.peer_rtt_probe_bound_s = static_cast<double>(st.round_trip_bound_ns) * 1e-9;
       continue;
     }
     if (st.value_count != value_count_) {  // a peer with another scene: never hand it to the tick
@@ -558,7 +561,8 @@ void Endpoint::send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns) {
   if (pushes_sent_ > 8 && pushes_sent_ % 25 != 0) return;
   for (auto& pp : peers_) {
     const std::size_t len =
-        encoder_.encode_fingerprint(pp->link.station_id, seq, stamp_ns, fingerprint_, tx_buf_.data(), tx_buf_.size());
+        encoder_.encode_fingerprint(pp->link.station_id, seq, stamp_ns, fingerprint_, tx_buf_.data(), tx_buf_.size(),
+                                    static_cast<std::uint64_t>(std::llround(pp->rtt.probe_bound_s() * 1e9)));
     if (len) send_now(pp->link.station_id, tx_buf_.data(), len, *pp);
   }
 }

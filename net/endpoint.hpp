@@ -115,6 +115,10 @@ struct PeerStats {
   double rtt_last_s = 0.0, rtt_mean_s = 0.0, rtt_min_s = 0.0, rtt_max_s = 0.0, rtt_bound_s = 0.0;
   bool rtt_probing = false, rtt_has_bound = false;
   std::uint64_t rtt_over_bound_events = 0, rtt_bound_generation = 0;
+  // The round-trip bound our probing fixed (0 before; over-bound events do not change it) and the
+  // one the neighbour's probing fixed for the same link, from its fingerprint messages (0: none
+  // received yet): the station uses the larger, so both ends assume the same bound.
+  double rtt_probe_bound_s = 0.0, peer_rtt_probe_bound_s = 0.0;
   // Incarnation of the neighbour (0 before its first packet) and how often it changed.
   std::uint64_t incarnation = 0, incarnation_changes = 0;
   // Up/down: up after its first packet, down after peer_silence_s without one.

@@ -25,6 +25,7 @@ bool RttEstimator::finish_probing() {
   probing_ = false;
   has_bound_ = true;
   bound_s_ = with_margin(probe_max_s_);
+  probe_bound_s_ = bound_s_;
   ++generation_;
   return true;
 }

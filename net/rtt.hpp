@@ -43,6 +43,8 @@ class RttEstimator {
   double max_s() const { return max_s_; }
   double mean_s() const { return samples_ ? sum_s_ / static_cast<double>(samples_) : 0.0; }
   double bound_s() const { return bound_s_; }
+  // The bound finish_probing() fixed (0 before): over-bound events later raise bound_s() only.
+  double probe_bound_s() const { return probe_bound_s_; }
   std::uint64_t over_bound_events() const { return over_bound_; }
   std::uint64_t generation() const { return generation_; }  // bumps when the bound changes
   // The bound as a round trip in ticks of period_s (ceil): N_bar_ij + N_bar_ji of eq. (18).
@@ -54,7 +56,7 @@ class RttEstimator {
   bool probing_ = false;
   bool has_bound_ = false;
   std::uint64_t samples_ = 0, probe_samples_ = 0, over_bound_ = 0, generation_ = 0;
-  double last_s_ = 0.0, min_s_ = 0.0, max_s_ = 0.0, sum_s_ = 0.0, probe_max_s_ = 0.0, bound_s_ = 0.0;
+  double last_s_ = 0.0, min_s_ = 0.0, max_s_ = 0.0, sum_s_ = 0.0, probe_max_s_ = 0.0, bound_s_ = 0.0, probe_bound_s_ = 0.0;
 };
 
 }  // namespace haptic::net

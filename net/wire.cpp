@@ -192,7 +192,8 @@ void Encoder::put_common(std::uint8_t* out, PayloadKind kind, std::uint8_t flags
 }
 
 std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
-                                        const Fingerprint& f, std::uint8_t* out, std::size_t cap) const {
+                                        const Fingerprint& f, std::uint8_t* out, std::size_t cap,
+                                        std::uint64_t round_trip_bound_ns) const {
   const std::size_t size = kHeaderBytes + kFingerprintBytes + kMacBytes;
   if (cap < size) return 0;
   namespace o = wire_offset;
@@ -211,6 +212,7 @@ std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, s
   put<std::uint64_t>(p, 8, f.scene_hash);
   put<std::uint64_t>(p, 16, f.period_ns);
   put<std::uint64_t>(p, 24, f.gains_hash);
+  put<std::uint64_t>(p, 32, round_trip_bound_ns);
   mac(out, kHeaderBytes + kFingerprintBytes, cfg_.key, out + kHeaderBytes + kFingerprintBytes);
   return size;
 }
@@ -413,6 +415,7 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
     out.fingerprint.scene_hash = get<std::uint64_t>(p, 8);
     out.fingerprint.period_ns = get<std::uint64_t>(p, 16);
     out.fingerprint.gains_hash = get<std::uint64_t>(p, 24);
+    out.round_trip_bound_ns = get<std::uint64_t>(p, 32);
     ++accepted_datagrams_;
     return DecodeStatus::fingerprint;
   }

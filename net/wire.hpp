@@ -106,7 +106,10 @@ struct Fingerprint {
   std::uint64_t period_ns = 0;    // the tick period T
   std::uint64_t gains_hash = 0;   // fingerprint_hash of the coupling gains (P_ij, D_ij, ...)
 };
-inline constexpr std::size_t kFingerprintBytes = 32;
+// The fingerprint message's payload: the Fingerprint (32 bytes), then a u64 that is not part of
+// the fingerprint: the sender's round-trip bound to the destination as its probing fixed it, in
+// ns (0: not yet), so both ends of a link can agree on the larger (net/README.md).
+inline constexpr std::size_t kFingerprintBytes = 40;
 // 64-bit keyless BLAKE2b of bytes (for Fingerprint's hashes). Not RT-safe (start-up).
 std::uint64_t fingerprint_hash(const void* data, std::size_t bytes);
 // "" when equal, else which fields differ, e.g. "scene nodes: 33 here, 27 at the peer". Not RT-safe.
@@ -151,8 +154,10 @@ class Encoder {
                               std::size_t cap) const;
   // Writes one fingerprint datagram (kind 2) to `dest` into out[0..cap); its size or 0 when
   // cap is too small. RT-safe.
+  // round_trip_bound_ns: our probing's round-trip bound to `dest` (0: none yet).
   std::size_t encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
-                                 const Fingerprint& f, std::uint8_t* out, std::size_t cap) const;
+                                 const Fingerprint& f, std::uint8_t* out, std::size_t cap,
+                                 std::uint64_t round_trip_bound_ns = 0) const;
   const WireConfig& config() const { return cfg_; }
 
  private:
@@ -172,6 +177,7 @@ struct DecodedState {
   bool new_incarnation = false;   // this datagram raised the sender's incarnation (its replay state was reset)
   PayloadKind kind = PayloadKind::state;
   Fingerprint fingerprint{};      // kind == fingerprint (DecodeStatus::fingerprint)
+  std::uint64_t round_trip_bound_ns = 0;  // kind == fingerprint: the sender's probing bound to us (0: none yet)
   std::uint64_t seq = 0;
   std::int64_t send_time_ns = 0;
   bool has_echo = false;

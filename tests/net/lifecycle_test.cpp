@@ -194,12 +194,13 @@ TEST(Fingerprints, RoundTripAndFieldByFieldDifference) {
   Decoder dec{wire_of(0, 1), peers, 99};
   Encoder enc{wire_of(1, 9)};
   std::vector<std::uint8_t> d(200);
-  d.resize(enc.encode_fingerprint(0, 3, 44, f, d.data(), d.size()));
+  d.resize(enc.encode_fingerprint(0, 3, 44, f, d.data(), d.size(), 21'500'000));  // our probing's bound to station 0: 21.5 ms
   CHECK_EQUAL(kHeaderBytes + kFingerprintBytes + kMacBytes, d.size());
   DecodedState st;
   CHECK(dec.decode(d.data(), d.size(), st) == DecodeStatus::fingerprint);
   CHECK(st.kind == PayloadKind::fingerprint);
   CHECK_EQUAL(std::string(""), fingerprint_difference(f, st.fingerprint));
+  CHECK_EQUAL(21'500'000u, st.round_trip_bound_ns);  // carried, not part of the fingerprint
   Fingerprint g = f;
   g.scene_nodes = 27;
   g.scene_hash = fingerprint_hash("scene-b", 7);

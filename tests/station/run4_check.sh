@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Short four-process run (tools/run4/run4.sh) and checks on the merged summary.json:
+# Short four-process run (tools/run4/run4.sh) with the options the lab configurations ship
+# (firmware/deploy/lab-4-stations: net.tx_spin = true, net.io_cpu = 0) and checks on the merged summary.json:
 # not diverged, passivity condition (18) met with the measured bounds, consensus reached after
 # the release, packets flowed on every directed link. Exit 77 (CTest: skipped) with the reason
 # when the raw-Ethernet run cannot be done here (needs root and `ip netns`).
@@ -15,7 +16,7 @@ fi
 rm -rf "$out"; mkdir -p "$out"
 port_base=$(( 47300 + ($$ % 100) * 5 ))
 "$repo/tools/run4/run4.sh" --transport "$mode" --bin "$bin" --out "$out" --duration 4 --push-end 1.5 --release 2.5 \
-  --probe 1.0 --seed 3 --no-plots --port-base "$port_base"
+  --probe 1.0 --seed 3 --no-plots --port-base "$port_base" --net tx_spin=true --net io_cpu=0
 /usr/bin/python3 - "$out/summary.json" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))

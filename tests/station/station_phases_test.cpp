@@ -45,7 +45,8 @@ bool has(const json& list, const std::string& name) {
 
 // The paper's star (1 is the hub): four run_station() calls on four threads with one common epoch.
 // station_extra[i] is appended to station i+1's [station] section.
-std::vector<int> run_four(const std::string& dir, int session, const std::vector<std::string>& station_extra) {
+std::vector<int> run_four(const std::string& dir, int session, const std::vector<std::string>& station_extra,
+                          const std::vector<std::string>& net_extra = {"", "", "", ""}) {
   const int base = test::station_port_base();
   const double epoch_s = static_cast<double>(read_clocks().monotonic_ns) * 1e-9 + 1.0;  // four plans (scene builds) on a loaded machine fit in 1 s
   std::vector<int> codes(4, -1);
@@ -59,6 +60,7 @@ std::vector<int> run_four(const std::string& dir, int session, const std::vector
     s.session = session;
     s.out_dir = dir;
     s.station_extra = station_extra[static_cast<std::size_t>(i - 1)];
+    s.net_extra = net_extra[static_cast<std::size_t>(i - 1)];
     threads.emplace_back([&codes, &stop, i, text = s.text(), epoch_s] {
       RunOverrides o;
       o.quiet = true;
@@ -118,6 +120,30 @@ TEST(StationPhases, FourStationsOnThreadsRunEveryPhaseAndExitZero) {
     CHECK(number(j["probe_loop"]["ticks"]) > 0);  // the probing phase ran (150 ticks when on time)
     CHECK(j["error"].is_null());
   }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, BothEndsOfEveryLinkUseTheSameRoundTripBoundTheLargerOfTheTwo) {
+  // The hub adds 20 ms to every bound it measures (net.rtt_margin_s), so its own bounds are about
+  // 10 ticks above the leaves'; each end learns the other's frozen bound while probing and both
+  // use the larger, so the guards and eq. (18) at both ends agree on every link.
+  const std::string dir = test::fresh_dir("agree");
+  const std::vector<int> codes = run_four(dir, 107, {kShort, kShort, kShort, kShort}, {"rtt_margin_s = 0.024\n", "", "", ""});
+  const json hub = station_json(dir, 1);
+  for (int i = 2; i <= 4; ++i) {
+    LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
+    const json leaf = station_json(dir, i);
+    const json& to_hub = leaf["links"][0];
+    json from_hub;
+    for (const auto& l : hub["links"])
+      if (l["peer"] == i) from_hub = l;
+    CHECK_TEXT(number(from_hub["round_trip_bound_ticks_own"]) >= number(to_hub["round_trip_bound_ticks_own"]) + 8, leaf.dump().c_str());
+    CHECK_EQUAL(from_hub["round_trip_bound_ticks_own"].get<int>(), to_hub["round_trip_bound_ticks_peer"].get<int>());
+    CHECK_EQUAL(to_hub["round_trip_bound_ticks_own"].get<int>(), from_hub["round_trip_bound_ticks_peer"].get<int>());
+    CHECK_EQUAL(from_hub["round_trip_bound_ticks"].get<int>(), to_hub["round_trip_bound_ticks"].get<int>());
+    CHECK_EQUAL(from_hub["index_delay_bound_ticks"].get<int>(), to_hub["index_delay_bound_ticks"].get<int>());
+  }
+  LONGS_EQUAL(kExitOk, codes[0]);
   std::filesystem::remove_all(dir);
 }
 

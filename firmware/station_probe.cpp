@@ -5,6 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "platform/clock.hpp"
 #include "platform/periodic_loop.hpp"
 #include "rt/gains.hpp"
 
@@ -23,11 +24,33 @@ std::string id_list(const std::vector<int>& ids) {
   return s;
 }
 
+// Neighbour packets into the tick grid; notes a neighbour already running the session (a run
+// packet, sequence number >= run_k0: its session started before ours). Not RT-safe.
+void take_neighbour_packets(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r) {
+  ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
+    const int n = plan.peers.sender_to_nbr[sender];
+    r.grid.add(n, seq, send_time_s, plan.built->spec.period_s);  // the neighbour's tick grid
+    if (n >= 0 && static_cast<std::int64_t>(seq) >= plan.times.run_k0 && r.running_session_from == 0) r.running_session_from = sender;
+  });
+}
+
+// Until the epoch: watches for a neighbour that already runs the session. True when one does.
+bool session_already_running(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, ProbeResult& r) {
+  const std::int64_t until = plan.times.epoch_ns - plan.times.period_ns;
+  while (!stop.load(std::memory_order_acquire) && net::monotonic_ns() < until) {
+    take_neighbour_packets(plan, ep, r);
+    if (r.running_session_from != 0) return true;
+    platform::sleep_until_monotonic_ns(std::min(until, net::monotonic_ns() + 10'000'000));
+  }
+  return false;
+}
+
 // The probing ticks: the rest state every tick, zero coupling; whatever arrives is dropped.
 void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, ProbeResult& r) {
   const StationTimes& t = plan.times;
   const BuiltScenario& b = *plan.built;
   const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);
+  if (session_already_running(plan, ep, stop, r)) return;
   platform::LoopConfig lc = plan.file.loop;
   platform::PeriodicLoop<> loop(lc);
   bool frozen = false;
@@ -41,9 +64,8 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
           frozen = true;
           r.all_bounds_at_freeze = ep.finish_probing();
         }
-        ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
-          r.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, b.spec.period_s);  // the neighbour's tick grid
-        });
+        take_neighbour_packets(plan, ep, r);
+        if (r.running_session_from != 0) return false;
         if (k >= 0 && !ep.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data())) ++r.push_failures;
         return true;
       },
@@ -67,6 +89,11 @@ ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const s
   if (stop.load(std::memory_order_acquire)) {
     r.status = PhaseStatus::kStopped;
     r.message = "stopped by a signal while probing";
+    return r;
+  }
+  if (r.running_session_from != 0) {  // the caller rejoins the running session instead
+    r.status = PhaseStatus::kOk;
+    r.message = "station " + std::to_string(r.running_session_from) + " already runs the session (its run packets arrive before our probing ended)";
     return r;
   }
   if (r.first_probe_k < 0 || r.first_probe_k * 2 > plan.times.probe_ticks) {  // opening the device/endpoint took most of it

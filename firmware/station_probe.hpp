@@ -29,6 +29,10 @@ struct ProbeResult {
   std::vector<std::uint32_t> rtt_bound_ticks;
   std::vector<std::int64_t> own_rtt_bound_ticks, peer_rtt_bound_ticks;
   bool all_bounds_at_freeze = false;            // every neighbour had a bound when probing froze
+  // A neighbour (station id) that already runs the session (a packet with sequence number >= our
+  // run_k0) before or while we probe: we are a restarted station whose fresh epoch (a relative
+  // station.start_delay_s) is not the session's; the caller rejoins instead (0: none).
+  int running_session_from = 0;
   std::vector<int> missing;                     // neighbours (station ids) without a bound
   std::uint64_t push_failures = 0;
   std::uint64_t loop_ticks = 0, loop_overruns = 0, loop_missed_cycles = 0;  // the probing loop's counters

@@ -281,6 +281,12 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
     pr.probed = true;
     if (pr.probe.status == PhaseStatus::kStopped) return;
     if (pr.probe.status != PhaseStatus::kOk) return pr.fail(pr.probe.status, pr.probe.message);
+    if (pr.probe.running_session_from != 0) {  // a restart with a fresh epoch (relative start_delay_s): rejoin
+      log.say("rejoining: " + pr.probe.message + "; this station is a restart, its own epoch is not the session's");
+      plan.times.rejoin = true;
+      pr.lifecycle["rejoin_detected_from_station"] = pr.probe.running_session_from;
+      if (!rejoin_session(plan, res, pr, stop, log)) return;
+    }
   }
   note_probe(plan, pr, log);
   pr.build = build_station_core(plan, pr.probe, res.dev.device->capabilities().min_damping_Ns_per_m);

@@ -5,6 +5,8 @@
 # tools/run4/rejoin_check.py checks each run: rejoined (coupled) within 2 s of its restart, the copies
 # in consensus (< 1 mm) at the end, no station's tick-to-tick device force change above the hold
 # force around the rejoin. Bounded: run4.sh stops every process after its planned time + 15 s.
+# Third case: leaf 2 restarted WITHOUT the session's --start-at, so it plans a fresh future epoch
+# (station.start_delay_s) and must see from its neighbours' run packets that the session runs.
 # Usage: rejoin_check.sh HAPTIC_STATION_BIN WORK_DIR. No root needed (UDP on 127.0.0.1).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -12,13 +14,14 @@ repo="$(cd "$here/../.." && pwd)"
 bin="$1"; work="$2"
 rm -rf "$work"; mkdir -p "$work"
 rc=0
-for who in 2 1; do
-  out="$work/kill-$who"
+for case in 2 1 2-fresh; do
+  who="${case%%-*}"; extra=(); [ "$case" = 2-fresh ] && extra=(--restart-fresh-epoch)
+  out="$work/kill-$case"
   if ! "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out" --port-base 47430 --duration 14 --release 10 \
-       --kill "$who:5:8" --no-plots --state-every 1 --station max_no_neighbour_fraction=0.5 > "$work/run4-kill-$who.log" 2>&1; then
-    echo "rejoin_check.sh: the run with station $who killed failed:" >&2; tail -n 30 "$work/run4-kill-$who.log" >&2; rc=1; continue
+       --kill "$who:5:8" "${extra[@]}" --no-plots --state-every 1 --station max_no_neighbour_fraction=0.5 > "$work/run4-kill-$case.log" 2>&1; then
+    echo "rejoin_check.sh: the run with station $who killed ($case) failed:" >&2; tail -n 30 "$work/run4-kill-$case.log" >&2; rc=1; continue
   fi
-  echo "--- station $who SIGKILLed at 5 s, restarted at 8 s"
+  echo "--- station $who SIGKILLed at 5 s, restarted at 8 s${extra[*]:+ with a fresh epoch (no --start-at)}"
   /usr/bin/python3 "$repo/tools/run4/rejoin_check.py" "$out" || rc=1
 done
 exit $rc

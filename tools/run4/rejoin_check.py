@@ -30,15 +30,21 @@ if rj is None:
     fails.append(f'station {who} did not rejoin (no lifecycle.rejoin in station-{who}.json)')
     latency = math.nan
 else:
-    # Tick k of the learned epoch is at (planned run start + shift) + (k - run_k0) T on CLOCK_MONOTONIC.
-    run0 = restart['run_start_monotonic_s'] + rj['epoch_shift_ms'] * 1e-3
-    coupled_mono = run0 + (rj['coupled_at_tick'] - js[who]['run_k0']) * T  # its first run tick (first_run_k)
+    # Tick k of the learned epoch (the restarted station's epoch_monotonic_s, which the rejoin set)
+    # is at epoch + k T on CLOCK_MONOTONIC; its first run tick is coupled_at_tick. (Not from the
+    # planned epoch: a restart with a fresh epoch, --restart-fresh-epoch, planned another one.)
+    coupled_mono = js[who]['epoch_monotonic_s'] + rj['coupled_at_tick'] * T
     latency = coupled_mono - restart['restart_monotonic_s']
+    other = 1 if who != 1 else 2
+    epoch_err_ms = (js[who]['epoch_monotonic_s'] - js[other]['epoch_monotonic_s']) * 1e3
     print(f'rejoin: station {who} restarted at run time {restart["restart_run_s"]} s, coupled {latency:.3f} s later '
-          f'(epoch from station {rj["epoch_from_station"]}: {rj["epoch_shift_ms"]:+.3f} ms from the planned one, '
-          f'+- {rj["epoch_uncertainty_ms"]:.3f} ms; state of station {rj["state_from_station"]} tick {rj["state_tick"]})')
-    if not latency <= a.max_rejoin_s:
-        fails.append(f'rejoin took {latency:.3f} s > {a.max_rejoin_s} s')
+          f'(epoch from station {rj["epoch_from_station"]}: {rj["epoch_shift_ms"]:+.3f} ms from its planned one, '
+          f'{epoch_err_ms:+.3f} ms from station {other}\'s, +- {rj["epoch_uncertainty_ms"]:.3f} ms; '
+          f'state of station {rj["state_from_station"]} tick {rj["state_tick"]})')
+    if not 0 <= latency <= a.max_rejoin_s:
+        fails.append(f'rejoin took {latency:.3f} s, not within [0, {a.max_rejoin_s}] s')
+    if not abs(epoch_err_ms) <= 20:
+        fails.append(f'learned epoch {epoch_err_ms:+.3f} ms from the session\'s (more than 20 ms)')
 
 def read_rows(path):
     with open(path) as f:

@@ -15,6 +15,10 @@
 #                                        same configuration at RESTART_S: it rejoins; its first log is
 #                                        station-I.log, the restarted one's station-I-restart.log; no
 #                                        merge, tools/run4/rejoin_check.py checks the run instead)
+#                [--restart-fresh-epoch] (with --kill: restart WITHOUT --start-at, so the restarted
+#                                        station plans a fresh future epoch from station.start_delay_s
+#                                        and must find out from its neighbours' packets that the
+#                                        session already runs)
 # Exit 0 when all four stations finished and the merge succeeded. Bounded: every process is
 # sent SIGTERM after its planned time + 15 s, SIGKILL 5 s later.
 set -euo pipefail
@@ -22,7 +26,7 @@ here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../.." && pwd)"
 transport=udp; bin="$repo/build/bin/haptic-station"; out=""; scenario=paper-best
 duration=8; push_end=2.5; release=5; seed=1; probe=1.5; preset=paper; port_base=47210
-nodes=33; state_every=5; plots=1; prio=80; net_extra=(); station_extra=(); kill_spec=""
+nodes=33; state_every=5; plots=1; prio=80; net_extra=(); station_extra=(); kill_spec=""; fresh_epoch=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --transport) transport="$2"; shift 2 ;;
@@ -44,7 +48,8 @@ while [ $# -gt 0 ]; do
     --station) [[ "$2" == *=* ]] || { echo "run4.sh: --station needs KEY=VALUE, got '$2'" >&2; exit 2; }; station_extra+=("$2"); shift 2 ;;
     --kill) [[ "$2" =~ ^[1-4]:[0-9.]+:[0-9.]+$ ]] || { echo "run4.sh: --kill needs I:KILL_S:RESTART_S (e.g. 2:5:8), got '$2'" >&2; exit 2; }
             kill_spec="$2"; shift 2 ;;
-    -h|--help) sed -n 2,19p "$0"; exit 0 ;;
+    --restart-fresh-epoch) fresh_epoch=1; shift ;;
+    -h|--help) sed -n 2,23p "$0"; exit 0 ;;
     *) echo "run4.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -148,6 +153,7 @@ if [ -n "$kill_spec" ]; then
   sleep_to "$(/usr/bin/python3 -c "print($run0 + $restart_s)")"
   restart_mono=$(/usr/bin/python3 -c 'import time; print("%.6f" % time.monotonic())')
   cmd=("$bin" run --config "$out/station-$kill_i.toml" --start-at "$start_at")
+  [ "$fresh_epoch" -eq 1 ] && cmd=("$bin" run --config "$out/station-$kill_i.toml")  # epoch = now + station.start_delay_s
   if [ "$transport" = raw ]; then cmd=(ip netns exec "$(ns $((kill_i - 1)))" "${cmd[@]}"); fi
   "${cmd[@]}" > "$out/station-$kill_i-restart.log" 2>&1 &
   pids[$((kill_i - 1))]=$!

@@ -102,6 +102,9 @@ ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const s
                 ": the station was ready too late for the common epoch (station.start_at / --start-at, station.start_delay_s)";
     return r;
   }
+  // A neighbour with too few round trips at the freeze gets its bound now, from all of probing (its
+  // end then may not learn ours in time: the warning in collect_probe_result says so).
+  if (!r.all_bounds_at_freeze) r.all_bounds_at_freeze = ep.finish_probing();
   collect_probe_result(plan, ep, r.all_bounds_at_freeze, "station.probe_s = " + std::to_string(plan.file.station.probe_s) + " s", r);
   if (r.status == PhaseStatus::kOk) check_clock(plan, plan.times.epoch_ns, r);
   return r;

@@ -25,7 +25,7 @@ using platform::config::View;
 void parse_station_section(View root, StationFile& f) {
   const View st = root["station"];
   if (!st) bad("[station]", "present (with at least id = 1..users)");
-  only_keys(st, "station", {"id", "scenario", "users", "topology", "delay_matrix", "pushes", "push_seed", "nodes", "duration_s", "seed", "push_start_s", "push_end_s", "release_s",
+  only_keys(st, "station", {"id", "scenario", "users", "topology", "delay_matrix", "pushes", "push_seed", "allow_routed_peers", "run_subdir", "nodes", "duration_s", "seed", "push_start_s", "push_end_s", "release_s",
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
                             "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
@@ -41,6 +41,8 @@ void parse_station_section(View root, StationFile& f) {
   s.pushes = text(st["pushes"], "station.pushes", "spread");
   if (s.pushes != "spread" && s.pushes != "asymmetric") bad("station.pushes", "\"spread\" or \"asymmetric\"");
   s.push_seed = static_cast<std::uint64_t>(integer(st["push_seed"], "station.push_seed", 1, 0, 1ll << 40));
+  s.allow_routed_peers = boolean(st["allow_routed_peers"], "station.allow_routed_peers", false);
+  s.run_subdir = boolean(st["run_subdir"], "station.run_subdir", false);
   s.nodes = static_cast<int>(integer(st["nodes"], "station.nodes", 33, 4, 5000));
   s.duration_s = real(st["duration_s"], "station.duration_s", 0.0, 0.0, 3600.0, " (0 = the scenario's)");
   s.seed = static_cast<std::uint64_t>(integer(st["seed"], "station.seed", 1, 0, 1ll << 40));

@@ -14,6 +14,11 @@
 //   pushes = "spread"                # user scripts' push directions: "spread" (cancel by construction) or
 //                                    # "asymmetric" (tilted, unequal depths; scenario.hpp) (same on all stations)
 //   push_seed = 1                    # seed of the asymmetric pushes, [0, 2^40]
+//   run_subdir = false               # true: outputs go to out_dir/<UTC time>-s<session_id>/ (created), so a new run
+//                                    # or a restart never overwrites an earlier one (the lab PCs' systemd units)
+//   allow_routed_peers = false       # false: every UDP peer must be on loopback or on a network one of this
+//                                    # machine's interfaces is on (a lab file run on the wrong machine must not
+//                                    # send packets out of its default route); true: peers across routers
 //   nodes = 33                       # scene size (33 = the paper's ball), 4..5000
 //   duration_s = 0                   # run time from the run start, (0, 3600]; 0 = the scenario's
 //   seed = 1                         # run seed: impairment link seeds as the simulator's
@@ -103,6 +108,8 @@ struct StationSection {
   std::string delay_matrix;
   std::string pushes = "spread";
   std::uint64_t push_seed = 1;
+  bool allow_routed_peers = false;
+  bool run_subdir = false;
   int nodes = 33;
   double duration_s = 0.0;
   std::uint64_t seed = 1;

@@ -1,12 +1,17 @@
 #include "firmware/station_plan.hpp"
 
+#include <arpa/inet.h>
+#include <ifaddrs.h>
+#include <netinet/in.h>
 #include <sched.h>
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <sstream>
 #include <stdexcept>
@@ -121,6 +126,7 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
     bad("the wire station id (" + f.net_section + ".station_id / station.id) must be station.id = " + std::to_string(f.station.id));
   p->peers = plan_peer_table(f, *p->built, p->me, p->net);
   check_address_families(f, p->net);
+  check_peer_networks(f, p->net);
   check_io_cpu(f, p->net);
   check_tx_spin(f, p->net);
   apply_station_impairments(f, spec, p->net);  // the simulator's link set-up and seed rule
@@ -137,6 +143,16 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   p->net.endpoint.fingerprint = p->fingerprint;  // sent to every neighbour (net/)
   p->net.endpoint.io_priority = f.station.io_priority;  // the I/O thread's RtThread (SCHED_FIFO or 0)
   p->out_dir = o.out_dir.empty() ? f.station.out_dir : o.out_dir;
+  if (f.station.run_subdir) {  // a folder per run: <UTC time of planning>-s<session id>
+    const std::time_t secs = static_cast<std::time_t>(now.realtime_ns / 1'000'000'000);
+    std::tm utc{};
+    gmtime_r(&secs, &utc);
+    char stamp[32];
+    std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &utc);
+    char sess[16];
+    std::snprintf(sess, sizeof sess, "%08x", p->net.endpoint.wire.session_id);
+    p->out_dir += std::string("/") + stamp + "-s" + sess;
+  }
   check_out_dir_creatable(p->out_dir, o.out_dir.empty() ? "station.out_dir" : "--out");
   p->base_path = p->out_dir + "/station-" + std::to_string(f.station.id);
   plan_records(*p);
@@ -254,6 +270,61 @@ void check_address_families(const StationFile& f, const net::NetConfig& nc) {
     const std::string key = f.peer_key(p, "address");
     if (net::parse_udp_address(nc.udp_peers[p].address, key, len).ss_family != family)
       bad(key + " = \"" + nc.udp_peers[p].address + "\" must be the same address family (IPv4 or IPv6) as " + bind_key + " = \"" + nc.bind + "\"");
+  }
+}
+
+namespace {
+// Is `peer` on loopback or on the network of interface address `ifa` with mask `mask`? Not RT-safe.
+bool same_network(const sockaddr_storage& peer, const sockaddr* ifa, const sockaddr* mask) {
+  if (!ifa || !mask || ifa->sa_family != peer.ss_family) return false;
+  const unsigned char *a = nullptr, *m = nullptr, *p = nullptr;
+  std::size_t n = 0;
+  if (peer.ss_family == AF_INET) {
+    a = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in*>(ifa)->sin_addr);
+    m = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in*>(mask)->sin_addr);
+    p = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in*>(&peer)->sin_addr);
+    n = 4;
+  } else if (peer.ss_family == AF_INET6) {
+    a = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in6*>(ifa)->sin6_addr);
+    m = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in6*>(mask)->sin6_addr);
+    p = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in6*>(&peer)->sin6_addr);
+    n = 16;
+  } else {
+    return false;
+  }
+  for (std::size_t i = 0; i < n; ++i)
+    if ((a[i] & m[i]) != (p[i] & m[i])) return false;
+  return true;
+}
+
+std::string address_text(const sockaddr* sa) {
+  char buf[INET6_ADDRSTRLEN] = "?";
+  if (sa->sa_family == AF_INET) inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in*>(sa)->sin_addr, buf, sizeof buf);
+  if (sa->sa_family == AF_INET6) inet_ntop(AF_INET6, &reinterpret_cast<const sockaddr_in6*>(sa)->sin6_addr, buf, sizeof buf);
+  return buf;
+}
+}  // namespace
+
+void check_peer_networks(const StationFile& f, const net::NetConfig& nc) {
+  if (nc.transport != "udp" || f.station.allow_routed_peers) return;
+  ifaddrs* list = nullptr;
+  if (getifaddrs(&list) != 0) bad(std::string("cannot list this machine's interfaces (getifaddrs: ") + std::strerror(errno) + ") to check the peers' networks");
+  std::unique_ptr<ifaddrs, void (*)(ifaddrs*)> guard(list, freeifaddrs);
+  for (std::size_t i = 0; i < nc.udp_peers.size(); ++i) {
+    const std::string key = f.peer_key(i, "address");
+    socklen_t len = 0;
+    const sockaddr_storage peer = net::parse_udp_address(nc.udp_peers[i].address, key, len);
+    std::string nets;
+    bool on_a_network = false;
+    for (const ifaddrs* it = list; it; it = it->ifa_next) {
+      if (!it->ifa_addr || (it->ifa_addr->sa_family != AF_INET && it->ifa_addr->sa_family != AF_INET6)) continue;
+      on_a_network = on_a_network || same_network(peer, it->ifa_addr, it->ifa_netmask);
+      nets += std::string(nets.empty() ? "" : ", ") + it->ifa_name + " " + address_text(it->ifa_addr);
+    }
+    if (!on_a_network)
+      bad(key + " = \"" + nc.udp_peers[i].address + "\" is on no network of this machine's interfaces (" + nets +
+          "): refusing to send packets to it through a router by accident (is this the lab PC the file was written for?); "
+          "set station.allow_routed_peers = true for stations across routers");
   }
 }
 

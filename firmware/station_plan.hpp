@@ -96,6 +96,12 @@ PlanResult plan_station(const StationFile& file, const RunOverrides& overrides, 
 // The individual checks (each throws std::invalid_argument naming the key; exposed for tests).
 PeerTable plan_peer_table(const StationFile& file, const BuiltScenario& built, int me, const net::NetConfig& net);
 void check_address_families(const StationFile& file, const net::NetConfig& net);
+// Network safety: a UDP peer must be on loopback or on a network one of this machine's interfaces
+// is on (its address and netmask), unless station.allow_routed_peers = true (stations across
+// routers, the Internet). A lab file's private-range addresses on a machine outside that lab
+// would otherwise send packets out of its default route. Throws naming the peer's key and listing
+// this machine's interface addresses. Not RT-safe (getifaddrs).
+void check_peer_networks(const StationFile& file, const net::NetConfig& net);
 void check_io_cpu(const StationFile& file, const net::NetConfig& net);
 void check_tx_spin(const StationFile& file, const net::NetConfig& net);
 void check_out_dir_creatable(const std::string& dir, const std::string& key);

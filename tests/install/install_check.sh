@@ -1,53 +1,77 @@
 #!/usr/bin/env bash
-# Installed binaries find their scripts in the install tree, not in the source tree:
-#   1. cmake --install BUILD --prefix <tmp> --component Unspecified (binaries + scripts; the deploy
-#      component writes to /etc and is checked in step 4 under DESTDIR instead);
-#   2. the installed haptic-station carries no path into the source tree's tools/;
-#   3. run from an unrelated working directory with HAPTIC_TOOLS_DIR unset, a short `sim` draws
-#      its PNG figures with <tmp>/share/haptic/tools/plots/plot_run.py (skipped, exit 77, when
-#      /usr/bin/python3 cannot import matplotlib);
-#   4. DESTDIR=<tmp2> cmake --install --prefix /opt/haptic-check --component deploy: the systemd
-#      unit starts /opt/haptic-check/bin/haptic-station (the prefix given at install time).
-# Usage: install_check.sh BUILD_DIR SOURCE_DIR WORK_DIR
+# The install tree works from any prefix, without the source tree:
+#   1. DESTDIR=<tmp>/destdir cmake --install BUILD --prefix /opt/haptic-check (every component):
+#      every file lands under the prefix (nothing in /etc or /usr unless HAPTIC_SYSTEM_FILES_IN_ETC);
+#      the systemd unit starts /opt/haptic-check/bin/haptic-station with /opt/haptic-check/etc/haptic/;
+#   2. cmake --install BUILD --prefix <tmp>/prefix: every program the README and the deploy guide
+#      name is installed (haptic-station, -topology, -study, -jitter, -devices, haptic-lab, the
+#      figure, merge, report and trace scripts); no installed file names the source or build tree;
+#   3. with the source tree HIDDEN (a private mount namespace with an empty tmpfs over SOURCE_DIR,
+#      which holds the build tree too; needs root and unshare, else said plainly and only step 2's
+#      path check stands): haptic-devices lists devices, a short `sim` draws its PNG figures with the
+#      installed plot script, and haptic-lab plans and checks a two-station lab from the installed
+#      example directory (skipped, exit 77, when /usr/bin/python3 cannot import matplotlib).
+# Usage: install_check.sh BUILD_DIR SOURCE_DIR
 set -euo pipefail
 build="$1"
-src="$2"
-work="$3"
-rm -rf "$work"
-mkdir -p "$work/elsewhere"
-prefix="$work/prefix"
-cmake --install "$build" --prefix "$prefix" --component Unspecified >"$work/install.log"
-bin="$prefix/bin/haptic-station"
-script="$prefix/share/haptic/tools/plots/plot_run.py"
-[ -x "$bin" ] || { echo "FAIL: $bin not installed"; exit 1; }
-[ -f "$script" ] || { echo "FAIL: $script not installed"; exit 1; }
-if grep -aq "$src/tools" "$bin"; then
-  echo "FAIL: the installed binary names the source tree ($src/tools)"
-  exit 1
-fi
-echo "ok: installed $bin and $script; the binary names no source path"
+src="$(cd "$2" && pwd)"
+work="$(mktemp -d /tmp/haptic-install-check.XXXXXX)"   # outside the source tree (hidden in step 3)
+trap 'rm -rf "$work"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
 
-# Deploy unit (step 4) first: it does not need matplotlib.
 dest="$work/destdir"
-DESTDIR="$dest" cmake --install "$build" --prefix /opt/haptic-check --component deploy >"$work/install-deploy.log"
-unit=$(find "$dest" -name 'haptic-station@.service' | head -1)
-[ -n "$unit" ] || { echo "FAIL: no haptic-station@.service under DESTDIR"; exit 1; }
-grep -q '^ExecStart=/opt/haptic-check/bin/haptic-station ' "$unit" ||
-  { echo "FAIL: $unit does not start the binary of the install prefix:"; grep ExecStart "$unit"; exit 1; }
-echo "ok: systemd unit starts /opt/haptic-check/bin/haptic-station"
+DESTDIR="$dest" cmake --install "$build" --prefix /opt/haptic-check >"$work/install-destdir.log"
+outside=$(cd "$dest" && find . -type f ! -path './opt/haptic-check/*' | head -5)
+[ -z "$outside" ] || fail "installed outside the prefix: $outside"
+unit="$dest/opt/haptic-check/lib/systemd/system/haptic-station@.service"
+[ -f "$unit" ] || fail "no $unit"
+grep -q '^ExecStart=/opt/haptic-check/bin/haptic-station run --config /opt/haptic-check/etc/haptic/station-%i.toml$' "$unit" ||
+  { grep ExecStart "$unit"; fail "the unit does not follow the prefix"; }
+echo "ok: every file under the prefix /opt/haptic-check; the unit starts /opt/haptic-check/bin/haptic-station with /opt/haptic-check/etc/haptic/"
+
+prefix="$work/prefix"
+cmake --install "$build" --prefix "$prefix" >"$work/install.log"
+for p in bin/haptic-station bin/haptic-topology bin/haptic-study bin/haptic-jitter bin/haptic-devices bin/haptic-lab \
+         share/haptic/tools/plots/plot_run.py share/haptic/tools/report/make_report.py \
+         share/haptic/tools/trace/record.sh share/haptic/tools/trace/analyze.py share/haptic/tools/jitter/compare_cyclictest.sh \
+         share/haptic/examples/lab/loopback-16.toml; do
+  [ -e "$prefix/$p" ] || fail "$p not installed"
+done
+named=$(grep -rlaF -e "$src/tools" -e "$src/build" "$prefix" | head -3 || true)
+[ -z "$named" ] || fail "installed files name the source tree: $named"
+echo "ok: the programs the README names are installed; none names the source tree $src"
 
 if ! /usr/bin/python3 -c 'import matplotlib, numpy' 2>/dev/null; then
   echo "SKIPPED: /usr/bin/python3 cannot import matplotlib/numpy (apt-get install python3-matplotlib): figures not checked"
   exit 77
 fi
-out="$work/elsewhere/run"
-(cd "$work/elsewhere" && env -u HAPTIC_TOOLS_DIR "$bin" sim --scenario paper-best --duration 4 --push-end 1 --release 2 \
-   --trace-every 10 --quiet --out "$out") >"$work/sim.log" 2>&1 || { cat "$work/sim.log"; echo "FAIL: sim failed"; exit 1; }
-if grep -q "no figures\|figure script failed" "$work/sim.log"; then
-  cat "$work/sim.log"
-  echo "FAIL: the installed binary drew no figures"
-  exit 1
+cat >"$work/two.toml" <<EOF
+[lab]
+users = 2
+duration_s = 2.0
+push_end_s = 0.5
+release_s = 1.0
+[topology]
+links = "1-2"
+EOF
+steps=$(cat <<EOF
+set -e
+cd "$work"
+[ "\${HIDDEN:-0}" = 0 ] || [ ! -e "$src/CMakeLists.txt" ] || { echo "source tree still visible"; exit 1; }
+env -u HAPTIC_TOOLS_DIR -u HAPTIC_BIN_DIR PATH=/usr/bin:/bin "$prefix/bin/haptic-devices" > devices.log 2>&1 || { cat devices.log; echo "haptic-devices failed"; exit 1; }
+env -u HAPTIC_TOOLS_DIR PATH=/usr/bin:/bin "$prefix/bin/haptic-station" sim --scenario paper-best --users 5 --pushes asymmetric --duration 4 \
+    --push-end 1 --release 2 --trace-every 10 --quiet --out "$work/run" > sim.log 2>&1 || { cat sim.log; echo "sim failed"; exit 1; }
+if grep -q "no figures\|figure script failed" sim.log; then cat sim.log; echo "no figures"; exit 1; fi
+ls "$work/run"/*.png > /dev/null
+env -u HAPTIC_TOOLS_DIR -u HAPTIC_BIN_DIR PATH=/usr/bin:/bin "$prefix/bin/haptic-lab" plan "$work/two.toml" --runs-dir "$work/runs" > lab.log 2>&1 || { cat lab.log; exit 1; }
+env -u HAPTIC_TOOLS_DIR -u HAPTIC_BIN_DIR PATH=/usr/bin:/bin "$prefix/bin/haptic-lab" check "\$(tail -1 lab.log)" >> lab.log 2>&1 || { cat lab.log; exit 1; }
+EOF
+)
+if [ "$(id -u)" -eq 0 ] && unshare -m true 2>/dev/null; then
+  HIDDEN=1 unshare -m bash -c "mount -t tmpfs none '$src' && $steps" || fail "from the install tree with the source tree hidden (see above)"
+  echo "ok: with $src hidden (private mount namespace): haptic-devices ran, sim drew $(ls "$work/run"/*.png | wc -l) figures, haptic-lab planned and checked a 2-station lab"
+else
+  echo "NOTE: not root or no unshare: the source tree is not hidden; running from $work with PATH=/usr/bin:/bin instead"
+  bash -c "$steps" || fail "from the install tree (see above)"
+  echo "ok: haptic-devices ran, sim drew figures, haptic-lab planned and checked a 2-station lab"
 fi
-pngs=$(find "$out" -name '*.png' | wc -l)
-[ "$pngs" -gt 0 ] || { cat "$work/sim.log"; echo "FAIL: no PNG in $out"; exit 1; }
-echo "ok: the installed haptic-station, run from $work/elsewhere, drew $pngs figures with the installed plot script"

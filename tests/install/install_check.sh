@@ -49,8 +49,8 @@ cat >"$work/two.toml" <<EOF
 [lab]
 users = 2
 duration_s = 2.0
-push_end_s = 0.5
-release_s = 1.0
+push_end_s = 1.0
+release_s = 1.5
 [topology]
 links = "1-2"
 EOF

@@ -99,6 +99,11 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
   l["one_way_mean_ms"] = or_null(rx, 1e3 * ps.one_way_mean_s);
   l["one_way_max_ms"] = or_null(rx, 1e3 * ps.one_way_max_s);
   l["tx_packets_run"] = ps.packets_sent - ps0.packets_sent;
+  // Per-link rates over the run (the simulator's link_stats have the same two): states sent and UDP
+  // payload bytes of every datagram sent to this peer (state fragments, echoes, fingerprints).
+  const double run_s = o.counters ? static_cast<double>(o.counters->ticks_run) * p.built->spec.period_s : 0.0;
+  l["packets_per_s"] = or_null(run_s > 0, static_cast<double>(ps.packets_sent - ps0.packets_sent) / run_s);
+  l["bytes_per_s"] = or_null(run_s > 0, static_cast<double>(ps.bytes_sent - ps0.bytes_sent) / run_s);
   l["tx_impair_lost_run"] = ps.impair_lost - ps0.impair_lost;
   l["tx_impair_duplicated_run"] = ps.impair_duplicated - ps0.impair_duplicated;
   l["tx_send_errors"] = ps.send_errors;

@@ -568,8 +568,12 @@ void Endpoint::send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns) {
 }
 
 void Endpoint::send_now(std::uint16_t dest, const std::uint8_t* d, std::size_t len, PeerState& p) {
-  if (transport_->send_to(dest, d, len)) ++p.stats.datagrams_sent;
-  else ++p.stats.send_errors;
+  if (transport_->send_to(dest, d, len)) {
+    ++p.stats.datagrams_sent;
+    p.stats.bytes_sent += len;
+  } else {
+    ++p.stats.send_errors;
+  }
 }
 
 void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {

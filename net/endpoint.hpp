@@ -110,6 +110,7 @@ struct PeerStats {
   double one_way_max_s = 0.0;
   std::uint64_t packets_sent = 0, datagrams_sent = 0, impair_lost = 0, impair_duplicated = 0,
                 send_errors = 0, delay_queue_full = 0;
+  std::uint64_t bytes_sent = 0;           // UDP payload bytes of the datagrams sent (every kind)
   std::uint64_t rtt_samples = 0;
   std::uint64_t echoes_unmatched = 0;     // echoes naming a sequence we have no send record of
   double rtt_last_s = 0.0, rtt_mean_s = 0.0, rtt_min_s = 0.0, rtt_max_s = 0.0, rtt_bound_s = 0.0;

@@ -14,6 +14,7 @@
 
 #include <Eigen/Cholesky>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <vector>
@@ -212,6 +213,46 @@ void BM_Tick(benchmark::State& state) {
   station_counters(state, st, w);
 }
 
+// Speed against accuracy: the iterative solve's tolerance ||b - A v_hat|| <= 10^-e ||b||.
+// Args: nodes, e. Counters: CG iterations per tick (mean), the residual's energy per tick
+// (-v_hat^T r T, counted in EnergyMonitor::solver_residual_J) in absolute value and relative to the
+// controller port's energy per tick (eq. 14) in the same ticks (tools/bench/plot_tolerance.py charts them).
+void BM_TickTolerance(benchmark::State& state) {
+  World w(static_cast<int>(state.range(0)));
+  w.cfg.solver.kind = StepSolverKind::kIterative;
+  w.cfg.solver.relative_tolerance = std::pow(10.0, -static_cast<double>(state.range(1)));
+  w.cfg.solver.max_iterations_cap = 1000;
+  StationCore st(w.cfg);
+  const int dofs = w.scene.dofs;
+  const int nn = static_cast<int>(w.cfg.neighbors.size());
+  std::vector<double> x(w.scene.x_d.data(), w.scene.x_d.data() + dofs), v(static_cast<std::size_t>(dofs), 1e-4);
+  std::int64_t seq = 0;
+  auto one = [&] {
+    for (int n = 0; n < nn; ++n) st.rx(n).offer(seq, 0, x.data(), v.data(), dofs);
+    ++seq;
+    return st.tick(w.push_to);
+  };
+  for (int k = 0; k < 50; ++k) one();
+  const double res0 = st.energy().solver_residual_J, ctrl0 = st.energy().controller_J;
+  double iterations = 0, ticks = 0;
+  for (auto _ : state) {
+    auto out = one();
+    iterations += st.solver_last_iterations();
+    ticks += 1;
+    benchmark::DoNotOptimize(out);
+  }
+  if (!st.in_contact()) state.SkipWithError("contact not active");
+  const double res = std::abs(st.energy().solver_residual_J - res0) / ticks;
+  const double ctrl = std::abs(st.energy().controller_J - ctrl0) / ticks;
+  state.counters["nodes"] = w.scene.nodes;
+  state.counters["tolerance"] = w.cfg.solver.relative_tolerance;
+  state.counters["iterations_mean"] = iterations / ticks;
+  state.counters["residual_J_per_tick"] = res;
+  state.counters["controller_J_per_tick"] = ctrl;
+  state.counters["residual_over_controller"] = ctrl > 0 ? res / ctrl : 0.0;
+  state.counters["unconverged_ticks"] = static_cast<double>(st.solver_unconverged_ticks());
+}
+
 // The strawman the README used to quote: assemble and factor the dense (3n+3) system every tick.
 void BM_DenseRefactorEveryTick(benchmark::State& state) {
   World w(static_cast<int>(state.range(0)));
@@ -344,6 +385,7 @@ BENCHMARK(BM_DenseRefactorEveryTick)->Arg(33)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Tick)->ArgsProduct({{300, 1000}, {kDirectArg, kIterativeArg, kCholmodArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Tick)->ArgsProduct({{3000}, {kDirectArg, kIterativeArg, kDenseOnceArg, kCholmodArg, kAutoArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Tick)->ArgsProduct({{10000}, {kAutoArg}})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_TickTolerance)->ArgsProduct({{1000, 3000, 10000}, {4, 6, 8, 10, 12}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TickWorstCase)->ArgsProduct({{33, 3000}, {kAutoArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_StartupToFirstTick)->Args({5000, 3})->Iterations(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_StationPeakMemory)->ArgsProduct({{3000}, {1, 6, 16}, {kAutoArg, kDirectArg}})->Iterations(1)->Unit(benchmark::kMillisecond);

@@ -15,6 +15,7 @@
 #include "firmware/scenario.hpp"
 #include "firmware/session_replay.hpp"
 #include "firmware/simulator.hpp"
+#include "firmware/view_timeline.hpp"
 #include "firmware/station_config.hpp"
 #include "firmware/station_phase.hpp"
 #include "firmware/station_run.hpp"
@@ -81,12 +82,26 @@ struct SimArgs {
   double tx_deadband_mm = 0;
   bool no_plots = false, quiet = false, record = false;
   std::string command_line;
+  int view_port = 0, view_station = 1;
+  std::string view_bind = "127.0.0.1";
+  double view_for = 0;
 };
 
 struct ReplayArgs {
   std::string log, trace;
   double damping = -1, p_scale = 1, d_scale = 1;
+  int view_port = 0;
+  std::string view_bind = "127.0.0.1";
+  double view_for = 0;
 };
+
+// --view-port, --view-bind, --view-for of `sim` and `replay`. Not RT-safe.
+void add_view_options(CLI::App* app, int& port, std::string& bind, double& seconds) {
+  app->add_option("--view-port", port, "Serve the web view with a timeline on this port after the run (HTTP + WebSocket; 0 = none)")
+      ->check(CLI::Range(0, 65535));
+  app->add_option("--view-bind", bind, "Interface the view listens on (default 127.0.0.1: this machine only)");
+  app->add_option("--view-for", seconds, "Stop serving the view after this many seconds (default 0: until Ctrl-C)")->check(CLI::NonNegativeNumber);
+}
 
 struct RunArgs {
   std::string config, out;
@@ -135,6 +150,8 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)");
   sim->add_option("--release", a.release, "Push-hold-release script: release time in s (default: the scenario's, 12 for paper-best)");
   sim->add_flag("--no-plots", a.no_plots, "Do not draw the PNG figures");
+  add_view_options(sim, a.view_port, a.view_bind, a.view_for);
+  sim->add_option("--view-station", a.view_station, "Station (1-based) the view shows (default 1; needs --record)");
   sim->add_flag("--record", a.record, "Write each station's session log OUT/station-<i>.h5 (HDF5; `haptic-station replay` re-runs it bit-exactly)");
   sim->add_flag("--quiet", a.quiet, "No progress lines");
 
@@ -163,10 +180,22 @@ CLI::App* add_replay_options(CLI::App& app, ReplayArgs& a) {
   rp->add_option("--damping", a.damping, "Re-run with this B_i in N s/m instead of the recorded one (no bit-exact comparison)");
   rp->add_option("--p-scale", a.p_scale, "Re-run with P_ij scaled by this factor (default 1)");
   rp->add_option("--d-scale", a.d_scale, "Re-run with D_ij scaled by this factor (default 1)");
+  add_view_options(rp, a.view_port, a.view_bind, a.view_for);
   rp->add_option("--trace", a.trace, "Write the replayed ticks to this CSV (force, VP, energies, the recorded force, hash match)");
   rp->footer("Exit status: 0 bit-exact at every tick (or, with changed gains, re-run done); 3 a tick's state differs from the recording, "
              "or the log's inputs are incomplete (dropped records, size bound); 2 not a session log or bad options.");
   return rp;
+}
+
+TimelineOptions timeline_options(int port, const std::string& bind, double seconds, const std::string& mode) {
+  TimelineOptions t;
+  t.server.port = port;
+  t.server.bind = bind;
+  t.serve_s = seconds;
+  t.mode = mode;
+  std::signal(SIGINT, on_stop_signal);
+  std::signal(SIGTERM, on_stop_signal);
+  return t;
 }
 
 // `haptic-station replay`: 0 bit-exact / re-run done, 3 differs or incomplete, 2 bad log. Not RT-safe.
@@ -181,7 +210,8 @@ int replay_command(const ReplayArgs& a) {
     return kExitConfigError;
   }
   try {
-    const ReplayResult r = replay_session(a.log, o);
+    const ReplayResult r = a.view_port > 0 ? serve_timeline(a.log, o, timeline_options(a.view_port, a.view_bind, a.view_for, "replay"), g_stop)
+                                           : replay_session(a.log, o);
     std::cout << r.summary() << "\n";
     if (r.gains_changed) return r.ticks > 0 ? 0 : kExitRunFailed;
     return r.bit_exact() && r.inputs_end < 0 ? 0 : kExitRunFailed;
@@ -277,6 +307,11 @@ int sim_command(const SimArgs& a) {
     std::cout << "wrote " << a.out << "/summary.json, trace.csv, series.csv\n";
     if (a.record) std::cout << "wrote " << a.out << "/station-<i>.h5 (session logs)\n";
     if (!a.no_plots && make_plots(a.out)) std::cout << "wrote " << a.out << "/*.png\n";
+    if (a.view_port > 0) {
+      if (!a.record) throw std::invalid_argument("--view-port needs --record (the view replays the recorded session)");
+      if (a.view_station < 1 || a.view_station > spec.users) throw std::invalid_argument("--view-station must be 1.." + std::to_string(spec.users));
+      serve_timeline(a.out + "/station-" + std::to_string(a.view_station) + ".h5", {}, timeline_options(a.view_port, a.view_bind, a.view_for, "sim"), g_stop);
+    }
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "haptic-station sim: error: " << e.what() << "\n";

@@ -15,6 +15,7 @@
 #include "firmware/station_neighbours.hpp"
 #include "firmware/station_rejoin.hpp"
 #include "firmware/session_recorder.hpp"
+#include "firmware/view_server.hpp"
 #include "platform/gpio.hpp"
 #include "platform/telemetry.hpp"
 
@@ -38,7 +39,9 @@ struct StationResources {
   std::unique_ptr<net::Endpoint> ep;
   std::unique_ptr<platform::GpioToggler> gpio;
   std::unique_ptr<platform::Telemetry> telemetry;
-  std::unique_ptr<SessionRecorder> recorder;  // [record] enabled: the session log
+  std::unique_ptr<SessionRecorder> recorder;  // station.record: the session log
+  std::unique_ptr<ViewPublisher> view;        // station.view_port: frames from the tick
+  std::unique_ptr<ViewServer> view_server;    // ... served to browsers
   std::string io_sched = "not started";
 };
 
@@ -123,6 +126,7 @@ TickInputs tick_inputs(const StationPlan& plan, StationResources& res, rt::Stati
   in.gpio = res.gpio.get();
   in.telemetry = res.telemetry.get();
   in.recorder = res.recorder.get();
+  in.view = res.view.get();
   in.sender_to_nbr = plan.peers.sender_to_nbr.data();
   in.dofs = plan.built->scene.dofs;
   in.trace_node = plan.built->trace_node;
@@ -151,6 +155,47 @@ std::unique_ptr<SessionRecorder> open_recorder(const StationPlan& plan, const rt
   return std::make_unique<SessionRecorder>(rc, info, core.config());
 }
 
+// One frame for the browsers: the tick's frame plus the endpoint's per-link delay, loss and up/down.
+// Called on the view server's thread. Not RT-safe.
+bool station_view_frame(const StationPlan& plan, StationResources& res, ViewFrame& f, std::uint64_t& missed, std::string& out) {
+  const std::uint64_t before = f.seq;
+  if (!res.view->take(f)) return false;
+  if (before > 0 && f.seq > before + 1) missed += f.seq - before - 1;
+  nlohmann::json j = view_frame_json(f);
+  const net::EndpointStats st = res.ep->stats();
+  for (std::size_t n = 0; n < plan.neighbours().size() && n < j["links"].size(); ++n) {
+    const auto p = static_cast<std::size_t>(plan.peers.nbr_to_peer[n]);
+    if (p >= st.peers.size()) continue;
+    j["links"][n]["delay_ms"] = st.peers[p].one_way_mean_s * 1e3;
+    j["links"][n]["loss"] = st.peers[p].loss_fraction;
+    j["links"][n]["up"] = st.peers[p].up;
+  }
+  j["frames_dropped"] = missed;  // frames the tick published that this thread never took (the server adds its own count)
+  out = j.dump();
+  return true;
+}
+
+// The live view (station.view_port > 0): the tick's frame mailbox and the web server, both built
+// here before the RT thread exists. Not RT-safe.
+void open_view(const StationPlan& plan, StationResources& res, const BuildResult& build) {
+  const double T = plan.built->spec.period_s;
+  res.view = std::make_unique<ViewPublisher>(static_cast<int>(std::lround(1.0 / (plan.file.view.rate_hz * T))));
+  nlohmann::json scene = view_scene_json(*build.core, plan.station_id, "station");
+  scene["damping_min_Ns_per_m"] = build.bounds.damping_min_Ns_per_m;
+  scene["passivity_condition_met"] = build.passivity_condition_met;
+  const std::string scene_text = scene.dump();
+  auto frame = std::make_shared<ViewFrame>();
+  auto missed = std::make_shared<std::uint64_t>(0);
+  ViewCallbacks cb;
+  cb.scene = [scene_text] { return scene_text; };
+  cb.next_frame = [&plan, &res, frame, missed](std::string& out) { return station_view_frame(plan, res, *frame, *missed, out); };
+  ViewServerConfig vc;
+  vc.bind = plan.file.view.bind;
+  vc.port = plan.file.view.port;
+  vc.rate_hz = plan.file.view.rate_hz;
+  res.view_server = std::make_unique<ViewServer>(vc, cb);
+}
+
 // run: refuses a core that is ready more than a second after the run start; else the loop.
 void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
   const double late_s = static_cast<double>(read_clocks().monotonic_ns - plan.times.run_epoch_ns()) * 1e-9;
@@ -165,6 +210,15 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
       log.say("recording the session to " + res.recorder->path());
     } catch (const std::exception& e) {
       pr.fail(PhaseStatus::kFailed, std::string("session log: ") + e.what());
+      return;
+    }
+  }
+  if (plan.file.view.port > 0) {
+    try {
+      open_view(plan, res, pr.build);
+      log.say("live view at " + res.view_server->url());
+    } catch (const std::exception& e) {
+      pr.fail(PhaseStatus::kFailed, e.what());
       return;
     }
   }
@@ -326,6 +380,12 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
   if (res.dev.device) res.dev.device->stop();
   if (res.telemetry) res.telemetry->flush();
   if (res.recorder) o.recording = recording_json(res.recorder->finish(), res.recorder->path());
+  if (res.view_server) {
+    const ViewServerStats v = res.view_server->stats();
+    o.recording["view"] = {{"frames", v.frames}, {"frames_sent", v.frames_sent}, {"frames_dropped", v.frames_dropped}, {"browsers", v.clients_total},
+                           {"service_errors", v.service_errors}, {"last_browser_status", v.last_browser_status}};
+    res.view_server.reset();
+  }
   if (!pr.failure.empty()) log.error(pr.failure);
   const RunConditions c = run_conditions(o);
   const int code = exit_code(c);

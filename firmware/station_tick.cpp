@@ -172,6 +172,7 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
     row.exec_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.prev_exec_ns, INT32_MAX));
     in.recorder->rt_tick(row);
   }
+  if (in.view) in.view->on_tick(*in.core, kr, in.period_s, q, out.device_force_N, out.flags, info.prev_exec_ns, info.wake_latency_ns);
   ++cnt.ticks_run;
   if (in.gpio) in.gpio->tick_low();
   return out.flags;

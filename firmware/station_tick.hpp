@@ -9,6 +9,7 @@
 #include "drivers/device.hpp"
 #include "drivers/simulated_device.hpp"
 #include "firmware/session_recorder.hpp"
+#include "firmware/view_frame.hpp"
 #include "net/endpoint.hpp"
 #include "platform/gpio.hpp"
 #include "platform/periodic_loop.hpp"
@@ -38,6 +39,7 @@ struct TickInputs {
   platform::GpioToggler* gpio = nullptr;          // may be null
   platform::Telemetry* telemetry = nullptr;       // may be null
   SessionRecorder* recorder = nullptr;            // may be null: the session log (station.record)
+  ViewPublisher* view = nullptr;                  // may be null: the live web view's frames (station.view_port)
   const int* sender_to_nbr = nullptr;             // [65536]: wire sender id -> neighbour index, -1 = none
   int dofs = 0, trace_node = 0, trace_every = 1, state_every = 1;
   double period_s = 0.002;

@@ -30,6 +30,13 @@ class LatestMailbox {
   // RT-safe.
   void writer_publish(const T& value) {
     slots_[write_index_] = value;
+    writer_publish_slot();
+  }
+
+  // Writer side only: the private slot, to fill in place (large records: no second copy), then
+  // writer_publish_slot() makes it the newest. Wait-free, RT-safe.
+  T& writer_slot() { return slots_[write_index_]; }
+  void writer_publish_slot() {
     const std::uint8_t previous =
         middle_.exchange(static_cast<std::uint8_t>(write_index_ | kFresh), std::memory_order_acq_rel);
     write_index_ = static_cast<std::uint8_t>(previous & kIndexMask);

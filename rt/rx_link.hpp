@@ -56,6 +56,7 @@ class RxLink {
   std::int64_t max_sequence_seen() const { return max_seen_; }
   RxRule rule() const { return rule_; }
   static constexpr int kUsedWindow = 4096;
+  const double* newest_x_hat() const { return x_hat_.data(); }  // the held packet's x_hat (monitoring; RT-safe)
   const RxCounters& counters() const { return counters_; }
   int dofs() const { return dofs_; }
 

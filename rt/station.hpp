@@ -124,6 +124,7 @@ class StationCore {
 
   // Neighbour n's receive-side bookkeeping (feed it packets before calling tick()).
   RxLink& rx(int neighbor_index) { return rx_[static_cast<std::size_t>(neighbor_index)]; }
+  const RxLink& rx(int neighbor_index) const { return rx_[static_cast<std::size_t>(neighbor_index)]; }
   int neighbor_count() const { return static_cast<int>(cfg_.neighbors.size()); }
   const NeighborConfig& neighbor(int n) const { return cfg_.neighbors[static_cast<std::size_t>(n)]; }
 

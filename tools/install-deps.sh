@@ -31,6 +31,9 @@ PKGS=(
   libhdf5-dev libxxhash-dev python3-h5py
   # scenes from files: TetGen tetrahedralizes surface meshes; Gmsh makes the tests' meshes
   tetgen gmsh
+  # live web view (firmware/view_server.hpp, tools/view/): libwebsockets, three.js, Chart.js (local, no CDN);
+  # chromium for its headless test (tests/station/view_check.sh; a visible skip without it)
+  libwebsockets-dev libjs-three libjs-chart.js chromium
 )
 apt-get update -qq
 apt-get install -y -qq --no-install-recommends "${PKGS[@]}"

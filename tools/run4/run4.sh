@@ -11,6 +11,7 @@
 #                [--net KEY=VALUE]...   (extra [net] keys in every station, TOML values: e.g.
 #                                        --net tx_spin=true --net 'encoding="float64"')
 #                [--station KEY=VALUE]... (extra [station] keys, e.g. --station max_no_neighbour_fraction=0.5)
+#                [--view-port P]         (live web view: station i serves it on port P + i - 1, 127.0.0.1)
 #                [--kill I:KILL_S:RESTART_S] (SIGKILL station I at run time KILL_S, restart it with the
 #                                        same configuration at RESTART_S: it rejoins; its first log is
 #                                        station-I.log, the restarted one's station-I-restart.log; no
@@ -26,7 +27,7 @@ here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../.." && pwd)"
 transport=udp; bin="$repo/build/bin/haptic-station"; out=""; scenario=paper-best
 duration=8; push_end=2.5; release=5; seed=1; probe=1.5; preset=paper; port_base=47210
-nodes=33; state_every=5; plots=1; prio=80; net_extra=(); station_extra=(); kill_spec=""; fresh_epoch=0
+nodes=33; state_every=5; plots=1; prio=80; net_extra=(); station_extra=(); kill_spec=""; fresh_epoch=0; view_port=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --transport) transport="$2"; shift 2 ;;
@@ -45,6 +46,7 @@ while [ $# -gt 0 ]; do
     --rt-priority) prio="$2"; shift 2 ;;
     --no-plots) plots=0; shift ;;
     --net) [[ "$2" == *=* ]] || { echo "run4.sh: --net needs KEY=VALUE, got '$2'" >&2; exit 2; }; net_extra+=("$2"); shift 2 ;;
+    --view-port) view_port="$2"; shift 2 ;;
     --station) [[ "$2" == *=* ]] || { echo "run4.sh: --station needs KEY=VALUE, got '$2'" >&2; exit 2; }; station_extra+=("$2"); shift 2 ;;
     --kill) [[ "$2" =~ ^[1-4]:[0-9.]+:[0-9.]+$ ]] || { echo "run4.sh: --kill needs I:KILL_S:RESTART_S (e.g. 2:5:8), got '$2'" >&2; exit 2; }
             kill_spec="$2"; shift 2 ;;
@@ -100,6 +102,7 @@ for i in 1 2 3 4; do
     echo "out_dir = \"$out\""
     echo "state_every = $state_every"
     for kv in "${station_extra[@]}"; do echo "${kv%%=*} = ${kv#*=}"; done
+    if [ "$view_port" -gt 0 ]; then echo "view_port = $((view_port + i - 1))"; fi
     echo "[device]"
     echo "kind = \"simulated\""
     echo "sim_max_force_N = 50.0      # the simulator's user model has no output clamp"

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# Headless Chromium loads the live web view (issue 16 item 1) and checks it: the 3D canvas is not
+# blank, the mesh and the plots change between two screenshots, the status the page shows (it
+# reports it back over its WebSocket; the server logs it) names the neighbours.
+#   view_check.sh replay BIN OUT : a recorded simulated run served with its timeline (~15 s)
+#   view_check.sh station BIN OUT: station 1 of a four-process UDP run while it runs (~20 s; run it
+#                                  under /tmp/haptic-multiproc.lock)
+# Exit 77 (CTest: skipped) when Debian's chromium is not installed.
+set -uo pipefail
+mode="$1"; bin="$2"; out="$3"
+here="$(cd "$(dirname "$0")" && pwd)"
+repo="$(cd "$here/../.." && pwd)"
+chrome=$(command -v chromium || true)
+[ -n "$chrome" ] || { echo "SKIPPED: chromium is not installed (apt-get install chromium)"; exit 77; }
+[ -x /usr/bin/python3 ] || { echo "SKIPPED: /usr/bin/python3 (python3-matplotlib) missing"; exit 77; }
+rm -rf "$out"; mkdir -p "$out"
+pids=()
+cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; }
+trap cleanup EXIT
+shot() {  # shot NAME URL: a screenshot after ~5 s of page life
+  timeout 40 "$chrome" --headless=new --no-sandbox --disable-gpu --enable-unsafe-swiftshader --use-angle=swiftshader --hide-scrollbars \
+    --user-data-dir="$out/profile-$1" --window-size=1400,900 --timeout=5000 --screenshot="$out/$1.png" "$2" > "$out/chrome-$1.log" 2>&1
+}
+wait_port() {  # wait_port PORT SECONDS: the page is served there
+  for _ in $(seq 1 $(( $2 * 10 ))); do
+    /usr/bin/python3 -c 'import sys, urllib.request; sys.exit(0 if b"view.js" in urllib.request.urlopen(sys.argv[1], timeout=1).read() else 1)' \
+      "http://127.0.0.1:$1/" 2>/dev/null && return 0
+    sleep 0.1
+  done; return 1
+}
+if [ "$mode" = replay ]; then
+  port=$(( 46100 + ($$ % 40) * 5 ))
+  "$bin" sim --scenario paper-best --out "$out/sim" --duration 3 --push-end 1 --release 2 --record --no-plots --quiet \
+    --view-port "$port" --view-for 12 > "$out/sim.log" 2>&1 &
+  pids+=($!)
+  neighbours=2,3,4
+else
+  port=$(( 46600 + ($$ % 40) * 5 ))  # station i: port + i - 1
+  "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out/run4" --duration 40 --push-end 2 --release 6 --probe 1.0 \
+    --seed 2 --no-plots --port-base $(( 46300 + ($$ % 40) * 10 )) --view-port "$port" > "$out/run4.log" 2>&1 &
+  pids+=($!)
+  neighbours=2,3,4
+fi
+wait_port "$port" 30 || { echo "FAILED: the view never listened on 127.0.0.1:$port"; cat "$out"/*.log; exit 1; }
+url="http://127.0.0.1:$port/"
+shot a "$url"; shot b "$url"
+for f in a.png b.png; do [ -s "$out/$f" ] || { echo "FAILED: chromium wrote no $f"; grep -v dbus "$out"/chrome-*.log | tail -5; exit 1; }; done
+if [ "$mode" = station ]; then  # end the 40 s run now: SIGTERM to the four stations we started (by PID)
+  for p in $(cat "$out/run4/station-pids.txt" 2>/dev/null); do kill -TERM "$p" 2>/dev/null; done
+fi
+wait "${pids[0]}"; pids=()  # the view stops (sim: --view-for; station: end of the run) and says what the page showed
+if [ "$mode" = replay ]; then
+  sed -n 's/.*last status a browser showed: //p' "$out/sim.log" > "$out/status.txt"
+else
+  [ -s "$out/run4/station-1.json" ] || { echo "FAILED: station 1 wrote no station-1.json"; tail -20 "$out/run4.log"; exit 1; }
+  /usr/bin/python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["recording"]["view"]["last_browser_status"])' "$out/run4/station-1.json" > "$out/status.txt"
+fi
+/usr/bin/python3 "$repo/tools/view/check_view.py" "$out/a.png" "$out/b.png" "$out/status.txt" "$neighbours"

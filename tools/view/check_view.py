@@ -1,0 +1,35 @@
+#!/usr/bin/env python3
+"""Checks two headless-Chromium screenshots of the live view and the status text the page reported
+back to its server (tests/station/view_check.sh): the 3D canvas is not blank in either, the mesh
+and the plots changed between the two, and the status names every expected neighbour.
+Exit 0 when all hold, 1 with the reasons otherwise.
+Usage: check_view.py A.png B.png STATUS.txt NEIGHBOUR[,NEIGHBOUR...]"""
+import re
+import sys
+
+import matplotlib.image as mpimg
+import numpy as np
+
+a, b = mpimg.imread(sys.argv[1])[..., :3], mpimg.imread(sys.argv[2])[..., :3]
+status = open(sys.argv[3], encoding="utf-8", errors="replace").read()
+neighbours = [n for n in sys.argv[4].split(",") if n]
+fail = []
+canvas = (slice(10, 446), slice(10, 566))  # #view3d: 560 x 440 CSS px at (8, 8), window 1400 x 900
+plots = (slice(515, 890), slice(10, 1390))  # the six plots under the canvas and timeline
+nonwhite = min(float(np.mean(np.any(x[canvas] < 0.95, axis=2))) for x in (a, b))
+if nonwhite < 0.03:
+    fail.append("3D canvas blank: %.2f %% non-white pixels" % (100 * nonwhite))
+changed_mesh = int(np.sum(np.any(np.abs(a[canvas] - b[canvas]) > 0.02, axis=2)))
+changed_plots = int(np.sum(np.any(np.abs(a[plots] - b[plots]) > 0.02, axis=2)))
+if changed_mesh < 30:
+    fail.append("mesh did not change between the screenshots (%d pixels)" % changed_mesh)
+if changed_plots < 30:
+    fail.append("plots did not change between the screenshots (%d pixels)" % changed_plots)
+for n in neighbours:
+    if not re.search(r"neighbour %s: (up|DOWN) since" % n, status):
+        fail.append("status does not show neighbour %s: %r" % (n, status[:300]))
+print("view check: canvas %.1f %% non-white, %d mesh pixels and %d plot pixels changed; status: %s" % (
+    100 * nonwhite, changed_mesh, changed_plots, " | ".join(status.splitlines()[:6])))
+if fail:
+    print("FAILED: " + "; ".join(fail))
+    sys.exit(1)

@@ -1,0 +1,156 @@
+// Live view client: one WebSocket ("haptic-view") to the station; a scene message, then frames.
+"use strict";
+const COLORS = ["#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"];
+const WINDOW_S = 20;
+let scene = null, mesh = null, copies = [], vpMark = null, devMark = null, coupling = null, contactPts = null;
+let statusSent = 0, renderer, camera, world, geom, charts = {}, linkState = {}, framesSeen = 0, lastSeq = 0, missed = 0;
+
+function setup3d(s) {
+  const canvas = document.getElementById("view3d");
+  renderer = new THREE.WebGLRenderer({canvas: canvas, antialias: true});
+  renderer.setClearColor(0xffffff);
+  world = new THREE.Scene();
+  world.add(new THREE.AmbientLight(0x909090));
+  const light = new THREE.DirectionalLight(0xffffff, 0.7); light.position.set(1, 2, 3); world.add(light);
+  const n = s.nodes, rest = new Float32Array(3 * n);
+  let c = [0, 0, 0];
+  for (let i = 0; i < 3 * n; ++i) { rest[i] = s.rest_um[i] * 1e-3; c[i % 3] += rest[i] / n; }  // mm
+  geom = new THREE.BufferGeometry();
+  geom.setAttribute("position", new THREE.BufferAttribute(rest.slice(), 3));
+  geom.setIndex(s.triangles);
+  geom.computeVertexNormals();
+  mesh = new THREE.Mesh(geom, new THREE.MeshPhongMaterial({color: 0xb0b0b0, side: THREE.DoubleSide, flatShading: true}));
+  world.add(mesh);
+  world.add(new THREE.LineSegments(new THREE.WireframeGeometry(geom), new THREE.LineBasicMaterial({color: 0x555555})));
+  s.neighbours.forEach((p, j) => {
+    const g = new THREE.BufferGeometry();
+    g.setAttribute("position", new THREE.BufferAttribute(rest.slice(), 3));
+    g.setIndex(s.triangles);
+    const w = new THREE.Mesh(g, new THREE.MeshBasicMaterial({color: COLORS[j % COLORS.length], wireframe: true, transparent: true, opacity: 0.5}));
+    w.visible = false; world.add(w); copies.push(w);
+  });
+  const cp = new Float32Array(3 * s.contact.length);
+  const cg = new THREE.BufferGeometry(); cg.setAttribute("position", new THREE.BufferAttribute(cp, 3));
+  contactPts = new THREE.Points(cg, new THREE.PointsMaterial({color: 0xff0000, size: 6, sizeAttenuation: false}));
+  world.add(contactPts);
+  vpMark = new THREE.Mesh(new THREE.SphereGeometry(2.5, 16, 12), new THREE.MeshPhongMaterial({color: 0x1f4fff}));
+  devMark = new THREE.Mesh(new THREE.BoxGeometry(4, 4, 4), new THREE.MeshPhongMaterial({color: 0x20a020}));
+  world.add(vpMark); world.add(devMark);
+  const lg = new THREE.BufferGeometry(); lg.setAttribute("position", new THREE.BufferAttribute(new Float32Array(6), 3));
+  coupling = new THREE.Line(lg, new THREE.LineBasicMaterial({color: 0x20a020})); world.add(coupling);
+  camera = new THREE.PerspectiveCamera(40, 560 / 440, 1, 5000);
+  camera.position.set(c[0] + 110, c[1] + 140, c[2] + 200); camera.lookAt(c[0], c[1], c[2]);
+  world.add(new THREE.AxesHelper(30));
+}
+
+function chart(id, title, names, ylabel) {
+  const ds = names.map((n, i) => ({label: n, data: [], borderColor: COLORS[i % COLORS.length], borderWidth: 1.2, pointRadius: 0}));
+  return new Chart(document.getElementById(id), {type: "line", data: {datasets: ds},
+    options: {animation: false, responsive: true, maintainAspectRatio: false, parsing: false,
+      plugins: {title: {display: true, text: title}, legend: {labels: {boxWidth: 10, font: {size: 10}}}},
+      scales: {x: {type: "linear", title: {display: true, text: "t (s)"}}, y: {title: {display: true, text: ylabel}}}}});
+}
+
+function setupCharts(s) {
+  charts.force = chart("p_force", "device force u_i", ["x", "y", "z"], "N");
+  charts.energy = chart("p_energy", "energies (13) port, (14) controller, VO", ["port (13)", "controller (14)", "VO"], "J");
+  charts.cons = chart("p_cons", "consensus error (vs last received copies)", ["max |x - x_j|"], "mm");
+  const ln = [];
+  s.neighbours.forEach(p => { ln.push("N_" + s.station + p); ln.push("Nbar_" + s.station + p); });
+  charts.links = chart("p_links", "index delay N_ij vs bound Nbar_ij", ln, "ticks");
+  charts.delay = chart("p_delay", "per-link one-way delay / loss", s.neighbours.flatMap(p => ["delay " + p + " (ms)", "loss " + p + " (%)"]), "ms / %");
+  charts.tick = chart("p_tick", "tick time and wake-up latency (max per frame)", ["tick time", "wake-up latency"], "µs");
+}
+
+function push(c, i, t, y) {
+  const d = c.data.datasets[i].data;
+  d.push({x: t, y: y});
+  while (d.length && d[0].x < t - WINDOW_S) d.shift();
+}
+
+function onScene(s) {
+  scene = s;
+  setup3d(s); setupCharts(s);
+  if (s.mode === "replay" || s.mode === "sim") {
+    document.getElementById("timeline").style.display = "block";
+    const seek = document.getElementById("seek");
+    seek.max = s.timeline_frames - 1;
+    seek.oninput = () => ws.send(JSON.stringify({seek: Number(seek.value)}));
+    const play = document.getElementById("play");
+    play.onclick = () => { const p = play.textContent === "play"; ws.send(JSON.stringify({play: p})); play.textContent = p ? "pause" : "play"; };
+  }
+}
+
+let pending = null;
+function onFrame(f) {
+  if (!scene) return;
+  addPoints(f);
+  if (!pending) requestAnimationFrame(() => { draw(pending); pending = null; });
+  pending = f;
+}
+
+// Every frame's values go into the plots (cheap); drawing happens once per animation frame.
+function addPoints(f) {
+  if (lastSeq && f.seq > lastSeq + 1 && scene.mode === "station") missed += f.seq - lastSeq - 1;
+  if (f.seq < lastSeq) Object.values(charts).forEach(c => c.data.datasets.forEach(d => d.data = []));  // timeline jumped back
+  lastSeq = f.seq; framesSeen++;
+  const t = f.t;
+  for (let a = 0; a < 3; ++a) push(charts.force, a, t, f.force[a]);
+  push(charts.energy, 0, t, f.port_J); push(charts.energy, 1, t, f.controller_J); push(charts.energy, 2, t, f.vo_J);
+  push(charts.cons, 0, t, f.consensus_error_m * 1e3);
+  f.links.forEach((l, j) => {
+    push(charts.links, 2 * j, t, l.index_delay); push(charts.links, 2 * j + 1, t, l.bound);
+    if (l.delay_ms !== undefined) { push(charts.delay, 2 * j, t, l.delay_ms); push(charts.delay, 2 * j + 1, t, 100 * l.loss); }
+  });
+  push(charts.tick, 0, t, f.exec_max_us); push(charts.tick, 1, t, f.wake_max_us);
+}
+
+function draw(f) {
+  const pos = geom.attributes.position;
+  for (let i = 0; i < f.x_um.length; ++i) pos.array[i] = f.x_um[i] * 1e-3;
+  pos.needsUpdate = true; geom.computeVertexNormals();
+  copies.forEach((w, j) => {
+    if (j >= f.copies_um.length) { w.visible = false; return; }
+    const a = w.geometry.attributes.position;
+    for (let i = 0; i < f.copies_um[j].length; ++i) a.array[i] = f.copies_um[j][i] * 1e-3;
+    a.needsUpdate = true; w.visible = true;
+  });
+  const ca = contactPts.geometry.attributes.position;
+  scene.contact.forEach((p, i) => { for (let d = 0; d < 3; ++d) ca.array[3 * i + d] = f.x_um[3 * p + d] * 1e-3; });
+  ca.needsUpdate = true;
+  vpMark.position.set(f.vp[0] * 1e3, f.vp[1] * 1e3, f.vp[2] * 1e3);
+  devMark.position.set(f.device[0] * 1e3, f.device[1] * 1e3, f.device[2] * 1e3);
+  const la = coupling.geometry.attributes.position;
+  la.array.set([f.vp[0] * 1e3, f.vp[1] * 1e3, f.vp[2] * 1e3, f.device[0] * 1e3, f.device[1] * 1e3, f.device[2] * 1e3]); la.needsUpdate = true;
+  renderer.render(world, camera);
+  Object.values(charts).forEach(c => c.update("none"));
+  status(f);
+}
+
+function status(f) {
+  const lines = [];
+  lines.push("station " + scene.station + " (" + scene.mode + ") · t = " + f.t.toFixed(2) + " s · tick " + f.k);
+  let pas = "B_i = " + scene.damping_Ns_per_m.toFixed(2) + " N s/m";
+  if (scene.damping_min_Ns_per_m !== undefined)
+    pas += " vs eq. (18) minimum " + scene.damping_min_Ns_per_m.toFixed(2) + (scene.passivity_condition_met ? " — passivity condition met" : " — NOT MET");
+  lines.push("passivity: " + pas);
+  lines.push("safe state: " + (f.safe_state ? "YES (zero force)" : "no") + " · contact: " + (f.contact ? "yes" : "no"));
+  const nb = f.links.map(l => {
+    const up = l.up !== undefined ? l.up : l.within;
+    const st = linkState[l.peer] || {up: up, since: f.t};
+    if (st.up !== up) { st.up = up; st.since = f.t; }
+    linkState[l.peer] = st;
+    return "neighbour " + l.peer + ": " + (up ? "up" : "DOWN") + " since " + st.since.toFixed(2) + " s (N = " + l.index_delay + ", Nbar = " + l.bound + ")";
+  });
+  lines.push("neighbours:\n  " + nb.join("\n  "));
+  lines.push("frames: " + framesSeen + " received, " + missed + " missed here" + (f.frames_dropped !== undefined ? ", " + f.frames_dropped + " replaced in the station's mailbox" : "") +
+    (f.server_dropped !== undefined ? ", " + f.server_dropped + " not sent (browser busy)" : ""));
+  if (scene.mode !== "station") document.getElementById("tl").textContent = "frame " + f.index + " / " + scene.timeline_frames;
+  if (f.index !== undefined) document.getElementById("seek").value = f.index;
+  document.getElementById("status").textContent = lines.join("\n");
+  if (++statusSent % 10 === 1) ws.send(JSON.stringify({status: document.getElementById("status").textContent}));  // what this page shows, for the server's log
+}
+
+const ws = new WebSocket("ws://" + location.host + "/", "haptic-view");
+ws.onmessage = ev => { const m = JSON.parse(ev.data); if (m.type === "scene") onScene(m); else if (m.type === "frame") onFrame(m); };
+ws.onclose = () => { document.getElementById("status").textContent += "\n(connection closed)"; };

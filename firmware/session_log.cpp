@@ -126,6 +126,7 @@ void write_core_attrs(hid_t g, const rt::StationConfig& c) {
   h5::attr(g, "b_v_Ns_per_m", c.vp.coupling.b_v_Ns_per_m);
   h5::attr(g, "B_vc_Ns_per_m", c.vp.coupling.B_vc_Ns_per_m);
   h5::attr(g, "K_vc_N_per_m", c.vp.coupling.K_vc_N_per_m);
+  h5::attr(g, "rx_rule", static_cast<std::int64_t>(c.rx_rule));
   h5::attr(g, "solver_kind", static_cast<std::int64_t>(c.solver.kind));
   h5::attr(g, "solver_iterative_from_rows", static_cast<std::int64_t>(c.solver.iterative_from_rows));
   h5::attr(g, "solver_relative_tolerance", c.solver.relative_tolerance);
@@ -146,6 +147,7 @@ void read_core_attrs(hid_t g, rt::StationConfig& c) {
   c.vp.coupling.b_v_Ns_per_m = h5::attr_f64(g, "b_v_Ns_per_m");
   c.vp.coupling.B_vc_Ns_per_m = h5::attr_f64(g, "B_vc_Ns_per_m");
   c.vp.coupling.K_vc_N_per_m = h5::attr_f64(g, "K_vc_N_per_m");
+  c.rx_rule = static_cast<rt::RxRule>(h5::attr_i64(g, "rx_rule"));
   c.solver.kind = static_cast<rt::StepSolverKind>(h5::attr_i64(g, "solver_kind"));
   c.solver.iterative_from_rows = static_cast<int>(h5::attr_i64(g, "solver_iterative_from_rows"));
   c.solver.relative_tolerance = h5::attr_f64(g, "solver_relative_tolerance");

@@ -17,9 +17,14 @@ rm -rf "$out"; mkdir -p "$out"
 pids=()
 cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; }
 trap cleanup EXIT
-shot() {  # shot NAME URL: a screenshot after ~5 s of page life
-  timeout 40 "$chrome" --headless=new --no-sandbox --disable-gpu --enable-unsafe-swiftshader --use-angle=swiftshader --hide-scrollbars \
-    --user-data-dir="$out/profile-$1" --window-size=1400,900 --timeout=5000 --screenshot="$out/$1.png" "$2" > "$out/chrome-$1.log" 2>&1
+shot() {  # shot NAME URL: a screenshot after ~6 s of page life; once more if the page had not drawn yet (slow start)
+  for attempt in 1 2; do
+    timeout 40 "$chrome" --headless=new --no-sandbox --disable-gpu --enable-unsafe-swiftshader --use-angle=swiftshader --hide-scrollbars \
+      --user-data-dir="$out/profile-$1" --window-size=1400,900 --timeout=6000 --screenshot="$out/$1.png" "$2" > "$out/chrome-$1.log" 2>&1
+    /usr/bin/python3 -c 'import sys, matplotlib.image as m, numpy as n; a = m.imread(sys.argv[1])[10:446, 10:566, :3]; sys.exit(0 if n.mean(n.any(a < 0.95, axis=2)) > 0.03 else 1)' \
+      "$out/$1.png" 2>/dev/null && return 0
+    echo "note: screenshot $1 attempt $attempt: the canvas was not drawn yet"
+  done
 }
 wait_port() {  # wait_port PORT SECONDS: the page is served there
   for _ in $(seq 1 $(( $2 * 10 ))); do
@@ -30,8 +35,8 @@ wait_port() {  # wait_port PORT SECONDS: the page is served there
 }
 if [ "$mode" = replay ]; then
   port=$(( 46100 + ($$ % 40) * 5 ))
-  "$bin" sim --scenario paper-best --out "$out/sim" --duration 3 --push-end 1 --release 2 --record --no-plots --quiet \
-    --view-port "$port" --view-for 12 > "$out/sim.log" 2>&1 &
+  "$bin" sim --scenario paper-best --out "$out/sim" --duration 6 --push-end 2 --release 4 --record --no-plots --quiet \
+    --view-port "$port" --view-for 24 > "$out/sim.log" 2>&1 &
   pids+=($!)
   neighbours=2,3,4
 else
@@ -43,7 +48,11 @@ else
 fi
 wait_port "$port" 30 || { echo "FAILED: the view never listened on 127.0.0.1:$port"; cat "$out"/*.log; exit 1; }
 url="http://127.0.0.1:$port/"
-shot a "$url"; shot b "$url"
+if [ "$mode" = replay ]; then  # the timeline opened at two frames: pushing (t ~ 1.4 s) and after the release (t ~ 4.8 s)
+  shot a "${url}?seek=40&pause=1"; shot b "${url}?seek=140&pause=1"
+else
+  shot a "$url"; shot b "$url"
+fi
 for f in a.png b.png; do [ -s "$out/$f" ] || { echo "FAILED: chromium wrote no $f"; grep -v dbus "$out"/chrome-*.log | tail -5; exit 1; }; done
 if [ "$mode" = station ]; then  # end the 40 s run now: SIGTERM to the four stations we started (by PID)
   for p in $(cat "$out/run4/station-pids.txt" 2>/dev/null); do kill -TERM "$p" 2>/dev/null; done

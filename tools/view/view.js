@@ -77,6 +77,9 @@ function onScene(s) {
     seek.max = s.timeline_frames - 1;
     seek.oninput = () => ws.send(JSON.stringify({seek: Number(seek.value)}));
     const play = document.getElementById("play");
+    const q = new URLSearchParams(location.search);  // ?seek=N&pause=1: open the timeline at frame N (paused)
+    if (q.has("pause")) { ws.send(JSON.stringify({play: false})); play.textContent = "play"; }
+    if (q.has("seek")) ws.send(JSON.stringify({seek: Number(q.get("seek"))}));
     play.onclick = () => { const p = play.textContent === "play"; ws.send(JSON.stringify({play: p})); play.textContent = p ? "pause" : "play"; };
   }
 }

@@ -29,7 +29,7 @@ void parse_station_section(View root, StationFile& f) {
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
                             "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
-                            "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "view_port", "view_bind", "view_rate_hz"});
+                            "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks"});
   StationSection& s = f.station;
   if (!st["id"]) bad("station.id", "present: this station's user number, 1..users");
   s.id = static_cast<int>(integer(st["id"], "station.id", 1, 1, 64));
@@ -74,6 +74,7 @@ void parse_station_section(View root, StationFile& f) {
   s.clock_offset_max_ms = real(st["clock_offset_max_ms"], "station.clock_offset_max_ms", 20.0, 0.0, 1e6);
   s.clock_offset_refuse = boolean(st["clock_offset_refuse"], "station.clock_offset_refuse", false);
   s.rejoin_probe_s = real(st["rejoin_probe_s"], "station.rejoin_probe_s", 0.4, 0.1, 10);
+  s.age_slack_ticks = static_cast<int>(integer(st["age_slack_ticks"], "station.age_slack_ticks", 10, 0, 100000));
 }
 
 void parse_device_section(View root, StationFile& f) {

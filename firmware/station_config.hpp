@@ -65,6 +65,8 @@
 //   rejoin_probe_s = 0.4             # a station started after its epoch's probing phase rejoins the running
 //                                    # session: it probes this long (round trips, the neighbours' epoch), adopts the
 //                                    # session's epoch and a neighbour's object state, then couples, [0.1, 10]
+//   age_slack_ticks = 10             # age guard: a run packet is used only if it echoes one of our sends and its
+//                                    # echo-based age bound is <= (R_ij + this) ticks (net/README.md), [0, 100000]
 //   [device]                         (drivers/: device_factory.hpp)
 //   kind = "auto"                    # "auto" (first Touch, else SpaceMouse) | "touch" | "spacemouse" | "simulated".
 //                                    # A device that cannot be started is an error (exit 9), never a silent simulated
@@ -135,6 +137,7 @@ struct StationSection {
   double clock_offset_max_ms = 20.0;
   bool clock_offset_refuse = false;
   double rejoin_probe_s = 0.4;
+  int age_slack_ticks = 10;
 };
 
 struct DeviceSection {

@@ -8,6 +8,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -142,6 +143,7 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
   p->net.endpoint.fingerprint = p->fingerprint;  // sent to every neighbour (net/)
   p->net.endpoint.io_priority = f.station.io_priority;  // the I/O thread's RtThread (SCHED_FIFO or 0)
+  set_payload_envelope(*p->built, p->net);
   p->out_dir = o.out_dir.empty() ? f.station.out_dir : o.out_dir;
   if (f.station.run_subdir) {  // a folder per run: <UTC time of planning>-s<session id>
     const std::time_t secs = static_cast<std::time_t>(now.realtime_ns / 1'000'000'000);
@@ -235,6 +237,19 @@ SceneFingerprint scene_fingerprint(const BuiltScenario& b, std::int64_t period_n
 }
 
 ClockReading read_clocks() { return {clock_ns(CLOCK_MONOTONIC), clock_ns(CLOCK_REALTIME)}; }
+
+void set_payload_envelope(const BuiltScenario& b, net::NetConfig& nc) {
+  if (!(nc.envelope_radii > 0.0)) return;
+  const Eigen::VectorXd& x = b.scene.x_d;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int p = 0; p < b.scene.nodes; ++p) c += x.segment<3>(3 * p);
+  c /= b.scene.nodes;
+  double radius = 0.0;
+  for (int p = 0; p < b.scene.nodes; ++p) radius = std::max(radius, (x.segment<3>(3 * p) - c).norm());
+  nc.endpoint.envelope_rest_x.assign(x.data(), x.data() + x.size());
+  nc.endpoint.envelope_max_offset_m = nc.envelope_radii * radius;
+  nc.endpoint.envelope_max_speed_m_per_s = b.station_config(0).divergence_speed_m_per_s;  // the core's own divergence bound
+}
 
 PeerTable plan_peer_table(const StationFile& f, const BuiltScenario& built, int me, const net::NetConfig& nc) {
   const auto& nbrs = built.neighbors[static_cast<std::size_t>(me)];

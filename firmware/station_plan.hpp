@@ -95,6 +95,9 @@ PlanResult plan_station(const StationFile& file, const RunOverrides& overrides, 
 
 // The individual checks (each throws std::invalid_argument naming the key; exposed for tests).
 PeerTable plan_peer_table(const StationFile& file, const BuiltScenario& built, int me, const net::NetConfig& net);
+// The payload envelope of net/ (net.envelope_radii object radii around the rest shape, the core's
+// divergence speed). Not RT-safe.
+void set_payload_envelope(const BuiltScenario& b, net::NetConfig& nc);
 void check_address_families(const StationFile& file, const net::NetConfig& net);
 // Network safety: a UDP peer must be on loopback or on a network one of this machine's interfaces
 // is on (its address and netmask), unless station.allow_routed_peers = true (stations across

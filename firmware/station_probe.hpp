@@ -84,6 +84,9 @@ struct BuildResult {
   bool passivity_condition_met = false;   // B_i used >= eq. (18) on the measured bounds
   std::unique_ptr<rt::StationCore> core;  // set when status == kOk
   rt::TxDeadband tx_deadband;             // this station's transmission policy (rt/tx_deadband)
+  // Per neighbour: the largest echo-based age bound a packet may have (R_ij + station.age_slack_ticks) T
+  // (net/README.md, "Age guard"; TickInputs::max_age_s).
+  std::vector<double> max_age_s;
 };
 
 // B_i from eq. (18) on the measured bounds (station.damping_Ns_per_m overrides it: then the

@@ -44,6 +44,10 @@ void add_run_json(const StationOutcome& o, json& j) {
   j["max_node_speed_m_per_s"] = !ran ? json(nullptr) : std::isfinite(c->max_speed_m_per_s) ? json(c->max_speed_m_per_s) : json("inf");
   j["port_energy_min_J"] = or_null(ran, ran ? c->port_min_J : 0);
   j["no_neighbour_ticks"] = c ? c->no_neighbour_ticks : 0;
+  // Run packets the tick refused: age guard (no echo of our sends / age bound over the limit) and
+  // the receive links (future sequence, non-finite, stale, duplicate).
+  j["rx_refused"] = {{"no_echo", c ? c->no_echo : 0}, {"age_over_bound", c ? c->age_over_bound : 0},
+                     {"receive_link", c ? c->rx_refused : 0}};
   j["push_failures"] = (c ? c->push_failures : 0) + (o.probe ? o.probe->push_failures : 0);
   j["device_fault_ticks"] = c ? c->device_fault_ticks : 0;
   j["foreign_packets"] = c ? c->foreign_packets : 0;
@@ -80,7 +84,13 @@ json endpoint_json(const net::EndpointStats& st, const net::EndpointConfig& ec, 
   json j;
   j["io_thread_scheduling"] = io_sched;
   j["drops"] = {{"datagrams_received", st.datagrams_received}, {"receive_errors", st.receive_errors}, {"rx_ring_full", st.rx_ring_full},
-                {"tx_overruns", st.tx_overruns}, {"wrong_scene_size", st.wrong_scene_size}};
+                {"tx_overruns", st.tx_overruns}, {"wrong_scene_size", st.wrong_scene_size}, {"tx_safe_state", st.tx_safe_state}};
+  // Every datagram the decoder/endpoint dropped, by reason (net/wire.hpp DropReason), zeros included.
+  json by_reason = json::object();
+  for (std::size_t r = 0; r < net::kDropReasonCount; ++r)
+    by_reason[net::to_string(static_cast<net::DropReason>(r))] = st.drops.by_reason[r];
+  j["drops"]["by_reason"] = by_reason;
+  j["drops"]["total"] = st.drops.total();
   j["io_thread"] = {{"cpu_s", st.io_thread_cpu_s},         {"tx_spin", ec.tx_spin},
                     {"tx_packets", st.tx_packets},         {"tx_caught_spinning", st.tx_caught_spinning},
                     {"tx_spin_windows", st.tx_spin_windows}, {"tx_handoff_mean_us", or_null(st.tx_packets > 0, st.tx_handoff_mean_s * 1e6)},
@@ -115,6 +125,8 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
   l["rtt_max_ms"] = or_null(rtt, 1e3 * ps.rtt_max_s);
   l["rtt_bound_ms_now"] = or_null(ps.rtt_has_bound, 1e3 * ps.rtt_bound_s);
   l["rtt_over_bound_events"] = ps.rtt_over_bound_events;
+  l["peer_safe_state_packets"] = ps.safe_state_packets;
+  l["rate_limited"] = ps.rate_limited;
   if (o.build && o.build->status == PhaseStatus::kOk) {
     l["round_trip_bound_ticks"] = o.build->bounds.round_trip_ticks[n];
     l["index_delay_bound_ticks"] = o.build->bounds.index_guard_ticks[n];
@@ -131,6 +143,9 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
     l["rx_accepted"] = rc.accepted;
     l["rx_stale_reordered"] = rc.stale;
     l["rx_duplicate"] = rc.duplicate;
+    l["rx_future_refused"] = rc.future;
+    l["rx_non_finite_refused"] = rc.non_finite;
+    l["rx_ahead_ticks"] = rc.ahead_ticks;
     l["rx_sustained_ticks"] = rc.sustained_ticks;
     l["max_index_delay_ticks"] = rc.max_index_delay;
     l["bound_violations"] = core.edge_drop_events(static_cast<int>(n));

@@ -222,7 +222,8 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
       return;
     }
   }
-  const TickInputs in = tick_inputs(plan, res, pr.build.core.get(), &pr.build.tx_deadband);
+  TickInputs in = tick_inputs(plan, res, pr.build.core.get(), &pr.build.tx_deadband);
+  if (!pr.build.max_age_s.empty()) in.max_age_s = pr.build.max_age_s.data();  // the age guard
   RunObserver observer;
   observer.rt_ready = [&](const std::string& summary, const std::vector<std::string>& warnings) {
     if (!summary.empty() && !log.quiet) std::cerr << summary << (summary.back() == '\n' ? "" : "\n");

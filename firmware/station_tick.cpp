@@ -28,22 +28,39 @@ rt::Vec3 read_device(const TickInputs& in, TickCounters& cnt) {
   return q;
 }
 
-// Drains the RX ring into the receive links; sequence numbers become run indices (seq - run_k0). RT-safe.
+// Drains the RX ring into the receive links; sequence numbers become run indices (seq - run_k0).
+// The age guard: a packet whose echo-based age bound (now - our own send stamp of the sequence it
+// echoes) exceeds the neighbour's limit, or that echoes none of our sends, is refused. RT-safe.
 void drain_rx(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
   StageScope stage(Stage::rx_drain);
-  in.ep->drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double* x, const double* v, std::uint32_t count) {
-    const int n = in.sender_to_nbr[sender];
+  const double now_s = in.max_age_s ? net::monotonic_s() : 0.0;
+  in.ep->drain_packets([&](const net::RxPacket& p) {
+    const int n = in.sender_to_nbr[p.sender];
     if (n < 0) {
       ++cnt.foreign_packets;
       return;
     }
-    if (static_cast<std::int64_t>(seq) < in.run_k0) {
+    if (static_cast<std::int64_t>(p.seq) < in.run_k0) {
       ++cnt.probe_packets_after_run;
       return;
     }
-    platform::trace::packet_rx(static_cast<std::uint32_t>(sender), seq, static_cast<std::uint32_t>(count));
-    in.core->rx(n).offer(static_cast<std::int64_t>(seq) - in.run_k0, send_time_s, x, v, static_cast<int>(count));
-    if (in.recorder && static_cast<int>(count) == in.dofs) in.recorder->rt_packet(kr, n, static_cast<std::int64_t>(seq) - in.run_k0, send_time_s, x, v);
+    if (in.max_age_s) {
+      if (!p.has_echo) {
+        ++cnt.no_echo;
+        return;
+      }
+      if (p.age_bound_s(now_s) > in.max_age_s[n]) {
+        ++cnt.age_over_bound;
+        return;
+      }
+    }
+    platform::trace::packet_rx(static_cast<std::uint32_t>(p.sender), p.seq, static_cast<std::uint32_t>(p.count));
+    const rt::RxVerdict v = in.core->rx(n).offer(static_cast<std::int64_t>(p.seq) - in.run_k0, p.send_time_s, p.x_hat, p.v_hat,
+                                                 static_cast<int>(p.count));
+    if (v != rt::RxVerdict::kAccepted) ++cnt.rx_refused;
+    // Recorded as offered (the replay re-offers them), except what the sanity checks refused.
+    if (in.recorder && static_cast<int>(p.count) == in.dofs && v != rt::RxVerdict::kFuture && v != rt::RxVerdict::kNonFinite)
+      in.recorder->rt_packet(kr, n, static_cast<std::int64_t>(p.seq) - in.run_k0, p.send_time_s, p.x_hat, p.v_hat);
     ++cnt.rx_offered;
   });
 }
@@ -141,6 +158,7 @@ bool any_neighbour_within_bound(rt::StationCore& core, std::int64_t kr) {
 
 std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt, std::int64_t k, std::int64_t kr, const platform::TickInfo& info) {
   if (in.gpio) in.gpio->tick_high();  // the loop already emitted tick_begin
+  in.ep->note_tick(k);                 // the sequence ceiling of the I/O thread's decoder
   const rt::Vec3 q = read_device(in, cnt);
   if (in.recorder && cnt.ticks_run == 0) in.recorder->rt_initial_state(in.core->x().data(), in.core->v().data());
   drain_rx(in, cnt, kr);
@@ -157,7 +175,9 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   {
     StageScope stage(Stage::tx);
     if (!in.tx_deadband || in.tx_deadband->should_send(kr, in.core->x_hat()))
-      if (!in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), in.core->x_hat(), in.core->v_hat())) ++cnt.push_failures;
+      if (!in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), in.core->x_hat(), in.core->v_hat(),
+                             (out.flags & rt::kDiverged) != 0))  // safe state: the flag, never the state
+        ++cnt.push_failures;
   }
   {
     StageScope stage(Stage::monitor);

@@ -44,6 +44,10 @@ struct TickInputs {
   int dofs = 0, trace_node = 0, trace_every = 1, state_every = 1;
   double period_s = 0.002;
   std::int64_t run_k0 = 0;  // epoch tick of the run start: earlier sequence numbers are probes
+  // Per neighbour index: the echo-based age bound a packet may have (net/README.md, "Age guard":
+  // (R_ij + station.age_slack_ticks) T); a packet beyond it, or with no echo of one of our own
+  // sends, is not handed to the core (counted). Null: no age guard.
+  const double* max_age_s = nullptr;
 };
 
 // Preallocated by reserve() (not RT-safe); the tick writes rows by index, never grows them.
@@ -60,6 +64,8 @@ struct TickRecords {
 struct TickCounters {
   std::uint64_t foreign_packets = 0, probe_packets_after_run = 0, rx_offered = 0, push_failures = 0, device_fault_ticks = 0;
   std::uint64_t no_neighbour_ticks = 0;  // ticks with every neighbour's data beyond its index-delay bound
+  std::uint64_t age_over_bound = 0, no_echo = 0;  // packets refused by the age guard (TickInputs::max_age_s)
+  std::uint64_t rx_refused = 0;          // packets the receive links refused (future sequence, non-finite, stale, duplicate)
   std::int64_t ticks_run = 0;
   bool diverged = false;
   double diverged_at_s = -1, port_min_J = 0, max_speed_m_per_s = 0;

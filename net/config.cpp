@@ -1,5 +1,7 @@
 #include "net/config.hpp"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <sched.h>
 
 #include "platform/toml_config.hpp"
@@ -63,9 +65,24 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
   e.rtt.margin_s = real(net["rtt_margin_s"], P + "rtt_margin_s", 0.004, 0.0, 10.0);
   e.rtt.min_probe_samples = integer<std::uint64_t>(net["rtt_min_probe_samples"], P + "rtt_min_probe_samples", 20, 1, 1000000);
 
+  c.listen_any = boolean(net["listen_any"], P + "listen_any", false);
+  e.max_sequence_ahead_ticks =
+      integer<std::uint64_t>(net["max_sequence_ahead_ticks"], P + "max_sequence_ahead_ticks", 50, 1, 1ll << 40);
+  e.rx_rate_limit_per_s = real(net["rx_rate_limit_per_s"], P + "rx_rate_limit_per_s", 0.0, 0.0, 1e9);
+  c.envelope_radii = real(net["envelope_radii"], P + "envelope_radii", 3.0, 0.0, 1e6);
+  const std::string bind_key = P + (net["bind"] || !net["listen"] ? "bind" : "listen");
   if (c.transport == "udp")
     c.bind = net["bind"] ? text(net["bind"], P + "bind", "") : text(net["listen"], P + "listen", "");
   if (c.transport == "udp" && c.bind.empty()) bad(P + "bind", "set for transport = \"udp\" (\"a.b.c.d:port\" or \"[v6]:port\")");
+  if (c.transport == "udp" && !c.listen_any) {
+    socklen_t blen = 0;
+    const sockaddr_storage a = parse_udp_address(c.bind, bind_key, blen);
+    const bool any = a.ss_family == AF_INET ? reinterpret_cast<const sockaddr_in*>(&a)->sin_addr.s_addr == htonl(INADDR_ANY)
+                                            : IN6_IS_ADDR_UNSPECIFIED(&reinterpret_cast<const sockaddr_in6*>(&a)->sin6_addr);
+    if (any)
+      bad(bind_key, "this station's own address, not the wildcard \"" + c.bind + "\" (listening on every interface needs " + P +
+                        "listen_any = true; neighbours are still accepted only from their configured addresses)");
+  }
   if (c.transport == "raw") c.interface = text(net["interface"], P + "interface", "");
   if (c.transport == "raw" && c.interface.empty()) bad(P + "interface", "set for transport = \"raw\"");
 
@@ -133,7 +150,7 @@ NetConfig load_net_config(const std::string& path, std::uint32_t value_count) {
 
 std::unique_ptr<Transport> NetConfig::make_transport() const {
   if (transport == "raw") return std::make_unique<RawEthernetTransport>(interface, raw_peers);
-  return std::make_unique<UdpTransport>(bind, udp_peers);
+  return std::make_unique<UdpTransport>(bind, udp_peers, listen_any);
 }
 
 }  // namespace haptic::net

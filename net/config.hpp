@@ -22,6 +22,11 @@
 //   rtt_margin_fraction = 0.25     # 0..10
 //   rtt_margin_s = 0.004           # 0..10
 //   rtt_min_probe_samples = 20     # >= 1
+//   listen_any = false             # true: allow bind = "0.0.0.0:p" / "[::]:p" (all interfaces)
+//   max_sequence_ahead_ticks = 50  # drop authentic datagrams whose sequence is beyond our tick + this, [1, 2^40]
+//   rx_rate_limit_per_s = 0        # per-source datagram rate limit (token bucket, before the MAC); 0 = 20x expected
+//   envelope_radii = 3.0           # payload envelope: a node farther than this many object radii from its rest
+//                                  # position drops the packet (out_of_envelope); 0 = off. [0, 1e6]
 //   [net.impairment]               # optional: emulate the link in our send path
 //   preset = "none"                # "none" | "paper" | "bursty"
 //   seed = 1                       # run seed: link seeds by net::link_seed (the simulator's rule)
@@ -54,6 +59,8 @@ struct NetConfig {
   std::vector<RawPeer> raw_peers;
   std::uint64_t impairment_seed = 1;   // [net.impairment] seed (run seed of net::link_seed)
   bool impairment_seed_given = false;  // the key was in the file
+  bool listen_any = false;             // net.listen_any: binding the wildcard address is allowed
+  double envelope_radii = 3.0;         // net.envelope_radii (the station turns it into metres)
   // Opens the socket (throws std::system_error, e.g. without CAP_NET_RAW for "raw").
   std::unique_ptr<Transport> make_transport() const;
 };

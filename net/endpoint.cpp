@@ -61,6 +61,14 @@ const EndpointConfig& checked(const EndpointConfig& cfg, const Transport* t) {
     if (!(cfg.tx_spin_tail_s > 0.0 && cfg.tx_spin_lead_s + cfg.tx_spin_tail_s < cfg.tx_period_s))
       throw std::invalid_argument("net.tx_spin_tail_us must be > 0 and lead + tail < period");
   }
+  if (!(cfg.rx_rate_limit_per_s >= 0.0 && std::isfinite(cfg.rx_rate_limit_per_s)))
+    throw std::invalid_argument("net.rx_rate_limit_per_s must be >= 0 (0 = automatic)");
+  if (cfg.max_sequence_ahead_ticks < 1 || cfg.max_sequence_ahead_ticks > (1ull << 40))
+    throw std::invalid_argument("net.max_sequence_ahead_ticks must be in [1, 2^40]");
+  if (cfg.envelope_max_offset_m > 0.0 && cfg.envelope_rest_x.size() != cfg.value_count)
+    throw std::invalid_argument("net: the payload envelope needs the rest positions of every node (3n values)");
+  if (!(cfg.envelope_max_offset_m >= 0.0) || !(cfg.envelope_max_speed_m_per_s >= 0.0))
+    throw std::invalid_argument("net: payload envelope bounds must be >= 0");
   if (cfg.wire.max_datagram_bytes > t->max_datagram_bytes())
     throw std::invalid_argument("net.max_datagram_bytes = " + std::to_string(cfg.wire.max_datagram_bytes) +
                                 " exceeds what transport " + t->name() + " carries (" +
@@ -92,10 +100,19 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
       io_priority_(cfg.io_priority),
       incarnation_(encoder_.config().incarnation),
       fingerprint_(cfg.fingerprint),
-      silence_ns_(static_cast<std::int64_t>(std::llround(cfg.peer_silence_s * 1e9))) {
+      silence_ns_(static_cast<std::int64_t>(std::llround(cfg.peer_silence_s * 1e9))),
+      max_sequence_ahead_(cfg.max_sequence_ahead_ticks),
+      envelope_rest_x_(cfg.envelope_max_offset_m > 0.0 ? cfg.envelope_rest_x : std::vector<double>{}),
+      envelope_max_offset_m_(cfg.envelope_max_offset_m),
+      envelope_max_speed_(cfg.envelope_max_speed_m_per_s) {
   if (frags_per_packet_ == 0)
     throw std::invalid_argument("net: scene too large for " + std::to_string(kMaxFragments) +
                                 " fragments of net.max_datagram_bytes = " + std::to_string(cfg.wire.max_datagram_bytes));
+  // 20x the expected datagram rate per source (one packet per tick, plus fingerprints), or as configured.
+  const double packets_per_s = cfg.tx_period_s > 0.0 ? 1.0 / cfg.tx_period_s : 500.0;
+  rx_rate_per_s_ = cfg.rx_rate_limit_per_s > 0.0 ? cfg.rx_rate_limit_per_s
+                                                 : 20.0 * packets_per_s * static_cast<double>(frags_per_packet_ + 1);
+  rx_burst_ = std::max(16.0, 0.1 * rx_rate_per_s_);
   for (const auto& l : cfg.peers) {
     auto p = std::make_unique<PeerState>();
     p->link = l;
@@ -206,7 +223,7 @@ int Endpoint::find_peer(std::uint16_t id) const {
   return -1;
 }
 
-bool Endpoint::push_state(std::uint64_t seq, double send_time_s, const double* x_hat, const double* v_hat) {
+bool Endpoint::push_state(std::uint64_t seq, double send_time_s, const double* x_hat, const double* v_hat, bool safe_state) {
   std::uint32_t idx = 0;
   if (!tx_free_.reader_try_pop(idx)) {
     tx_overruns_.fetch_add(1, std::memory_order_relaxed);
@@ -215,7 +232,9 @@ bool Endpoint::push_state(std::uint64_t seq, double send_time_s, const double* x
   double* dst = tx_store_.data() + std::size_t{idx} * 2 * value_count_;
   std::memcpy(dst, x_hat, sizeof(double) * value_count_);
   std::memcpy(dst + value_count_, v_hat, sizeof(double) * value_count_);
-  tx_meta_[idx] = TxMeta{seq, send_time_s, monotonic_ns()};  // vDSO clock read, no syscall
+  // Never transmit a non-finite state: send the safe-state flag (and zeros) instead.
+  for (std::size_t i = 0; i < 2 * std::size_t{value_count_} && !safe_state; ++i) safe_state = !std::isfinite(dst[i]);
+  tx_meta_[idx] = TxMeta{seq, send_time_s, monotonic_ns(), safe_state};  // vDSO clock read, no syscall
   tx_ready_.writer_try_push(idx);  // cannot fail: as many slots as buffers
   // Dekker pair with spin_for_push() (seq_cst, no fences): if we see the I/O thread spinning,
   // its end-of-window check sees this push; otherwise we wake it.
@@ -490,23 +509,71 @@ void Endpoint::on_state(PeerState& p, const DecodedState& st, std::int64_t now_n
   ps.one_way_max_s = std::max(ps.one_way_max_s, one_way);
 }
 
+bool Endpoint::RateBucket::take(std::int64_t now_ns, double rate_per_s, double burst) {
+  if (last_ns < 0) tokens = burst;
+  else tokens = std::min(burst, tokens + static_cast<double>(now_ns - last_ns) * 1e-9 * rate_per_s);
+  last_ns = now_ns;
+  if (tokens < 1.0) return false;
+  tokens -= 1.0;
+  return true;
+}
+
+bool Endpoint::within_envelope(const DecodedState& st) const {
+  if (envelope_rest_x_.empty() && !(envelope_max_speed_ > 0.0)) return true;
+  const std::size_t n = st.value_count;
+  const double r2 = envelope_max_offset_m_ * envelope_max_offset_m_, s2 = envelope_max_speed_ * envelope_max_speed_;
+  for (std::size_t p = 0; p + 2 < n; p += 3) {
+    double d2 = 0.0, v2 = 0.0;
+    for (std::size_t a = 0; a < 3; ++a) {
+      if (!envelope_rest_x_.empty()) {
+        const double d = st.value(p + a) - envelope_rest_x_[p + a];
+        d2 += d * d;
+      }
+      const double v = st.value(n + p + a);
+      v2 += v * v;
+    }
+    if (!envelope_rest_x_.empty() && d2 > r2) return false;
+    if (envelope_max_speed_ > 0.0 && v2 > s2) return false;
+  }
+  return true;
+}
+
 void Endpoint::handle_rx(std::int64_t now_ns) {
   for (int budget = 0; budget < 4096; ++budget) {
-    const long n = transport_->receive(rx_buf_.data(), rx_buf_.size());
-    if (n == 0) return;
+    int source = kSourceUnchecked;
+    const long n = transport_->receive_from(rx_buf_.data(), rx_buf_.size(), source);
+    if (n == Transport::kNoDatagram) return;
     if (n < 0) {
       ++counters_.receive_errors;
       return;
     }
     ++counters_.datagrams_received;
+    // Per-source rate limit before any decoding or MAC work (a flood costs recv + this).
+    if (source != kSourceUnchecked) {
+      const int pi = source >= 0 ? find_peer(static_cast<std::uint16_t>(source)) : -1;
+      RateBucket& b = pi >= 0 ? peers_[static_cast<std::size_t>(pi)]->bucket : unknown_bucket_;
+      if (!b.take(now_ns, rx_rate_per_s_, rx_burst_)) {
+        decoder_.count_drop(DropReason::rate_limited);
+        if (pi >= 0) ++peers_[static_cast<std::size_t>(pi)]->stats.rate_limited;
+        continue;
+      }
+    }
+    if (n == 0) {
+      decoder_.count_drop(DropReason::zero_length);
+      continue;
+    }
     DecodedState st;
+    DecodeLimits lim;
+    lim.source_station = source;
+    const std::int64_t own = own_tick_.load(std::memory_order_relaxed);
+    if (own >= 0) lim.max_sequence = static_cast<std::uint64_t>(own) + max_sequence_ahead_;
     const std::size_t len = std::min<std::size_t>(static_cast<std::size_t>(n), rx_buf_.size());
     if (static_cast<std::size_t>(n) > rx_buf_.size()) {
       // Larger than any legal datagram: the decoder drops it as oversized from its length.
-      decoder_.decode(rx_buf_.data(), static_cast<std::size_t>(n) > max_datagram_ ? max_datagram_ + 1 : len, st);
+      decoder_.decode(rx_buf_.data(), static_cast<std::size_t>(n) > max_datagram_ ? max_datagram_ + 1 : len, st, lim);
       continue;
     }
-    const DecodeStatus ds = decoder_.decode(rx_buf_.data(), len, st);
+    const DecodeStatus ds = decoder_.decode(rx_buf_.data(), len, st, lim);
     if (ds != DecodeStatus::complete && ds != DecodeStatus::fingerprint) continue;
     const int pi = find_peer(st.sender);
     if (pi < 0) continue;  // cannot happen: the decoder knows the same peers
@@ -528,6 +595,18 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
     }
     if (st.value_count != value_count_) {  // a peer with another scene: never hand it to the tick
       ++counters_.wrong_scene_size;
+      continue;
+    }
+    p.stats.peer_safe_state = st.safe_state;
+    if (st.safe_state) {
+      // The neighbour is in its safe state: its echo still measures the round trip, but there is
+      // no state to couple to (the tick's edge goes over its bound and acts as a damper).
+      ++p.stats.safe_state_packets;
+      on_state(p, st, now_ns);
+      continue;
+    }
+    if (!within_envelope(st)) {
+      decoder_.count_drop(DropReason::out_of_envelope);
       continue;
     }
     on_state(p, st, now_ns);
@@ -591,6 +670,7 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
     const std::int64_t stamp = m.send_time_s >= 0.0 ? static_cast<std::int64_t>(std::llround(m.send_time_s * 1e9))
                                                      : now_ns;
     send_records_[m.seq % kSendRecords] = SendRecord{true, m.seq, stamp};
+    if (m.safe_state) ++counters_.tx_safe_state;
     send_fingerprints(m.seq, stamp);
     ++pushes_sent_;
     for (auto& pp : peers_) {
@@ -606,6 +686,7 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
       o.value_count = value_count_;
       o.x_hat = x;
       o.v_hat = x + value_count_;
+      o.safe_state = m.safe_state;
       ++p.stats.packets_sent;
       PacketFate fate;
       fate.copies = 1;

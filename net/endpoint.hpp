@@ -95,6 +95,20 @@ struct EndpointConfig {
   // stream of their own, run packet seq draws fate seq - this of the link's stream, as the
   // simulator's channel does (net::SendImpairment).
   std::uint64_t impairment_first_run_seq = 0;
+  // Sequence sanity (net.max_sequence_ahead_ticks): once the station has told the endpoint its
+  // tick (note_tick), an authentic datagram with a sequence beyond that tick + this is dropped
+  // (future_sequence) before it touches any state.
+  std::uint64_t max_sequence_ahead_ticks = 50;
+  // Per-source datagram rate limit on the I/O thread (token bucket, burst = 0.1 s of it), applied
+  // before the MAC is computed; 0 = automatic: 20x the expected rate (fragments per packet per
+  // tx_period_s, 500 packets/s without a period). net.rx_rate_limit_per_s.
+  double rx_rate_limit_per_s = 0.0;
+  // Payload envelope (physically possible states), checked on every authentic state packet:
+  // a node farther than envelope_max_offset_m from its rest position envelope_rest_x (3n), or
+  // faster than envelope_max_speed_m_per_s, drops the packet (out_of_envelope). Empty / 0: off.
+  std::vector<double> envelope_rest_x;
+  double envelope_max_offset_m = 0.0;
+  double envelope_max_speed_m_per_s = 0.0;
 };
 
 // Statistics of one neighbor (a copy; read from any non-RT thread).
@@ -137,6 +151,11 @@ struct PeerStats {
   double clock_offset_rtt_s = 0.0;        // round trip (minus hold) of the sample it came from
   bool has_fingerprint = false;
   Fingerprint fingerprint{};              // newest received from this neighbour
+  // Safe-state packets (kFlagSafeState) received: the neighbour said it is in its safe state;
+  // never handed to the tick. peer_safe_state: the newest state packet had the flag.
+  std::uint64_t safe_state_packets = 0;
+  bool peer_safe_state = false;
+  std::uint64_t rate_limited = 0;         // datagrams from this neighbour's address over the rate limit
 };
 
 // Totals of the I/O thread (a copy).
@@ -144,6 +163,7 @@ struct EndpointCounters {
   DropCounters drops{};
   std::uint64_t datagrams_received = 0, receive_errors = 0, rx_ring_full = 0;
   std::uint64_t wrong_scene_size = 0;  // authentic packets whose 3n differs from ours (dropped)
+  std::uint64_t tx_safe_state = 0;     // packets sent with kFlagSafeState (safe state, or a non-finite state pushed)
   std::uint64_t fingerprints_received = 0;
   // Push -> first datagram handed to the transport (I/O thread), per state packet; caught
   // inside a spin window; spin windows opened (net.tx_spin).
@@ -238,7 +258,13 @@ class Endpoint {
   // seconds (monotonic_s()); a negative value lets the I/O thread stamp it. false (and counted
   // as a TX overrun) when the I/O thread is behind. RT-safe (no allocation/lock; one
   // non-blocking eventfd write).
-  bool push_state(std::uint64_t seq, double send_time_s, const double* x_hat, const double* v_hat);
+  // safe_state (or any non-finite value in x_hat/v_hat) sends the safe-state flag and zeros
+  // instead of the state: a station never transmits a non-finite state.
+  bool push_state(std::uint64_t seq, double send_time_s, const double* x_hat, const double* v_hat, bool safe_state = false);
+  // The station's current tick k (the sequence numbers it pushes): from the first call on,
+  // authentic datagrams with a sequence above k + max_sequence_ahead_ticks are dropped
+  // (future_sequence). RT-safe (one relaxed atomic store).
+  void note_tick(std::int64_t k) { own_tick_.store(k, std::memory_order_relaxed); }
   // Per neighbor (index into config peers): the current round-trip bound in ticks of
   // period_s and its generation (bumps on every change: probing done, over-bound event).
   // RT-safe (atomics).
@@ -279,6 +305,13 @@ class Endpoint {
     std::uint64_t seq;
     double send_time_s;
     std::int64_t push_ns;
+    bool safe_state;
+  };
+  // Token bucket of one source (a neighbour's address, or every unknown address together).
+  struct RateBucket {
+    double tokens = 0.0;
+    std::int64_t last_ns = -1;
+    bool take(std::int64_t now_ns, double rate_per_s, double burst);  // false: over the limit
   };
   struct Delayed {
     std::int64_t release_ns;
@@ -312,6 +345,7 @@ class Endpoint {
     std::int64_t last_receive_ns = 0;
     std::uint64_t offset_window_n = 0;   // samples in the current clock-offset window
     double offset_window_best_rtt = 0.0, offset_window_best = 0.0;
+    RateBucket bucket;                   // datagrams from this neighbour's configured address
     PeerStats stats;                     // I/O thread only; published to `box`
     platform::SnapshotBox<PeerStats> box;
     std::atomic<std::uint64_t> bound_ns{0};
@@ -403,6 +437,13 @@ class Endpoint {
   Fingerprint fingerprint_;
   std::int64_t silence_ns_;
   std::vector<SendRecord> send_records_;  // I/O thread only
+  std::atomic<std::int64_t> own_tick_{-1};  // note_tick(); -1: not yet known (no sequence ceiling)
+  std::uint64_t max_sequence_ahead_;
+  double rx_rate_per_s_, rx_burst_;
+  RateBucket unknown_bucket_;              // datagrams from addresses no neighbour is configured at
+  std::vector<double> envelope_rest_x_;
+  double envelope_max_offset_m_, envelope_max_speed_;
+  bool within_envelope(const DecodedState& st) const;  // I/O thread
   std::uint64_t pushes_sent_ = 0;          // I/O thread only
 
   // I/O thread only; published to counters_box_.

@@ -121,4 +121,21 @@ long RawEthernetTransport::receive(std::uint8_t* buf, std::size_t cap) {
   }
 }
 
+long RawEthernetTransport::receive_from(std::uint8_t* buf, std::size_t cap, int& source) {
+  for (;;) {
+    sockaddr_ll from{};
+    socklen_t flen = sizeof from;
+    const ssize_t n = ::recvfrom(fd_, buf, cap, MSG_TRUNC, reinterpret_cast<sockaddr*>(&from), &flen);
+    if (n < 0) return (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) ? kNoDatagram : -1;
+    if (from.sll_pkttype == PACKET_OUTGOING) continue;
+    source = -1;
+    for (const auto& p : peers_)
+      if (from.sll_halen == 6 && std::memcmp(from.sll_addr, p.mac.data(), 6) == 0) {
+        source = p.station_id;
+        break;
+      }
+    return static_cast<long>(n);
+  }
+}
+
 }  // namespace haptic::net

@@ -38,6 +38,8 @@ class RawEthernetTransport final : public Transport {
   int fd() const override { return fd_; }
   bool send_to(std::uint16_t dest, const std::uint8_t* data, std::size_t len) override;
   long receive(std::uint8_t* buf, std::size_t cap) override;
+  // The source is the peer whose configured MAC sent the frame.
+  long receive_from(std::uint8_t* buf, std::size_t cap, int& source) override;
   std::size_t max_datagram_bytes() const override { return mtu_; }
   const char* name() const override { return "raw-ethernet"; }
   const MacAddress& local_mac() const { return local_mac_; }

@@ -48,9 +48,34 @@ sockaddr_storage parse_udp_address(const std::string& text, const std::string& c
   return ss;
 }
 
-UdpTransport::UdpTransport(const std::string& bind_address, const std::vector<UdpPeer>& peers) {
+namespace {
+bool is_wildcard(const sockaddr_storage& a) {
+  if (a.ss_family == AF_INET) return reinterpret_cast<const sockaddr_in*>(&a)->sin_addr.s_addr == htonl(INADDR_ANY);
+  const in6_addr& v6 = reinterpret_cast<const sockaddr_in6*>(&a)->sin6_addr;
+  return IN6_IS_ADDR_UNSPECIFIED(&v6);
+}
+// Same address and port (the source of a datagram against a peer's configured address).
+bool same_endpoint(const sockaddr_storage& a, const sockaddr_storage& b) {
+  if (a.ss_family != b.ss_family) return false;
+  if (a.ss_family == AF_INET) {
+    const auto* x = reinterpret_cast<const sockaddr_in*>(&a);
+    const auto* y = reinterpret_cast<const sockaddr_in*>(&b);
+    return x->sin_port == y->sin_port && x->sin_addr.s_addr == y->sin_addr.s_addr;
+  }
+  const auto* x = reinterpret_cast<const sockaddr_in6*>(&a);
+  const auto* y = reinterpret_cast<const sockaddr_in6*>(&b);
+  return x->sin6_port == y->sin6_port && std::memcmp(&x->sin6_addr, &y->sin6_addr, sizeof(in6_addr)) == 0;
+}
+}  // namespace
+
+UdpTransport::UdpTransport(const std::string& bind_address, const std::vector<UdpPeer>& peers, bool listen_any) {
   socklen_t blen = 0;
   const sockaddr_storage local = parse_udp_address(bind_address, "net.bind", blen);
+  if (is_wildcard(local) && !listen_any)
+    throw std::invalid_argument("net.bind = \"" + bind_address +
+                                "\" listens on every interface: name this station's own address, or set "
+                                "net.listen_any = true to accept that (neighbours are still only accepted from "
+                                "their configured addresses)");
   family_ = local.ss_family;
   for (const auto& p : peers) {
     Peer q{};
@@ -121,6 +146,20 @@ long UdpTransport::receive(std::uint8_t* buf, std::size_t cap) {
   // MSG_TRUNC: n is the real size; a datagram larger than cap comes back as its real size so
   // the decoder drops it as oversized without reading past buf.
   return static_cast<long>(n);
+}
+
+long UdpTransport::receive_from(std::uint8_t* buf, std::size_t cap, int& source) {
+  sockaddr_storage from{};
+  socklen_t flen = sizeof from;
+  const ssize_t n = ::recvfrom(fd_, buf, cap, MSG_TRUNC, reinterpret_cast<sockaddr*>(&from), &flen);
+  if (n < 0) return (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) ? kNoDatagram : -1;
+  source = -1;
+  for (const auto& p : peers_)
+    if (same_endpoint(from, p.addr)) {
+      source = p.id;
+      break;
+    }
+  return static_cast<long>(n);  // MSG_TRUNC: the real size (see receive())
 }
 
 }  // namespace haptic::net

@@ -25,8 +25,9 @@ sockaddr_storage parse_udp_address(const std::string& text, const std::string& c
 class UdpTransport final : public Transport {
  public:
   // bind_address: this station's "host:port" (net.bind); peers must be of the same family.
+  // The wildcard address (0.0.0.0, [::]) is refused unless listen_any (net.listen_any).
   // Throws std::system_error / std::invalid_argument at start-up.
-  UdpTransport(const std::string& bind_address, const std::vector<UdpPeer>& peers);
+  UdpTransport(const std::string& bind_address, const std::vector<UdpPeer>& peers, bool listen_any = false);
   ~UdpTransport() override;
   UdpTransport(const UdpTransport&) = delete;
   UdpTransport& operator=(const UdpTransport&) = delete;
@@ -34,6 +35,8 @@ class UdpTransport final : public Transport {
   int fd() const override { return fd_; }
   bool send_to(std::uint16_t dest, const std::uint8_t* data, std::size_t len) override;
   long receive(std::uint8_t* buf, std::size_t cap) override;
+  // The source is the peer whose configured address (address and port) sent it.
+  long receive_from(std::uint8_t* buf, std::size_t cap, int& source) override;
   std::size_t max_datagram_bytes() const override { return family_ == AF_INET6 ? 1452 : 1472; }
   const char* name() const override { return family_ == AF_INET6 ? "udp6" : "udp4"; }
   std::uint16_t local_port() const;

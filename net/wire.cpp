@@ -49,6 +49,12 @@ const char* to_string(DropReason r) {
     case DropReason::too_large: return "too_large";
     case DropReason::reassembly_evicted: return "reassembly_evicted";
     case DropReason::old_incarnation: return "old_incarnation";
+    case DropReason::future_sequence: return "future_sequence";
+    case DropReason::wrong_source: return "wrong_source";
+    case DropReason::non_finite: return "non_finite";
+    case DropReason::out_of_envelope: return "out_of_envelope";
+    case DropReason::rate_limited: return "rate_limited";
+    case DropReason::zero_length: return "zero_length";
     case DropReason::count_: break;
   }
   return "?";
@@ -146,6 +152,7 @@ std::size_t Encoder::encode_fragment(const OutgoingState& s, std::size_t index, 
   std::uint8_t flags = 0;
   if (cfg_.encoding == ValueEncoding::float32) flags |= kFlagFloat32;
   if (s.has_echo) flags |= kFlagHasEcho;
+  if (s.safe_state) flags |= kFlagSafeState;
   namespace o = wire_offset;
   put_common(out, PayloadKind::state, flags, s.dest, s.seq, s.send_time_ns);
   put<std::uint64_t>(out, o::echo_seq, s.has_echo ? s.echo_seq : 0);
@@ -163,7 +170,8 @@ std::size_t Encoder::encode_fragment(const OutgoingState& s, std::size_t index, 
   const std::size_t n = len / value_bytes_;
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t idx = first + i;
-    const double v = idx < s.value_count ? s.x_hat[idx] : s.v_hat[idx - s.value_count];
+    // In safe state the state is not sent (it may be non-finite): zeros and the flag instead.
+    const double v = s.safe_state ? 0.0 : idx < s.value_count ? s.x_hat[idx] : s.v_hat[idx - s.value_count];
     if (value_bytes_ == 8) {
       std::memcpy(p + 8 * i, &v, 8);
     } else {
@@ -234,6 +242,25 @@ void DecodedState::copy_out(double* x_hat, double* v_hat) const {
     }
   }
 }
+
+double DecodedState::value(std::size_t i) const {
+  if (encoding == ValueEncoding::float64) return get<double>(payload, 8 * i);
+  return static_cast<double>(get<float>(payload, 4 * i));
+}
+
+namespace {
+// Every payload value finite (float32 or float64 bit patterns: exponent not all ones). RT-safe.
+bool payload_finite(const std::uint8_t* p, std::size_t values, std::size_t vb) {
+  if (vb == 8) {
+    for (std::size_t i = 0; i < values; ++i)
+      if ((get<std::uint64_t>(p, 8 * i) & 0x7FF0000000000000ull) == 0x7FF0000000000000ull) return false;
+  } else {
+    for (std::size_t i = 0; i < values; ++i)
+      if ((get<std::uint32_t>(p, 4 * i) & 0x7F800000u) == 0x7F800000u) return false;
+  }
+  return true;
+}
+}  // namespace
 
 bool peek_header(const std::uint8_t* d, std::size_t len, HeaderView& h) {
   if (len < kHeaderBytes) return false;
@@ -377,7 +404,7 @@ void Decoder::report(DecodedState& out, const HeaderView& h, Peer& peer, bool ra
   out.send_time_ns = h.send_time_ns;
 }
 
-DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedState& out) {
+DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedState& out, const DecodeLimits& lim) {
   namespace o = wire_offset;
   if (d == nullptr || len < kHeaderBytes + kMacBytes) return drop(DropReason::truncated);
   if (len > cfg_.max_datagram_bytes) return drop(DropReason::oversized);
@@ -394,6 +421,8 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
   if (h.session != cfg_.session_id) return drop(DropReason::wrong_session);
   const int pi = peer_index(h.sender);
   if (pi < 0) return drop(DropReason::unknown_sender);
+  if (lim.source_station == kSourceUnknown || (lim.source_station >= 0 && lim.source_station != h.sender))
+    return drop(DropReason::wrong_source);
   if (h.dest != cfg_.station_id) return drop(DropReason::wrong_destination);
   std::uint8_t tag[kMacBytes];
   mac(d, kHeaderBytes + h.frag_len, cfg_.key, tag);
@@ -420,7 +449,7 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
     return DecodeStatus::fingerprint;
   }
   if (h.kind != static_cast<std::uint8_t>(PayloadKind::state)) return drop(DropReason::garbled);
-  if ((h.flags & ~(kFlagFloat32 | kFlagHasEcho)) != 0) return drop(DropReason::garbled);
+  if ((h.flags & ~(kFlagFloat32 | kFlagHasEcho | kFlagSafeState)) != 0) return drop(DropReason::garbled);
   const std::size_t vb = (h.flags & kFlagFloat32) ? 4 : 8;
   if (h.value_count == 0) return drop(DropReason::garbled);
   if (h.value_count > max_value_count_) return drop(DropReason::too_large);
@@ -433,6 +462,9 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
   const std::size_t expect_len = std::min<std::size_t>(h.frag_stride, total - expect_off);
   if (h.frag_offset != expect_off || h.frag_len != expect_len) return drop(DropReason::garbled);
 
+  // Beyond our own tick + slack: a forged or broken sender; before anything is touched (a far
+  // future sequence would otherwise move the replay window and make every genuine packet stale).
+  if (h.seq > lim.max_sequence) return drop(DropReason::future_sequence);
   bool raised = false;
   if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
   DropReason why{};
@@ -445,10 +477,12 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
     out.echo_hold_ns = h.echo_hold_ns;
     out.value_count = h.value_count;
     out.encoding = vb == 4 ? ValueEncoding::float32 : ValueEncoding::float64;
+    out.safe_state = (h.flags & kFlagSafeState) != 0;
     out.payload = payload;
   };
 
   if (h.frag_count == 1) {
+    if (!payload_finite(d + kHeaderBytes, h.frag_len / vb, vb)) return drop(DropReason::non_finite);
     mark(peer, h.seq);
     ++accepted_datagrams_;
     ++completed_;
@@ -495,6 +529,7 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
   if (slot->received < slot->frag_count) return DecodeStatus::fragment_stored;
 
   slot->used = false;
+  if (!payload_finite(slot->buffer, 2ull * h.value_count, vb)) return drop(DropReason::non_finite);
   mark(peer, h.seq);
   // Report the header fields stored with the slot (from its first fragment) and its buffer.
   ++completed_;

@@ -39,6 +39,9 @@ enum class ValueEncoding : std::uint8_t { float64 = 0, float32 = 1 };
 // Header flag bits.
 inline constexpr std::uint8_t kFlagFloat32 = 0x01;
 inline constexpr std::uint8_t kFlagHasEcho = 0x02;
+// The sender is in its safe state (diverged or faulted): the payload is zeros, not a state to
+// couple to. Receivers count it and do not hand it to the tick (the edge then acts passively).
+inline constexpr std::uint8_t kFlagSafeState = 0x04;
 
 // Byte offsets of the header fields (little-endian).
 namespace wire_offset {
@@ -77,6 +80,12 @@ enum class DropReason : std::uint8_t {
   too_large,          // value_count above this station's scene size
   reassembly_evicted, // partial packet evicted (counted per evicted packet, not per datagram)
   old_incarnation,    // authentic, but from an incarnation older than the newest seen from that sender
+  future_sequence,    // authentic, but its sequence is beyond our own tick + net.max_sequence_ahead_ticks
+  wrong_source,       // came from an address (UDP address:port, source MAC) not configured for its sender
+  non_finite,         // authentic, but a payload value is NaN or infinite
+  out_of_envelope,    // authentic, but a state outside the physically possible envelope (endpoint)
+  rate_limited,       // over the per-source datagram rate (net.rx_rate_limit_per_s), dropped unread
+  zero_length,        // an empty datagram
   count_
 };
 inline constexpr std::size_t kDropReasonCount = static_cast<std::size_t>(DropReason::count_);
@@ -137,6 +146,7 @@ struct OutgoingState {
   std::uint32_t value_count = 0;
   const double* x_hat = nullptr;
   const double* v_hat = nullptr;
+  bool safe_state = false;  // sets kFlagSafeState; x_hat/v_hat are not read, zeros are sent
 };
 
 class Encoder {
@@ -185,9 +195,23 @@ struct DecodedState {
   std::int64_t echo_hold_ns = 0;
   std::uint32_t value_count = 0;
   ValueEncoding encoding = ValueEncoding::float64;
+  bool safe_state = false;        // kFlagSafeState: the sender is in its safe state (payload zeros)
   const std::uint8_t* payload = nullptr;
   // Converts the payload to doubles (value_count each). RT-safe.
   void copy_out(double* x_hat, double* v_hat) const;
+  // Payload value i (0 .. 2 value_count - 1: x_hat then v_hat) as a double. RT-safe.
+  double value(std::size_t i) const;
+};
+
+// Limits the caller (the endpoint) applies to one datagram, from what only it knows.
+inline constexpr int kSourceUnchecked = -2;  // the transport cannot tell where it came from
+inline constexpr int kSourceUnknown = -1;    // from an address no neighbour is configured at
+struct DecodeLimits {
+  // Highest acceptable sequence number (our own tick + slack); larger: future_sequence.
+  std::uint64_t max_sequence = ~std::uint64_t{0};
+  // The station id configured at the datagram's source address, kSourceUnknown, or
+  // kSourceUnchecked; a sender field that disagrees with a known source is wrong_source.
+  int source_station = kSourceUnchecked;
 };
 
 // fingerprint: an authentic fingerprint message (out.fingerprint); complete: a state packet.
@@ -207,7 +231,11 @@ class Decoder {
   // of a sender fixes its incarnation; a higher one resets that sender's replay window and
   // partial packets (a restarted process); a lower one is dropped (old_incarnation).
   // RT-safe (no allocation, no syscall).
-  DecodeStatus decode(const std::uint8_t* data, std::size_t len, DecodedState& out);
+  // limits: sequence ceiling and source check (DecodeLimits). Non-finite payloads are dropped
+  // (non_finite) before their sequence enters the replay window.
+  DecodeStatus decode(const std::uint8_t* data, std::size_t len, DecodedState& out, const DecodeLimits& limits = {});
+  // Counts a drop decided outside the decoder (rate limit, empty datagram, envelope). RT-safe.
+  void count_drop(DropReason r) { ++drops_.by_reason[static_cast<std::size_t>(r)]; }
   const DropCounters& drops() const { return drops_; }
   std::uint64_t accepted_datagrams() const { return accepted_datagrams_; }
   std::uint64_t completed_packets() const { return completed_; }

@@ -1,6 +1,7 @@
 #include "rt/rx_link.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 
@@ -63,6 +64,16 @@ RxVerdict RxLink::offer(std::int64_t seq, double send_time_s, const double* x_ha
     ++counters_.stale;
     if (rule_ == RxRule::kNewestBySequence) return RxVerdict::kStale;
   }
+  const std::int64_t now = last_tick_ == INT64_MIN ? 0 : last_tick_;
+  if (seq > now + max_ahead_) {
+    ++counters_.future;
+    return RxVerdict::kFuture;
+  }
+  for (int i = 0; i < dofs_; ++i)
+    if (!std::isfinite(x_hat[i]) || !std::isfinite(v_hat[i])) {
+      ++counters_.non_finite;
+      return RxVerdict::kNonFinite;
+    }
   std::memcpy(x_hat_.data(), x_hat, sizeof(double) * static_cast<std::size_t>(dofs_));
   std::memcpy(v_hat_.data(), v_hat, sizeof(double) * static_cast<std::size_t>(dofs_));
   newest_seq_ = seq;
@@ -78,6 +89,10 @@ RxVerdict RxLink::offer(std::int64_t seq, double send_time_s, const double* x_ha
 RxLink::TickView RxLink::begin_tick(std::int64_t k) {
   TickView v;
   v.index_delay = k - newest_seq_;
+  if (v.index_delay < 0) {  // data stamped ahead of our tick (within max_ahead): never a negative delay
+    v.index_delay = 0;
+    ++counters_.ahead_ticks;
+  }
   v.fresh = unused_;
   if (unused_ && rule_ == RxRule::kMostRecentlyReceived) mark_used(newest_seq_);
   if (!unused_ && k != last_tick_) ++counters_.sustained_ticks;

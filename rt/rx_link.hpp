@@ -12,6 +12,10 @@
 //  - delta_ij^k = 1 only the first tick a velocity sample is used (duplication avoidance, eq. 17);
 //    under the paper's rule a window of the last kUsedWindow sequences remembers which samples
 //    were used (older ones count as used: delta = 0, the passive choice).
+//  - sanity (security, net/README.md): a sequence beyond the newest tick seen + max_ahead
+//    (set_max_ahead) and a payload with a non-finite value are refused and counted, and the
+//    index delay it reports is never negative (data "from the future" within the slack count
+//    as delay 0).
 // offer() and begin_tick() never allocate: RT-safe.
 #include <array>
 #include <cstdint>
@@ -20,7 +24,7 @@
 
 namespace haptic::rt {
 
-enum class RxVerdict : std::uint8_t { kAccepted, kStale, kDuplicate, kBadSize };
+enum class RxVerdict : std::uint8_t { kAccepted, kStale, kDuplicate, kBadSize, kFuture, kNonFinite };
 enum class RxRule : std::uint8_t { kNewestBySequence, kMostRecentlyReceived };
 // "newest" / "paper" (throws std::invalid_argument naming `key`), and back.
 RxRule parse_rx_rule(const std::string& text, const std::string& key);
@@ -31,6 +35,9 @@ struct RxCounters {
   std::uint64_t stale = 0;       // older than the newest seen (swapped/late): dropped, or used under the paper's rule
   std::uint64_t duplicate = 0;   // same sequence as the newest held
   std::uint64_t bad_size = 0;
+  std::uint64_t future = 0;      // sequence beyond the last tick + max_ahead (refused)
+  std::uint64_t non_finite = 0;  // a NaN/inf value in the payload (refused)
+  std::uint64_t ahead_ticks = 0; // ticks whose newest data had seq > k (reported as delay 0)
   std::uint64_t sustained_ticks = 0;  // ticks that held the previous packet
   std::int64_t max_index_delay = 0;   // max N_ij^k seen
 };
@@ -51,6 +58,9 @@ class RxLink {
   void init(int dofs, const double* x_hat0, const double* v_hat0, std::int64_t initial_sequence = -1,
             RxRule rule = RxRule::kNewestBySequence);
   RxVerdict offer(std::int64_t sequence, double send_time_s, const double* x_hat, const double* v_hat, int dofs);
+  // Sequences above (the last begin_tick's k, or 0 before the first) + ticks are refused
+  // (kFuture). Default: no limit (the simulator's packets never come from the future).
+  void set_max_ahead(std::int64_t ticks) { max_ahead_ = ticks; }
   TickView begin_tick(std::int64_t k);
   std::int64_t newest_sequence() const { return newest_seq_; }  // sequence of the held packet (the one a tick uses)
   std::int64_t max_sequence_seen() const { return max_seen_; }
@@ -73,6 +83,7 @@ class RxLink {
   double newest_send_time_ = 0;
   bool unused_ = false;  // newest velocity sample not yet used by a tick
   std::int64_t last_tick_ = INT64_MIN;
+  std::int64_t max_ahead_ = INT64_MAX / 4;
   RxCounters counters_{};
 };
 

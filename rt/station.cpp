@@ -286,7 +286,8 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
   // Over the bound: x_hat_j := x(k), delta_ij = 0 (the edge acts as the damper D_ij + T/2 P_ij).
   for (int j = 0; j < nn; ++j) {
     views_[j] = rx_[j].begin_tick(k);
-    const bool ok = views_[j].index_delay <= cfg_.neighbors[j].index_delay_bound_ticks;
+    // A negative delay (data stamped ahead of our tick) is never trusted: over the bound.
+    const bool ok = views_[j].index_delay >= 0 && views_[j].index_delay <= cfg_.neighbors[j].index_delay_bound_ticks;
     active_[j] = ok ? 1 : 0;
     if (ok) {
       edge_was_dropped_[j] = 0;

@@ -97,13 +97,25 @@ TEST(NetConfig, Float32IsTheDefaultAndTickSynchronousTxIsOptIn) {
 }
 
 TEST(NetConfig, DeployStyleNetworkSectionIsAccepted) {
-  const std::string doc = "[station]\nid = 1\n[network]\ntransport = \"udp\"\nlisten = \"0.0.0.0:47000\"\nsession_key = \"" +
+  const std::string doc = "[station]\nid = 1\n[network]\ntransport = \"udp\"\nlisten = \"192.168.10.11:47000\"\nsession_key = \"" +
                           kKey + "\"\npeers = [{ station = 2, address = \"192.168.10.12:47000\" }]\n";
   const NetConfig c = parse_net_config(doc, 99);
   CHECK_EQUAL(1, c.endpoint.wire.station_id);
-  CHECK_EQUAL(std::string("0.0.0.0:47000"), c.bind);
+  CHECK_EQUAL(std::string("192.168.10.11:47000"), c.bind);
   CHECK_EQUAL(2, c.endpoint.peers[0].station_id);
-  CHECK(error_of("[network]\ntransport = \"udp\"\nlisten = \"0.0.0.0:1\"\nsession_key = \"" + kKey +
+  CHECK(error_of("[network]\ntransport = \"udp\"\nlisten = \"127.0.0.1:1\"\nsession_key = \"" + kKey +
                  "\"\npeers = [{ station = 2, address = \"nowhere\" }]\n")
             .find("network.peers[0].address") != std::string::npos);
+}
+
+TEST(NetConfig, ListeningOnAllInterfacesNeedsAnExplicitSetting) {
+  const std::string head = "[station]\nid = 1\n[network]\ntransport = \"udp\"\nsession_key = \"" + kKey + "\"\n";
+  const std::string peers = "peers = [{ station = 2, address = \"127.0.0.1:47002\" }]\n";
+  const std::string e4 = error_of(head + "listen = \"0.0.0.0:47000\"\n" + peers);
+  CHECK_TEXT(e4.find("network.listen") != std::string::npos && e4.find("listen_any") != std::string::npos, e4.c_str());
+  const std::string e6 = error_of("[station]\nid = 1\n[net]\ntransport = \"udp\"\nsession_key = \"" + kKey +
+                                  "\"\nbind = \"[::]:47000\"\n[[net.peers]]\nid = 2\naddress = \"[::1]:47002\"\n");
+  CHECK_TEXT(e6.find("net.bind") != std::string::npos, e6.c_str());
+  const NetConfig ok = parse_net_config(head + "listen = \"0.0.0.0:47000\"\nlisten_any = true\n" + peers, 99);
+  CHECK_TRUE(ok.listen_any);
 }

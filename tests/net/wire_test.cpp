@@ -9,6 +9,7 @@
 
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <set>
 #include <vector>
 
@@ -362,4 +363,59 @@ TEST(Wire, ReplayWindowMatchesAReferenceModelOnRandomArrivals) {
   CHECK(dec.drops()[DropReason::replayed] > 50);
   CHECK(dec.drops()[DropReason::stale] > 200);
   CHECK(dec.completed_packets() > 10000);
+}
+
+TEST(Wire, NonFinitePayloadIsDroppedBeforeItsSequenceEntersTheWindow) {
+  for (ValueEncoding e : {ValueEncoding::float64, ValueEncoding::float32}) {
+    Encoder en{cfg_for(1, e)};
+    Decoder de{cfg_for(0, e), peers, 3 * 3000};
+    Scene s{33};  // 2 fragments in float64, 1 in float32
+    const double good_x = s.x[40];
+    s.x[40] = std::numeric_limits<double>::quiet_NaN();
+    DecodedState st;
+    const auto bad = encode_all(en, s.out(0, 4));
+    for (const auto& d : bad) de.decode(d.data(), d.size(), st);
+    CHECK_EQUAL(1u, de.drops()[DropReason::non_finite]);
+    CHECK_EQUAL(0u, de.completed_packets());
+    s.x[40] = good_x;
+    s.v[3] = -std::numeric_limits<double>::infinity();
+    const auto bad_v = encode_all(en, s.out(0, 4));
+    for (const auto& d : bad_v) de.decode(d.data(), d.size(), st);
+    CHECK_EQUAL(2u, de.drops()[DropReason::non_finite]);
+    s.v[3] = 0.25;
+    // The same sequence with finite values is still accepted: nothing was marked.
+    DecodeStatus last = DecodeStatus::dropped;
+    for (const auto& d : encode_all(en, s.out(0, 4))) last = de.decode(d.data(), d.size(), st);
+    CHECK(last == DecodeStatus::complete);
+    CHECK_EQUAL(2u, de.drops().total());
+  }
+}
+
+TEST(Wire, SequenceBeyondTheCeilingIsDroppedAndMovesNothing) {
+  DecodeLimits lim;
+  lim.max_sequence = 150;
+  DecodedState st;
+  for (const auto& d : encode_all(enc, scene.out(0, 100))) dec.decode(d.data(), d.size(), st, lim);
+  const auto far = encode_all(enc, scene.out(0, 1'000'100));
+  const auto before = dec.drops();
+  for (const auto& d : far) CHECK(dec.decode(d.data(), d.size(), st, lim) == DecodeStatus::dropped);
+  CHECK_EQUAL(before[DropReason::future_sequence] + far.size(), dec.drops()[DropReason::future_sequence]);
+  DecodeStatus last = DecodeStatus::dropped;
+  for (const auto& d : encode_all(enc, scene.out(0, 101))) last = dec.decode(d.data(), d.size(), st, lim);
+  CHECK(last == DecodeStatus::complete);  // not stale: the window did not move
+  // From a source address configured for another station: wrong_source, before the MAC.
+  DecodeLimits other;
+  other.source_station = 2;
+  const auto p = encode_all(enc, scene.out(0, 102));
+  const auto b = dec.drops();
+  CHECK(dec.decode(p[0].data(), p[0].size(), st, other) == DecodeStatus::dropped);
+  CHECK_EQUAL(b[DropReason::wrong_source] + 1, dec.drops()[DropReason::wrong_source]);
+  DecodeLimits unknown;
+  unknown.source_station = kSourceUnknown;
+  CHECK(dec.decode(p[0].data(), p[0].size(), st, unknown) == DecodeStatus::dropped);
+  CHECK_EQUAL(b[DropReason::wrong_source] + 2, dec.drops()[DropReason::wrong_source]);
+  DecodeLimits right;
+  right.source_station = 1;
+  for (const auto& d : p) last = dec.decode(d.data(), d.size(), st, right);
+  CHECK(last == DecodeStatus::complete);
 }

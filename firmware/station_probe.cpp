@@ -78,6 +78,29 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
 // A round trip in ticks of T (ceil), as net::RttEstimator::bound_ticks.
 std::int64_t bound_ticks(double bound_s, double T) { return static_cast<std::int64_t>(std::ceil(bound_s / T - 1e-9)); }
 
+// What the endpoint dropped while probing, by counted cause ("; counted: 120 bad_mac (forged or
+// wrong key), 3 future_sequence"), or "; nothing received at all" (issue 11 item 6).
+std::string counted_causes(const net::EndpointStats& s) {
+  std::string c;
+  auto add = [&](std::uint64_t n, const std::string& what) {
+    if (n == 0) return;
+    c += (c.empty() ? "; counted: " : ", ") + std::to_string(n) + " " + what;
+  };
+  add(s.drops[net::DropReason::bad_mac], "bad_mac (wrong key or forged)");
+  add(s.drops[net::DropReason::wrong_session], "wrong_session (another session id)");
+  add(s.drops[net::DropReason::wrong_source], "wrong_source (from an unconfigured address)");
+  add(s.wrong_scene_size + s.drops[net::DropReason::too_large], "wrong scene size");
+  for (std::size_t r = 0; r < net::kDropReasonCount; ++r) {
+    const auto why = static_cast<net::DropReason>(r);
+    if (why == net::DropReason::bad_mac || why == net::DropReason::wrong_session || why == net::DropReason::wrong_source ||
+        why == net::DropReason::too_large)
+      continue;
+    add(s.drops.by_reason[r], net::to_string(why));
+  }
+  if (s.datagrams_received == 0) c += "; nothing received at all";
+  return c;
+}
+
 }  // namespace
 
 std::int64_t probe_freeze_tick(std::int64_t probe_ticks) { return probe_ticks - probe_ticks / 3; }
@@ -135,11 +158,13 @@ void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, 
   } else if (r.missing.size() == nbrs.size()) {
     r.status = PhaseStatus::kNoNeighbour;
     r.message = "no neighbour answered: no round trip from station(s) " + id_list(r.missing) + after +
-                " (not running, or wrong address, session key or session id); a station does not run alone";
+                " (not running, or wrong address, session key or session id" + counted_causes(r.stats_at_end) +
+                "); a station does not run alone";
   } else if (!all || !r.missing.empty()) {
     r.status = PhaseStatus::kFailed;
     r.message = "probing: no round-trip bound for neighbour(s) " + id_list(r.missing) + after +
-                " (peer not running, wrong address/key/session, or fewer than net.rtt_min_probe_samples echoes)";
+                " (peer not running, wrong address/key/session, or fewer than net.rtt_min_probe_samples echoes" +
+                counted_causes(r.stats_at_end) + ")";
   } else {
     r.status = PhaseStatus::kOk;
   }

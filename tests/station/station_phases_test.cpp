@@ -93,6 +93,8 @@ TEST(StationPhases, AStationAloneExitsNonZeroSayingNoNeighbourAnsweredAndReports
   const json j = station_json(dir, 2);
   CHECK(has(j["conditions"], "no_neighbour"));
   CHECK(j["error"].get<std::string>().find("no neighbour answered") != std::string::npos);
+  STRCMP_CONTAINS("nothing received at all", j["error"].get<std::string>().c_str());  // the counted cause
+  CHECK_EQUAL(0u, j["drops"]["by_reason"]["zero_length"].get<std::uint64_t>());  // every reason listed
   LONGS_EQUAL(kExitNoNeighbour, j["exit_code"].get<int>());
   LONGS_EQUAL(0, j["ticks_run"].get<int>());
   CHECK(j["port_energy_min_J"].is_null());

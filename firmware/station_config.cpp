@@ -143,7 +143,8 @@ void parse_net_keys(const toml::table& cd, View root, StationFile& f) {
   if (!nt) bad("[net]", "present (transport, addresses, session key, peers: see net/config.hpp)");
   only_keys(nt, P, {"station_id", "transport", "bind", "listen", "interface", "session_id", "session_key", "encoding",
                     "max_datagram_bytes", "io_busy_poll", "io_cpu", "tx_spin", "tx_spin_lead_us", "tx_spin_tail_us", "delay_queue_datagrams", "rtt_margin_fraction", "rtt_margin_s",
-                    "rtt_min_probe_samples", "impairment", "peers"});
+                    "rtt_min_probe_samples", "impairment", "peers", "listen_any", "max_sequence_ahead_ticks", "rx_rate_limit_per_s",
+                    "envelope_radii", "demo_keys"});
   only_keys(nt["impairment"], P + ".impairment", {"preset", "seed", "trace_file", "blackout_start_s", "blackout_length_s"});
   f.net_station_id_set = static_cast<bool>(nt["station_id"]);
   f.impairment_seed_set = static_cast<bool>(nt["impairment"]["seed"]);

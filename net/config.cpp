@@ -4,6 +4,7 @@
 #include <netinet/in.h>
 #include <sched.h>
 
+#include "net/keys.hpp"
 #include "platform/toml_config.hpp"
 
 #include <cmath>
@@ -48,6 +49,11 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
   e.wire.session_id = integer<std::uint32_t>(net["session_id"], P + "session_id", 1, 0, 0xFFFFFFFFll);
   if (!net["session_key"]) bad(P + "session_key", "present: 64 hexadecimal digits (a 32-byte key)");
   e.wire.key = SessionKey::from_hex(text(net["session_key"], P + "session_key", ""), P + "session_key");
+  // A key that is no secret (all bytes alike, a byte sequence, the old lab files' 00..00ff) only
+  // for an explicit demonstration.
+  if (!boolean(net["demo_keys"], P + "demo_keys", false) && is_example_key(e.wire.key.bytes.data(), e.wire.key.bytes.size()))
+    bad(P + "session_key", "a secret, not an example key (all bytes alike or a byte sequence): generate one with "
+                               "`openssl rand -hex 32`, or set " + P + "demo_keys = true for a demonstration");
   const std::string enc = text(net["encoding"], P + "encoding", "float32");
   if (enc == "float64") e.wire.encoding = ValueEncoding::float64;
   else if (enc == "float32") e.wire.encoding = ValueEncoding::float32;

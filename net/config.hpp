@@ -9,7 +9,9 @@
 //   bind = "127.0.0.1:7000"        # udp: numeric address:port, IPv6 as "[::1]:7000"
 //   interface = "hpn0"             # raw: interface name
 //   session_id = 1                 # 0..2^32-1; use a new one per run
-//   session_key = "<64 hex>"       # 32-byte MAC key (required)
+//   session_key = "<64 hex>"       # 32-byte MAC key (required); example keys (all bytes alike, byte
+//                                  # sequences such as 0001..1f) are refused unless demo_keys = true
+//   demo_keys = false              # true: accept an example session_key (demonstrations only)
 //   encoding = "float32"           # "float32" | "float64" (float32: one datagram for 33 nodes; tools/bench/results/net_float32_consensus.json)
 //   max_datagram_bytes = 1400      # 96..65507 and <= the transport's MTU
 //   io_busy_poll = false

@@ -102,9 +102,8 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
       fingerprint_(cfg.fingerprint),
       silence_ns_(static_cast<std::int64_t>(std::llround(cfg.peer_silence_s * 1e9))),
       max_sequence_ahead_(cfg.max_sequence_ahead_ticks),
-      envelope_rest_x_(cfg.envelope_max_offset_m > 0.0 ? cfg.envelope_rest_x : std::vector<double>{}),
-      envelope_max_offset_m_(cfg.envelope_max_offset_m),
-      envelope_max_speed_(cfg.envelope_max_speed_m_per_s) {
+      envelope_{cfg.envelope_max_offset_m > 0.0 ? cfg.envelope_rest_x : std::vector<double>{}, cfg.envelope_max_offset_m,
+                cfg.envelope_max_speed_m_per_s} {
   if (frags_per_packet_ == 0)
     throw std::invalid_argument("net: scene too large for " + std::to_string(kMaxFragments) +
                                 " fragments of net.max_datagram_bytes = " + std::to_string(cfg.wire.max_datagram_bytes));
@@ -518,26 +517,6 @@ bool Endpoint::RateBucket::take(std::int64_t now_ns, double rate_per_s, double b
   return true;
 }
 
-bool Endpoint::within_envelope(const DecodedState& st) const {
-  if (envelope_rest_x_.empty() && !(envelope_max_speed_ > 0.0)) return true;
-  const std::size_t n = st.value_count;
-  const double r2 = envelope_max_offset_m_ * envelope_max_offset_m_, s2 = envelope_max_speed_ * envelope_max_speed_;
-  for (std::size_t p = 0; p + 2 < n; p += 3) {
-    double d2 = 0.0, v2 = 0.0;
-    for (std::size_t a = 0; a < 3; ++a) {
-      if (!envelope_rest_x_.empty()) {
-        const double d = st.value(p + a) - envelope_rest_x_[p + a];
-        d2 += d * d;
-      }
-      const double v = st.value(n + p + a);
-      v2 += v * v;
-    }
-    if (!envelope_rest_x_.empty() && d2 > r2) return false;
-    if (envelope_max_speed_ > 0.0 && v2 > s2) return false;
-  }
-  return true;
-}
-
 void Endpoint::handle_rx(std::int64_t now_ns) {
   for (int budget = 0; budget < 4096; ++budget) {
     int source = kSourceUnchecked;
@@ -605,7 +584,7 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
       on_state(p, st, now_ns);
       continue;
     }
-    if (!within_envelope(st)) {
+    if (!envelope_.contains(st)) {
       decoder_.count_drop(DropReason::out_of_envelope);
       continue;
     }

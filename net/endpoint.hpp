@@ -42,6 +42,7 @@
 #include <string>
 #include <vector>
 
+#include "net/envelope.hpp"
 #include "net/impairment.hpp"
 #include "net/rtt.hpp"
 #include "net/transport.hpp"
@@ -441,9 +442,7 @@ class Endpoint {
   std::uint64_t max_sequence_ahead_;
   double rx_rate_per_s_, rx_burst_;
   RateBucket unknown_bucket_;              // datagrams from addresses no neighbour is configured at
-  std::vector<double> envelope_rest_x_;
-  double envelope_max_offset_m_, envelope_max_speed_;
-  bool within_envelope(const DecodedState& st) const;  // I/O thread
+  PayloadEnvelope envelope_;  // I/O thread (net/envelope.hpp)
   std::uint64_t pushes_sent_ = 0;          // I/O thread only
 
   // I/O thread only; published to counters_box_.

@@ -10,7 +10,7 @@
 using namespace haptic::net;
 
 namespace {
-const std::string kKey = "000102030405060708090a0b0c0d0e0f101112131415161718191a1b1c1d1e1f";
+const std::string kKey = "5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d";
 
 std::string udp_doc(const std::string& extra_net = "", const std::string& peer_extra = "") {
   return "[station]\nid = 2\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:7002\"\nsession_id = 9\n"
@@ -36,7 +36,7 @@ TEST(NetConfig, UdpConfigParsesWithPaperImpairmentAndSimulatorSeeds) {
   const NetConfig c = parse_net_config(udp_doc(), 99);
   CHECK_EQUAL(2, c.endpoint.wire.station_id);
   CHECK_EQUAL(9u, c.endpoint.wire.session_id);
-  CHECK_EQUAL(0x1f, c.endpoint.wire.key.bytes[31]);
+  CHECK_EQUAL(0x1d, c.endpoint.wire.key.bytes[31]);
   CHECK_EQUAL(2u, c.endpoint.peers.size());
   CHECK(c.endpoint.peers[1].impaired);
   DOUBLES_EQUAL(0.200, c.endpoint.peers[1].impairment.mean_delay_s, 1e-12);

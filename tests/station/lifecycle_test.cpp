@@ -23,7 +23,7 @@ namespace {
 StationFile star_station_file(int id, int nodes, double probe_s) {
   std::string text = "[station]\nid = " + std::to_string(id) + "\nnodes = " + std::to_string(nodes) + "\nprobe_s = " + std::to_string(probe_s) +
                      "\nout_dir = \"/tmp\"\n[device]\nkind = \"simulated\"\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:1\"\n"
-                     "session_key = \"000102030405060708090a0b0c0d0e0f101112131415161718191a1b1c1d1e1f\"\nrtt_min_probe_samples = 5\n";
+                     "session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\nrtt_min_probe_samples = 5\n";
   for (int j : id == 1 ? std::vector<int>{2, 3, 4} : std::vector<int>{1})
     text += "[[net.peers]]\nid = " + std::to_string(j) + "\naddress = \"127.0.0.1:9\"\n";
   return parse_station_file(text);

@@ -2,6 +2,8 @@
 // the key and the allowed range), the scenario overrides and eq. (18) from measured bounds.
 #include <CppUTest/TestHarness.h>
 
+#include "net/config.hpp"
+
 #include <stdexcept>
 #include <string>
 
@@ -18,7 +20,7 @@ const std::string kNet = R"(
 [net]
 transport = "udp"
 bind = "127.0.0.1:47001"
-session_key = "000102030405060708090a0b0c0d0e0f101112131415161718191a1b1c1d1e1f"
+session_key = "5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d"
 [[net.peers]]
 id = 2
 address = "127.0.0.1:47002"
@@ -148,6 +150,13 @@ TEST(StationConfig, TheLabConfigsParse) {
     LONGS_EQUAL(i, f.station.id);
     const ScenarioSpec s = station_scenario_spec(f, RunOverrides{});
     LONGS_EQUAL(4, s.users);
+    // No usable key ships: the [network] section is refused until a real key is put in.
+    try {
+      haptic::net::parse_net_config(f.text, 99);
+      FAIL("the shipped lab configuration's key was accepted");
+    } catch (const std::invalid_argument& e) {
+      STRCMP_CONTAINS("network.session_key", e.what());
+    }
   }
 }
 

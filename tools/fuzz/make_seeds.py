@@ -19,18 +19,19 @@ def datagram(seq, sender, values, frag_index, frag_count, stride, payload, f32=F
     body = hdr + piece
     return body + hashlib.blake2b(body, key=KEY, digest_size=16).digest()
 
-def wrap(dgs):
-    return b''.join(struct.pack('<H', len(d)) + b'\x01' + d for d in dgs)
+def wrap(dgs, ctl=1):
+    # ctl: bit0 re-sign, bits1-3 source (0 unchecked, 1 unknown, 2..4 station 1..3), bits4-7 ticks passing first
+    return b''.join(struct.pack('<H', len(d)) + bytes([ctl]) + d for d in dgs)
 
 os.makedirs(os.path.join(HERE, 'seeds'), exist_ok=True)
-def write(name, dgs):
+def write(name, dgs, ctl=1):
     with open(os.path.join(HERE, 'seeds', name), 'wb') as f:
-        f.write(wrap(dgs))
+        f.write(wrap(dgs, ctl))
 
 vals = 99
 p64 = b''.join(struct.pack('<d', i * 0.01) for i in range(2 * vals))
-stride = 1320
-write('single_f32', [datagram(1, 1, vals, 0, 1, 1320, b''.join(struct.pack('<f', i * 0.01) for i in range(2 * vals)), True)])
+stride = 1312
+write('single_f32', [datagram(1, 1, vals, 0, 1, 1312, b''.join(struct.pack('<f', i * 0.01) for i in range(2 * vals)), True)])
 write('two_frag_f64', [datagram(2, 2, vals, 0, 2, stride, p64), datagram(2, 2, vals, 1, 2, stride, p64)])
 write('reordered_dup', [datagram(3, 3, vals, 1, 2, stride, p64), datagram(3, 3, vals, 1, 2, stride, p64),
                         datagram(3, 3, vals, 0, 2, stride, p64), datagram(2, 3, vals, 0, 2, stride, p64)])
@@ -43,4 +44,20 @@ def fingerprint(seq, sender, nodes):
 write('fingerprint', [fingerprint(1, 1, 33)])
 big = 600
 pbig = bytes(2 * big * 8)
-write('many_frags', [datagram(5, 1, big, i, 8, 1320, pbig) for i in range(8)])
+write('many_frags', [datagram(5, 1, big, i, 8, 1312, pbig) for i in range(8)])
+
+# The whole receive path (fuzz_wire.cpp): 600 values in float32 inside the envelope, from station 1's
+# address, 10 ticks after the previous datagram (so the echo's age bound passes the guard), then
+# a far-future sequence, a NaN, and the same packet from an unknown address.
+rest = b''.join(struct.pack('<f', 0.001 * (i % 7)) for i in range(big)) + b''.join(struct.pack('<f', 0.01) for _ in range(big))
+def packet(seq, payload, f32=True):
+    frags = (len(payload) + 1312 - 1) // 1312
+    return [datagram(seq, 1, big, i, frags, 1312, payload, f32) for i in range(frags)]
+station1 = 0x01 | (2 << 1)
+nan = bytearray(rest); nan[40:44] = struct.pack('<f', float('nan'))
+def timed(dgs, ctl, ticks):  # the ticks pass before the packet's first datagram only
+    return wrap(dgs[:1], ctl | (ticks << 4)) + wrap(dgs[1:], ctl)
+with open(os.path.join(HERE, 'seeds', 'receive_path'), 'wb') as f:
+    f.write(timed(packet(10, rest), station1, 10) + timed(packet(12, rest), station1, 2) +
+            wrap(packet(1_000_000, rest), station1) + timed(packet(13, bytes(nan)), station1, 1) +
+            wrap(packet(14, rest), 0x01 | (1 << 1)))

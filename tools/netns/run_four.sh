@@ -12,7 +12,7 @@ here="$(cd "$(dirname "$0")" && pwd)"
 mode="$1"; bin="$2"; secs="${3:-5}"; work="${4:-$(mktemp -d /tmp/hpn-four.XXXXXX)}"; preset="${5:-paper}"
 mkdir -p "$work"
 export HPN_PREFIX="${HPN_PREFIX:-hpn}"
-key=$(printf '%064x' 0x48415054 | tr ' ' 0)
+key=$(od -An -N32 -tx1 /dev/urandom | tr -d ' \n')  # a fresh secret per run (example keys are refused)
 session=$(( ($(date +%s) ^ $$) & 0x7fffffff ))
 # Mean one-way delay (ms), row i receives from column j (DESIGN.md / paper Section V).
 D=( "0 4 4 4" "8 0 80 200" "4 100 0 200" "6 240 200 0" )

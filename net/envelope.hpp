@@ -1,0 +1,22 @@
+#pragma once
+// The physically possible states of a neighbour's payload (issue 11, net/README.md "Receive-path
+// sanity"): every node within max_offset_m of its rest position and no faster than
+// max_speed_m_per_s. Checked by the endpoint's I/O thread on every authentic state packet and by
+// the receive-path fuzz target. contains() is RT-safe (no allocation).
+#include <vector>
+
+#include "net/wire.hpp"
+
+namespace haptic::net {
+
+struct PayloadEnvelope {
+  std::vector<double> rest_x;      // 3n rest positions; empty: positions unchecked
+  double max_offset_m = 0.0;       // > 0 with rest_x
+  double max_speed_m_per_s = 0.0;  // 0: speeds unchecked
+  bool active() const { return !rest_x.empty() || max_speed_m_per_s > 0.0; }
+  // x_hat, v_hat: `values` each (3n). true when every node is inside.
+  bool contains(const DecodedState& st) const;
+  bool contains(const double* x_hat, const double* v_hat, std::size_t values) const;
+};
+
+}  // namespace haptic::net

@@ -116,4 +116,11 @@ OpenedDevice open_device(const DeviceSelection& sel) {
   return out;
 }
 
+std::optional<DeviceCapabilities> published_capabilities(const DeviceSelection& sel) {
+  if (sel.kind == "touch") return touch_default_capabilities();
+  if (sel.kind == "spacemouse") return spacemouse_capabilities(sel.spacemouse);
+  if (sel.kind == "simulated") return simulated_capabilities(sel.simulated);
+  return std::nullopt;
+}
+
 }  // namespace haptic::drivers

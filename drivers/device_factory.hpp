@@ -16,6 +16,7 @@
 #include "drivers/usb_monitor.hpp"
 
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -53,5 +54,10 @@ class DeviceMissing : public std::runtime_error {
 // DeviceMissing when no real device of the requested kind starts ("auto" included: a station
 // never falls back to a simulated user on its own).
 OpenedDevice open_device(const DeviceSelection& selection);
+
+// The capabilities a device of `kind` ("touch", "spacemouse", "simulated") publishes before it is
+// opened (the vendor's figures, or the simulated model's), for checks at planning time; nullopt for
+// "auto" (unknown until open_device). Non-RT.
+std::optional<DeviceCapabilities> published_capabilities(const DeviceSelection& selection);
 
 }  // namespace haptic::drivers

@@ -9,6 +9,22 @@
 namespace haptic::drivers {
 
 namespace {
+
+const SimulatedDeviceConfig& checked(const SimulatedDeviceConfig& c) {
+  if (!(c.servo_rate_hz >= 100.0 && c.servo_rate_hz <= 20000.0))
+    throw std::invalid_argument("drivers.simulated.servo_rate_hz = " + std::to_string(c.servo_rate_hz) +
+                                " is out of range; allowed [100, 20000]");
+  if (!(c.max_force_N >= 0.0 && c.max_force_N <= 100.0))
+    throw std::invalid_argument("device.sim_max_force_N = " + std::to_string(c.max_force_N) +
+                                " is out of range; allowed [0, 100]");
+  if (!(c.workspace_radius_m > 0.0 && c.workspace_radius_m <= 10.0))
+    throw std::invalid_argument("drivers.simulated.workspace_radius_m = " +
+                                std::to_string(c.workspace_radius_m) + " is out of range; allowed (0, 10]");
+  return c;
+}
+
+}  // namespace
+
 DeviceCapabilities simulated_capabilities(const SimulatedDeviceConfig& c) {
   DeviceCapabilities caps{};
   caps.max_force_N = c.max_force_N;
@@ -20,21 +36,6 @@ DeviceCapabilities simulated_capabilities(const SimulatedDeviceConfig& c) {
   caps.name = "simulated device + hand (rt/user_model.hpp)";
   return caps;
 }
-
-const SimulatedDeviceConfig& checked(const SimulatedDeviceConfig& c) {
-  if (!(c.servo_rate_hz >= 100.0 && c.servo_rate_hz <= 20000.0))
-    throw std::invalid_argument("drivers.simulated.servo_rate_hz = " + std::to_string(c.servo_rate_hz) +
-                                " is out of range; allowed [100, 20000]");
-  if (!(c.max_force_N >= 0.0 && c.max_force_N <= 100.0))
-    throw std::invalid_argument("drivers.simulated.max_force_N = " + std::to_string(c.max_force_N) +
-                                " is out of range; allowed [0, 100]");
-  if (!(c.workspace_radius_m > 0.0 && c.workspace_radius_m <= 10.0))
-    throw std::invalid_argument("drivers.simulated.workspace_radius_m = " +
-                                std::to_string(c.workspace_radius_m) + " is out of range; allowed (0, 10]");
-  return c;
-}
-
-}  // namespace
 
 SimulatedDevice::SimulatedDevice(const SimulatedDeviceConfig& config, const SafetyLimits& limits)
     : HapticDevice(simulated_capabilities(checked(config)), limits),

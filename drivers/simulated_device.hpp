@@ -32,6 +32,9 @@ struct SimulatedDeviceConfig {
   double workspace_radius_m = 0.1;
 };
 
+// The capabilities a SimulatedDevice with this configuration reports (b_d = the model's). Non-RT.
+DeviceCapabilities simulated_capabilities(const SimulatedDeviceConfig& config);
+
 class SimulatedDevice final : public HapticDevice {
  public:
   explicit SimulatedDevice(const SimulatedDeviceConfig& config, const SafetyLimits& limits = {});

@@ -29,20 +29,6 @@ void hidapi_init_once() {
   std::call_once(once, [] { hid_init(); });
 }
 
-DeviceCapabilities spacemouse_capabilities(const SpaceMouseConfig& c) {
-  DeviceCapabilities caps{};
-  caps.max_force_N = 0.0;  // no force feedback
-  caps.max_stiffness_N_per_m = 0.0;
-  caps.servo_rate_hz = c.sample_rate_hz;
-  caps.workspace_radius_m = c.range_m * 1.7320508075688772;  // corner of the +/-range cube
-  caps.min_damping_Ns_per_m = 0.0;
-  for (int i = 0; i < 3; ++i) {
-    caps.sensed_axes[i] = true;
-    caps.actuated_axes[i] = false;
-  }
-  caps.name = "3Dconnexion SpaceMouse via hidapi (position input only, NO force feedback)";
-  return caps;
-}
 
 const SpaceMouseConfig& checked(const SpaceMouseConfig& c) {
   if (!(c.full_scale_counts >= 1.0 && c.full_scale_counts <= 32767.0))
@@ -59,6 +45,21 @@ const SpaceMouseConfig& checked(const SpaceMouseConfig& c) {
 
 using platform::monotonic_s;
 }  // namespace
+
+DeviceCapabilities spacemouse_capabilities(const SpaceMouseConfig& c) {
+  DeviceCapabilities caps{};
+  caps.max_force_N = 0.0;  // no force feedback
+  caps.max_stiffness_N_per_m = 0.0;
+  caps.servo_rate_hz = c.sample_rate_hz;
+  caps.workspace_radius_m = c.range_m * 1.7320508075688772;  // corner of the +/-range cube
+  caps.min_damping_Ns_per_m = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    caps.sensed_axes[i] = true;
+    caps.actuated_axes[i] = false;
+  }
+  caps.name = "3Dconnexion SpaceMouse via hidapi (position input only, NO force feedback)";
+  return caps;
+}
 
 bool decode_spacemouse_report(const std::uint8_t* d, std::size_t n, SpaceMouseState& s) {
   if (d == nullptr || n < 1) return false;

@@ -58,6 +58,9 @@ struct SpaceMouseConfig {
   double sample_rate_hz = 500.0;    // own-thread publish rate; [10, 10000]
 };
 
+// The capabilities a SpaceMouseDevice reports: no force, no actuated axis. Non-RT.
+DeviceCapabilities spacemouse_capabilities(const SpaceMouseConfig& config);
+
 class SpaceMouseDevice final : public HapticDevice {
  public:
   explicit SpaceMouseDevice(const SpaceMouseConfig& config, const SafetyLimits& limits = {});

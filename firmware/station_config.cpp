@@ -80,7 +80,8 @@ void parse_station_section(View root, StationFile& f) {
 void parse_device_section(View root, StationFile& f) {
   const View dv = root["device"];
   only_keys(dv, "device", {"kind", "hd_library_path", "hd_device_name", "hidraw_path", "max_force_N", "max_power_W", "max_speed_m_per_s", "max_stale_reads",
-                          "max_reads_before_first_sample", "workspace_margin", "sim_max_force_N"});
+                          "max_reads_before_first_sample", "workspace_margin", "sim_max_force_N", "damping_Ns_per_m", "coupling_stiffness_N_per_m",
+                          "coupling_damping_Ns_per_m", "proxy_damping_Ns_per_m"});
   DeviceSection& d = f.device;
   d.kind = text(dv["kind"], "device.kind", "auto");
   if (d.kind != "auto" && d.kind != "touch" && d.kind != "spacemouse" && d.kind != "simulated")
@@ -96,6 +97,17 @@ void parse_device_section(View root, StationFile& f) {
   d.max_power_W = real(dv["max_power_W"], "device.max_power_W", 3.0, 0, 1000);
   d.max_speed_m_per_s = real(dv["max_speed_m_per_s"], "device.max_speed_m_per_s", 3.0, 1e-6, 1000);
   d.sim_max_force_N = real(dv["sim_max_force_N"], "device.sim_max_force_N", 3.3, 1e-6, 1000);
+  // -1 = from the device / the scenario; anything else must be in range
+  auto gain = [&](const char* k, bool zero_ok, double hi, const char* range) {
+    const std::string key = std::string("device.") + k;
+    const double v = real(dv[k], key, -1, -1, hi, " (-1 = from the device or the scenario)");
+    if (v != -1 && !(v > 0 || (zero_ok && v == 0))) bad(key, std::string("-1 or a number in ") + range);
+    return v;
+  };
+  d.damping_Ns_per_m = gain("damping_Ns_per_m", true, 1000, "[0, 1000]");
+  d.coupling_stiffness_N_per_m = gain("coupling_stiffness_N_per_m", false, 1e6, "(0, 1e6]");
+  d.coupling_damping_Ns_per_m = gain("coupling_damping_Ns_per_m", true, 1e4, "[0, 1e4]");
+  d.proxy_damping_Ns_per_m = gain("proxy_damping_Ns_per_m", true, 1e4, "[0, 1e4]");
 }
 
 void parse_platform_sections(View root, StationFile& f) {

@@ -81,6 +81,13 @@
 //   max_reads_before_first_sample = 500  # start-up grace before the first sample, [1, 10000000]
 //   workspace_margin = 1.5           # |p| beyond this x the device's workspace radius is out of range, [1, 100]
 //   sim_max_force_N = 3.3            # simulated device capability, (0, 1000]
+//   damping_Ns_per_m = -1            # the device's damping b_d for eq. (26), [0, 1000]; -1 = the figure the device
+//                                    # publishes (simulated: the model's); REQUIRED for a Touch (none published): measured
+//   coupling_stiffness_N_per_m = -1  # K_vc of the virtual coupling (Section III-C), (0, 1e6]; -1 = the scenario's (200)
+//   coupling_damping_Ns_per_m = -1   # B_vc, [0, 1e4]; -1 = the scenario's (0)
+//   proxy_damping_Ns_per_m = -1      # b_v, extra damping of the virtual proxy, [0, 1e4]; -1 = the scenario's (2)
+//                                    # eq. (26) on these is checked by --check-config and at start-up; the force limit is
+//                                    # the device's (min of its capability and max_force_N)
 //   [rt]       priority = 80 (1..98), cpu = -1, lock_memory = true, hold_dma_latency = false, require_rt = false,
 //              isolate_cpu = true (with cpu >= 0: every other thread of the process moved off that cpu)
 //   [loop]     period_ns = 2000000 (must equal the scenario's T), overrun_storm_count = 10 (>= 1),
@@ -151,6 +158,10 @@ struct DeviceSection {
   int max_stale_reads = 5;
   int max_reads_before_first_sample = 500;
   double workspace_margin = 1.5;
+  double damping_Ns_per_m = -1;
+  double coupling_stiffness_N_per_m = -1;
+  double coupling_damping_Ns_per_m = -1;
+  double proxy_damping_Ns_per_m = -1;
   double sim_max_force_N = 3.3;
 };
 

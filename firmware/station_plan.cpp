@@ -140,6 +140,13 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   p->net.endpoint.impairment_first_run_seq = static_cast<std::uint64_t>(p->times.run_k0);  // run packet k draws the simulator's fate k
   p->net.endpoint.tx_period_s = spec.period_s;  // tick-synchronous TX (net.tx_spin) needs the tick period
   p->device = device_selection(f, *p->built, p->me);
+  if (const auto caps = drivers::published_capabilities(p->device)) {
+    p->coupling = device_coupling(f, spec, *caps);
+    check_device_coupling(*p->coupling, spec.period_s);  // the same check runs at start-up on the opened device
+  } else {
+    p->warnings.push_back("device.kind = \"auto\": eq. (26) on the device's damping is checked at start-up, once the device is open "
+                          "(name the kind to have --check-config check it)");
+  }
   p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
   p->net.endpoint.fingerprint = p->fingerprint;  // sent to every neighbour (net/)
   p->net.endpoint.io_priority = f.station.io_priority;  // the I/O thread's RtThread (SCHED_FIFO or 0)

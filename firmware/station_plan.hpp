@@ -8,10 +8,12 @@
 // is written in the file. Nothing here is RT-safe.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "drivers/device_factory.hpp"
+#include "firmware/device_coupling.hpp"
 #include "firmware/scenario.hpp"
 #include "firmware/station_config.hpp"
 #include "firmware/station_phase.hpp"
@@ -75,6 +77,9 @@ struct StationPlan {
   PeerTable peers;
   StationTimes times;
   drivers::DeviceSelection device;  // what to open (the simulated user plays user `me`'s script)
+  // b_d, gains and force limit from the figures the device kind publishes, eq. (26) checked; unset
+  // for device.kind = "auto" (checked at start-up once the device is open)
+  std::optional<DeviceCoupling> coupling;
   SceneFingerprint fingerprint;
   std::string out_dir;              // created by the run, checked creatable here
   std::string base_path;            // out_dir/station-<id>

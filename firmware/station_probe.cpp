@@ -199,7 +199,7 @@ MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const s
   return m;
 }
 
-BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe, double b_d) {
+BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe, const drivers::DeviceCapabilities& device) {
   BuildResult r;
   const StationSection& S = plan.file.station;
   const BuiltScenario& built = *plan.built;
@@ -211,7 +211,13 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
     r.passivity_condition_met = r.bounds.damping_Ns_per_m >= r.bounds.damping_min_Ns_per_m * (1 - 1e-12);
     rt::StationConfig sc = built.station_config(plan.me);
     sc.damping_Ns_per_m = r.bounds.damping_Ns_per_m;
-    sc.device_damping_Ns_per_m = b_d;
+    // the opened device's own capabilities + the [device] keys; eq. (26) again (the plan checked the published figures)
+    r.coupling = device_coupling(plan.file, built.spec, device);
+    check_device_coupling(r.coupling, built.spec.period_s);
+    sc.vp.coupling = r.coupling.gains;
+    sc.device_damping_Ns_per_m = r.coupling.b_d_Ns_per_m;
+    sc.device_force_feedback = r.coupling.force_feedback;
+    if (r.coupling.force_limit_N > 0) sc.max_device_force_N = r.coupling.force_limit_N;  // the device's limit, the only one
     sc.solver.kind = rt::parse_step_solver_kind(S.solver);
     for (std::size_t n = 0; n < sc.neighbors.size(); ++n) sc.neighbors[n].index_delay_bound_ticks = r.bounds.index_guard_ticks[n];
     r.core = std::make_unique<rt::StationCore>(sc);

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "firmware/device_coupling.hpp"
 #include "firmware/station_neighbours.hpp"
 #include "firmware/station_phase.hpp"
 #include "firmware/station_plan.hpp"
@@ -84,14 +85,13 @@ struct BuildResult {
   bool passivity_condition_met = false;   // B_i used >= eq. (18) on the measured bounds
   std::unique_ptr<rt::StationCore> core;  // set when status == kOk
   rt::TxDeadband tx_deadband;             // this station's transmission policy (rt/tx_deadband)
-  // Per neighbour: the largest echo-based age bound a packet may have (R_ij + station.age_slack_ticks) T
-  // (net/README.md, "Age guard"; TickInputs::max_age_s).
-  std::vector<double> max_age_s;
+  DeviceCoupling coupling;                // b_d, K_vc, B_vc, b_v and the force limit the core got
 };
 
 // B_i from eq. (18) on the measured bounds (station.damping_Ns_per_m overrides it: then the
-// passivity condition may not be met, which the report names), eq. (26) with the device's b_d
-// (the core's constructor refuses violating gains), the core and its factorizations.
-BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe, double device_damping_Ns_per_m);
+// passivity condition may not be met, which the report names), the device coupling from the opened
+// device's capabilities and the [device] keys with eq. (26) on it (device_coupling.hpp: the error
+// proposes the largest K_vc), the core and its factorizations.
+BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe, const drivers::DeviceCapabilities& device);
 
 }  // namespace haptic::firmware

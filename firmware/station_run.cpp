@@ -344,7 +344,7 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
     }
   }
   note_probe(plan, pr, log);
-  pr.build = build_station_core(plan, pr.probe, res.dev.device->capabilities().min_damping_Ns_per_m);
+  pr.build = build_station_core(plan, pr.probe, res.dev.device->capabilities());
   pr.built = true;
   if (pr.build.status != PhaseStatus::kOk) return pr.fail(pr.build.status, pr.build.message);
   say_bounds(plan, pr.build, log);

@@ -1,5 +1,6 @@
 #include "rt/gains.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -102,6 +103,12 @@ void check_eq26(const VirtualCouplingGains& g, double b_d, double T, double rati
        << need_bv;
     fail(os.str());
   }
+}
+
+double max_K_vc_eq26(const VirtualCouplingGains& g, double b_d, double T, double ratio) {
+  const double from_bd = (b_d - g.B_vc_Ns_per_m * (ratio + 1.0)) / T;
+  const double from_bv = (2.0 * g.b_v_Ns_per_m - g.B_vc_Ns_per_m * (ratio - 1.0)) / T;
+  return std::min(from_bd, from_bv);
 }
 
 }  // namespace haptic::rt

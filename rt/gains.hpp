@@ -46,5 +46,10 @@ struct VirtualCouplingGains {
 // Throws std::invalid_argument naming the gain that violates it.
 void check_eq26(const VirtualCouplingGains& g, double device_damping_b_d_Ns_per_m, double period_s,
                 double max_period_ratio = 1.0);
+// The largest K_vc for which eq. (26) holds with b_d, B_vc, b_v and T as given: min over its two
+// inequalities solved for K_vc, (b_d - B_vc (r + 1)) / T and (2 b_v - B_vc (r - 1)) / T (r =
+// T_k/T_{k-1}). <= 0: no K_vc > 0 satisfies it (B_vc alone is too large). Not RT-relevant (start-up).
+double max_K_vc_eq26(const VirtualCouplingGains& g, double device_damping_b_d_Ns_per_m, double period_s,
+                     double max_period_ratio = 1.0);
 
 }  // namespace haptic::rt

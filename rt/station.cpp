@@ -49,7 +49,7 @@ void StationConfig::validate() const {
     if (p < 0 || p >= scene->nodes) bad("contact_nodes[]", "valid node indices");
   if (!(max_device_force_N > 0)) bad("max_device_force_N", "> 0");
   if (!vp_initial_position_m.allFinite()) bad("vp_initial_position_m", "finite");
-  check_eq26(vp.coupling, device_damping_Ns_per_m, period_s);
+  if (device_force_feedback) check_eq26(vp.coupling, device_damping_Ns_per_m, period_s);
   solver.validate();
 }
 

@@ -73,7 +73,8 @@ struct StationConfig {
   StepSolverConfig solver{};          // the linear step's solver (auto: by scene size)
   Vec3 vp_initial_position_m = Vec3::Zero();
   double device_damping_Ns_per_m = 0.5;  // b_d of the device (eq. 26)
-  double max_device_force_N = 10.0;      // output limit
+  bool device_force_feedback = true;     // false: position-input device (no force out): eq. (26) does not apply
+  double max_device_force_N = 10.0;      // output limit (the station sets the device's own limit)
   double divergence_speed_m_per_s = 50;  // any node faster than this: diverged, safe state
   void validate() const;                 // throws std::invalid_argument naming the key
 };

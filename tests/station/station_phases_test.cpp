@@ -260,7 +260,7 @@ TEST(StationPhases, AMissingDeviceIsAnErrorNotASimulatedUser) {
   s.session = 102;
   s.out_dir = dir;
   s.station_extra = kShort;
-  s.device = "kind = \"touch\"\nhd_library_path = \"/nonexistent/libHD.so\"\n";
+  s.device = "kind = \"touch\"\ndamping_Ns_per_m = 0.5\nhd_library_path = \"/nonexistent/libHD.so\"\n";
   std::atomic<bool> stop{false};
   RunOverrides o;
   o.quiet = true;
@@ -285,8 +285,9 @@ TEST(StationPhases, ASimulatedUserIsAWarningAtStartAndRecordedInTheSummary) {
   bool warned = false;
   for (const auto& w : pr.plan->warnings) warned = warned || w.find("SIMULATED user plays user 3") != std::string::npos;
   CHECK(warned);
-  s.device = "kind = \"touch\"\n";
+  s.device = "kind = \"touch\"\ndamping_Ns_per_m = 0.5\n";
   const PlanResult real = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  CHECK_TEXT(real.status == PhaseStatus::kOk, real.error.c_str());
   for (const auto& w : real.plan->warnings) CHECK(w.find("SIMULATED") == std::string::npos);
 }
 

@@ -1,0 +1,59 @@
+#include "firmware/device_coupling.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace haptic::firmware {
+
+namespace {
+std::string num(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+}  // namespace
+
+DeviceCoupling device_coupling(const StationFile& f, const ScenarioSpec& spec, const drivers::DeviceCapabilities& caps) {
+  const DeviceSection& d = f.device;
+  DeviceCoupling c;
+  c.gains = spec.vp.coupling;
+  if (d.coupling_stiffness_N_per_m >= 0) c.gains.K_vc_N_per_m = d.coupling_stiffness_N_per_m;
+  if (d.coupling_damping_Ns_per_m >= 0) c.gains.B_vc_Ns_per_m = d.coupling_damping_Ns_per_m;
+  if (d.proxy_damping_Ns_per_m >= 0) c.gains.b_v_Ns_per_m = d.proxy_damping_Ns_per_m;
+  c.force_feedback = caps.actuated_axes[0] || caps.actuated_axes[1] || caps.actuated_axes[2];
+  c.force_limit_N = std::fmin(caps.max_force_N, d.max_force_N);
+  if (d.damping_Ns_per_m >= 0) {
+    c.b_d_Ns_per_m = d.damping_Ns_per_m;
+    c.b_d_source = "device.damping_Ns_per_m";
+  } else {
+    c.b_d_Ns_per_m = caps.min_damping_Ns_per_m;
+    c.b_d_source = std::string("published by ") + caps.name;
+    if (c.force_feedback && !(c.b_d_Ns_per_m > 0))
+      throw std::invalid_argument("device.damping_Ns_per_m: required for device.kind = \"" + d.kind + "\" (" + caps.name +
+                                  "): the device publishes no damping b_d for eq. (26), and it is never assumed 0; measure it on "
+                                  "the bench (firmware/deploy/README.md, \"Measuring b_d\") and state it in N s/m");
+  }
+  return c;
+}
+
+void check_device_coupling(const DeviceCoupling& c, double T) {
+  if (!c.force_feedback) return;  // nothing goes out to the hand: eq. (26) concerns the device's port
+  try {
+    rt::check_eq26(c.gains, c.b_d_Ns_per_m, T);
+  } catch (const std::invalid_argument&) {  // violated: say it with the keys as the station file writes them
+    const double k_max = rt::max_K_vc_eq26(c.gains, c.b_d_Ns_per_m, T);
+    std::string m = "eq. (26) violated: device damping b_d = " + num(c.b_d_Ns_per_m) + " N s/m (" + c.b_d_source +
+                    ") with K_vc = device.coupling_stiffness_N_per_m = " + num(c.gains.K_vc_N_per_m) +
+                    " N/m, B_vc = device.coupling_damping_Ns_per_m = " + num(c.gains.B_vc_Ns_per_m) +
+                    " N s/m, b_v = device.proxy_damping_Ns_per_m = " + num(c.gains.b_v_Ns_per_m) + " N s/m, T = " + num(T) +
+                    " s (needs b_d >= B_vc (T_k/T_k-1 + 1) + K_vc T and b_v >= B_vc/2 (T_k/T_k-1 - 1) + K_vc T/2). ";
+    if (k_max > 0)
+      m += "The largest K_vc that satisfies eq. (26) with these is device.coupling_stiffness_N_per_m = " + num(std::floor(k_max * 1000) / 1000) + " N/m";
+    else
+      m += "No K_vc > 0 satisfies eq. (26) with this B_vc: lower device.coupling_damping_Ns_per_m";
+    throw std::invalid_argument(m);
+  }
+}
+
+}  // namespace haptic::firmware

@@ -1,0 +1,116 @@
+// Coupling gains from the device (issue 12 item 2): b_d, K_vc, B_vc, b_v and the force limit come
+// from the device's capabilities and the [device] keys; a Touch (no published b_d) must state one;
+// eq. (26) is checked by the plan (--check-config) and again at start-up with the opened device,
+// and its message proposes the largest K_vc that satisfies it.
+#include <CppUTest/TestHarness.h>
+
+#include <sstream>
+#include <string>
+
+#include "drivers/phantom_device.hpp"
+#include "drivers/spacemouse.hpp"
+#include "firmware/station_probe.hpp"
+#include "firmware/station_run.hpp"
+#include "tests/station/station_files.hpp"
+
+using namespace haptic;
+using namespace haptic::firmware;
+
+namespace {
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+std::string station(const std::string& device_lines) {
+  test::StationText s;
+  s.id = 2;
+  s.peers = {1};
+  s.out_dir = "/tmp";
+  s.device = device_lines;
+  return s.text();
+}
+
+PlanResult plan(const std::string& device_lines) { return plan_station(parse_station_file(station(device_lines)), RunOverrides{}, read_clocks()); }
+
+// The K_vc the error proposes, parsed from "device.coupling_stiffness_N_per_m = <v> N/m".
+double proposed_kvc(const std::string& error) {
+  const std::string tag = "satisfies eq. (26) with these is device.coupling_stiffness_N_per_m = ";
+  const auto at = error.find(tag);
+  if (at == std::string::npos) return -1;
+  return std::stod(error.substr(at + tag.size()));
+}
+}  // namespace
+
+TEST_GROUP(DeviceCoupling){};
+
+TEST(DeviceCoupling, ATouchWithoutAStatedDampingIsRefusedNamingTheKeyNeverAssumedZero) {
+  const PlanResult r = plan("kind = \"touch\"\n");
+  CHECK(r.status == PhaseStatus::kConfigError);
+  CHECK_TEXT(contains(r.error, "device.damping_Ns_per_m") && contains(r.error, "never assumed 0"), r.error.c_str());
+  std::ostringstream out, err;
+  LONGS_EQUAL(kExitConfigError, check_station_config(parse_station_file(station("kind = \"touch\"\n")), RunOverrides{}, out, err));
+}
+
+TEST(DeviceCoupling, Eq26ViolationProposesTheLargestKvcAndThatValueIsAccepted) {
+  // b_d = 0.3 N s/m, default K_vc = 200 N/m at T = 2 ms needs b_d >= 0.4: refused at --check-config.
+  const PlanResult r = plan("kind = \"touch\"\ndamping_Ns_per_m = 0.3\n");
+  CHECK(r.status == PhaseStatus::kConfigError);
+  CHECK_TEXT(contains(r.error, "eq. (26) violated") && contains(r.error, "device.damping_Ns_per_m"), r.error.c_str());
+  const double k = proposed_kvc(r.error);
+  DOUBLES_EQUAL(150.0, k, 1e-9);  // (b_d - B_vc (1 + 1)) / T = 0.3 / 0.002
+  // the proposal satisfies it; a little more does not
+  CHECK(plan("kind = \"touch\"\ndamping_Ns_per_m = 0.3\ncoupling_stiffness_N_per_m = 150\n").status == PhaseStatus::kOk);
+  CHECK(plan("kind = \"touch\"\ndamping_Ns_per_m = 0.3\ncoupling_stiffness_N_per_m = 150.5\n").status == PhaseStatus::kConfigError);
+  // with B_vc the proposal accounts for it: (0.3 - 2 x 0.05) / 0.002 = 100
+  const PlanResult rb = plan("kind = \"touch\"\ndamping_Ns_per_m = 0.3\ncoupling_damping_Ns_per_m = 0.05\n");
+  const double kb = proposed_kvc(rb.error);
+  DOUBLES_EQUAL(100.0, kb, 2e-3);  // rounded down to 1e-3 N/m, so that it satisfies eq. (26)
+  const std::string with_b = "kind = \"touch\"\ndamping_Ns_per_m = 0.3\ncoupling_damping_Ns_per_m = 0.05\ncoupling_stiffness_N_per_m = ";
+  CHECK(plan(with_b + std::to_string(kb) + "\n").status == PhaseStatus::kOk);
+  CHECK(plan(with_b + std::to_string(kb + 0.01) + "\n").status == PhaseStatus::kConfigError);
+}
+
+TEST(DeviceCoupling, GainsAndTheForceLimitComeFromTheDeviceAndTheFile) {
+  const PlanResult r = plan("kind = \"touch\"\ndamping_Ns_per_m = 0.6\ncoupling_stiffness_N_per_m = 250\nproxy_damping_Ns_per_m = 1\n");
+  CHECK_TEXT(r.status == PhaseStatus::kOk, r.error.c_str());
+  const DeviceCoupling& c = *r.plan->coupling;
+  DOUBLES_EQUAL(0.6, c.b_d_Ns_per_m, 0);
+  DOUBLES_EQUAL(250.0, c.gains.K_vc_N_per_m, 0);
+  DOUBLES_EQUAL(1.0, c.gains.b_v_Ns_per_m, 0);
+  DOUBLES_EQUAL(0.0, c.gains.B_vc_Ns_per_m, 0);  // the scenario's
+  DOUBLES_EQUAL(drivers::touch_default_capabilities().max_force_N, c.force_limit_N, 0);  // the Touch's 3.3 N, not the core's 10 N
+  const PlanResult lower = plan("kind = \"touch\"\ndamping_Ns_per_m = 0.6\nmax_force_N = 2\n");
+  DOUBLES_EQUAL(2.0, lower.plan->coupling->force_limit_N, 0);
+  // a simulated user's b_d is the model's, said so
+  const PlanResult sim = plan("kind = \"simulated\"\n");
+  DOUBLES_EQUAL(sim.plan->built->spec.device.damping_Ns_per_m, sim.plan->coupling->b_d_Ns_per_m, 0);
+  CHECK(contains(sim.plan->coupling->b_d_source, "simulated"));
+}
+
+TEST(DeviceCoupling, APositionInputDeviceHasNoForceFeedbackAndEq26DoesNotApply) {
+  const PlanResult r = plan("kind = \"spacemouse\"\n");
+  CHECK_TEXT(r.status == PhaseStatus::kOk, r.error.c_str());
+  CHECK_FALSE(r.plan->coupling->force_feedback);
+}
+
+TEST(DeviceCoupling, StartUpChecksEq26AgainWithTheOpenedDevicesFiguresAndUsesItsForceLimit) {
+  const PlanResult r = plan("kind = \"auto\"\n");  // auto: nothing known at planning
+  CHECK_TEXT(r.status == PhaseStatus::kOk, r.error.c_str());
+  CHECK_FALSE(r.plan->coupling.has_value());
+  ProbeResult probe;
+  probe.status = PhaseStatus::kOk;
+  probe.rtt_bound_ticks = {3};
+  drivers::DeviceCapabilities caps = drivers::touch_default_capabilities();
+  caps.max_force_N = 2.5;
+  caps.min_damping_Ns_per_m = 0.0;  // the opened device publishes no b_d: refused at start-up
+  BuildResult b = build_station_core(*r.plan, probe, caps);
+  CHECK(b.status != PhaseStatus::kOk);
+  CHECK_TEXT(contains(b.message, "device.damping_Ns_per_m"), b.message.c_str());
+  caps.min_damping_Ns_per_m = 0.2;  // published but too small for K_vc = 200: the proposal is 100 N/m
+  b = build_station_core(*r.plan, probe, caps);
+  CHECK(b.status != PhaseStatus::kOk);
+  DOUBLES_EQUAL(100.0, proposed_kvc(b.message), 2e-3);
+  caps.min_damping_Ns_per_m = 0.5;
+  b = build_station_core(*r.plan, probe, caps);
+  CHECK_TEXT(b.status == PhaseStatus::kOk, b.message.c_str());
+  DOUBLES_EQUAL(2.5, b.core->config().max_device_force_N, 0);  // one force limit: the device's
+  DOUBLES_EQUAL(0.5, b.core->config().device_damping_Ns_per_m, 0);
+}

@@ -5,8 +5,9 @@ namespace haptic::drivers {
 namespace {
 constexpr std::uint16_t kAny = 0xFFFF;
 constexpr KnownIdentity kTable[] = {
-    {0x2988, 0x0302, DeviceKind::kPhantomTouch, "3D Systems Touch (2988:0302, public report)"},
-    {0x0301, 0x2988, DeviceKind::kPhantomTouch, "3D Systems Touch (0301:2988, public report)"},
+    {0x2988, 0x0302, DeviceKind::kPhantomTouch, "3D Systems Touch, USB model (2988:0302; cdc_acm, /dev/ttyACM*)"},
+    {0x0301, 0x2988, DeviceKind::kPhantomTouch, "3D Systems Touch, USB model (0301:2988; cdc_acm, /dev/ttyACM*)"},
+    {0x2988, 0x0304, DeviceKind::kPhantomTouch, "3D Systems Touch, HID model (2988:0304; /dev/hidraw*)"},
     {0x2988, kAny, DeviceKind::kPhantomTouch, "3D Systems/SensAble device (unlisted model)"},
     // 3Dconnexion under Logitech's vendor id (product ids from public device lists).
     {0x046d, 0xc603, DeviceKind::kSpaceMouse, "3Dconnexion SpaceMouse Plus XT"},

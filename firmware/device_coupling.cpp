@@ -1,5 +1,7 @@
 #include "firmware/device_coupling.hpp"
 
+#include "rt/station.hpp"
+
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -23,6 +25,7 @@ DeviceCoupling device_coupling(const StationFile& f, const ScenarioSpec& spec, c
   if (d.proxy_damping_Ns_per_m >= 0) c.gains.b_v_Ns_per_m = d.proxy_damping_Ns_per_m;
   c.force_feedback = caps.actuated_axes[0] || caps.actuated_axes[1] || caps.actuated_axes[2];
   c.force_limit_N = std::fmin(caps.max_force_N, d.max_force_N);
+  c.map_scale = d.map_scale;
   if (d.damping_Ns_per_m >= 0) {
     c.b_d_Ns_per_m = d.damping_Ns_per_m;
     c.b_d_source = "device.damping_Ns_per_m";
@@ -39,11 +42,13 @@ DeviceCoupling device_coupling(const StationFile& f, const ScenarioSpec& spec, c
 
 void check_device_coupling(const DeviceCoupling& c, double T) {
   if (!c.force_feedback) return;  // nothing goes out to the hand: eq. (26) concerns the device's port
+  const double b_d = c.object_b_d_Ns_per_m();
   try {
-    rt::check_eq26(c.gains, c.b_d_Ns_per_m, T);
+    rt::check_eq26(c.gains, b_d, T);
   } catch (const std::invalid_argument&) {  // violated: say it with the keys as the station file writes them
-    const double k_max = rt::max_K_vc_eq26(c.gains, c.b_d_Ns_per_m, T);
-    std::string m = "eq. (26) violated: device damping b_d = " + num(c.b_d_Ns_per_m) + " N s/m (" + c.b_d_source +
+    const double k_max = rt::max_K_vc_eq26(c.gains, b_d, T);
+    const std::string scaled = c.map_scale == 1.0 ? "" : ", i.e. " + num(b_d) + " N s/m in the object frame with device.map_scale = " + num(c.map_scale);
+    std::string m = "eq. (26) violated: device damping b_d = " + num(c.b_d_Ns_per_m) + " N s/m (" + c.b_d_source + scaled +
                     ") with K_vc = device.coupling_stiffness_N_per_m = " + num(c.gains.K_vc_N_per_m) +
                     " N/m, B_vc = device.coupling_damping_Ns_per_m = " + num(c.gains.B_vc_Ns_per_m) +
                     " N s/m, b_v = device.proxy_damping_Ns_per_m = " + num(c.gains.b_v_Ns_per_m) + " N s/m, T = " + num(T) +
@@ -54,6 +59,33 @@ void check_device_coupling(const DeviceCoupling& c, double T) {
       m += "No K_vc > 0 satisfies eq. (26) with this B_vc: lower device.coupling_damping_Ns_per_m";
     throw std::invalid_argument(m);
   }
+}
+
+drivers::WorkspaceMapConfig workspace_map_config(const StationFile& f, const drivers::DeviceCapabilities& caps) {
+  drivers::WorkspaceMapConfig m;
+  for (int i = 0; i < 3; ++i) {
+    m.offset_m[i] = f.device.map_offset_m[i];
+    m.rotation_deg[i] = f.device.map_rotation_deg[i];
+  }
+  m.scale = f.device.map_scale;
+  m.workspace_radius_m = caps.workspace_radius_m;
+  drivers::WorkspaceMap check(m);  // throws on a bad scale
+  (void)check;
+  return m;
+}
+
+std::int64_t ramp_in_ticks(const StationFile& f, double T) {
+  const double s = f.device.ramp_in_s >= 0 ? f.device.ramp_in_s : (f.device.kind == "simulated" ? 0.0 : 1.0);
+  return std::llround(s / T);
+}
+
+Eigen::Vector3d initial_proxy_position(const Eigen::Vector3d& q, const rt::Scene& scene, const std::vector<int>& nodes, bool* projected) {
+  const rt::ContactFace face = rt::contact_face(scene.x_d, nodes);
+  Eigen::Vector3d n = rt::outward_normal_sign(face, scene) * face.normal;
+  n.normalize();
+  const double depth = n.dot(q - face.centroid);  // < 0: inside the object
+  if (projected != nullptr) *projected = depth < 0.0;
+  return depth < 0.0 ? Eigen::Vector3d(q - depth * n) : q;
 }
 
 }  // namespace haptic::firmware

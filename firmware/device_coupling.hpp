@@ -6,7 +6,13 @@
 // and at start-up with the opened device's own capabilities. Start-up only (not RT-safe).
 #include <string>
 
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
 #include "drivers/device.hpp"
+#include "drivers/workspace_map.hpp"
+#include "rt/scene.hpp"
 #include "firmware/scenario.hpp"
 #include "firmware/station_config.hpp"
 #include "rt/gains.hpp"
@@ -19,6 +25,9 @@ struct DeviceCoupling {
   std::string b_d_source;            // where b_d came from (the key, or the device's figure)
   double force_limit_N = 0.0;        // the one force limit: min(device capability, device.max_force_N)
   bool force_feedback = true;        // false: position input only (no actuated axis): eq. (26) does not apply
+  double map_scale = 1.0;            // device.map_scale: eq. (26) and the limit act in the object frame
+  double object_b_d_Ns_per_m() const { return b_d_Ns_per_m / (map_scale * map_scale); }  // b_d / scale^2
+  double object_force_limit_N() const { return force_limit_N / map_scale; }               // F_max / scale
 };
 
 // The coupling for a device with capabilities `caps` and the file's [device] keys (-1 = from the
@@ -30,5 +39,24 @@ DeviceCoupling device_coupling(const StationFile& file, const ScenarioSpec& spec
 // keys as written in the station file, and proposing the largest device.coupling_stiffness_N_per_m
 // (K_vc) that satisfies it for the given b_d (rt::max_K_vc_eq26).
 void check_device_coupling(const DeviceCoupling& coupling, double period_s);
+
+// The device -> object transform of this station ([device] map_* keys; clamp radius = the
+// device's workspace radius). Throws std::invalid_argument naming the key.
+drivers::WorkspaceMapConfig workspace_map_config(const StationFile& file, const drivers::DeviceCapabilities& caps);
+
+// device.ramp_in_s in ticks (-1: 1 s for a real device, 0 for a simulated user).
+std::int64_t ramp_in_ticks(const StationFile& file, double period_s);
+
+// The force factor of the ramp-in at the n-th coupled tick (n = 0 first): min(1, (n + 1) / ramp_ticks),
+// 1 without a ramp. RT-safe.
+inline double ramp_in_factor(std::int64_t n, std::int64_t ramp_ticks) {
+  return ramp_ticks <= 0 || n + 1 >= ramp_ticks ? 1.0 : static_cast<double>(n + 1) / static_cast<double>(ramp_ticks);
+}
+
+// Where the virtual proxy starts (issue 12 item 1): the mapped device position, unless that is
+// inside the object (behind the contact face's outward plane at rest), in which case its
+// projection onto that plane (*projected = true). Start-up.
+Eigen::Vector3d initial_proxy_position(const Eigen::Vector3d& mapped_device_m, const rt::Scene& scene, const std::vector<int>& contact_nodes,
+                                       bool* projected);
 
 }  // namespace haptic::firmware

@@ -77,11 +77,19 @@ void parse_station_section(View root, StationFile& f) {
   s.age_slack_ticks = static_cast<int>(integer(st["age_slack_ticks"], "station.age_slack_ticks", 10, 0, 100000));
 }
 
+// An array of three numbers in [lo, hi] (absent: out unchanged).
+void vec3(View n, const std::string& key, double lo, double hi, double out[3]) {
+  if (!n) return;
+  if (!n.is_array() || n.as_array()->size() != 3) bad(key, "an array of three numbers, e.g. [0.0, 0.0, 0.0]");
+  for (std::size_t i = 0; i < 3; ++i) out[i] = real(n[i], key + "[" + std::to_string(i) + "]", 0, lo, hi);
+}
+
 void parse_device_section(View root, StationFile& f) {
   const View dv = root["device"];
   only_keys(dv, "device", {"kind", "hd_library_path", "hd_device_name", "hidraw_path", "max_force_N", "max_power_W", "max_speed_m_per_s", "max_stale_reads",
                           "max_reads_before_first_sample", "workspace_margin", "sim_max_force_N", "damping_Ns_per_m", "coupling_stiffness_N_per_m",
-                          "coupling_damping_Ns_per_m", "proxy_damping_Ns_per_m"});
+                          "coupling_damping_Ns_per_m", "proxy_damping_Ns_per_m", "map_offset_m", "map_rotation_deg", "map_scale",
+                          "ramp_in_s"});
   DeviceSection& d = f.device;
   d.kind = text(dv["kind"], "device.kind", "auto");
   if (d.kind != "auto" && d.kind != "touch" && d.kind != "spacemouse" && d.kind != "simulated")
@@ -108,6 +116,11 @@ void parse_device_section(View root, StationFile& f) {
   d.coupling_stiffness_N_per_m = gain("coupling_stiffness_N_per_m", false, 1e6, "(0, 1e6]");
   d.coupling_damping_Ns_per_m = gain("coupling_damping_Ns_per_m", true, 1e4, "[0, 1e4]");
   d.proxy_damping_Ns_per_m = gain("proxy_damping_Ns_per_m", true, 1e4, "[0, 1e4]");
+  vec3(dv["map_offset_m"], "device.map_offset_m", -100, 100, d.map_offset_m);
+  vec3(dv["map_rotation_deg"], "device.map_rotation_deg", -360, 360, d.map_rotation_deg);
+  d.map_scale = real(dv["map_scale"], "device.map_scale", 1.0, 1e-3, 100);
+  d.ramp_in_s = real(dv["ramp_in_s"], "device.ramp_in_s", -1, -1, 60, " (-1 = 1 s for a real device, 0 for a simulated user)");
+  if (d.ramp_in_s < 0 && d.ramp_in_s != -1) bad("device.ramp_in_s", "-1 or a number in [0, 60]");
 }
 
 void parse_platform_sections(View root, StationFile& f) {

@@ -88,6 +88,16 @@
 //   proxy_damping_Ns_per_m = -1      # b_v, extra damping of the virtual proxy, [0, 1e4]; -1 = the scenario's (2)
 //                                    # eq. (26) on these is checked by --check-config and at start-up; the force limit is
 //                                    # the device's (min of its capability and max_force_N)
+//   map_offset_m = [0, 0, 0]         # workspace mapping, device -> object frame: p_obj = offset + scale R p_dev,
+//   map_rotation_deg = [0, 0, 0]     # R = Rz(rz) Ry(ry) Rx(rx) (degrees, about the object's fixed axes),
+//   map_scale = 1.0                  # (0, 100]; forces go back as scale R^T F (same power in both frames), so eq. (26)
+//                                    # uses b_d / scale^2 and the force limit is F_max / scale in the object frame.
+//                                    # `haptic-devices map` finds the offset (stylus held still at the object's centre).
+//                                    # Positions beyond the device's workspace radius are clamped onto it (counted).
+//   ramp_in_s = -1                   # the force sent to the device ramps linearly from 0 over this time after the
+//                                    # station couples, [0, 60]; -1 = 1 s for a real device, 0 for a simulated user.
+//                                    # At start the virtual proxy is placed at the mapped device position (projected
+//                                    # onto the contact face when that position is inside the object)
 //   [rt]       priority = 80 (1..98), cpu = -1, lock_memory = true, hold_dma_latency = false, require_rt = false,
 //              isolate_cpu = true (with cpu >= 0: every other thread of the process moved off that cpu)
 //   [loop]     period_ns = 2000000 (must equal the scenario's T), overrun_storm_count = 10 (>= 1),
@@ -162,6 +172,10 @@ struct DeviceSection {
   double coupling_stiffness_N_per_m = -1;
   double coupling_damping_Ns_per_m = -1;
   double proxy_damping_Ns_per_m = -1;
+  double map_offset_m[3] = {0, 0, 0};
+  double map_rotation_deg[3] = {0, 0, 0};
+  double map_scale = 1.0;
+  double ramp_in_s = -1;
   double sim_max_force_N = 3.3;
 };
 

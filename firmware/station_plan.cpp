@@ -143,10 +143,12 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   if (const auto caps = drivers::published_capabilities(p->device)) {
     p->coupling = device_coupling(f, spec, *caps);
     check_device_coupling(*p->coupling, spec.period_s);  // the same check runs at start-up on the opened device
+    workspace_map_config(f, *caps);  // a bad map is a configuration error here too
   } else {
     p->warnings.push_back("device.kind = \"auto\": eq. (26) on the device's damping is checked at start-up, once the device is open "
                           "(name the kind to have --check-config check it)");
   }
+  p->ramp_in_ticks = ramp_in_ticks(f, spec.period_s);
   p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
   p->net.endpoint.fingerprint = p->fingerprint;  // sent to every neighbour (net/)
   p->net.endpoint.io_priority = f.station.io_priority;  // the I/O thread's RtThread (SCHED_FIFO or 0)

@@ -80,6 +80,7 @@ struct StationPlan {
   // b_d, gains and force limit from the figures the device kind publishes, eq. (26) checked; unset
   // for device.kind = "auto" (checked at start-up once the device is open)
   std::optional<DeviceCoupling> coupling;
+  std::int64_t ramp_in_ticks = 0;   // device.ramp_in_s in ticks: the device force ramps in over these
   SceneFingerprint fingerprint;
   std::string out_dir;              // created by the run, checked creatable here
   std::string base_path;            // out_dir/station-<id>

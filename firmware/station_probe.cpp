@@ -199,7 +199,8 @@ MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const s
   return m;
 }
 
-BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe, const drivers::DeviceCapabilities& device) {
+BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe, const drivers::DeviceCapabilities& device,
+                               const double* device_position_m) {
   BuildResult r;
   const StationSection& S = plan.file.station;
   const BuiltScenario& built = *plan.built;
@@ -215,9 +216,15 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
     r.coupling = device_coupling(plan.file, built.spec, device);
     check_device_coupling(r.coupling, built.spec.period_s);
     sc.vp.coupling = r.coupling.gains;
-    sc.device_damping_Ns_per_m = r.coupling.b_d_Ns_per_m;
+    sc.device_damping_Ns_per_m = r.coupling.object_b_d_Ns_per_m();  // eq. (26) in the object frame: b_d / scale^2
     sc.device_force_feedback = r.coupling.force_feedback;
-    if (r.coupling.force_limit_N > 0) sc.max_device_force_N = r.coupling.force_limit_N;  // the device's limit, the only one
+    if (r.coupling.force_limit_N > 0) sc.max_device_force_N = r.coupling.object_force_limit_N();  // the device's limit, the only one
+    r.map = drivers::WorkspaceMap(workspace_map_config(plan.file, device));
+    if (device_position_m != nullptr) {
+      sc.vp_initial_position_m = initial_proxy_position(r.map.to_object(device_position_m, nullptr), built.scene, sc.contact_nodes, &r.proxy_projected);
+      r.proxy_from_device = true;
+    }
+    r.proxy_start_m = sc.vp_initial_position_m;
     sc.solver.kind = rt::parse_step_solver_kind(S.solver);
     for (std::size_t n = 0; n < sc.neighbors.size(); ++n) sc.neighbors[n].index_delay_bound_ticks = r.bounds.index_guard_ticks[n];
     r.core = std::make_unique<rt::StationCore>(sc);

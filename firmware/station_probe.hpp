@@ -86,12 +86,19 @@ struct BuildResult {
   std::unique_ptr<rt::StationCore> core;  // set when status == kOk
   rt::TxDeadband tx_deadband;             // this station's transmission policy (rt/tx_deadband)
   DeviceCoupling coupling;                // b_d, K_vc, B_vc, b_v and the force limit the core got
+  drivers::WorkspaceMap map;              // device -> object frame (the tick uses it)
+  Eigen::Vector3d proxy_start_m = Eigen::Vector3d::Zero();  // where the virtual proxy starts
+  bool proxy_from_device = false;         // placed at the mapped device position (else the scenario's start)
+  bool proxy_projected = false;           // that position was inside the object: projected onto the contact face
 };
 
 // B_i from eq. (18) on the measured bounds (station.damping_Ns_per_m overrides it: then the
 // passivity condition may not be met, which the report names), the device coupling from the opened
 // device's capabilities and the [device] keys with eq. (26) on it (device_coupling.hpp: the error
 // proposes the largest K_vc), the core and its factorizations.
-BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe, const drivers::DeviceCapabilities& device);
+// device_position_m: the device's current position (device frame) to place the virtual proxy at
+// (mapped; projected onto the contact face when inside the object); null: the scenario's start.
+BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe, const drivers::DeviceCapabilities& device,
+                               const double* device_position_m = nullptr);
 
 }  // namespace haptic::firmware

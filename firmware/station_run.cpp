@@ -10,6 +10,7 @@
 #include <iostream>
 #include <memory>
 #include <sstream>
+#include <thread>
 
 #include "drivers/device_factory.hpp"
 #include "firmware/station_neighbours.hpp"
@@ -116,8 +117,10 @@ void say_bounds(const StationPlan& plan, const BuildResult& b, const Log& log) {
             std::to_string(b.bounds.damping_min_Ns_per_m) + "): the passivity condition is not met (exit code " + std::to_string(kExitPassivityNotMet) + ")");
 }
 
-TickInputs tick_inputs(const StationPlan& plan, StationResources& res, rt::StationCore* core, rt::TxDeadband* tx) {
+TickInputs tick_inputs(const StationPlan& plan, StationResources& res, rt::StationCore* core, rt::TxDeadband* tx, const drivers::WorkspaceMap* map) {
   TickInputs in;
+  in.map = map;
+  in.ramp_ticks = plan.ramp_in_ticks;
   in.core = core;
   in.tx_deadband = tx;
   in.ep = res.ep.get();
@@ -222,7 +225,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
       return;
     }
   }
-  TickInputs in = tick_inputs(plan, res, pr.build.core.get(), &pr.build.tx_deadband);
+  TickInputs in = tick_inputs(plan, res, pr.build.core.get(), &pr.build.tx_deadband, &pr.build.map);
   if (!pr.build.max_age_s.empty()) in.max_age_s = pr.build.max_age_s.data();  // the age guard
   RunObserver observer;
   observer.rt_ready = [&](const std::string& summary, const std::vector<std::string>& warnings) {
@@ -257,6 +260,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
     pr.run = run_loop(plan, in, pr.records, pr.counters, stop, observer);
   }
   pr.ran = true;
+  pr.lifecycle["device"]["outside_workspace_ticks"] = pr.counters.outside_workspace_ticks;
   if (plan.times.rejoin) {
     pr.lifecycle["rejoin"]["state_from_station"] = pr.adopted.from_station;
     pr.lifecycle["rejoin"]["state_tick"] = pr.adopted.seq;
@@ -314,6 +318,50 @@ bool adopt_state(const StationPlan& plan, StationResources& res, PhaseResults& p
   return true;
 }
 
+// The device's current position (device frame) before the core is built, to place the virtual
+// proxy there: the newest sample, waiting up to 0.2 s for a first one. Non-RT (the tick thread
+// does not exist yet, so this thread is the mailbox's only reader).
+bool initial_device_position(drivers::HapticDevice& dev, double out[3]) {
+  drivers::DeviceSample s{};
+  for (int i = 0; i < 100; ++i) {
+    if (dev.read_newest(s)) {
+      for (int a = 0; a < 3; ++a) out[a] = s.position_m[a];
+      return true;
+    }
+    if (dev.fault() != drivers::DeviceFault::kNone) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return false;
+}
+
+// Start-up lines and lifecycle.device: gains, b_d, force limit, the map, where the proxy starts, the ramp.
+void note_device_coupling(const StationPlan& plan, PhaseResults& pr, const Log& log) {
+  const BuildResult& b = pr.build;
+  const DeviceCoupling& c = b.coupling;
+  const Eigen::Vector3d& y0 = b.proxy_start_m;
+  std::ostringstream os;
+  os << "device coupling: b_d " << c.b_d_Ns_per_m << " N s/m (" << c.b_d_source << "), K_vc " << c.gains.K_vc_N_per_m << " N/m, B_vc "
+     << c.gains.B_vc_Ns_per_m << " N s/m, b_v " << c.gains.b_v_Ns_per_m << " N s/m, force limit " << c.force_limit_N << " N, map scale "
+     << b.map.scale() << "; proxy starts at (" << y0.x() << ", " << y0.y() << ", " << y0.z() << ") m"
+     << (b.proxy_from_device ? (b.proxy_projected ? " (the mapped device position was inside the object: projected onto its face)" : " (the mapped device position)")
+                             : " (the scenario's start)")
+     << "; force ramp-in " << static_cast<double>(plan.ramp_in_ticks) * plan.built->spec.period_s << " s";
+  log.say(os.str());
+  nlohmann::json& d = pr.lifecycle["device"];
+  d["b_d_Ns_per_m"] = c.b_d_Ns_per_m;
+  d["b_d_source"] = c.b_d_source;
+  d["K_vc_N_per_m"] = c.gains.K_vc_N_per_m;
+  d["B_vc_Ns_per_m"] = c.gains.B_vc_Ns_per_m;
+  d["b_v_Ns_per_m"] = c.gains.b_v_Ns_per_m;
+  d["force_limit_N"] = c.force_limit_N;
+  d["force_feedback"] = c.force_feedback;
+  d["map_scale"] = b.map.scale();
+  d["proxy_start_m"] = {y0.x(), y0.y(), y0.z()};
+  d["proxy_from_device"] = b.proxy_from_device;
+  d["proxy_projected"] = b.proxy_projected;
+  d["ramp_in_s"] = static_cast<double>(plan.ramp_in_ticks) * plan.built->spec.period_s;
+}
+
 // open -> probe (or rejoin) -> build -> run; each phase's failure ends the sequence.
 void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
   try {
@@ -344,9 +392,13 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
     }
   }
   note_probe(plan, pr, log);
-  pr.build = build_station_core(plan, pr.probe, res.dev.device->capabilities());
+  double q0[3];
+  const bool have_q0 = initial_device_position(*res.dev.device, q0);
+  if (!have_q0) log.say("warning: the device gave no sample before coupling: the virtual proxy starts at the scenario's start");
+  pr.build = build_station_core(plan, pr.probe, res.dev.device->capabilities(), have_q0 ? q0 : nullptr);
   pr.built = true;
   if (pr.build.status != PhaseStatus::kOk) return pr.fail(pr.build.status, pr.build.message);
+  note_device_coupling(plan, pr, log);
   say_bounds(plan, pr.build, log);
   if (plan.times.rejoin && !adopt_state(plan, res, pr, log)) return;
   run_phase(plan, res, pr, stop, log);

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "firmware/device_coupling.hpp"
 #include "platform/trace.hpp"
 
 namespace haptic::firmware {
@@ -12,21 +13,6 @@ namespace {
 
 using platform::trace::Stage;
 using platform::trace::StageScope;
-
-// Newest device sample; none (a faulted device): NaN, the core's safe state for this tick. RT-safe.
-rt::Vec3 read_device(const TickInputs& in, TickCounters& cnt) {
-  StageScope stage(Stage::device_read);
-  drivers::DeviceSample ds{};
-  rt::Vec3 q;
-  if (in.device->read_newest(ds)) {
-    q = rt::Vec3(ds.position_m[0], ds.position_m[1], ds.position_m[2]);
-  } else {
-    q = rt::Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
-    ++cnt.device_fault_ticks;
-  }
-  platform::trace::device_read(0, ds.sequence);
-  return q;
-}
 
 // Drains the RX ring into the receive links; sequence numbers become run indices (seq - run_k0).
 // The age guard: a packet whose echo-based age bound (now - our own send stamp of the sequence it
@@ -143,6 +129,35 @@ double monitor(const TickInputs& in, TickCounters& cnt, std::int64_t kr, std::ui
 
 }  // namespace
 
+rt::Vec3 read_device(const TickInputs& in, TickCounters& cnt) {
+  StageScope stage(Stage::device_read);
+  drivers::DeviceSample ds{};
+  rt::Vec3 q;
+  if (in.device->read_newest(ds)) {
+    if (in.map != nullptr) {
+      bool clamped = false;
+      q = in.map->to_object(ds.position_m, &clamped);
+      if (clamped) ++cnt.outside_workspace_ticks;
+    } else {
+      q = rt::Vec3(ds.position_m[0], ds.position_m[1], ds.position_m[2]);
+    }
+  } else {
+    q = rt::Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+    ++cnt.device_fault_ticks;
+  }
+  platform::trace::device_read(0, ds.sequence);
+  return q;
+}
+
+void device_force_out(const TickInputs& in, const TickCounters& cnt, const rt::Vec3& f, double out[3]) {
+  const rt::Vec3 ramped = ramp_in_factor(cnt.ticks_run, in.ramp_ticks) * f;
+  if (in.map != nullptr) {
+    in.map->force_to_device(ramped, out);
+  } else {
+    for (int a = 0; a < 3; ++a) out[a] = ramped[a];
+  }
+}
+
 void TickRecords::reserve(std::size_t trace_rows, std::size_t state_rows, int dofs) {
   trace.assign(trace_rows, TraceRec{});
   state_k.assign(state_rows, 0);
@@ -168,7 +183,9 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   const double F[3] = {out.device_force_N[0], out.device_force_N[1], out.device_force_N[2]};
   {
     StageScope stage(Stage::publish);
-    in.device->command_force(F);
+    double F_dev[3];
+    device_force_out(in, cnt, out.device_force_N, F_dev);  // ramp-in, object -> device frame
+    in.device->command_force(F_dev);
     platform::trace::device_write(0, static_cast<std::uint64_t>(kr));
     if (in.simulated) in.simulated->service(static_cast<double>(kr) * in.period_s, in.period_s);
   }

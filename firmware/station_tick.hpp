@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "drivers/device.hpp"
+#include "drivers/workspace_map.hpp"
 #include "drivers/simulated_device.hpp"
 #include "firmware/session_recorder.hpp"
 #include "firmware/view_frame.hpp"
@@ -48,6 +49,8 @@ struct TickInputs {
   // (R_ij + station.age_slack_ticks) T); a packet beyond it, or with no echo of one of our own
   // sends, is not handed to the core (counted). Null: no age guard.
   const double* max_age_s = nullptr;
+  const drivers::WorkspaceMap* map = nullptr;  // device -> object frame; null = identity
+  std::int64_t ramp_ticks = 0;                 // force ramp-in over this many coupled ticks (0 = none)
 };
 
 // Preallocated by reserve() (not RT-safe); the tick writes rows by index, never grows them.
@@ -66,6 +69,7 @@ struct TickCounters {
   std::uint64_t no_neighbour_ticks = 0;  // ticks with every neighbour's data beyond its index-delay bound
   std::uint64_t age_over_bound = 0, no_echo = 0;  // packets refused by the age guard (TickInputs::max_age_s)
   std::uint64_t rx_refused = 0;          // packets the receive links refused (future sequence, non-finite, stale, duplicate)
+  std::uint64_t outside_workspace_ticks = 0;  // device samples beyond its workspace radius (clamped onto it)
   std::int64_t ticks_run = 0;
   bool diverged = false;
   double diverged_at_s = -1, port_min_J = 0, max_speed_m_per_s = 0;
@@ -74,6 +78,15 @@ struct TickCounters {
 // Whether any neighbour's newest data is within its index-delay bound at run tick kr (the core
 // couples to it). RT-safe.
 bool any_neighbour_within_bound(rt::StationCore& core, std::int64_t kr);
+
+// The force sent to the device for the core's object-frame force F at this tick: the ramp-in
+// factor of the cnt.ticks_run-th coupled tick times F, mapped back to the device frame
+// (scale R^T F). RT-safe.
+void device_force_out(const TickInputs& in, const TickCounters& cnt, const rt::Vec3& force_object_N, double device_force_N[3]);
+
+// The newest device sample mapped into the object frame (NaN when the device has none: the core's
+// safe state for the tick); counts device-fault and outside-workspace ticks. RT-safe.
+rt::Vec3 read_device(const TickInputs& in, TickCounters& cnt);
 
 // One run tick at epoch index k, run index kr = k - run_k0 (the index the core and the receive
 // links use, so a packet's sequence number seq becomes seq - run_k0 and nothing else). In the order

@@ -27,6 +27,10 @@ ContactFace contact_face(const Eigen::VectorXd& x, const std::vector<int>& nodes
   return f;
 }
 
+double outward_normal_sign(const ContactFace& face, const Scene& scene) {
+  return face.normal.dot(face.centroid - scene.mesh.centroid()) >= 0 ? 1.0 : -1.0;
+}
+
 void StationConfig::validate() const {
   if (!scene) bad("scene", "set");
   if (users < 1) bad("users", ">= 1");
@@ -132,7 +136,7 @@ StationCore::StationCore(const StationConfig& config)
   a_w_ = 2.0 * cfg_.vp.mass_kg / T_ + g.b_v_Ns_per_m + g.B_vc_Ns_per_m + g.K_vc_N_per_m * T_ / 2.0;
   // Orientation of the contact face normal: outward at rest.
   const ContactFace rest = contact_face(x_, cfg_.contact_nodes);
-  normal_sign_ = rest.normal.dot(rest.centroid - scene_.mesh.centroid()) >= 0 ? 1.0 : -1.0;
+  normal_sign_ = outward_normal_sign(rest, scene_);
   prepare_contact_solve();
 }
 

@@ -86,6 +86,9 @@ struct ContactFace {
   Vec3 normal;
 };
 ContactFace contact_face(const Eigen::VectorXd& x, const std::vector<int>& nodes);
+// +1 or -1: the sign that turns face.normal outward (away from the scene mesh's centroid), as the
+// core orients its contact normal. RT-safe.
+double outward_normal_sign(const ContactFace& face, const Scene& scene);
 
 // Status flags of one tick.
 enum TickFlags : std::uint32_t {

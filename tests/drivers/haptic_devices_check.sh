@@ -13,7 +13,7 @@ if [ "$who" = nobody ]; then
   out=$(umockdev-run -d "$dir/touch_usb.umockdev" -d "$dir/hid_devices.umockdev" -- sh -c \
     'chmod -R a+rX "$UMOCKDEV_DIR" && exec setpriv --reuid=65534 --regid=65534 --clear-groups "$0"' "$tool" 2>&1)
 else
-  out=$(umockdev-run -d "$dir/touch_usb.umockdev" -d "$dir/hid_devices.umockdev" -- "$tool" --hd-library "$fakehd" 2>&1)
+  out=$(umockdev-run -d "$dir/touch_usb.umockdev" -d "$dir/hid_devices.umockdev" -d "$dir/touch_acm.umockdev" -- "$tool" --hd-library "$fakehd" 2>&1)
 fi
 echo "$out"
 fail=0
@@ -22,6 +22,7 @@ if [ "$who" = nobody ]; then
   need 'access: /dev/hidraw0 NO read/write permission'
   need 'SUBSYSTEM=="hidraw", ATTRS\{idVendor\}=="256f", ATTRS\{idProduct\}=="c635", GROUP="haptic", MODE="0660"'
   need 'OpenHaptics HD library \(libHD.so\): NOT available'
+  need 'fix: device.hd_library_path = '
 else
   need '2988:0302 .*bus 001 addr 005 port 1-3  serial "TOUCH-0001"'
   need 'backend: OpenHaptics HD library'
@@ -30,6 +31,9 @@ else
   need 'position input only, NO force feedback'
   need 'Touch HID model detected'
   need 'access: /dev/hidraw0 read/write OK'
+  need '2988:0304  3D Systems Touch, HID model'
+  need '2988:0302  3D Systems Touch, USB model .*/dev/ttyACM0  serial "TOUCH-ACM-3"'
+  need 'Touch vendor configuration'
   if printf '%s\n' "$out" | grep -q '046d:c31c'; then echo "UNEXPECTED: unrelated keyboard listed"; fail=1; fi
 fi
 exit $fail

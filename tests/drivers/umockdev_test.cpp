@@ -4,6 +4,7 @@
 // Without it every test here FAILS with a message saying so (never a silent pass); the CMake
 // file registers a separate "skipped" marker when umockdev is not installed at all.
 #include "drivers/device_factory.hpp"
+#include "drivers/tty_devices.hpp"
 #include "drivers/phantom_device.hpp"
 #include "drivers/spacemouse.hpp"
 #include "drivers/usb_monitor.hpp"
@@ -221,7 +222,22 @@ TEST(UmockdevHidraw, EnumerationFindsTheSpaceMouseAndTheTouchHidModel) {
   LONGS_EQUAL(0x256f, sm->vendor_id);
   LONGS_EQUAL(0xc635, sm->product_id);
   STRCMP_EQUAL("/dev/hidraw1", touch->path.c_str());
-  LONGS_EQUAL(0x0302, touch->product_id);
+  LONGS_EQUAL(0x0304, touch->product_id);  // the current Touch HID model (issue 12)
+  STRCMP_CONTAINS("HID model", touch->model);
+}
+
+TEST_GROUP(UmockdevTty) {};
+
+TEST(UmockdevTty, TheUsbTouchIsFoundAsATtyAcmNodeWithItsIdentity) {
+  Testbed bed;
+  bed.add("touch_acm.umockdev");
+  const auto ttys = list_acm_devices(true);
+  LONGS_EQUAL(1, ttys.size());
+  STRCMP_EQUAL("/dev/ttyACM0", ttys[0].node.c_str());
+  LONGS_EQUAL(0x2988, ttys[0].vendor_id);
+  LONGS_EQUAL(0x0302, ttys[0].product_id);
+  STRCMP_EQUAL("TOUCH-ACM-3", ttys[0].serial.c_str());
+  CHECK(ttys[0].kind == DeviceKind::kPhantomTouch);
 }
 
 TEST(UmockdevHidraw, SpaceMouseReportsAreDecodedThroughHidapiIntoSamples) {

@@ -2,6 +2,7 @@
 // may open it, and the udev rule that fixes a permission problem. Non-RT operator tool.
 #include "drivers/hd_library.hpp"
 #include "drivers/spacemouse.hpp"
+#include "drivers/tty_devices.hpp"
 #include "drivers/usb_ids.hpp"
 #include "drivers/usb_monitor.hpp"
 
@@ -10,7 +11,12 @@
 #include <cstdio>
 #include <exception>
 #include <string>
+#include <grp.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
 
 using namespace haptic::drivers;
 
@@ -51,10 +57,64 @@ void print_all_rules() {
     const bool any = ids[i].product_id == 0xFFFF;
     std::printf("# %s\n%s\n", ids[i].model, usb_rule(ids[i].vendor_id, ids[i].product_id, any).c_str());
     std::printf("%s\n", hidraw_rule(ids[i].vendor_id, ids[i].product_id, any).c_str());
+    if (ids[i].kind == DeviceKind::kPhantomTouch) {
+      std::string tty = rule("tty", ids[i].vendor_id, ids[i].product_id, any);
+      tty.insert(tty.find(','), ", KERNEL==\"ttyACM*\"");
+      std::printf("%s\n", tty.c_str());
+    }
   }
 }
 
 bool may_open(const std::string& node) { return !node.empty() && access(node.c_str(), R_OK | W_OK) == 0; }
+
+// The group owning a device node ("dialout", ...), "" when unknown.
+std::string node_group(const std::string& node) {
+  struct stat st{};
+  if (stat(node.c_str(), &st) != 0) return "";
+  const group* g = getgrgid(st.st_gid);
+  return g != nullptr ? g->gr_name : std::to_string(st.st_gid);
+}
+
+// The USB Touch as a cdc_acm serial node: the usual failure is group membership (dialout).
+int report_ttys(bool all, int& blocked) {
+  std::printf("\nUSB serial devices (cdc_acm, /dev/ttyACM*):\n");
+  const auto ttys = list_acm_devices(!all);
+  if (ttys.empty()) std::printf("  none%s\n", all ? "" : " of the known haptic identities");
+  for (const TtyDeviceInfo& t : ttys) {
+    std::printf("  %04x:%04x  %s  %s  serial \"%s\"%s\n", t.vendor_id, t.product_id, t.kind == DeviceKind::kUnknown ? "(not ours)" : t.model,
+                t.node.c_str(), t.serial.c_str(), t.driver.empty() ? "" : ("  driver " + t.driver).c_str());
+    if (t.kind == DeviceKind::kUnknown) continue;  // (counted once, in the USB section)
+    std::printf("      backend: %s (the vendor's driver opens this node)\n", backend_name(t.kind));
+    const bool ok = may_open(t.node);
+    const std::string grp = node_group(t.node);
+    std::printf("      access: %s (group %s) %s\n", t.node.c_str(), grp.empty() ? "?" : grp.c_str(), ok ? "read/write OK" : "NO read/write permission");
+    if (!ok) {
+      ++blocked;
+      std::printf("      fix: put the user running the station in group '%s' (sudo adduser $USER %s; log in again),\n"
+                  "           or install the udev rule (haptic-devices --udev-rules; group '%s')\n",
+                  grp.empty() ? "dialout" : grp.c_str(), grp.empty() ? "dialout" : grp.c_str(), g_group.c_str());
+    }
+  }
+  return static_cast<int>(ttys.size());
+}
+
+// Where the vendor's Touch driver keeps its configuration ("Default Device.config"): $GTDD_HOME/config,
+// else ~/.3dsystems/config (public installation guides). Run with sudo, that is /root's, which the
+// station (another user) never sees: the usual "works with sudo only" trap.
+void report_vendor_config() {
+  const char* gtdd = std::getenv("GTDD_HOME");
+  const char* home = std::getenv("HOME");
+  const std::string dir = gtdd != nullptr && *gtdd ? std::string(gtdd) + "/config" : std::string(home ? home : "~") + "/.3dsystems/config";
+  std::error_code ec;
+  const bool have = std::filesystem::exists(dir + "/Default Device.config", ec);
+  std::printf("\nTouch vendor configuration (%s): %s\n", gtdd != nullptr && *gtdd ? "$GTDD_HOME/config" : "no GTDD_HOME: ~/.3dsystems/config",
+              (dir + (have ? ": Default Device.config found" : ": no Default Device.config (run the vendor's Touch_Setup as the station's user)")).c_str());
+  if (std::getenv("SUDO_USER") != nullptr && (gtdd == nullptr || !*gtdd))
+    std::printf("  WARNING: running under sudo without GTDD_HOME: the vendor tools read and write their configuration under\n"
+                "  %s, which the station's user does not see. Set GTDD_HOME to one shared directory (e.g. /usr/share/3DSystems,\n"
+                "  writable by group %s) for Touch_Setup and for the station (Environment=GTDD_HOME=... in haptic-station@.service).\n",
+                dir.c_str(), g_group.c_str());
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -79,7 +139,10 @@ int main(int argc, char** argv) {
   std::printf("haptic-devices (uid %u)\n", static_cast<unsigned>(getuid()));
   std::printf("OpenHaptics HD library (%s): %s\n", hd_resolved.c_str(),
               hd_problem.empty() ? "loadable" : "NOT available");
-  if (!hd_problem.empty()) std::printf("  %s\n", hd_problem.c_str());
+  if (!hd_problem.empty())
+    std::printf("  %s\n  fix: device.hd_library_path = \"/path/to/libHD.so\" in the station file (check it here with --hd-library PATH)\n",
+                hd_problem.c_str());
+  report_vendor_config();
 
   int haptic = 0, input = 0, blocked = 0;
   std::printf("\nUSB devices (libusb):\n");
@@ -115,6 +178,8 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::printf("  cannot enumerate USB: %s\n", e.what());
   }
+
+  report_ttys(all, blocked);
 
   std::printf("\nHID devices (hidapi, hidraw):\n");
   const auto hids = list_hid_devices(!all);

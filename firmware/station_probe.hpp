@@ -85,6 +85,9 @@ struct BuildResult {
   bool passivity_condition_met = false;   // B_i used >= eq. (18) on the measured bounds
   std::unique_ptr<rt::StationCore> core;  // set when status == kOk
   rt::TxDeadband tx_deadband;             // this station's transmission policy (rt/tx_deadband)
+  // Per neighbour: the largest echo-based age bound a packet may have (R_ij + station.age_slack_ticks) T
+  // (net/README.md, "Age guard"; TickInputs::max_age_s).
+  std::vector<double> max_age_s;
   DeviceCoupling coupling;                // b_d, K_vc, B_vc, b_v and the force limit the core got
   drivers::WorkspaceMap map;              // device -> object frame (the tick uses it)
   Eigen::Vector3d proxy_start_m = Eigen::Vector3d::Zero();  // where the virtual proxy starts

@@ -1,5 +1,6 @@
 #include "firmware/scenario.hpp"
 
+#include "firmware/scene/mesh_io.hpp"
 #include "net/impairment.hpp"
 
 #include <cmath>
@@ -111,6 +112,11 @@ void ScenarioSpec::validate() const {
   if (!(loss_probability >= 0 && loss_probability < 1)) bad("loss_probability must be in [0, 1)");
   if (!(duplicate_probability >= 0 && duplicate_probability <= 1)) bad("duplicate_probability must be in [0, 1]");
   if (scene_nodes < 7 || scene_nodes > 20000) bad("--nodes must be in [7, 20000]");
+  if (!scene_file.path.empty()) {
+    if (!(scene_file.unit_m > 0 && std::isfinite(scene_file.unit_m))) bad(scene_file.key("unit_m") + " must be > 0 (metres per file unit)");
+    if (!(scene_file.density_kg_per_m3 >= 0 && std::isfinite(scene_file.density_kg_per_m3))) bad(scene_file.key("density_kg_per_m3") + " must be > 0 kg/m^3");
+    if (!(scene_file.youngs_modulus_Pa >= 0 && std::isfinite(scene_file.youngs_modulus_Pa))) bad(scene_file.key("youngs_modulus_Pa") + " must be > 0 Pa");
+  }
   if (!(damping_margin >= 0 && damping_margin <= 10)) bad("damping margin must be in [0, 10]");
   if (loss_allowance_ticks < 0 || loss_allowance_ticks > 1000) bad("loss allowance must be in [0, 1000] ticks");
   if (!(tx_deadband.position_deadband_m >= 0 && tx_deadband.position_deadband_m < 0.1)) bad("--tx-deadband-mm must be in [0, 100)");
@@ -128,12 +134,36 @@ std::vector<double> parse_list(const std::string& text, const std::string& what)
   return out;
 }
 
-BuiltScenario build_scenario(const ScenarioSpec& spec) {
-  spec.validate();
-  BuiltScenario b;
-  b.spec = spec;
-  const int N = spec.users;
-  const double T = spec.period_s;
+std::string SceneFileSpec::key(const std::string& field) const {
+  if (from_station_file) return "scene." + field;
+  if (field == "file") return "--scene";
+  if (field == "unit_m") return "--scene-unit-m";
+  if (field == "density_kg_per_m3") return "--density";
+  if (field == "youngs_modulus_Pa") return "--youngs";
+  return "--" + field;
+}
+
+namespace {
+// The object: a mesh file with its material (rt::lump_material), or the built-in ball (paper
+// ball, or a lattice ball scaled to the same object). Start-up only.
+rt::Scene make_scene(const ScenarioSpec& spec) {
+  const SceneFileSpec& f = spec.scene_file;
+  if (!f.path.empty()) {
+    scene::MeshReadOptions o;
+    o.unit_m = f.unit_m;
+    o.limits.max_nodes = f.max_nodes;
+    o.limits.max_elements = f.max_elements;
+    rt::TetMesh mesh;
+    try {
+      mesh = scene::read_scene_mesh(f.path, o);
+    } catch (const scene::MeshError& e) {
+      bad(f.key("file") + ": " + e.what());
+    }
+    rt::Material material = rt::paper_ball_material();
+    if (f.density_kg_per_m3 > 0) material.density_kg_per_m3 = f.density_kg_per_m3;
+    if (f.youngs_modulus_Pa > 0) material.youngs_modulus_Pa = f.youngs_modulus_Pa;
+    return rt::build_scene(mesh, spec.scene, rt::lump_material(mesh, material));
+  }
   const rt::TetMesh mesh = spec.scene_nodes == 33 ? rt::make_paper_ball(spec.ball_radius_m)
                                                   : rt::make_lattice_ball(spec.scene_nodes, spec.ball_radius_m);
   rt::SceneParams sp = spec.scene;
@@ -147,7 +177,17 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
     sp.node_mass_kg = spec.scene.node_mass_kg * paper.node_count() / mesh.node_count();
     sp.edge_stiffness_N_per_m = spec.scene.edge_stiffness_N_per_m * mean_edge(mesh) / mean_edge(paper);
   }
-  b.scene = rt::build_scene(mesh, sp);
+  return rt::build_scene(mesh, sp);
+}
+}  // namespace
+
+BuiltScenario build_scenario(const ScenarioSpec& spec) {
+  spec.validate();
+  BuiltScenario b;
+  b.spec = spec;
+  const int N = spec.users;
+  const double T = spec.period_s;
+  b.scene = make_scene(spec);
   b.gains.reserve(spec.topology.size());
   for (std::size_t e = 0; e < spec.topology.size(); ++e)
     b.gains.push_back(e == 0 ? rt::paper_edge_gains(b.scene, spec.p_gain_N_per_m, spec.d_gain_Ns_per_m) : b.gains[0]);
@@ -205,7 +245,13 @@ void assign_pushes(BuiltScenario& b) {
   Eigen::Vector3d intended = Eigen::Vector3d::Zero();
   double depth_sum = 0;
   for (int i = 0; i < N; ++i) {
-    const int f = mesh.face_towards(dirs[static_cast<std::size_t>(i)]);
+    // The user's proxy starts outside the object on its direction and approaches the centroid: its
+    // contact face is the boundary triangle it touches first (TetMesh::face_touched_from), for any
+    // mesh (the core fixes the contact nodes at start-up: its Schur data are precomputed).
+    Eigen::Vector3d touch;
+    const int f = mesh.face_touched_from(dirs[static_cast<std::size_t>(i)], &touch);
+    if (f < 0)
+      bad("scene: user " + std::to_string(i + 1) + "'s proxy, approaching the object's centroid, touches no surface (the centroid is outside the object?)");
     const auto& face = mesh.surface[static_cast<std::size_t>(f)];
     b.contact_nodes.push_back({face[0], face[1], face[2]});
     // N = 4 spread: the paper's pattern pushes along the face normals (cancel by the ball's symmetry);
@@ -213,7 +259,7 @@ void assign_pushes(BuiltScenario& b) {
     const bool paper_pattern = N == 4 && spec.script.push_pattern == UserScriptSpec::PushPattern::kSpread;
     b.push_direction.push_back(paper_pattern ? Eigen::Vector3d(-mesh.face_normal(f)) : Eigen::Vector3d(-dirs[static_cast<std::size_t>(i)]));
     b.push_depth_m.push_back(depth[static_cast<std::size_t>(i)]);
-    b.vp_start.push_back(mesh.face_center(f));
+    b.vp_start.push_back(touch);
     intended += depth[static_cast<std::size_t>(i)] * b.push_direction.back();
     depth_sum += depth[static_cast<std::size_t>(i)];
   }

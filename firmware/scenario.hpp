@@ -46,6 +46,20 @@ struct UserScriptSpec {
   double asymmetry_depth = 0.5;
 };
 
+// A scene read from a file (firmware/scene/mesh_io.hpp) instead of the built-in ball: the mesh,
+// the unit of its coordinates and the material (rt::Material: lumped masses, van Gelder springs).
+struct SceneFileSpec {
+  std::string path;                   // "" = the built-in ball of ScenarioSpec::scene_nodes
+  bool from_station_file = false;     // errors name scene.* keys (else the sim options --scene ...)
+  double unit_m = 1.0;                // metres per file unit
+  double density_kg_per_m3 = 0;       // 0 = rt::paper_ball_material()'s
+  double youngs_modulus_Pa = 0;       // 0 = rt::paper_ball_material()'s
+  int max_nodes = 20000;
+  int max_elements = 200000;
+  // The key naming `field` ("file", "unit_m", "density_kg_per_m3", "youngs_modulus_Pa") as the user wrote it.
+  std::string key(const std::string& field) const;
+};
+
 struct ScenarioSpec {
   std::string name = "paper-best";
   int users = 4;
@@ -58,6 +72,7 @@ struct ScenarioSpec {
   double loss_probability = 0.05;
   double duplicate_probability = 0.01;
   int scene_nodes = 33;                      // 33: the paper's ball; otherwise a lattice ball
+  SceneFileSpec scene_file{};                // a mesh file instead (scene_nodes then unused)
   // For a lattice ball, keep the same physical object as the paper's ball: total mass 33 x
   // node_mass_kg shared by the nodes, and edge stiffness scaled by mean edge length (a spring
   // network's modulus goes as k / h), so resolutions differ only in discretization.

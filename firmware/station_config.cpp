@@ -84,6 +84,19 @@ void vec3(View n, const std::string& key, double lo, double hi, double out[3]) {
   for (std::size_t i = 0; i < 3; ++i) out[i] = real(n[i], key + "[" + std::to_string(i) + "]", 0, lo, hi);
 }
 
+void parse_scene_section(View root, StationFile& f) {
+  const View sc = root["scene"];
+  only_keys(sc, "scene", {"file", "unit_m", "density_kg_per_m3", "youngs_modulus_Pa", "max_elements"});
+  SceneSection& s = f.scene;
+  s.file = text(sc["file"], "scene.file", "");
+  s.unit_m = real(sc["unit_m"], "scene.unit_m", 1.0, 1e-12, 1e3);
+  s.density_kg_per_m3 = real(sc["density_kg_per_m3"], "scene.density_kg_per_m3", 0.0, 0.0, 1e6, " (0 = the paper ball's)");
+  s.youngs_modulus_Pa = real(sc["youngs_modulus_Pa"], "scene.youngs_modulus_Pa", 0.0, 0.0, 1e12, " (0 = the paper ball's)");
+  s.max_elements = static_cast<int>(integer(sc["max_elements"], "scene.max_elements", 200000, 4, 1000000));
+  if (sc && s.file.empty()) bad("scene.file", "a mesh file (.msh, .node, .ele, .vtk, .obj, .stl, .off) when [scene] is present");
+  if (!s.file.empty() && root["station"]["nodes"]) bad("station.nodes", "absent when scene.file is set (the mesh file gives the nodes)");
+}
+
 void parse_device_section(View root, StationFile& f) {
   const View dv = root["device"];
   only_keys(dv, "device", {"kind", "hd_library_path", "hd_device_name", "hidraw_path", "max_force_N", "max_power_W", "max_speed_m_per_s", "max_stale_reads",
@@ -208,13 +221,14 @@ StationFile parse_station_file(std::string_view toml_text) {
   const toml::table doc = platform::config::parse_document(toml_text);
   const toml::table& cd = doc;
   const View root{cd};
-  only_keys(root, "", {"station", "device", "rt", "loop", "gpio", "telemetry", "trace", "net", "network"});
+  only_keys(root, "", {"station", "scene", "device", "rt", "loop", "gpio", "telemetry", "trace", "net", "network"});
   if (cd.contains("net") && cd.contains("network")) bad("[network]", "absent when [net] is present (one network section)");
 
   StationFile f;
   f.text = std::string(toml_text);
 
   parse_station_section(root, f);
+  parse_scene_section(root, f);
   parse_device_section(root, f);
   parse_platform_sections(root, f);
   parse_record_view_keys(root["station"], f);

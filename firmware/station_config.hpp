@@ -67,6 +67,13 @@
 //                                    # session's epoch and a neighbour's object state, then couples, [0.1, 10]
 //   age_slack_ticks = 10             # age guard: a run packet is used only if it echoes one of our sends and its
 //                                    # echo-based age bound is <= (R_ij + this) ticks (net/README.md), [0, 100000]
+//   [scene]                          (firmware/scene: a mesh file instead of the built-in ball; station.nodes then absent)
+//   file = ""                        # .msh (Gmsh ASCII 2.2/4.1), .node/.ele (TetGen), .vtk (legacy ASCII), or a closed
+//                                    # surface .obj/.stl/.off (tetrahedralized by TetGen); relative to this file's folder
+//   unit_m = 1.0                     # metres per file unit, (0, 1e3]
+//   density_kg_per_m3 = 0            # material (rt::Material); 0 = the paper ball's (1.32 kg in its volume), [0, 1e6]
+//   youngs_modulus_Pa = 0            # 0 = the paper ball's (mean edge spring 100 N/m), [0, 1e12]
+//   max_elements = 200000            # refuse bigger meshes (tetrahedra), [4, 1e6]
 //   [device]                         (drivers/: device_factory.hpp)
 //   kind = "auto"                    # "auto" (first Touch, else SpaceMouse) | "touch" | "spacemouse" | "simulated".
 //                                    # A device that cannot be started is an error (exit 9), never a silent simulated
@@ -157,6 +164,14 @@ struct StationSection {
   int age_slack_ticks = 10;
 };
 
+struct SceneSection {
+  std::string file;  // as written; resolved against the station file's folder by the plan
+  double unit_m = 1.0;
+  double density_kg_per_m3 = 0;
+  double youngs_modulus_Pa = 0;
+  int max_elements = 200000;
+};
+
 struct DeviceSection {
   std::string kind = "auto";
   std::string hd_library_path;
@@ -195,6 +210,7 @@ struct StationFile {
   std::string path;           // where it came from ("" for text)
   std::string text;           // the whole TOML text (net/ parses its section from it)
   StationSection station;
+  SceneSection scene;
   DeviceSection device;
   platform::RtConfig rt{};
   platform::LoopConfig loop{};

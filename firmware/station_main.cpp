@@ -80,6 +80,8 @@ struct SimArgs {
   std::uint64_t seed = 1;
   int nodes = -1, trace_every = 1, allowance = -1, trace_node = -1, tx_interval = 1;
   double tx_deadband_mm = 0;
+  std::string scene;                          // --scene FILE
+  double scene_unit_m = 1, density = 0, youngs = 0;
   bool no_plots = false, quiet = false, record = false;
   std::string command_line;
   int view_port = 0, view_station = 1;
@@ -109,6 +111,21 @@ struct RunArgs {
   bool quiet = false, check = false;
 };
 
+// --scene and its material options (firmware/scene, rt::Material). Not RT-safe.
+void add_scene_options(CLI::App& sim, SimArgs& a, CLI::Option* nodes) {
+  const haptic::rt::Material paper = haptic::rt::paper_ball_material();
+  auto* scene = sim.add_option("--scene", a.scene,
+                               "Scene from a mesh file instead of the ball: Gmsh .msh (ASCII 2.2 or 4.1), TetGen .node/.ele, legacy VTK .vtk "
+                               "(ASCII unstructured grid), or a closed surface .obj/.stl/.off tetrahedralized by TetGen")
+                    ->excludes(nodes)
+                    ->check(CLI::ExistingFile);
+  sim.add_option("--scene-unit-m", a.scene_unit_m, "Metres per unit of the --scene file's coordinates (default 1; 0.001 for a file in mm)")->needs(scene)->check(CLI::PositiveNumber);
+  sim.add_option("--density", a.density, "Density of the --scene object in kg/m^3 (default " + fmt(paper.density_kg_per_m3, 1) +
+                                             ": the paper ball's 1.32 kg in its volume)")->needs(scene)->check(CLI::PositiveNumber);
+  sim.add_option("--youngs", a.youngs, "Young's modulus of the --scene object in Pa (default " + fmt(paper.youngs_modulus_Pa, 1) +
+                                           ": the paper ball's mean edge spring 100 N/m)")->needs(scene)->check(CLI::PositiveNumber);
+}
+
 // The `sim` subcommand's options into `a`. Not RT-safe.
 CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   auto* sim = app.add_subcommand("sim", "Deterministic simulation of all stations (simulated users, impaired network)");
@@ -136,7 +153,8 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   sim->add_option("--duplication", a.dup, "Packet duplication probability (default 0.01)");
   sim->add_option("--p-gain", a.p_gain, "Consensus stiffness scale p in P_ij = p[I/2 + K_int/(2 lambda_max)], N/m (default 1000)");
   sim->add_option("--d-gain", a.d_gain, "Consensus damping D_ij = d I, N s/m (default 5)");
-  sim->add_option("--nodes", a.nodes, "Scene size: 33 is the paper's ball, other values a lattice ball of about that many nodes (default 33)");
+  auto* nodes = sim->add_option("--nodes", a.nodes, "Scene size: 33 is the paper's ball, other values a lattice ball of about that many nodes (default 33)");
+  add_scene_options(*sim, a, nodes);
   sim->add_option("--damping-margin", a.margin, "B_i = (1 + margin) x eq. (18) minimum (default 0.05)");
   sim->add_option("--loss-allowance", a.allowance, "Ticks added to ceil(max delay / T) for the bound Nbar_ij (default 1)");
   sim->add_option("--tx-deadband-mm", a.tx_deadband_mm,
@@ -272,6 +290,10 @@ int sim_command(const SimArgs& a) {
     if (a.loss >= 0) spec.loss_probability = a.loss;
     if (a.dup >= 0) spec.duplicate_probability = a.dup;
     if (a.nodes > 0) spec.scene_nodes = a.nodes;
+    spec.scene_file.path = a.scene;
+    spec.scene_file.unit_m = a.scene_unit_m;
+    spec.scene_file.density_kg_per_m3 = a.density;
+    spec.scene_file.youngs_modulus_Pa = a.youngs;
     if (a.p_gain >= 0) spec.p_gain_N_per_m = a.p_gain;
     if (a.d_gain >= 0) spec.d_gain_Ns_per_m = a.d_gain;
     if (a.margin >= 0) spec.damping_margin = a.margin;

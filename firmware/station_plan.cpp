@@ -197,6 +197,15 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
     }
   }
   spec.scene_nodes = s.nodes;
+  if (!f.scene.file.empty()) {
+    const std::filesystem::path file(f.scene.file);
+    spec.scene_file.path = file.is_relative() && !f.path.empty() ? (std::filesystem::path(f.path).parent_path() / file).string() : f.scene.file;
+    spec.scene_file.from_station_file = true;
+    spec.scene_file.unit_m = f.scene.unit_m;
+    spec.scene_file.density_kg_per_m3 = f.scene.density_kg_per_m3;
+    spec.scene_file.youngs_modulus_Pa = f.scene.youngs_modulus_Pa;
+    spec.scene_file.max_elements = f.scene.max_elements;
+  }
   spec.seed = s.seed;
   const double dur = o.duration_s > 0 ? o.duration_s : s.duration_s;
   if (dur > 0) spec.duration_s = dur;
@@ -227,12 +236,18 @@ SceneFingerprint scene_fingerprint(const BuiltScenario& b, std::int64_t period_n
   fp.protocol_version = net::kWireVersion;
   fp.scene_nodes = b.scene.nodes;
   fp.period_ns = period_ns;
-  Fnv1a s;
-  s.bytes(b.scene.x_d.data(), sizeof(double) * static_cast<std::size_t>(b.scene.x_d.size()));
-  for (const auto& t : b.scene.mesh.tets) s.value(t);
-  for (const auto& e : b.scene.mesh.edges) s.value(e);
-  s.value(b.scene.params);
-  fp.scene_hash = s.h;
+  // scene_hash: high 32 bits the geometry (rest positions, tetrahedra, edges), low 32 bits the
+  // material (M, B, K as assembled, ground/damping parameters), so a mismatch says which differs.
+  Fnv1a geometry, material;
+  geometry.bytes(b.scene.x_d.data(), sizeof(double) * static_cast<std::size_t>(b.scene.x_d.size()));
+  for (const auto& t : b.scene.mesh.tets) geometry.value(t);
+  for (const auto& e : b.scene.mesh.edges) geometry.value(e);
+  material.sparse(b.scene.M);
+  material.sparse(b.scene.B);
+  material.sparse(b.scene.K);
+  material.value(b.scene.params.damping_Ns_per_m);
+  material.value(b.scene.params.ground_stiffness_N_per_m);
+  fp.scene_hash = (geometry.h & 0xFFFFFFFF00000000ULL) | (material.h >> 32);
   Fnv1a g;
   g.value(b.spec.users);
   for (const auto& l : b.spec.topology) g.value(l);

@@ -111,7 +111,7 @@ std::uint64_t new_incarnation();
 struct Fingerprint {
   std::uint32_t protocol_version = kWireVersion;
   std::uint32_t scene_nodes = 0;
-  std::uint64_t scene_hash = 0;   // fingerprint_hash of the scene data (rest positions, masses, edges)
+  std::uint64_t scene_hash = 0;   // scene data: high 32 bits geometry (rest positions, tetrahedra), low 32 material (M, B, K)
   std::uint64_t period_ns = 0;    // the tick period T
   std::uint64_t gains_hash = 0;   // fingerprint_hash of the coupling gains (P_ij, D_ij, ...)
 };

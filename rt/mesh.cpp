@@ -72,6 +72,11 @@ int TetMesh::surface_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& d
   return best;
 }
 
+int TetMesh::face_touched_from(const Eigen::Vector3d& direction, Eigen::Vector3d* touch) const {
+  const Eigen::Vector3d d = direction.normalized();
+  return surface_hit(centroid() + 2.0 * bounding_radius() * d, -d, touch);
+}
+
 double TetMesh::bounding_radius() const {
   const Eigen::Vector3d c = centroid();
   double r = 0;

@@ -25,6 +25,9 @@ struct TetMesh {
   // the boundary triangle the ray hits first (Moller-Trumbore), -1 if it misses; `*point` gets
   // the touch point. Start-up only.
   int surface_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, Eigen::Vector3d* point) const;
+  // The contact face of a user's proxy that starts outside the object, at centroid + 2 x
+  // bounding radius x direction, and approaches the centroid: surface_hit of that ray (-1: none).
+  int face_touched_from(const Eigen::Vector3d& direction, Eigen::Vector3d* touch) const;
   // Largest distance of a node from the centroid (m).
   double bounding_radius() const;
   // Signed volume of tetrahedron t: (b-a) x (c-a) . (d-a) / 6 (> 0 for the positive orientation).

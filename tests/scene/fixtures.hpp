@@ -6,6 +6,8 @@
 #include <array>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <unistd.h>
 #include <string>
 #include <vector>
 
@@ -73,87 +75,132 @@ inline BoxMesh surface_only(const BoxMesh& b) {
 }
 
 inline std::string scratch_dir(const std::string& name) {
-  const auto d = std::filesystem::temp_directory_path() / ("haptic-scene-test-" + std::to_string(::getpid()) + "-" + name);
+  std::ostringstream leaf;
+  leaf << "haptic-scene-test-" << ::getpid() << '-' << name;
+  const auto d = std::filesystem::temp_directory_path() / leaf.str();
   std::filesystem::create_directories(d);
   return d.string();
 }
 
 inline void write_text(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
+// Writers: one stream per file (std::ostringstream: no string concatenation at -O3, GCC 105329).
+inline void xyz(std::ostringstream& os, const Eigen::Vector3d& p) { os << p[0] << ' ' << p[1] << ' ' << p[2]; }
+
 inline std::string msh2(const BoxMesh& b) {
-  std::string s = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n" + std::to_string(b.nodes.size()) + "\n";
-  for (std::size_t i = 0; i < b.nodes.size(); ++i)
-    s += std::to_string(i + 1) + " " + std::to_string(b.nodes[i][0]) + " " + std::to_string(b.nodes[i][1]) + " " + std::to_string(b.nodes[i][2]) + "\n";
-  s += "$EndNodes\n$Elements\n" + std::to_string(b.tets.size() + 1) + "\n1 15 2 0 1 1\n";  // a point element: skipped
-  for (std::size_t t = 0; t < b.tets.size(); ++t) {
-    s += std::to_string(t + 2) + " 4 2 0 1";
-    for (int v : b.tets[t]) s += " " + std::to_string(v + 1);
-    s += "\n";
+  std::ostringstream os;
+  os.precision(17);
+  os << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n" << b.nodes.size() << '\n';
+  for (std::size_t i = 0; i < b.nodes.size(); ++i) {
+    os << i + 1 << ' ';
+    xyz(os, b.nodes[i]);
+    os << '\n';
   }
-  return s + "$EndElements\n";
+  os << "$EndNodes\n$Elements\n" << b.tets.size() + 1 << "\n1 15 2 0 1 1\n";  // a point element: skipped
+  for (std::size_t t = 0; t < b.tets.size(); ++t) {
+    os << t + 2 << " 4 2 0 1";
+    for (int v : b.tets[t]) os << ' ' << v + 1;
+    os << '\n';
+  }
+  os << "$EndElements\n";
+  return os.str();
 }
 
 inline std::string msh41(const BoxMesh& b) {
-  const auto n = std::to_string(b.nodes.size()), m = std::to_string(b.tets.size());
-  std::string s = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 0 1\n1 0 0 0 1 1 1 0 0\n$EndEntities\n";
-  s += "$Nodes\n1 " + n + " 1 " + n + "\n3 1 0 " + n + "\n";
-  for (std::size_t i = 0; i < b.nodes.size(); ++i) s += std::to_string(i + 1) + "\n";
-  for (const auto& p : b.nodes) s += std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
-  s += "$EndNodes\n$Elements\n1 " + m + " 1 " + m + "\n3 1 4 " + m + "\n";
-  for (std::size_t t = 0; t < b.tets.size(); ++t) {
-    s += std::to_string(t + 1);
-    for (int v : b.tets[t]) s += " " + std::to_string(v + 1);
-    s += "\n";
+  std::ostringstream os;
+  os.precision(17);
+  const auto n = b.nodes.size(), m = b.tets.size();
+  os << "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 0 1\n1 0 0 0 1 1 1 0 0\n$EndEntities\n";
+  os << "$Nodes\n1 " << n << " 1 " << n << "\n3 1 0 " << n << '\n';
+  for (std::size_t i = 0; i < n; ++i) os << i + 1 << '\n';
+  for (const auto& p : b.nodes) {
+    xyz(os, p);
+    os << '\n';
   }
-  return s + "$EndElements\n";
+  os << "$EndNodes\n$Elements\n1 " << m << " 1 " << m << "\n3 1 4 " << m << '\n';
+  for (std::size_t t = 0; t < m; ++t) {
+    os << t + 1;
+    for (int v : b.tets[t]) os << ' ' << v + 1;
+    os << '\n';
+  }
+  os << "$EndElements\n";
+  return os.str();
 }
 
 inline void write_tetgen(const BoxMesh& b, const std::string& base) {
-  std::string node = std::to_string(b.nodes.size()) + " 3 0 0\n# comment\n";
-  for (std::size_t i = 0; i < b.nodes.size(); ++i)
-    node += std::to_string(i) + " " + std::to_string(b.nodes[i][0]) + " " + std::to_string(b.nodes[i][1]) + " " + std::to_string(b.nodes[i][2]) + "\n";
-  std::string ele = std::to_string(b.tets.size()) + " 4 0\n";
-  for (std::size_t t = 0; t < b.tets.size(); ++t) {
-    ele += std::to_string(t);
-    for (int v : b.tets[t]) ele += " " + std::to_string(v);
-    ele += "\n";
+  std::ostringstream node, ele;
+  node.precision(17);
+  node << b.nodes.size() << " 3 0 0\n# comment\n";
+  for (std::size_t i = 0; i < b.nodes.size(); ++i) {
+    node << i << ' ';
+    xyz(node, b.nodes[i]);
+    node << '\n';
   }
-  write_text(base + ".node", node);
-  write_text(base + ".ele", ele);
+  ele << b.tets.size() << " 4 0\n";
+  for (std::size_t t = 0; t < b.tets.size(); ++t) {
+    ele << t;
+    for (int v : b.tets[t]) ele << ' ' << v;
+    ele << '\n';
+  }
+  write_text(base + ".node", node.str());
+  write_text(base + ".ele", ele.str());
 }
 
 inline std::string vtk(const BoxMesh& b) {
-  std::string s = "# vtk DataFile Version 2.0\nbox\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS " + std::to_string(b.nodes.size()) + " double\n";
-  for (const auto& p : b.nodes) s += std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
-  s += "CELLS " + std::to_string(b.tets.size()) + " " + std::to_string(5 * b.tets.size()) + "\n";
-  for (const auto& t : b.tets) s += "4 " + std::to_string(t[0]) + " " + std::to_string(t[1]) + " " + std::to_string(t[2]) + " " + std::to_string(t[3]) + "\n";
-  s += "CELL_TYPES " + std::to_string(b.tets.size()) + "\n";
-  for (std::size_t t = 0; t < b.tets.size(); ++t) s += "10\n";
-  return s;
+  std::ostringstream os;
+  os.precision(17);
+  os << "# vtk DataFile Version 2.0\nbox\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS " << b.nodes.size() << " double\n";
+  for (const auto& p : b.nodes) {
+    xyz(os, p);
+    os << '\n';
+  }
+  os << "CELLS " << b.tets.size() << ' ' << 5 * b.tets.size() << '\n';
+  for (const auto& t : b.tets) os << "4 " << t[0] << ' ' << t[1] << ' ' << t[2] << ' ' << t[3] << '\n';
+  os << "CELL_TYPES " << b.tets.size() << '\n';
+  for (std::size_t t = 0; t < b.tets.size(); ++t) os << "10\n";
+  return os.str();
 }
 
 inline std::string obj(const BoxMesh& b) {
-  std::string s = "# box\no box\n";
-  for (const auto& p : b.nodes) s += "v " + std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
-  for (const auto& f : b.surface) s += "f " + std::to_string(f[0] + 1) + "/1 " + std::to_string(f[1] + 1) + "//2 " + std::to_string(f[2] + 1) + "\n";
-  return s;
+  std::ostringstream os;
+  os.precision(17);
+  os << "# box\no box\n";
+  for (const auto& p : b.nodes) {
+    os << "v ";
+    xyz(os, p);
+    os << '\n';
+  }
+  for (const auto& f : b.surface) os << "f " << f[0] + 1 << "/1 " << f[1] + 1 << "//2 " << f[2] + 1 << '\n';
+  return os.str();
 }
 
 inline std::string off(const BoxMesh& b) {
-  std::string s = "OFF\n" + std::to_string(b.nodes.size()) + " " + std::to_string(b.surface.size()) + " 0\n";
-  for (const auto& p : b.nodes) s += std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
-  for (const auto& f : b.surface) s += "3 " + std::to_string(f[0]) + " " + std::to_string(f[1]) + " " + std::to_string(f[2]) + "\n";
-  return s;
+  std::ostringstream os;
+  os.precision(17);
+  os << "OFF\n" << b.nodes.size() << ' ' << b.surface.size() << " 0\n";
+  for (const auto& p : b.nodes) {
+    xyz(os, p);
+    os << '\n';
+  }
+  for (const auto& f : b.surface) os << "3 " << f[0] << ' ' << f[1] << ' ' << f[2] << '\n';
+  return os.str();
 }
 
 inline std::string stl_ascii(const BoxMesh& b) {
-  std::string s = "solid box\n";
+  std::ostringstream os;
+  os.precision(17);
+  os << "solid box\n";
   for (const auto& f : b.surface) {
-    s += "facet normal 0 0 0\n outer loop\n";
-    for (int v : f) s += "  vertex " + std::to_string(b.nodes[v][0]) + " " + std::to_string(b.nodes[v][1]) + " " + std::to_string(b.nodes[v][2]) + "\n";
-    s += " endloop\nendfacet\n";
+    os << "facet normal 0 0 0\n outer loop\n";
+    for (int v : f) {
+      os << "  vertex ";
+      xyz(os, b.nodes[static_cast<std::size_t>(v)]);
+      os << '\n';
+    }
+    os << " endloop\nendfacet\n";
   }
-  return s + "endsolid box\n";
+  os << "endsolid box\n";
+  return os.str();
 }
 
 inline void write_stl_binary(const BoxMesh& b, const std::string& path) {

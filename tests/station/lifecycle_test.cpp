@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <thread>
@@ -13,6 +14,7 @@
 #include "firmware/station_probe.hpp"
 #include "firmware/station_run.hpp"
 #include "net/transport_udp.hpp"
+#include "tests/scene/fixtures.hpp"
 
 using namespace haptic::firmware;
 
@@ -20,9 +22,10 @@ namespace {
 
 // Station `id` of paper-best (the star on 1) with `nodes` nodes. The hub's peers 3 and 4 point
 // at a port nobody listens on; the transports' real ports are set by connect().
-StationFile star_station_file(int id, int nodes, double probe_s) {
-  std::string text = "[station]\nid = " + std::to_string(id) + "\nnodes = " + std::to_string(nodes) + "\nprobe_s = " + std::to_string(probe_s) +
-                     "\nout_dir = \"/tmp\"\n[device]\nkind = \"simulated\"\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:1\"\n"
+// `scene`: a [scene] table instead of station.nodes (nodes is then unused).
+StationFile star_station_file(int id, int nodes, double probe_s, const std::string& scene = "") {
+  std::string text = "[station]\nid = " + std::to_string(id) + (scene.empty() ? "\nnodes = " + std::to_string(nodes) : std::string()) +
+                     "\nprobe_s = " + std::to_string(probe_s) + "\nout_dir = \"/tmp\"\n" + scene + "[device]\nkind = \"simulated\"\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:1\"\n"
                      "session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\nrtt_min_probe_samples = 5\n";
   for (int j : id == 1 ? std::vector<int>{2, 3, 4} : std::vector<int>{1})
     text += "[[net.peers]]\nid = " + std::to_string(j) + "\naddress = \"127.0.0.1:9\"\n";
@@ -89,6 +92,21 @@ TEST(StationLifecycle, StationsWithDifferentScenesRefuseToCoupleAndSayWhichField
                   ra.message.c_str());
   STRCMP_CONTAINS("refusing to couple: neighbour fingerprint differs (station 1: scene nodes: 27 here, 33 at the peer", rb.message.c_str());
   CHECK(ra.stats_at_end.wrong_scene_size > 0 || ra.stats_at_end.drops[haptic::net::DropReason::too_large] > 0);
+}
+
+TEST(StationLifecycle, StationsWithTheSameMeshButDifferentMaterialsRefuseAndSaySo) {
+  const std::string dir = haptic::test::scratch_dir("lifecycle-material");
+  haptic::test::write_text(dir + "/box.msh", haptic::test::msh2(haptic::test::kuhn_box(3, 0.06)));
+  const auto scene = [&](int density) { return "[scene]\nfile = \"" + dir + "/box.msh\"\ndensity_kg_per_m3 = " + std::to_string(density) + "\n"; };
+  const double t0 = soon_s();
+  Station a = open_station(star_station_file(1, 0, 0.3, scene(1000)), t0), b = open_station(star_station_file(2, 0, 0.3, scene(2000)), t0);
+  connect(a, b);
+  auto [ra, rb] = probe_both(a, b);
+  std::filesystem::remove_all(dir);
+  CHECK(ra.status == PhaseStatus::kFailed);
+  CHECK(rb.status == PhaseStatus::kFailed);
+  STRCMP_CONTAINS("refusing to couple: neighbour fingerprint differs (station 2: scene material (hash) differs", ra.message.c_str());
+  STRCMP_CONTAINS("refusing to couple: neighbour fingerprint differs (station 1: scene material (hash) differs", rb.message.c_str());
 }
 
 TEST(StationLifecycle, StationsWithTheSameSceneProbeAndSeeNoClockOffset) {

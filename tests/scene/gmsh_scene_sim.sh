@@ -1,0 +1,40 @@
+#!/bin/sh
+# Acceptance (issue 13 item 3): scenes generated here by Gmsh run in the simulator with consensus
+# after release and the passivity condition met: a ball meshed by `gmsh -3` (.msh 4.1), and a
+# cylinder's surface from `gmsh -2` (.stl) tetrahedralized by TetGen.
+# Usage: gmsh_scene_sim.sh HAPTIC_STATION WORKDIR. Exit 77 (skip) without gmsh or tetgen.
+set -eu
+station=$1
+work=$2
+command -v gmsh > /dev/null || { echo "SKIP: gmsh is not installed (Debian package gmsh)"; exit 77; }
+command -v tetgen > /dev/null || { echo "SKIP: tetgen is not installed (Debian package tetgen)"; exit 77; }
+rm -rf "$work" && mkdir -p "$work" && cd "$work"
+cat > ball.geo <<'GEO'
+SetFactory("OpenCASCADE");
+Sphere(1) = {0, 0, 0, 50};
+Mesh.CharacteristicLengthMax = 25;
+GEO
+cat > can.geo <<'GEO'
+SetFactory("OpenCASCADE");
+Cylinder(1) = {0, 0, -0.04, 0, 0, 0.08, 0.035};
+Mesh.CharacteristicLengthMax = 0.02;
+GEO
+timeout 60 gmsh -3 -format msh41 ball.geo -o ball.msh > gmsh-ball.log 2>&1
+timeout 60 gmsh -2 -format stl can.geo -o can.stl > gmsh-can.log 2>&1
+check() {  # summary.json: stable, consensus after release, passive
+  /usr/bin/python3 - "$1" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+ok = (not s["diverged"]) and s["passivity_condition_met"] and s["consensus_time_s"] is not None \
+     and s["port_energy_min_J"] >= -s["passivity_bound_J"] - 1e-12
+print(sys.argv[1], "nodes", s["scene_nodes"], "consensus_time_s", s["consensus_time_s"], "passivity_condition_met",
+      s["passivity_condition_met"], "port_energy_min_J", s["port_energy_min_J"], "->", "ok" if ok else "FAILED")
+sys.exit(0 if ok else 1)
+PY
+}
+"$station" sim --scenario paper-best --scene ball.msh --scene-unit-m 0.001 --duration 6 --push-end 2 --release 4 \
+  --out ball --no-plots --quiet > ball.log
+check ball/summary.json
+"$station" sim --scenario paper-best --scene can.stl --density 1200 --youngs 30000 --duration 6 --push-end 2 --release 4 \
+  --out can --no-plots --quiet > can.log
+check can/summary.json

@@ -139,7 +139,9 @@ TEST(StationPhases, BothEndsOfEveryLinkUseTheSameRoundTripBoundTheLargerOfTheTwo
     json from_hub;
     for (const auto& l : hub["links"])
       if (l["peer"] == i) from_hub = l;
-    CHECK_TEXT(number(from_hub["round_trip_bound_ticks_own"]) >= number(to_hub["round_trip_bound_ticks_own"]) + 8, leaf.dump().c_str());
+    // The set-up makes the hub's bound the larger one (12 ticks of margin; a loaded machine can still
+    // inflate a leaf's own bound by several ticks, so only "larger" is required, not by how much).
+    CHECK_TEXT(number(from_hub["round_trip_bound_ticks_own"]) > number(to_hub["round_trip_bound_ticks_own"]), leaf.dump().c_str());
     CHECK_EQUAL(from_hub["round_trip_bound_ticks_own"].get<int>(), to_hub["round_trip_bound_ticks_peer"].get<int>());
     CHECK_EQUAL(to_hub["round_trip_bound_ticks_own"].get<int>(), from_hub["round_trip_bound_ticks_peer"].get<int>());
     CHECK_EQUAL(from_hub["round_trip_bound_ticks"].get<int>(), to_hub["round_trip_bound_ticks"].get<int>());

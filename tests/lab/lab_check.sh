@@ -57,7 +57,10 @@ else
 fi
 
 "$lab" run "$work/three.toml" --runs-dir "$work/runs" --no-plots >"$work/run.log" 2>&1 || { cat "$work/run.log"; fail "haptic-lab run failed"; }
-d=$(ls -d "$work"/runs/*/ | while read -r x; do [ -f "$x/lab-report.json" ] && echo "$x"; done | head -1)
+d=""  # the run folder (the only one with a lab-report.json; folder names sort by time, then by random session)
+for x in "$work"/runs/*/; do
+  if [ -f "$x/lab-report.json" ]; then d="$x"; break; fi
+done
 [ -n "$d" ] || { cat "$work/run.log"; fail "no run folder with lab-report.json"; }
 python3 - "$d/lab-report.json" <<'EOT'
 import json, sys

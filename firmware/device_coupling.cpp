@@ -1,20 +1,14 @@
 #include "firmware/device_coupling.hpp"
 
 #include "rt/station.hpp"
+#include "platform/toml_config.hpp"
 
 #include <cmath>
-#include <sstream>
 #include <stdexcept>
 
 namespace haptic::firmware {
 
-namespace {
-std::string num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
-}  // namespace
+using platform::config::number_text;
 
 DeviceCoupling device_coupling(const StationFile& f, const ScenarioSpec& spec, const drivers::DeviceCapabilities& caps) {
   const DeviceSection& d = f.device;
@@ -47,14 +41,14 @@ void check_device_coupling(const DeviceCoupling& c, double T) {
     rt::check_eq26(c.gains, b_d, T);
   } catch (const std::invalid_argument&) {  // violated: say it with the keys as the station file writes them
     const double k_max = rt::max_K_vc_eq26(c.gains, b_d, T);
-    const std::string scaled = c.map_scale == 1.0 ? "" : ", i.e. " + num(b_d) + " N s/m in the object frame with device.map_scale = " + num(c.map_scale);
-    std::string m = "eq. (26) violated: device damping b_d = " + num(c.b_d_Ns_per_m) + " N s/m (" + c.b_d_source + scaled +
-                    ") with K_vc = device.coupling_stiffness_N_per_m = " + num(c.gains.K_vc_N_per_m) +
-                    " N/m, B_vc = device.coupling_damping_Ns_per_m = " + num(c.gains.B_vc_Ns_per_m) +
-                    " N s/m, b_v = device.proxy_damping_Ns_per_m = " + num(c.gains.b_v_Ns_per_m) + " N s/m, T = " + num(T) +
+    const std::string scaled = c.map_scale == 1.0 ? "" : ", i.e. " + number_text(b_d) + " N s/m in the object frame with device.map_scale = " + number_text(c.map_scale);
+    std::string m = "eq. (26) violated: device damping b_d = " + number_text(c.b_d_Ns_per_m) + " N s/m (" + c.b_d_source + scaled +
+                    ") with K_vc = device.coupling_stiffness_N_per_m = " + number_text(c.gains.K_vc_N_per_m) +
+                    " N/m, B_vc = device.coupling_damping_Ns_per_m = " + number_text(c.gains.B_vc_Ns_per_m) +
+                    " N s/m, b_v = device.proxy_damping_Ns_per_m = " + number_text(c.gains.b_v_Ns_per_m) + " N s/m, T = " + number_text(T) +
                     " s (needs b_d >= B_vc (T_k/T_k-1 + 1) + K_vc T and b_v >= B_vc/2 (T_k/T_k-1 - 1) + K_vc T/2). ";
     if (k_max > 0)
-      m += "The largest K_vc that satisfies eq. (26) with these is device.coupling_stiffness_N_per_m = " + num(std::floor(k_max * 1000) / 1000) + " N/m";
+      m += "The largest K_vc that satisfies eq. (26) with these is device.coupling_stiffness_N_per_m = " + number_text(std::floor(k_max * 1000) / 1000) + " N/m";
     else
       m += "No K_vc > 0 satisfies eq. (26) with this B_vc: lower device.coupling_damping_Ns_per_m";
     throw std::invalid_argument(m);

@@ -22,8 +22,11 @@
 #include "net/transport_udp.hpp"
 #include "net/wire.hpp"
 #include "platform/clock.hpp"
+#include "platform/toml_config.hpp"
 
 namespace haptic::firmware {
+
+using platform::config::number_text;
 
 namespace {
 
@@ -33,12 +36,6 @@ constexpr std::size_t kMaxStateValues = 64'000'000;  // 512 MB of doubles: refus
 using platform::clock_ns;
 
 [[noreturn]] void bad(const std::string& what) { throw std::invalid_argument("config: " + what); }
-
-std::string num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
 
 // ScenarioSpec::validate() names the simulator's flags; a station file writes them as [station] keys.
 std::string as_station_keys(std::string message) {
@@ -109,8 +106,8 @@ void plan_release_warning(StationPlan& p) {
   if (spec.script.kind != UserScriptSpec::Kind::kPushHoldRelease || spec.duration_s > spec.script.release_s) return;
   p.ends_before_release = true;
   const std::string src = p.overrides.duration_s > 0 ? "--duration" : (p.file.station.duration_s > 0 ? "station.duration_s" : "the scenario's duration");
-  p.warnings.push_back("the run (" + src + " = " + num(spec.duration_s) + " s) ends before the scripted release at station.release_s = " +
-                       num(spec.script.release_s) + " s: the release metrics will be null and the exit code " + std::to_string(kExitBeforeRelease));
+  p.warnings.push_back("the run (" + src + " = " + number_text(spec.duration_s) + " s) ends before the scripted release at station.release_s = " +
+                       number_text(spec.script.release_s) + " s: the release metrics will be null and the exit code " + std::to_string(kExitBeforeRelease));
 }
 
 // Every check and translation of the plan phase; throws std::invalid_argument naming the key.
@@ -389,10 +386,10 @@ void check_tx_spin(const StationFile& f, const net::NetConfig& nc) {
   const double period_us = static_cast<double>(f.loop.period_ns) * 1e-3;
   const double lead_us = e.tx_spin_lead_s * 1e6, tail_us = e.tx_spin_tail_s * 1e6;
   const std::string P = f.net_section;
-  if (!(lead_us < period_us)) bad(P + ".tx_spin_lead_us = " + num(lead_us) + " must be shorter than the tick period (loop.period_ns = " + num(period_us) + " us)");
+  if (!(lead_us < period_us)) bad(P + ".tx_spin_lead_us = " + number_text(lead_us) + " must be shorter than the tick period (loop.period_ns = " + number_text(period_us) + " us)");
   if (!(lead_us + tail_us < period_us))
-    bad(P + ".tx_spin_lead_us + " + P + ".tx_spin_tail_us = " + num(lead_us + tail_us) + " us must be shorter than the tick period (loop.period_ns = " +
-        num(period_us) + " us)");
+    bad(P + ".tx_spin_lead_us + " + P + ".tx_spin_tail_us = " + number_text(lead_us + tail_us) + " us must be shorter than the tick period (loop.period_ns = " +
+        number_text(period_us) + " us)");
 }
 
 void check_out_dir_creatable(const std::string& dir, const std::string& key) {

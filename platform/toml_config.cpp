@@ -8,13 +8,11 @@
 
 namespace haptic::platform::config {
 
-namespace {
-std::string num(double v) {
+std::string number_text(double v) {
   std::ostringstream os;
   os << v;
   return os.str();
 }
-}  // namespace
 
 void bad(const std::string& key, const std::string& range) { throw std::invalid_argument("config: " + key + " must be " + range); }
 
@@ -38,7 +36,7 @@ long long integer(View n, const std::string& key, long long def, long long lo, l
 double real(View n, const std::string& key, double def, double lo, double hi, const std::string& extra) {
   if (!n) return def;
   const auto v = n.value<double>();  // accepts integers too
-  if (!v || !std::isfinite(*v) || *v < lo || *v > hi) bad(key, "a number in [" + num(lo) + ", " + num(hi) + "]" + extra);
+  if (!v || !std::isfinite(*v) || *v < lo || *v > hi) bad(key, "a number in [" + number_text(lo) + ", " + number_text(hi) + "]" + extra);
   return *v;
 }
 

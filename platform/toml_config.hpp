@@ -14,6 +14,8 @@ namespace haptic::platform::config {
 using View = toml::node_view<const toml::node>;
 
 [[noreturn]] void bad(const std::string& key, const std::string& range);
+// A number as error messages print it (ostream default: 6 significant digits).
+std::string number_text(double v);
 // The document, or "config: TOML parse error: ... at line L".
 toml::table parse_document(std::string_view toml_text);
 // Absent: def. Present: must be of the type and within [lo, hi] (extra: appended to the range text).

@@ -60,6 +60,11 @@ fi
 wait "${pids[0]}"; pids=()  # the view stops (sim: --view-for; station: end of the run) and says what the page showed
 if [ "$mode" = replay ]; then
   sed -n 's/.*last status a browser showed: //p' "$out/sim.log" > "$out/status.txt"
+  # The second page asked for frame 140 (t ~ 4.8 s): what it showed is that frame, not the paused frame the first
+  # page left the server at (a stale frame drawn before the seek took effect).
+  t_b=$(sed -n 's/.* · t = \([0-9.]*\) s · .*/\1/p' "$out/status.txt")
+  /usr/bin/python3 -c 'import sys; sys.exit(0 if sys.argv[1] and float(sys.argv[1]) > 4.0 else 1)' "$t_b" ||
+    { echo "FAILED: the page opened at frame 140 (t ~ 4.8 s) showed t = ${t_b:-?} s"; cat "$out/status.txt"; exit 1; }
 else
   [ -s "$out/run4/station-1.json" ] || { echo "FAILED: station 1 wrote no station-1.json"; tail -20 "$out/run4.log"; exit 1; }
   /usr/bin/python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["recording"]["view"]["last_browser_status"])' "$out/run4/station-1.json" > "$out/status.txt"

@@ -3,6 +3,7 @@
 const COLORS = ["#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"];
 const WINDOW_S = 20;
 let scene = null, mesh = null, copies = [], vpMark = null, devMark = null, coupling = null, contactPts = null;
+let seekTo = null;  // a seek this page asked for: frames sent before the server applied it are stale and not shown
 let statusSent = 0, renderer, camera, world, geom, charts = {}, linkState = {}, framesSeen = 0, lastSeq = 0, missed = 0;
 
 function setup3d(s) {
@@ -75,11 +76,12 @@ function onScene(s) {
     document.getElementById("timeline").style.display = "block";
     const seek = document.getElementById("seek");
     seek.max = s.timeline_frames - 1;
-    seek.oninput = () => ws.send(JSON.stringify({seek: Number(seek.value)}));
+    const seekFrame = n => { if (!Number.isFinite(n)) return; seekTo = Math.max(0, Math.min(n, s.timeline_frames - 1)); ws.send(JSON.stringify({seek: seekTo})); };
+    seek.oninput = () => seekFrame(Number(seek.value));
     const play = document.getElementById("play");
     const q = new URLSearchParams(location.search);  // ?seek=N&pause=1: open the timeline at frame N (paused)
     if (q.has("pause")) { ws.send(JSON.stringify({play: false})); play.textContent = "play"; }
-    if (q.has("seek")) ws.send(JSON.stringify({seek: Number(q.get("seek"))}));
+    if (q.has("seek")) seekFrame(Number(q.get("seek")));
     play.onclick = () => { const p = play.textContent === "play"; ws.send(JSON.stringify({play: p})); play.textContent = p ? "pause" : "play"; };
   }
 }
@@ -87,6 +89,10 @@ function onScene(s) {
 let pending = null;
 function onFrame(f) {
   if (!scene) return;
+  if (seekTo !== null) {  // the server sends frames[index] first after a seek: wait for it
+    if (f.index !== seekTo) return;
+    seekTo = null;
+  }
   addPoints(f);
   if (!pending) requestAnimationFrame(() => { draw(pending); pending = null; });
   pending = f;

@@ -7,12 +7,67 @@
 #      is sent out of this machine's default route;
 #   3. `run` of three local stations (UDP loopback, free ports, asymmetric pushes, 4 s): every
 #      station exits 0, consensus reached after release, lab-report.json lists overruns per station.
-# Usage: lab_check.sh BUILD_BIN_DIR SOURCE_DIR WORK_DIR
+# With a fourth argument `raw8` it checks instead: `run` of eight stations over raw Ethernet, each in
+# a network namespace the tool makes and removes (root; exit 77 = skipped without root/iproute2):
+# every station file says transport "raw" with peers by MAC, every station exits 0, consensus after
+# release, and no namespace of the run is left afterwards.
+# Usage: lab_check.sh BUILD_BIN_DIR SOURCE_DIR WORK_DIR [raw8]
 set -euo pipefail
-bin="$1"; src="$2"; work="$3"
+bin="$1"; src="$2"; work="$3"; mode="${4:-udp}"
 rm -rf "$work"; mkdir -p "$work"
 lab="$bin/haptic-lab"
 fail() { echo "FAIL: $*"; exit 1; }
+check_report() {  # check_report RUN_DIR USERS: every station exited 0, consensus reached, overruns listed
+  python3 - "$1/lab-report.json" "$2" <<'EOT'
+import json, sys
+r = json.load(open(sys.argv[1]))
+assert r["users"] == int(sys.argv[2]), r
+assert all(s["exit_code"] == 0 for s in r["stations"]), r["stations"]
+assert all(isinstance(s["overruns"], int) for s in r["stations"]), r["stations"]
+assert r.get("consensus_time_s") is not None, "no consensus after release: %s" % r.get("consensus_error_m")
+print("ok: %d stations exited 0, consensus %.3f s after release, overruns %s" % (r["users"], r["consensus_time_s"], [s["overruns"] for s in r["stations"]]))
+EOT
+}
+run_folder() {  # the run folder (the only one with a lab-report.json; names sort by time, then by random session)
+  for x in "$work"/runs/*/; do
+    if [ -f "$x/lab-report.json" ]; then echo "$x"; return 0; fi
+  done
+  return 1
+}
+
+if [ "$mode" = raw8 ]; then
+  if [ "$(id -u)" -ne 0 ] || ! command -v ip >/dev/null; then echo "SKIPPED: raw Ethernet in namespaces needs root and iproute2"; exit 77; fi
+  ip netns add hpltest-probe 2>/dev/null || { echo "SKIPPED: cannot create network namespaces here"; exit 77; }
+  ip netns del hpltest-probe
+  cat >"$work/raw8.toml" <<EOT
+[lab]
+users = 8
+duration_s = 5.0
+push_end_s = 1.5
+release_s = 3.0
+pushes = "asymmetric"
+probe_s = 1.5
+start_delay_s = 2.0
+[network]
+transport = "raw"
+impairment = "none"
+[topology]
+links = "1-2,2-3,3-4,4-5,5-6,6-7,7-8,8-1,1-5"
+[station]
+max_no_neighbour_fraction = 0.5   # this test checks the lab tool, not the host: a loaded VM stalls for 0.5 s
+EOT
+  "$lab" run "$work/raw8.toml" --runs-dir "$work/runs" --no-plots >"$work/run.log" 2>&1 || { cat "$work/run.log"; fail "haptic-lab run (raw) failed"; }
+  d=$(run_folder) || { cat "$work/run.log"; fail "no run folder with lab-report.json"; }
+  for i in 1 2 3 4 5 6 7 8; do
+    grep -q '^transport = "raw"' "$d/station-$i.toml" || fail "station-$i.toml is not a raw-Ethernet station"
+  done
+  grep -q 'mac = "02:48:50:00:00:02"' "$d/station-1.toml" || fail "station 1 does not name station 2 by its namespace's MAC"
+  prefix=$(python3 -c "import json,sys;print(json.load(open(sys.argv[1]))['netns_prefix'])" "$d/plan.json")
+  if ip netns list | grep -q "^$prefix-"; then fail "namespaces $prefix-* are left after the run"; fi
+  check_report "$d" 8
+  echo "ok: eight raw-Ethernet stations in namespaces $prefix-st0..7, removed after the run"
+  exit 0
+fi
 cat >"$work/three.toml" <<EOT
 [lab]
 users = 3
@@ -57,17 +112,5 @@ else
 fi
 
 "$lab" run "$work/three.toml" --runs-dir "$work/runs" --no-plots >"$work/run.log" 2>&1 || { cat "$work/run.log"; fail "haptic-lab run failed"; }
-d=""  # the run folder (the only one with a lab-report.json; folder names sort by time, then by random session)
-for x in "$work"/runs/*/; do
-  if [ -f "$x/lab-report.json" ]; then d="$x"; break; fi
-done
-[ -n "$d" ] || { cat "$work/run.log"; fail "no run folder with lab-report.json"; }
-python3 - "$d/lab-report.json" <<'EOT'
-import json, sys
-r = json.load(open(sys.argv[1]))
-assert r["users"] == 3, r
-assert all(s["exit_code"] == 0 for s in r["stations"]), r["stations"]
-assert all(isinstance(s["overruns"], int) for s in r["stations"]), r["stations"]
-assert r.get("consensus_time_s") is not None, "no consensus after release: %s" % r.get("consensus_error_m")
-print("ok: 3 stations exited 0, consensus %.3f s after release, overruns %s" % (r["consensus_time_s"], [s["overruns"] for s in r["stations"]]))
-EOT
+d=$(run_folder) || { cat "$work/run.log"; fail "no run folder with lab-report.json"; }
+check_report "$d" 3

@@ -1,17 +1,20 @@
 #!/usr/bin/env bash
-# Four station network namespaces joined by veth pairs to one bridge (in its own namespace,
-# so nothing touches the host's interfaces or addresses).
+# N station network namespaces (HPN_STATIONS, default 4, at most 200) joined by veth pairs to one
+# bridge (in its own namespace, so nothing touches the host's interfaces or addresses).
 #
 #   hpn-st0 [hpn0 02:48:50:00:00:01 10.77.0.1 fd77::1] --veth-- hpn-p0 \
 #   hpn-st1 [hpn0 02:48:50:00:00:02 10.77.0.2 fd77::2] --veth-- hpn-p1  > br0 in hpn-sw
 #   hpn-st2 [hpn0 02:48:50:00:00:03 10.77.0.3 fd77::3] --veth-- hpn-p2 /
 #   hpn-st3 [hpn0 02:48:50:00:00:04 10.77.0.4 fd77::4] --veth-- hpn-p3
+#   ...     (station i, 0-based: MAC 02:48:50:00:00:<i+1 in hex>, 10.77.0.<i+1>, fd77::<i+1>)
 #
 # Every station's interface is "hpn0" (net.interface = "hpn0" for transport = "raw"); UDP
 # configs use 10.77.0.x:7000 or [fd77::x]:7000. Needs root and iproute2.
+# HPN_PREFIX (default hpn) names the namespaces, so several sets can exist at once.
 # Usage: netns.sh up | down | status | check | exec STATION CMD...
 set -euo pipefail
-N=4
+N="${HPN_STATIONS:-4}"
+[[ "$N" =~ ^[0-9]+$ ]] && [ "$N" -ge 2 ] && [ "$N" -le 200 ] || { echo "netns.sh: HPN_STATIONS=$N must be 2..200" >&2; exit 2; }
 P="${HPN_PREFIX:-hpn}"
 SW="$P-sw"
 ns() { echo "$P-st$1"; }
@@ -69,7 +72,7 @@ check() {
       ip netns exec "$(ns "$i")" ping -6 -c1 -W2 -q "fd77::$((j + 1))" >/dev/null || { echo "no IPv6 path st$i -> st$j"; fail=1; }
     done
   done
-  [ "$fail" -eq 0 ] && echo "netns.sh: all 12 directed paths up (IPv4 and IPv6)"
+  [ "$fail" -eq 0 ] && echo "netns.sh: all $((N * (N - 1))) directed paths up (IPv4 and IPv6)"
   return "$fail"
 }
 

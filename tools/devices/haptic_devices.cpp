@@ -1,14 +1,21 @@
 // haptic-devices: what is connected, which backend would drive it, whether the current user
-// may open it, and the udev rule that fixes a permission problem. Non-RT operator tool.
+// may open it, and the udev rule that fixes a permission problem; `diag` (live position, test
+// force, servo rate, b_d) and `map` (guided workspace mapping) drive a connected device.
+// Non-RT operator tool.
+#include "drivers/device_factory.hpp"
 #include "drivers/hd_library.hpp"
 #include "drivers/spacemouse.hpp"
 #include "drivers/tty_devices.hpp"
 #include "drivers/usb_ids.hpp"
 #include "drivers/usb_monitor.hpp"
+#include "tools/devices/device_session.hpp"
 
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <iostream>
+#include <optional>
+#include <vector>
 #include <exception>
 #include <string>
 #include <grp.h>
@@ -117,23 +124,8 @@ void report_vendor_config() {
 }
 }  // namespace
 
-int main(int argc, char** argv) {
-  CLI::App app{"haptic-devices: list haptic and HID input devices, their backend, access rights, and udev fixes"};
-  bool all = false;
-  bool rules_only = false;
-  std::string hd_path;
-  app.add_flag("--all", all, "also list USB/HID devices that no backend drives");
-  app.add_flag("--udev-rules", rules_only, "print the udev rules for every known device and exit");
-  app.add_option("--group", g_group, "group the udev rules grant access to (default: haptic, as deployed)");
-  app.add_option("--hd-library", hd_path,
-                 "OpenHaptics HD library to probe (default: $HAPTIC_HD_LIBRARY, else libHD.so)");
-  CLI11_PARSE(app, argc, argv);
-
-  if (rules_only) {
-    print_all_rules();
-    return 0;
-  }
-
+// The default command: what is connected, its backend, access rights. Always exits 0 (a report).
+static int list_devices(bool all, const std::string& hd_path) {
   const std::string hd_problem = hd::HdLibrary::probe(hd_path);
   const std::string hd_resolved = hd::HdLibrary::resolve_path(hd_path);
   std::printf("haptic-devices (uid %u)\n", static_cast<unsigned>(getuid()));
@@ -210,4 +202,153 @@ int main(int argc, char** argv) {
     std::printf("no device found: a station with device.kind = \"auto\" or a device kind will refuse to start (exit 9);\n"
                 "a simulated user must be asked for explicitly: device.kind = \"simulated\"\n");
   return 0;
+}
+
+namespace {
+// Options shared by `diag` and `map`: which device, and the stale-sample allowance.
+struct SessionDevice {
+  std::string kind = "auto";
+  std::string hd_path;
+  std::uint32_t max_stale_reads = 5;
+  const char* command = "";  // "diag" or "map", for messages
+};
+
+void add_device_options(CLI::App* cmd, SessionDevice& d) {
+  cmd->add_option("--kind", d.kind, "device to open: auto (a plugged-in Touch, else a SpaceMouse), touch, spacemouse")
+      ->check(CLI::IsMember({"auto", "touch", "spacemouse"}))
+      ->capture_default_str();
+  cmd->add_option("--hd-library", d.hd_path, "OpenHaptics HD library for a Touch (as device.hd_library_path; "
+                                             "default: $HAPTIC_HD_LIBRARY, else libHD.so)");
+  cmd->add_option("--max-stale-reads", d.max_stale_reads, "ticks without a new sample before the stale-sample fault "
+                                                          "(as device.max_stale_reads)")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+}
+
+// Opens and starts the device like the station does (drivers::open_device), or explains why not.
+std::optional<OpenedDevice> open_for_session(const SessionDevice& d) {
+  DeviceSelection sel;
+  sel.kind = d.kind;
+  sel.touch.hd_library_path = d.hd_path;
+  sel.safety.max_stale_reads = d.max_stale_reads;
+  try {
+    OpenedDevice opened = open_device(sel);
+    std::printf("%s", opened.report.c_str());
+    return opened;
+  } catch (const DeviceMissing& e) {
+    std::printf("no device: %s\n", e.what());
+    std::printf("haptic-devices %s needs a connected device: run `haptic-devices` (no command) to see what is found and "
+                "why; for a Touch give the vendor library with --hd-library PATH (device.hd_library_path)\n",
+                d.command);
+  } catch (const std::exception& e) {
+    std::printf("cannot open the device: %s\n", e.what());
+  }
+  return std::nullopt;
+}
+
+int bad_option(const char* option, const std::string& why) {
+  std::fprintf(stderr, "haptic-devices: %s: %s\n", option, why.c_str());
+  return haptic::tools::kExitBadOption;
+}
+
+constexpr const char* kSessionExits =
+    "Exit status: 0 done; 2 bad option (named); 3 (map) the stylus was never held still; 5 the device entered its "
+    "safe state during the run (the fault is named); 9 no device could be opened (what was found and why is printed).";
+
+int check_diag(const haptic::tools::DiagOptions& o) {
+  if (o.forces_N.empty() || o.forces_N.size() > 2) return bad_option("--force-N", "give one or two force levels");
+  for (const double f : o.forces_N)
+    if (!(f > 0.0 && f <= 1.0)) return bad_option("--force-N", std::to_string(f) + " N is outside (0, 1] N (a gentle test force)");
+  if (o.forces_N.size() == 2 && !(o.forces_N[1] > o.forces_N[0]))
+    return bad_option("--force-N", "the second level must be larger than the first (b_d = (F2 - F1) / (v2 - v1))");
+  if (!(o.push_s >= 0.1 && o.push_s <= 10.0)) return bad_option("--push-s", "outside [0.1, 10] s");
+  if (!(o.max_travel_mm > 0.0 && o.max_travel_mm <= 200.0)) return bad_option("--max-travel-mm", "outside (0, 200] mm");
+  return 0;
+}
+
+int check_map(const haptic::tools::MapOptions& o) {
+  if (!(o.scale > 0.0 && o.scale <= 100.0)) return bad_option("--scale", "outside (0, 100] (as device.map_scale)");
+  if (!(o.still_s > 0.0 && o.still_s <= o.timeout_s)) return bad_option("--still-s", "outside (0, --timeout-s]");
+  if (!(o.still_mm > 0.0 && o.still_mm <= 50.0)) return bad_option("--still-mm", "outside (0, 50] mm");
+  if (!(o.timeout_s > 0.0 && o.timeout_s <= 600.0)) return bad_option("--timeout-s", "outside (0, 600] s");
+  return 0;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"haptic-devices: list haptic and HID input devices, their backend, access rights, and udev fixes;\n"
+               "`haptic-devices diag` and `haptic-devices map` drive a connected device (see their --help)"};
+  bool all = false;
+  bool rules_only = false;
+  std::string hd_path;
+  app.add_flag("--all", all, "also list USB/HID devices that no backend drives");
+  app.add_flag("--udev-rules", rules_only, "print the udev rules for every known device and exit");
+  app.add_option("--group", g_group, "group the udev rules grant access to (default: haptic, as deployed)");
+  app.add_option("--hd-library", hd_path,
+                 "OpenHaptics HD library to probe (default: $HAPTIC_HD_LIBRARY, else libHD.so)");
+
+  SessionDevice diag_dev, map_dev;
+  diag_dev.command = "diag";
+  map_dev.command = "map";
+  haptic::tools::DiagOptions diag;
+  std::string axis = "x";
+  CLI::App* diag_cmd = app.add_subcommand(
+      "diag", std::string("diagnostics: live position, a gentle test force (+F then -F along one axis, so the stylus "
+                          "comes back), the measured servo rate; with two --force-N levels the device damping b_d "
+                          "for eq. (26). Stop the station first; the stylus must rest free.\n") + kSessionExits);
+  add_device_options(diag_cmd, diag_dev);
+  diag_cmd->add_option("--force-N", diag.forces_N, "test force level(s) in (0, 1] N: F, or F1 F2 to measure b_d")
+      ->expected(1, 2)->capture_default_str();
+  diag_cmd->add_option("--axis", axis, "device axis of the test force")->check(CLI::IsMember({"x", "y", "z"}))->capture_default_str();
+  diag_cmd->add_option("--push-s", diag.push_s, "duration of each push (+F, then -F) [0.1, 10] s")->capture_default_str();
+  diag_cmd->add_option("--max-travel-mm", diag.max_travel_mm, "a push stops when the stylus has moved this far (0, 200] mm")
+      ->capture_default_str();
+
+  haptic::tools::MapOptions map;
+  std::vector<double> centre{0, 0, 0}, rot{0, 0, 0};
+  CLI::App* map_cmd = app.add_subcommand(
+      "map", std::string("guided set-up of the workspace mapping: hold the stylus still at the object's centre; prints "
+                         "the [device] map_offset_m / map_rotation_deg / map_scale keys that map that point onto "
+                         "--centre-m.\n") + kSessionExits);
+  add_device_options(map_cmd, map_dev);
+  map_cmd->add_option("--centre-m", centre, "the object's centre in the object frame, metres (x y z)")->expected(3)->capture_default_str();
+  map_cmd->add_option("--rotation-deg", rot, "map_rotation_deg to keep (rx ry rz)")->expected(3)->capture_default_str();
+  map_cmd->add_option("--scale", map.scale, "map_scale to keep (object metres per device metre)")->capture_default_str();
+  map_cmd->add_option("--still-s", map.still_s, "how long the stylus must be held still")->capture_default_str();
+  map_cmd->add_option("--still-mm", map.still_mm, "how still: within this distance")->capture_default_str();
+  map_cmd->add_option("--timeout-s", map.timeout_s, "give up after this long (exit 3)")->capture_default_str();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return haptic::tools::kExitBadOption;
+  }
+
+  if (*diag_cmd) {
+    diag.axis = axis[0] - 'x';
+    if (const int rc = check_diag(diag)) return rc;
+    auto opened = open_for_session(diag_dev);
+    if (!opened) return haptic::tools::kExitNoDevice;
+    std::fflush(stdout);
+    return haptic::tools::run_diagnostics(*opened->device, diag, std::cout);
+  }
+  if (*map_cmd) {
+    for (int i = 0; i < 3; ++i) {
+      map.object_centre_m[i] = centre[static_cast<std::size_t>(i)];
+      map.rotation_deg[i] = rot[static_cast<std::size_t>(i)];
+    }
+    if (const int rc = check_map(map)) return rc;
+    auto opened = open_for_session(map_dev);
+    if (!opened) return haptic::tools::kExitNoDevice;
+    std::fflush(stdout);
+    return haptic::tools::run_mapping(*opened->device, map, std::cout);
+  }
+  if (rules_only) {
+    print_all_rules();
+    return 0;
+  }
+  return list_devices(all, hd_path);
 }

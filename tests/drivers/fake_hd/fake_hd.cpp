@@ -5,8 +5,19 @@
 // Scheduler: in manual mode (default) nothing runs until fakehd_run_frames(n) calls the
 // scheduled callbacks n times on the caller's thread (deterministic tests and benchmarks);
 // in automatic mode hdStartScheduler starts a 1 kHz thread like the real library.
+// A process that cannot call the fakehd_* functions (the haptic-devices tool under test) sets the
+// fixture up through the environment, read at hdInitDevice:
+//   FAKEHD_AUTO=1                  automatic mode (the 1 kHz scheduler thread)
+//   FAKEHD_POSITION_MM="x,y,z"     initial stylus position
+//   FAKEHD_PLANT="m,b,c"           after every frame the stylus moves as a mass m (kg) with viscous
+//                                  damping b (N s/m) and Coulomb friction c (N) under the frame's force
+//   FAKEHD_CIRCLE_MM="r"           the stylus circles (radius r mm, 1 turn per second): never still
+// The plant is a test model with known b (so a b_d measurement can be checked), not a Touch model.
 #include <atomic>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <mutex>
 #include <thread>
@@ -54,6 +65,8 @@ struct State {
   bool initialized = false;
   bool in_frame = false;
   bool force_output = false;
+  double plant_mass = 0.0, plant_b = 0.0, plant_coulomb = 0.0;  // plant off when mass == 0
+  double circle_mm = 0.0;
   HDSchedulerCallback cb = nullptr;
   void* cb_data = nullptr;
   HDerror errors[16] = {};
@@ -68,6 +81,38 @@ State& g() {
 void push_error(State& s, HDerror e) {
   if (s.error_count < 16) s.errors[s.error_count++] = e;
 }
+// FAKEHD_* environment set-up (see the top comment). Called with s.mu held.
+void read_environment(State& s) {
+  if (const char* a = std::getenv("FAKEHD_AUTO")) s.manual = std::strcmp(a, "1") != 0;
+  if (const char* p = std::getenv("FAKEHD_POSITION_MM"))
+    std::sscanf(p, "%lf,%lf,%lf", &s.position_mm[0], &s.position_mm[1], &s.position_mm[2]);
+  if (const char* p = std::getenv("FAKEHD_PLANT")) std::sscanf(p, "%lf,%lf,%lf", &s.plant_mass, &s.plant_b, &s.plant_coulomb);
+  if (const char* c = std::getenv("FAKEHD_CIRCLE_MM")) s.circle_mm = std::atof(c);
+}
+// One 1 ms step of the environment's motion after a frame (semi-implicit Euler). Called with s.mu held.
+void move_stylus(State& s) {
+  constexpr double dt = 1e-3;
+  if (s.circle_mm > 0.0) {
+    const double w = 2.0 * 3.141592653589793, t = static_cast<double>(s.frames) * dt;
+    s.position_mm[0] = s.circle_mm * std::cos(w * t);
+    s.position_mm[1] = s.circle_mm * std::sin(w * t);
+    s.velocity_mm_s[0] = -w * s.circle_mm * std::sin(w * t);
+    s.velocity_mm_s[1] = w * s.circle_mm * std::cos(w * t);
+    return;
+  }
+  if (s.plant_mass <= 0.0) return;
+  for (int i = 0; i < 3; ++i) {
+    const double v = s.velocity_mm_s[i] * 1e-3, f = s.last_force[i];
+    double net = f - s.plant_b * v;
+    if (v != 0.0) net -= std::copysign(s.plant_coulomb, v);
+    else net = std::abs(f) <= s.plant_coulomb ? 0.0 : f - std::copysign(s.plant_coulomb, f);
+    double v_new = v + net / s.plant_mass * dt;
+    if (v != 0.0 && (v_new > 0.0) != (v > 0.0) && std::abs(f) <= s.plant_coulomb) v_new = 0.0;  // friction stops it
+    s.velocity_mm_s[i] = v_new * 1e3;
+    s.position_mm[i] += v_new * 1e3 * dt;
+  }
+}
+
 int run_frames_locked(State& s, int n) {
   int ran = 0;
   for (int i = 0; i < n && s.cb != nullptr; ++i) {
@@ -92,6 +137,7 @@ HHD hdInitDevice(HDstring) {
     push_error(s, s.init_error);
     return kInvalidHandle;
   }
+  read_environment(s);
   s.initialized = true;
   return 1;
 }
@@ -144,6 +190,7 @@ void hdStartScheduler() {
       {
         std::lock_guard<std::mutex> l2(s.mu);
         run_frames_locked(s, 1);
+        move_stylus(s);
       }
       next += std::chrono::milliseconds(1);
       std::this_thread::sleep_until(next);
@@ -220,6 +267,7 @@ void fakehd_reset() {
   for (int i = 0; i < 3; ++i) s.position_mm[i] = s.velocity_mm_s[i] = s.last_force[i] = 0.0;
   s.buttons = 0;
   s.max_force_N = 3.3;
+  s.plant_mass = s.plant_b = s.plant_coulomb = s.circle_mm = 0.0;
   s.frames = 0;
   s.initialized = s.in_frame = s.force_output = false;
   s.cb = nullptr;

@@ -1,0 +1,215 @@
+#include "tools/devices/device_session.hpp"
+
+#include <Eigen/Core>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ostream>
+#include <string>
+#include <thread>
+
+#include "drivers/phantom_device.hpp"
+#include "drivers/workspace_map.hpp"
+
+namespace haptic::tools {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+constexpr auto kTick = std::chrono::milliseconds(2);  // the station's default period
+
+// The tick pacer: absolute deadlines, but a late tick is not followed by a burst of catch-up
+// ticks (a burst would read the device faster than it produces samples and trip the stale check).
+class Pacer {
+ public:
+  Pacer() : t0_(Clock::now()), next_(t0_) {}
+  double elapsed_s() const { return std::chrono::duration<double>(Clock::now() - t0_).count(); }
+  void wait() {
+    next_ += kTick;
+    const auto now = Clock::now();
+    if (next_ < now) next_ = now;
+    std::this_thread::sleep_until(next_);
+  }
+
+ private:
+  Clock::time_point t0_, next_;
+};
+
+// The backend's own servo frame count (Touch through the HD library), 0 when it has none.
+std::uint64_t frames_of(const drivers::HapticDevice& dev) {
+  const auto* p = dynamic_cast<const drivers::PhantomDevice*>(&dev);
+  return p != nullptr ? p->servo_frames() : 0;
+}
+
+int report_fault(const drivers::HapticDevice& dev, std::ostream& out) {
+  out << "device fault: " << drivers::fault_name(dev.fault()) << " (detail " << dev.fault_detail()
+      << "): the device is in its safe state (zero force)\n";
+  return kExitDeviceFault;
+}
+
+std::string mm3(const double p[3]) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%.2f, %.2f, %.2f) mm", p[0] * 1e3, p[1] * 1e3, p[2] * 1e3);
+  return buf;
+}
+
+struct Phase {
+  double force_N;     // signed force along the axis
+  double seconds;
+  bool measure;       // average |v| over the second half
+};
+
+struct PhaseResult {
+  double mean_speed = 0.0;  // |v| along the axis, m/s
+  int samples = 0;
+  bool cut_short = false;   // the travel limit stopped the push
+  bool faulted = false;
+};
+
+// Runs one phase of constant force along opt.axis (one tick per 2 ms), printing live positions.
+PhaseResult run_phase(drivers::HapticDevice& dev, const DiagOptions& opt, const Phase& ph, Pacer& pacer, double& next_print,
+                      std::ostream& out) {
+  PhaseResult r;
+  const double start = pacer.elapsed_s();
+  double speed_sum = 0.0, origin = 0.0;
+  bool have_origin = false, stopped = false;
+  drivers::DeviceSample s{};
+  for (double t = pacer.elapsed_s(); t - start < ph.seconds; t = pacer.elapsed_s()) {
+    const bool ok = dev.read_newest(s);
+    if (!ok && dev.fault() != drivers::DeviceFault::kNone) {
+      r.faulted = true;
+      return r;
+    }
+    if (ok && !have_origin) {
+      origin = s.position_m[opt.axis];
+      have_origin = true;
+    }
+    if (ok && std::abs(s.position_m[opt.axis] - origin) > opt.max_travel_mm * 1e-3) stopped = r.cut_short = true;
+    double f[3] = {0, 0, 0};
+    if (!stopped) f[opt.axis] = ph.force_N;
+    dev.command_force(f);
+    if (ok && ph.measure && !stopped && t - start >= 0.5 * ph.seconds) {
+      speed_sum += std::abs(s.velocity_m_per_s[opt.axis]);
+      ++r.samples;
+    }
+    if (ok && t >= next_print) {
+      out << "  t " << t << " s  position " << mm3(s.position_m) << "  buttons " << s.buttons;
+      if (f[opt.axis] != 0.0) out << "  force " << f[opt.axis] << " N along " << "xyz"[opt.axis];
+      out << "\n";
+      next_print = t + 1.0 / opt.print_hz;
+    }
+    pacer.wait();
+  }
+  r.mean_speed = r.samples > 0 ? speed_sum / r.samples : 0.0;
+  return r;
+}
+
+void report_servo_rate(const drivers::HapticDevice& dev, std::uint64_t frames0, std::uint64_t samples0, double elapsed,
+                       std::ostream& out) {
+  const std::uint64_t frames = frames_of(dev) - frames0;
+  const std::uint64_t samples = dev.counters().samples_read - samples0;
+  char buf[200];
+  if (frames > 0)
+    std::snprintf(buf, sizeof buf, "servo rate: %.0f Hz (%llu servo frames of the device's own loop in %.3f s)\n",
+                  frames / elapsed, static_cast<unsigned long long>(frames), elapsed);
+  else
+    std::snprintf(buf, sizeof buf, "servo rate: %.0f Hz (%llu fresh samples read by the 500 Hz tick in %.3f s; the backend counts no frames)\n",
+                  samples / elapsed, static_cast<unsigned long long>(samples), elapsed);
+  out << buf;
+}
+}  // namespace
+
+int run_diagnostics(drivers::HapticDevice& dev, const DiagOptions& o, std::ostream& out) {
+  const char axis = "xyz"[o.axis];
+  out << "diagnostics: " << dev.capabilities().name << "; keep the stylus free (do not hold it) during the pushes\n";
+  if (!dev.capabilities().actuated_axes[o.axis])
+    out << "NOTE: axis " << axis << " is not actuated on this device (no force feedback): the test force is clamped to zero\n";
+  Pacer pacer;
+  double next_print = 0.0;
+  const std::uint64_t frames0 = frames_of(dev), samples0 = dev.counters().samples_read;
+  if (run_phase(dev, o, {0.0, o.settle_s, false}, pacer, next_print, out).faulted) return report_fault(dev, out);
+  std::vector<double> speeds;
+  for (const double F : o.forces_N) {
+    double sum = 0.0;
+    int n = 0;
+    for (const double sign : {1.0, -1.0}) {
+      const PhaseResult r = run_phase(dev, o, {sign * F, o.push_s, true}, pacer, next_print, out);
+      if (r.faulted) return report_fault(dev, out);
+      if (r.cut_short) out << "  push " << sign * F << " N stopped: travel beyond " << o.max_travel_mm << " mm (--max-travel-mm)\n";
+      sum += r.mean_speed * r.samples;
+      n += r.samples;
+    }
+    speeds.push_back(n > 0 ? sum / n : std::nan(""));
+    char line[200];
+    if (n > 0)
+      std::snprintf(line, sizeof line, "test force %g N along %c: mean |speed| over the second half of each push %.2f mm/s (%d samples)\n",
+                    F, axis, speeds.back() * 1e3, n);
+    else
+      std::snprintf(line, sizeof line, "test force %g N along %c: mean |speed| n/a (no samples in the second half of a push)\n", F, axis);
+    out << line;
+  }
+  if (run_phase(dev, o, {0.0, o.settle_s, false}, pacer, next_print, out).faulted) return report_fault(dev, out);
+  const double zero[3] = {0, 0, 0};
+  dev.command_force(zero);
+  report_servo_rate(dev, frames0, samples0, pacer.elapsed_s(), out);
+  if (speeds.size() == 2) {
+    const double dv = speeds[1] - speeds[0];
+    if (std::isfinite(dv) && dv > 0.0)
+      out << "b_d = (F2 - F1) / (v2 - v1) = " << (o.forces_N[1] - o.forces_N[0]) / dv << " N s/m (device.damping_Ns_per_m; "
+          << "repeat a few times and keep the smallest)\n";
+    else
+      out << "b_d: not determined (the speed did not grow with the force; is the stylus held or blocked?)\n";
+  }
+  return dev.fault() == drivers::DeviceFault::kNone ? kExitOk : report_fault(dev, out);
+}
+
+namespace {
+void print_map_keys(const MapOptions& o, const Eigen::Vector3d& held, std::ostream& out) {
+  drivers::WorkspaceMapConfig c;
+  for (int i = 0; i < 3; ++i) c.rotation_deg[i] = o.rotation_deg[i];
+  c.scale = o.scale;
+  const double p[3] = {held.x(), held.y(), held.z()};
+  drivers::solve_offset(c, p, Eigen::Vector3d(o.object_centre_m[0], o.object_centre_m[1], o.object_centre_m[2]));
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "held still at %s (device frame); put these in the station file's [device] table:\n"
+                "map_offset_m = [%.6f, %.6f, %.6f]\nmap_rotation_deg = [%g, %g, %g]\nmap_scale = %g\n",
+                mm3(p).c_str(), c.offset_m[0], c.offset_m[1], c.offset_m[2], c.rotation_deg[0], c.rotation_deg[1],
+                c.rotation_deg[2], c.scale);
+  out << buf;
+}
+}  // namespace
+
+int run_mapping(drivers::HapticDevice& dev, const MapOptions& o, std::ostream& out) {
+  out << "hold the stylus at the object's centre and keep it still for " << o.still_s << " s (within " << o.still_mm
+      << " mm)\n";
+  Pacer pacer;
+  Eigen::Vector3d anchor = Eigen::Vector3d::Zero();
+  double still_since = -1.0, next_print = 0.0;
+  drivers::DeviceSample s{};
+  const double zero[3] = {0, 0, 0};
+  for (double t = 0.0; t < o.timeout_s; t = pacer.elapsed_s()) {
+    const bool ok = dev.read_newest(s);
+    if (!ok && dev.fault() != drivers::DeviceFault::kNone) return report_fault(dev, out);
+    dev.command_force(zero);
+    if (ok) {
+      const Eigen::Vector3d p(s.position_m[0], s.position_m[1], s.position_m[2]);
+      if (still_since < 0.0 || (p - anchor).norm() > o.still_mm * 1e-3) {
+        anchor = p;
+        still_since = t;
+      } else if (t - still_since >= o.still_s) {
+        print_map_keys(o, anchor, out);
+        return kExitOk;
+      }
+      if (t >= next_print) {
+        out << "  t " << t << " s  position " << mm3(s.position_m) << "\n";
+        next_print = t + 1.0;
+      }
+    }
+    pacer.wait();
+  }
+  out << "timed out after " << o.timeout_s << " s: the stylus was never still for " << o.still_s << " s within "
+      << o.still_mm << " mm (--timeout-s, --still-s, --still-mm)\n";
+  return kExitNotStill;
+}
+
+}  // namespace haptic::tools

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # haptic-lab from one lab file (tools/lab/README.md):
 #   1. plan twice: two different run folders and session ids (never overwritten), station files
-#      and keys mode 0600, every peer on the loopback port planned for it;
+#      and keys mode 0600, every peer on the loopback port planned for it; `plan --run-dir` over
+#      an earlier run and `start --kill` with a station out of range are refused (exit 2);
 #   2. the paper's four-PC lab file (192.168.10.0/24) plans, but `check` refuses it on a machine
 #      with no interface on that network (exit 3, the station names the peer's key), so nothing
 #      is sent out of this machine's default route;
@@ -96,6 +97,13 @@ done
 p2=$(python3 -c "import json;print(json.load(open('$a/plan.json'))['stations'][1]['port'])")
 grep -q "address = \"127.0.0.1:$p2\"" "$a/station-1.toml" || fail "station 1 does not send to station 2's planned port $p2"
 echo "ok: two plans, two folders ($(basename "$a"), $(basename "$b")), sessions $sa / $sb, files 0600"
+set +e
+"$lab" plan "$work/three.toml" --run-dir "$a" >"$work/rerun.log" 2>&1; rc_dir=$?
+"$lab" start "$a" --kill 4:1:2 >"$work/kill.log" 2>&1; rc_kill=$?
+set -e
+[ "$rc_dir" -eq 2 ] && grep -q "already holds a run" "$work/rerun.log" || { cat "$work/rerun.log"; fail "plan --run-dir over an earlier run exited $rc_dir"; }
+[ "$rc_kill" -eq 2 ] && grep -q "station I in 1..3" "$work/kill.log" || { cat "$work/kill.log"; fail "start --kill 4:1:2 on 3 stations exited $rc_kill"; }
+echo "ok: plan --run-dir refuses a folder that holds a run; start --kill names the bad station (exit 2)"
 
 c=$("$lab" plan "$src/tools/lab/examples/lab-4-pcs.toml" --runs-dir "$work/runs" | tail -1)
 set +e

@@ -17,7 +17,7 @@ rc=0
 for case in 2 1 2-fresh; do
   who="${case%%-*}"; extra=(); [ "$case" = 2-fresh ] && extra=(--restart-fresh-epoch)
   out="$work/kill-$case"
-  if ! "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out" --port-base 47430 --duration 14 --release 10 \
+  if ! "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out" --duration 14 --release 10 \
        --kill "$who:5:8" "${extra[@]}" --no-plots --state-every 1 --station max_no_neighbour_fraction=0.5 > "$work/run4-kill-$case.log" 2>&1; then
     echo "rejoin_check.sh: the run with station $who killed ($case) failed:" >&2; tail -n 30 "$work/run4-kill-$case.log" >&2; rc=1; continue
   fi

@@ -14,9 +14,8 @@ if [ "$mode" = raw ]; then
 fi
 [ -x /usr/bin/python3 ] || { echo "SKIPPED: /usr/bin/python3 missing for the checks"; exit 77; }
 rm -rf "$out"; mkdir -p "$out"
-port_base=$(( 47300 + ($$ % 100) * 5 ))
 "$repo/tools/run4/run4.sh" --transport "$mode" --bin "$bin" --out "$out" --duration 4 --push-end 1.5 --release 2.5 \
-  --probe 1.0 --seed 3 --no-plots --port-base "$port_base" --net tx_spin=true --net io_cpu=0
+  --probe 1.0 --seed 3 --no-plots --net tx_spin=true --net io_cpu=0
 /usr/bin/python3 - "$out/summary.json" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))

@@ -9,9 +9,8 @@ here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../.." && pwd)"
 [ -x /usr/bin/python3 ] || { echo "SKIPPED: /usr/bin/python3 (Debian python3-numpy) missing for the merge"; exit 77; }
 rm -rf "$out"; mkdir -p "$out"
-port_base=$(( 46000 + ($$ % 50) * 10 ))
 "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out" --duration 3 --push-end 1 --release 2 \
-  --probe 1.0 --seed 2 --no-plots --port-base "$port_base" --station record=true > "$out/run4.log" 2>&1 \
+  --probe 1.0 --seed 2 --no-plots --station record=true > "$out/run4.log" 2>&1 \
   || { echo "FAILED: run4.sh"; tail -30 "$out/run4.log"; exit 1; }
 fail=0
 for i in 1 2 3 4; do

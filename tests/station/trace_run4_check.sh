@@ -12,10 +12,9 @@ here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../.." && pwd)"
 [ -x /usr/bin/python3 ] || { echo "FAILED: /usr/bin/python3 (python3-bt2, numpy) missing"; exit 1; }
 rm -rf "$out"; mkdir -p "$out"
-port_base=$(( 47600 + ($$ % 100) * 5 ))
 set +e
 "$repo/tools/trace/record.sh" -o "$out/trace" -- "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out/run" \
-  --duration 3 --push-end 1.0 --release 2.0 --probe 1.0 --seed 2 --no-plots --port-base "$port_base" > "$out/record.log" 2>&1
+  --duration 3 --push-end 1.0 --release 2.0 --probe 1.0 --seed 2 --no-plots > "$out/record.log" 2>&1
 rc=$?
 set -e
 if [ $rc -ne 0 ]; then cat "$out/record.log"; echo "FAILED: record.sh around run4.sh exited $rc (3 = tracing impossible here)"; exit 1; fi

@@ -42,7 +42,7 @@ if [ "$mode" = replay ]; then
 else
   port=$(( 46600 + ($$ % 40) * 5 ))  # station i: port + i - 1
   "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out/run4" --duration 40 --push-end 2 --release 6 --probe 1.0 \
-    --seed 2 --no-plots --port-base $(( 46300 + ($$ % 40) * 10 )) --view-port "$port" > "$out/run4.log" 2>&1 &
+    --seed 2 --no-plots --view-port "$port" > "$out/run4.log" 2>&1 &
   pids+=($!)
   neighbours=2,3,4
 fi

@@ -29,6 +29,25 @@ assert r.get("consensus_time_s") is not None, "no consensus after release: %s" %
 print("ok: %d stations exited 0, consensus %.3f s after release, overruns %s" % (r["users"], r["consensus_time_s"], [s["overruns"] for s in r["stations"]]))
 EOT
 }
+write_lab() {  # write_lab FILE USERS TRANSPORT LINKS DURATION PUSH_END RELEASE PROBE START_DELAY (asymmetric pushes)
+  cat >"$1" <<EOT
+[lab]
+users = $2
+duration_s = $5
+push_end_s = $6
+release_s = $7
+pushes = "asymmetric"
+probe_s = $8
+start_delay_s = $9
+[network]
+transport = "$3"
+impairment = "none"
+[topology]
+links = "$4"
+[station]
+max_no_neighbour_fraction = 0.5   # this test checks the lab tool, not the host: a loaded VM stalls for 0.5 s
+EOT
+}
 run_folder() {  # the run folder (the only one with a lab-report.json; names sort by time, then by random session)
   for x in "$work"/runs/*/; do
     if [ -f "$x/lab-report.json" ]; then echo "$x"; return 0; fi
@@ -40,23 +59,7 @@ if [ "$mode" = raw8 ]; then
   if [ "$(id -u)" -ne 0 ] || ! command -v ip >/dev/null; then echo "SKIPPED: raw Ethernet in namespaces needs root and iproute2"; exit 77; fi
   ip netns add hpltest-probe 2>/dev/null || { echo "SKIPPED: cannot create network namespaces here"; exit 77; }
   ip netns del hpltest-probe
-  cat >"$work/raw8.toml" <<EOT
-[lab]
-users = 8
-duration_s = 5.0
-push_end_s = 1.5
-release_s = 3.0
-pushes = "asymmetric"
-probe_s = 1.5
-start_delay_s = 2.0
-[network]
-transport = "raw"
-impairment = "none"
-[topology]
-links = "1-2,2-3,3-4,4-5,5-6,6-7,7-8,8-1,1-5"
-[station]
-max_no_neighbour_fraction = 0.5   # this test checks the lab tool, not the host: a loaded VM stalls for 0.5 s
-EOT
+  write_lab "$work/raw8.toml" 8 raw "1-2,2-3,3-4,4-5,5-6,6-7,7-8,8-1,1-5" 5.0 1.5 3.0 1.5 2.0
   "$lab" run "$work/raw8.toml" --runs-dir "$work/runs" --no-plots >"$work/run.log" 2>&1 || { cat "$work/run.log"; fail "haptic-lab run (raw) failed"; }
   d=$(run_folder) || { cat "$work/run.log"; fail "no run folder with lab-report.json"; }
   for i in 1 2 3 4 5 6 7 8; do
@@ -69,22 +72,7 @@ EOT
   echo "ok: eight raw-Ethernet stations in namespaces $prefix-st0..7, removed after the run"
   exit 0
 fi
-cat >"$work/three.toml" <<EOT
-[lab]
-users = 3
-duration_s = 4.0
-push_end_s = 1.0
-release_s = 2.0
-pushes = "asymmetric"
-probe_s = 1.0
-start_delay_s = 1.5
-[network]
-impairment = "none"
-[topology]
-links = "1-2,2-3"
-[station]
-max_no_neighbour_fraction = 0.5   # this test checks the lab tool, not the host: a loaded VM stalls for 0.5 s
-EOT
+write_lab "$work/three.toml" 3 udp "1-2,2-3" 4.0 1.0 2.0 1.0 1.5
 a=$("$lab" plan "$work/three.toml" --runs-dir "$work/runs" | tail -1)
 b=$("$lab" plan "$work/three.toml" --runs-dir "$work/runs" | tail -1)
 [ "$a" != "$b" ] && [ -d "$a" ] && [ -d "$b" ] || fail "two plans gave one folder: $a $b"

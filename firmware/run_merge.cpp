@@ -271,6 +271,36 @@ RunMetricsResult merged_metrics(const std::vector<StationFiles>& st, const std::
   return m.result(state_ks.back() + 1);
 }
 
+// The copies at the scenario's snapshot times, as the simulator takes them: at the first common
+// state tick at or after each time (the last one when the run ended before it), with each proxy
+// from the first trace tick at or after that one. Writes DIR/snapshots.json (the simulator's file).
+void write_merged_snapshots(const std::vector<StationFiles>& st, double T, const std::string& dir) {
+  const json& s0 = st[0].summary;
+  if (!s0.contains("snapshot_times_s") || !s0.contains("scene_surface")) return;  // an older station's files
+  const std::vector<std::int64_t> ks = common_ticks(st, &StationFiles::state_row), trace_ks = common_ticks(st, &StationFiles::trace_row);
+  if (ks.empty() || trace_ks.empty()) return;
+  std::vector<Snapshot> snaps;
+  for (double t : s0["snapshot_times_s"].get<std::vector<double>>()) {
+    auto it = std::find_if(ks.begin(), ks.end(), [&](std::int64_t k) { return static_cast<double>(k + 1) * T >= t - 1e-9; });
+    const std::int64_t k = it == ks.end() ? ks.back() : *it;
+    if (!snaps.empty() && snaps.back().t_s == static_cast<double>(k + 1) * T) continue;
+    auto tr = std::lower_bound(trace_ks.begin(), trace_ks.end(), k);
+    const std::int64_t kt = tr == trace_ks.end() ? trace_ks.back() : *tr;
+    Snapshot sn;
+    sn.t_s = static_cast<double>(k + 1) * T;
+    for (const auto& s : st) {
+      const std::vector<double>& row = s.state.rows[s.state_row.at(k)];
+      sn.x_m.emplace_back(row.begin() + 1, row.end());
+      const std::size_t r = s.trace_row.at(kt);
+      sn.vp_m.push_back({s.trace.at(r, "vp_x_m"), s.trace.at(r, "vp_y_m"), s.trace.at(r, "vp_z_m")});
+    }
+    snaps.push_back(std::move(sn));
+  }
+  std::vector<std::vector<int>> contacts;
+  for (const auto& s : st) contacts.push_back(s.summary.value("contact_nodes", std::vector<int>{}));
+  write_snapshots_json(dir + "/snapshots.json", s0["scene_surface"].get<std::vector<std::array<int, 3>>>(), contacts, snaps);
+}
+
 }  // namespace
 
 json merge_run(const std::string& dir) {
@@ -300,6 +330,7 @@ json merge_run(const std::string& dir) {
   j["link_stats"] = links;
   j["stations"] = station_rows(st);
   write_json_file(dir + "/summary.json", j);
+  write_merged_snapshots(st, s0["dt_s"].get<double>(), dir);
   return j;
 }
 

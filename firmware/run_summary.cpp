@@ -29,6 +29,8 @@ json scenario_json(const BuiltScenario& b) {
   j["scene_edges"] = b.scene.mesh.edges.size();
   j["scene_tetrahedra"] = b.scene.mesh.tets.size();
   j["trace_node"] = b.trace_node;
+  j["trace_node_rest_m"] = std::vector<double>(b.scene.x_d.data() + 3 * b.trace_node, b.scene.x_d.data() + 3 * b.trace_node + 3);
+  j["snapshot_times_s"] = snapshot_times_s(s);
   j["damping_margin"] = s.damping_margin;
   j["loss_allowance_ticks"] = s.loss_allowance_ticks;
   j["receive_rule"] = rt::rx_rule_name(s.receive_rule);
@@ -44,7 +46,7 @@ json scenario_json(const BuiltScenario& b) {
 
 const std::vector<std::string>& scenario_json_keys() {
   static const std::vector<std::string> keys = {"scenario",    "users",         "dt_s",           "duration_s",           "seed",
-                                                "topology",    "scene_nodes",   "scene_edges",    "scene_tetrahedra",     "trace_node",
+                                                "topology",    "scene_nodes",   "scene_edges",    "scene_tetrahedra",     "trace_node", "trace_node_rest_m", "snapshot_times_s",
                                                 "damping_margin", "loss_allowance_ticks", "receive_rule", "tx_deadband", "release_time_s", "push_end_s",
                                                 "metrics_windows"};
   return keys;
@@ -139,6 +141,22 @@ void write_series_header(std::FILE* f) {
 void write_series_row(std::FILE* f, const SeriesRow& r) {
   std::fprintf(f, "%.4f,%.7g,%.7g,%.7g,%.7g,%.6g,%.6g\n", r.t_s, r.consensus_error_m, r.deformation_m, r.port_total_J, r.ctrl_total_J, r.force_sum_x_N,
                r.force_sum_norm_N);
+}
+
+std::vector<double> snapshot_times_s(const ScenarioSpec& s) {
+  const UserScriptSpec& sc = s.script;
+  if (sc.kind == UserScriptSpec::Kind::kPushHoldRelease)
+    return {0.0, sc.push_end_s, 0.5 * (sc.push_end_s + sc.release_s), sc.release_s, s.duration_s};
+  return {0.0, sc.perturb_at_s + sc.perturb_duration_s, s.duration_s};
+}
+
+void write_snapshots_json(const std::string& path, const std::vector<std::array<int, 3>>& surface,
+                          const std::vector<std::vector<int>>& contact_nodes, const std::vector<Snapshot>& snapshots) {
+  json snaps = json::array();
+  for (const Snapshot& sn : snapshots) snaps.push_back({{"t_s", sn.t_s}, {"x_m", sn.x_m}, {"vp_m", sn.vp_m}});
+  std::ofstream f(path);
+  if (!f) throw std::runtime_error("cannot write " + path);
+  f << json{{"surface", surface}, {"contact_nodes", contact_nodes}, {"snapshots", snaps}}.dump() << "\n";
 }
 
 OutFile open_out_file(const std::string& path) {

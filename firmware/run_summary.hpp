@@ -4,6 +4,7 @@
 // (one row per station and recorded tick) and series.csv (one row per recorded tick). The real
 // station's station-<id>.json starts with the same scenario part. Values over an empty window are
 // null. Not RT-safe.
+#include <array>
 #include <cstdint>
 #include <cstdio>
 #include <memory>
@@ -19,8 +20,9 @@
 namespace haptic::firmware {
 
 // The scenario part: name, users, dt_s, duration_s, seed, topology (1-based), scene size, margin,
-// loss allowance, deadband, script times and the metrics windows (what the merge needs to take
-// the same metrics from the stations' records).
+// loss allowance, deadband, script times, the metrics windows (what the merge needs to take
+// the same metrics from the stations' records), the traced node's rest position
+// (trace_node_rest_m: the figures plot displacement from it) and the snapshot times.
 nlohmann::json scenario_json(const BuiltScenario& b);
 // The keys scenario_json() writes (the merge copies them from station-<id>.json).
 const std::vector<std::string>& scenario_json_keys();
@@ -60,6 +62,20 @@ void write_trace_header(std::FILE* f);
 void write_trace_row(std::FILE* f, const TraceRow& r);
 void write_series_header(std::FILE* f);
 void write_series_row(std::FILE* f, const SeriesRow& r);
+
+// The times of the snapshot figure: start, end of the push, mid-hold, release and end for a
+// push-hold-release script; otherwise start, end of the perturbation and end.
+std::vector<double> snapshot_times_s(const ScenarioSpec& s);
+// snapshots.json: every copy (x, 3n values) and every proxy at one time.
+struct Snapshot {
+  double t_s = 0;
+  std::vector<std::vector<double>> x_m;
+  std::vector<std::array<double, 3>> vp_m;
+};
+// Writes snapshots.json (the scene's surface triangles, each user's contact nodes, the snapshots)
+// for the simulator and the merge alike; throws std::runtime_error naming the file.
+void write_snapshots_json(const std::string& path, const std::vector<std::array<int, 3>>& surface,
+                          const std::vector<std::vector<int>>& contact_nodes, const std::vector<Snapshot>& snapshots);
 
 // A file opened for writing, closed when it goes; open_out_file throws std::runtime_error naming it.
 struct FileCloser {

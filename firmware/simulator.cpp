@@ -95,7 +95,7 @@ struct Simulation {
   std::optional<double> diverged_at_s;
   double d2 = 0;
   OutFile trace, series;
-  nlohmann::json snapshots = nlohmann::json::array();
+  std::vector<Snapshot> snapshots;
   std::vector<double> snap_times;
   std::size_t next_snap = 0;
   int last_pct = -1;
@@ -264,14 +264,15 @@ void write_trace(Simulation& s, std::int64_t k, const SeriesRow& row) {
 // Node positions of every copy and every proxy at the requested times.
 void take_snapshots(Simulation& s, double t_next) {
   while (s.next_snap < s.snap_times.size() && t_next >= s.snap_times[s.next_snap] - 1e-9) {
-    nlohmann::json copies = nlohmann::json::array(), vps = nlohmann::json::array();
+    Snapshot sn;
+    sn.t_s = t_next;
     for (int i = 0; i < s.N; ++i) {
       const auto& x = s.st[static_cast<std::size_t>(i)]->x();
-      copies.push_back(std::vector<double>(x.data(), x.data() + s.dofs));
+      sn.x_m.emplace_back(x.data(), x.data() + s.dofs);
       const auto& y = s.st[static_cast<std::size_t>(i)]->vp_position_m();
-      vps.push_back({y[0], y[1], y[2]});
+      sn.vp_m.push_back({y[0], y[1], y[2]});
     }
-    s.snapshots.push_back({{"t_s", t_next}, {"x_m", copies}, {"vp_m", vps}});
+    s.snapshots.push_back(std::move(sn));
     ++s.next_snap;
   }
 }
@@ -319,13 +320,8 @@ SimResult finish(Simulation& s, std::int64_t ticks_run) {
   }
   for (auto& recorder : s.rec) recorder->finish();
   r.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - s.wall0).count();
-  if (!s.opt.out_dir.empty() && !s.snap_times.empty()) {
-    nlohmann::json js;
-    js["surface"] = s.b.scene.mesh.surface;
-    js["contact_nodes"] = s.b.contact_nodes;
-    js["snapshots"] = s.snapshots;
-    std::ofstream(s.opt.out_dir + "/snapshots.json") << js.dump();
-  }
+  if (!s.opt.out_dir.empty() && !s.snap_times.empty())
+    write_snapshots_json(s.opt.out_dir + "/snapshots.json", s.b.scene.mesh.surface, s.b.contact_nodes, s.snapshots);
   return r;
 }
 

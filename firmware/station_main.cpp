@@ -12,6 +12,7 @@
 #include <string>
 
 #include "firmware/run_merge.hpp"
+#include "firmware/run_summary.hpp"
 #include "firmware/scenario.hpp"
 #include "firmware/session_replay.hpp"
 #include "firmware/simulator.hpp"
@@ -310,11 +311,7 @@ int sim_command(const SimArgs& a) {
     opt.progress = !a.quiet;
     opt.record = a.record;
     opt.command_line = a.command_line;
-    const auto& sc = spec.script;
-    if (sc.kind == UserScriptSpec::Kind::kPushHoldRelease)
-      opt.snapshot_times_s = {0.0, sc.push_end_s, 0.5 * (sc.push_end_s + sc.release_s), sc.release_s, spec.duration_s};
-    else
-      opt.snapshot_times_s = {0.0, sc.perturb_at_s + sc.perturb_duration_s, spec.duration_s};
+    opt.snapshot_times_s = snapshot_times_s(spec);
     if (!a.quiet) {
       std::cerr << "haptic-station sim: scenario " << spec.name << ", " << spec.users << " users, " << built.scene.nodes
                 << " nodes, " << spec.duration_s << " s, seed " << spec.seed << "\n  B_i used (N s/m):";
@@ -326,7 +323,7 @@ int sim_command(const SimArgs& a) {
     const SimResult r = run_simulation(built, opt);
     write_summary_json(a.out + "/summary.json", built, r);
     std::cout << sim_result_line(spec.name, r) << "\n";
-    std::cout << "wrote " << a.out << "/summary.json, trace.csv, series.csv\n";
+    std::cout << "wrote " << a.out << "/summary.json, trace.csv, series.csv, snapshots.json\n";
     if (a.record) std::cout << "wrote " << a.out << "/station-<i>.h5 (session logs)\n";
     if (!a.no_plots && make_plots(a.out)) std::cout << "wrote " << a.out << "/*.png\n";
     if (a.view_port > 0) {
@@ -356,7 +353,7 @@ CLI::App* add_merge_options(CLI::App& app, std::string& dir) {
 int merge_command(const std::string& dir) {
   try {
     const auto summary = merge_run(dir);
-    std::cout << "haptic-station merge: " << merge_result_line(summary) << "\nwrote " << dir << "/summary.json, trace.csv, series.csv\n";
+    std::cout << "haptic-station merge: " << merge_result_line(summary) << "\nwrote " << dir << "/summary.json, trace.csv, series.csv, snapshots.json\n";
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "haptic-station merge: error: " << e.what() << "\n";
@@ -373,7 +370,7 @@ int main(int argc, char** argv) {
       "  sim  run N stations in one process in simulated time over the paper's stochastic network\n"
       "  run  run one station in real time over real sockets (--config FILE.toml)\n"
       "  replay  re-run a station's core from its session log, bit-exactly (LOG.h5)\n"
-      "  merge  merge the outputs of N run processes into the simulator's summary.json, trace.csv, series.csv"};
+      "  merge  merge the outputs of N run processes into the simulator's summary.json, trace.csv, series.csv, snapshots.json"};
   app.require_subcommand(1);
 
   SimArgs sim_args;

@@ -20,6 +20,8 @@ json station_scenario_json(const StationPlan& p) {
   json j = scenario_json(b);
   j["station"] = p.station_id;
   j["x_d"] = std::vector<double>(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs);
+  j["scene_surface"] = b.scene.mesh.surface;                     // for the merge's snapshots.json
+  j["contact_nodes"] = b.contact_nodes[static_cast<std::size_t>(p.me)];
   j["transport"] = p.net.transport;
   j["impairment_preset"] = p.file.impairment_preset;
   j["epoch_monotonic_s"] = static_cast<double>(p.times.epoch_ns) * 1e-9;

@@ -38,3 +38,7 @@ print("run4 check: consensus time %s s, final error %.4f mm, B %s (min %s), pack
 if fail:
     print("FAILED: " + "; ".join(fail)); sys.exit(1)
 PY
+# The real run gets the simulator's figures (one summary/series/snapshots writer), checked alike.
+if [ "$mode" = udp ] && /usr/bin/python3 -c 'import matplotlib' 2>/dev/null; then
+  /usr/bin/python3 "$repo/tools/plots/check_figures.py" "$out"
+fi

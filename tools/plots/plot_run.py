@@ -3,9 +3,11 @@
 
 usage: /usr/bin/python3 tools/plots/plot_run.py RUN_DIR
 
-Reads RUN_DIR/trace.csv, series.csv, summary.json and (if present) snapshots.json and writes
-fig_node_position.png, fig_device_force.png, fig_energy.png, fig_consensus.png and
-fig_snapshots.png into RUN_DIR.
+Reads RUN_DIR/trace.csv, series.csv, summary.json and (if present) snapshots.json, written alike by
+`haptic-station sim` and by `haptic-station merge` after a real (multi-process) run, and writes
+fig_node_position.png (the traced node's displacement from rest), fig_device_force.png,
+fig_energy.png, fig_consensus.png and fig_snapshots.png (the copies coloured by their distance
+from the consensus shape) into RUN_DIR.
 """
 import json
 import os
@@ -16,131 +18,244 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib import cm, colors  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+
+MAX_COPIES_DRAWN = 8  # a 64-user run: the snapshot figure draws users 1-8 (the consensus shape uses all)
 
 
 def load_csv(path):
-    data = np.genfromtxt(path, delimiter=",", names=True)
-    return data
+    return np.genfromtxt(path, delimiter=",", names=True)
 
 
-def main(run):
-    summary = json.load(open(os.path.join(run, "summary.json")))
-    tr = load_csv(os.path.join(run, "trace.csv"))
-    se = load_csv(os.path.join(run, "series.csv"))
+def run_title(summary):
     users = int(summary["users"])
-    title = "%s: %s, B = (%s) N s/m" % (
-        summary["scenario"],
-        "topology " + " ".join("%d-%d" % tuple(l) for l in summary["topology"]),
-        ", ".join("%.1f" % b for b in summary["damping_Ns_per_m"]),
-    )
+    b = summary["damping_Ns_per_m"]
     if users > 8:  # a long title would cover the figure
-        b = summary["damping_Ns_per_m"]
-        title = "%s: %d users, %d links, B = %.1f..%.1f N s/m" % (summary["scenario"], users, len(summary["topology"]), min(b), max(b))
-    rel = summary.get("release_time_s", None)
+        return "%s: %d users, %d links, B = %.1f..%.1f N s/m" % (summary["scenario"], users, len(summary["topology"]), min(b), max(b))
+    return "%s: %s, B = (%s) N s/m" % (summary["scenario"], "topology " + " ".join("%d-%d" % tuple(l) for l in summary["topology"]),
+                                       ", ".join("%.1f" % x for x in b))
 
-    def mark(ax):
-        if rel:
-            ax.axvline(rel, color="0.6", ls="--", lw=0.8)
 
-    # Node position per user (Fig. 8/9 middle, Fig. 10)
-    fig, ax = plt.subplots(figsize=(8, 3.6))
+def script_lines(summary):
+    """The script's event times drawn on every time axis: (time, label, colour)."""
+    out = []
+    push_end, rel = summary.get("push_end_s"), summary.get("release_time_s")
+    if push_end and (not rel or push_end < rel):
+        out.append((push_end, "push ends %.3g s" % push_end, "0.55"))
+    if rel and rel < summary.get("simulated_s", summary.get("duration_s", rel + 1)):
+        out.append((rel, "release %.3g s" % rel, "tab:purple"))
+    return out
+
+
+def mark_events(ax, summary, label_them=True, at="top"):
+    """Vertical lines at the script's events, each labelled next to the line (at the top or bottom)."""
+    for t, label, c in script_lines(summary):
+        ax.axvline(t, color=c, ls="--", lw=0.9)
+        if label_them:
+            y, va = (0.98, "top") if at == "top" else (0.02, "bottom")
+            ax.annotate(label, xy=(t, y), xycoords=("data", "axes fraction"), xytext=(3, 0), textcoords="offset points",
+                        rotation=90, va=va, ha="left", fontsize=7, color=c)
+
+
+def contact_owner(node, contacts):
+    """Which users' contact meshes hold `node` (1-based), from snapshots.json."""
+    return [u + 1 for u, c in enumerate(contacts or []) if node in c]
+
+
+def fig_node(summary, tr, contacts):
+    users = int(summary["users"])
+    node = int(summary.get("trace_node", 0))
+    rest = summary.get("trace_node_rest_m")
+    fig, ax = plt.subplots(figsize=(8, 3.8))
     for u in range(1, users + 1):
         m = tr["user"] == u
-        ax.plot(tr["t_s"][m], 1e3 * tr["node_x_m"][m], lw=1, label="user %d" % u)
-    mark(ax)
+        x = tr["node_x_m"][m]
+        x0 = rest[0] if rest is not None else (x[0] if len(x) else 0.0)
+        ax.plot(tr["t_s"][m], 1e3 * (x - x0), lw=1, label="user %d's copy" % u)
+    ax.axhline(0, color="0.8", lw=0.6)
+    mark_events(ax, summary)
+    owners = contact_owner(node, contacts)
+    where = ", on the contact mesh of user %s" % ", ".join(map(str, owners)) if owners else ""
+    ref = "rest" if rest is not None else "its first sample"
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("node x-position (mm)")
-    ax.set_title(title, fontsize=9)
+    ax.set_ylabel("x-displacement of node %d\nfrom %s (mm)" % (node, ref))
+    ax.set_title("%s\nnode %d (0-based index%s): x-displacement from %s, every user's copy" % (run_title(summary), node, where, ref), fontsize=9)
     if users <= 8:
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
-    fig.savefig(os.path.join(run, "fig_node_position.png"), dpi=110)
-    plt.close(fig)
+    return fig
 
-    # Device force per user and their sum (x-axis), and |sum|
+
+def fig_force(summary, tr, se):
+    users = int(summary["users"])
     fig, axs = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     for u in range(1, users + 1):
         m = tr["user"] == u
         axs[0].plot(tr["t_s"][m], tr["force_x_N"][m], lw=1, label="u_x user %d" % u)
     axs[0].plot(se["t_s"], se["force_sum_x_N"], "k", lw=1.2, label="sum u_x")
     axs[0].set_ylabel("device force x (N)")
-    axs[0].legend(fontsize=7, ncol=3) if users <= 8 else None
-    axs[0].set_title(title, fontsize=9)
+    if users <= 8:
+        axs[0].legend(fontsize=7, ncol=3, loc="lower right")
+    axs[0].set_title(run_title(summary), fontsize=9)
     axs[1].plot(se["t_s"], se["force_sum_norm_N"], "k", lw=1)
     axs[1].set_ylabel("|sum_i u_i| (N)")
     axs[1].set_xlabel("time (s)")
-    for a in axs:
-        mark(a)
+    mark_events(axs[0], summary)
+    mark_events(axs[1], summary, label_them=False)
     fig.tight_layout()
-    fig.savefig(os.path.join(run, "fig_device_force.png"), dpi=110)
-    plt.close(fig)
+    return fig
 
-    # Energies: port (13) and controller (14)
+
+def fig_energy(summary, tr, se):
+    users = int(summary["users"])
     fig, axs = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     for u in range(1, users + 1):
         m = tr["user"] == u
         axs[0].plot(tr["t_s"][m], 1e3 * tr["port_energy_J"][m], lw=1, label="user %d" % u)
     axs[0].plot(se["t_s"], 1e3 * se["port_energy_total_J"], "k", lw=1.4, label="total")
-    axs[0].axhline(-1e3 * summary["passivity_bound_J"], color="r", ls=":", lw=1, label="-d^2 (eq. 13)")
+    bound = -1e3 * summary["passivity_bound_J"]
+    axs[0].axhline(bound, color="r", ls=":", lw=1, label="-d^2 (eq. 13)")
+    axs[0].annotate("passivity bound -d^2 = %.3g mJ (eq. 13)" % bound, xy=(0.01, bound), xycoords=("axes fraction", "data"),
+                    xytext=(0, 3), textcoords="offset points", fontsize=7, color="r")
     axs[0].set_ylabel("port energy sum v^T f T (mJ)")
-    axs[0].legend(fontsize=7, ncol=3) if users <= 8 else None
-    axs[0].set_title(title, fontsize=9)
+    if users <= 8:
+        axs[0].legend(fontsize=7, ncol=3, loc="lower right")
+    axs[0].set_title(run_title(summary), fontsize=9)
     axs[1].plot(se["t_s"], 1e3 * se["controller_energy_total_J"], "k", lw=1.2, label="consensus controller (eq. 14)")
     axs[1].set_ylabel("controller energy (mJ)")
     axs[1].set_xlabel("time (s)")
     axs[1].legend(fontsize=7)
-    for a in axs:
-        mark(a)
+    mark_events(axs[0], summary)
+    mark_events(axs[1], summary, label_them=False)
     fig.tight_layout()
-    fig.savefig(os.path.join(run, "fig_energy.png"), dpi=110)
-    plt.close(fig)
+    return fig
 
-    # Consensus error and deformation
-    fig, ax = plt.subplots(figsize=(8, 3.6))
-    err = np.maximum(se["consensus_error_m"], 1e-15)
-    ax.semilogy(se["t_s"], 1e3 * err, lw=1, label="consensus error max |x_i - x_j| (mm)")
-    ax.semilogy(se["t_s"], 1e3 * np.maximum(se["deformation_m"], 1e-15), lw=1, label="shape deformation, rms (mm)")
-    ax.axhline(1.0, color="0.5", ls=":", lw=0.8)
-    mark(ax)
+
+def threshold_lines(summary):
+    """Horizontal lines of the consensus metrics (m): (value, label, colour, style)."""
+    w = summary.get("metrics_windows", {})
+    out = [(w.get("consensus_threshold_m", 1e-3), "consensus threshold %.3g mm", "0.35", ":")]
+    at_rel = summary.get("consensus_error_at_release_m")
+    if at_rel:
+        out.append((0.1 * at_rel, "10 %% of the error at release: %.3g mm", "tab:green", "-."))
+        out.append((0.01 * at_rel, "1 %% of the error at release: %.3g mm", "tab:olive", "-."))
+    return out
+
+
+def fig_consensus(summary, se):
+    fig, ax = plt.subplots(figsize=(8, 3.8))
+    floor = 1e-15
+    ax.semilogy(se["t_s"], 1e3 * np.maximum(se["consensus_error_m"], floor), lw=1, label="consensus error max |x_i - x_j|")
+    ax.semilogy(se["t_s"], 1e3 * np.maximum(se["deformation_m"], floor), lw=1, label="shape deformation, rms")
+    for v, label, c, ls in threshold_lines(summary):
+        ax.axhline(1e3 * v, color=c, ls=ls, lw=0.9)
+        ax.annotate(label % (1e3 * v), xy=(0.99, 1e3 * v), xycoords=("axes fraction", "data"), xytext=(0, 2), textcoords="offset points",
+                    fontsize=7, color=c, ha="right")
+    mark_events(ax, summary, at="bottom")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("mm")
-    ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=8)
+    ax.set_title(run_title(summary), fontsize=9)
+    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(0.005, 0.35))
     fig.tight_layout()
-    fig.savefig(os.path.join(run, "fig_consensus.png"), dpi=110)
-    plt.close(fig)
+    return fig
 
+
+def consensus_distance_mm(copies):
+    """Per copy and node: distance (mm) from the consensus shape, the mean of all copies."""
+    x = np.asarray(copies, dtype=float).reshape(len(copies), -1, 3)
+    return 1e3 * np.linalg.norm(x - x.mean(axis=0), axis=2)
+
+
+def nice_factor(v):
+    """The smallest of 1, 2, 5 x 10^k at or above v (at least 1)."""
+    if v <= 1:
+        return 1
+    e = 10 ** np.floor(np.log10(v))
+    return int(next(f * e for f in (1, 2, 5, 10) if f * e >= v - 1e-9))
+
+
+def snapshot_geometry(sn):
+    """Drawn positions (mm): the start shape plus each copy's deformation (its shape relative to its
+    centroid, minus the start shape's) scaled by an exaggeration factor shown in the title."""
+    snaps = sn["snapshots"]
+    ref = np.array(snaps[0]["x_m"][0]).reshape(-1, 3)
+    ref_c = ref - ref.mean(axis=0)
+    radius = np.linalg.norm(ref_c, axis=1).max()
+    defo = [[(np.array(x).reshape(-1, 3) - np.array(x).reshape(-1, 3).mean(axis=0)) - ref_c for x in s["x_m"]] for s in snaps]
+    biggest = max(np.linalg.norm(d, axis=1).max() for ds in defo for d in ds)
+    factor = nice_factor(0.15 * radius / biggest) if biggest > 0 else 1
+    return ref_c, radius, defo, factor
+
+
+def fig_snapshots(summary, sn):
+    snaps, surf, contacts = sn["snapshots"], np.array(sn["surface"]), sn["contact_nodes"]
+    users = int(summary["users"])
+    ref_c, radius, defo, factor = snapshot_geometry(sn)
+    dist = [consensus_distance_mm(s["x_m"]) for s in snaps]
+    vmax = max(max(d.max() for d in dist), 1e-12)
+    norm = colors.Normalize(0, vmax)
+    cmap = plt.get_cmap("viridis")
+    rows, cols = len(snaps), min(users, MAX_COPIES_DRAWN)
+    fig = plt.figure(figsize=(2.3 * cols + 1.0, 2.2 * rows + 0.5))
+    lim = 1e3 * radius * 1.15
+    for r, s in enumerate(snaps):
+        for u in range(cols):
+            ax = fig.add_subplot(rows, cols, r * cols + u + 1, projection="3d", computed_zorder=False)  # markers on top
+            x = 1e3 * (ref_c + factor * defo[r][u])
+            face = dist[r][u][surf].mean(axis=1)
+            ax.add_collection3d(Poly3DCollection(x[surf], facecolors=cmap(norm(face), alpha=0.85), edgecolors="0.25",
+                                                 linewidths=0.15, zorder=1))
+            cn = contacts[u] if u < len(contacts) else []
+            ax.scatter(x[cn, 0], x[cn, 1], x[cn, 2], color="k", s=5, depthshade=False, zorder=3)
+            c = np.array(s["x_m"][u]).reshape(-1, 3).mean(axis=0)
+            vp = 1e3 * (np.array(s["vp_m"][u]) - c)
+            ax.scatter([vp[0]], [vp[1]], [vp[2]], color="r", s=12, depthshade=False, zorder=4)
+            for setlim in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
+                setlim(-lim, lim)
+            ax.set_box_aspect((1, 1, 1))
+            ticks = [-round(radius * 1e3), 0, round(radius * 1e3)]
+            ax.set_xticks(ticks), ax.set_yticks(ticks), ax.set_zticks(ticks)
+            ax.tick_params(labelsize=5, pad=-2)
+            if r == rows - 1 and u == 0:
+                ax.set_xlabel("x (mm)", fontsize=6, labelpad=-8)
+                ax.set_ylabel("y (mm)", fontsize=6, labelpad=-8)
+                ax.set_zlabel("z (mm)", fontsize=6, labelpad=-8)
+            if r == 0:
+                ax.set_title("user %d's copy" % (u + 1), fontsize=8)
+            if u == 0:
+                ax.text2D(-0.18, 0.5, "t = %.2f s\nmax %.2g mm" % (s["t_s"], dist[r].max()), transform=ax.transAxes, fontsize=7,
+                          rotation=90, va="center", ha="center")
+    fig.subplots_adjust(left=0.06, right=0.86, bottom=0.03, top=0.92, wspace=0.05, hspace=0.12)
+    cax = fig.add_axes([0.89, 0.15, 0.02, 0.7])
+    cb = fig.colorbar(cm.ScalarMappable(norm=norm, cmap=cmap), cax=cax)
+    cb.set_label("distance from the consensus shape\n(mean of the %d copies), mm" % users, fontsize=7)
+    cb.ax.tick_params(labelsize=6)
+    fig.suptitle("%s\ncopies about their centroids (mm), deformation x%d; colour: distance from the consensus shape;"
+                 " VP red, contact nodes black" % (run_title(summary), factor), fontsize=8)
+    return fig
+
+
+def figures(run):
+    """The run's figures as {file name: matplotlib Figure} (tests inspect them)."""
+    summary = json.load(open(os.path.join(run, "summary.json")))
+    tr = load_csv(os.path.join(run, "trace.csv"))
+    se = load_csv(os.path.join(run, "series.csv"))
     snap_path = os.path.join(run, "snapshots.json")
-    if os.path.exists(snap_path):
-        sn = json.load(open(snap_path))
-        snaps = sn["snapshots"]
-        surf = np.array(sn["surface"])
-        contacts = sn["contact_nodes"]
-        if snaps:
-            x0 = np.array(snaps[0]["x_m"][0]).reshape(-1, 3)
-            rows, cols = len(snaps), min(users, 8)  # at most 8 copies drawn (a 64-user run: users 1-8)
-            fig = plt.figure(figsize=(2.2 * cols, 2.1 * rows))
-            for r, s in enumerate(snaps):
-                for u in range(cols):
-                    ax = fig.add_subplot(rows, cols, r * cols + u + 1, projection="3d")
-                    x = np.array(s["x_m"][u]).reshape(-1, 3)
-                    c = x.mean(axis=0)
-                    xe = c + (x0 - x0.mean(axis=0)) + 10.0 * ((x - c) - (x0 - x0.mean(axis=0)))  # deformation x3
-                    ax.plot_trisurf(xe[:, 0], xe[:, 1], xe[:, 2], triangles=surf, color="0.85", edgecolor="0.4", lw=0.2, alpha=0.8)
-                    cn = contacts[u]
-                    ax.scatter(xe[cn, 0], xe[cn, 1], xe[cn, 2], color="k", s=6)
-                    vp = np.array(s["vp_m"][u])
-                    vpe = c + (vp - c)
-                    ax.scatter([vpe[0]], [vpe[1]], [vpe[2]], color="r", s=10)
-                    ax.set_axis_off()
-                    if r == 0:
-                        ax.set_title("user %d" % (u + 1), fontsize=8)
-                    if u == 0:
-                        ax.text2D(-0.1, 0.5, "t=%.1f s" % s["t_s"], transform=ax.transAxes, fontsize=8, rotation=90)
-            fig.suptitle(title + " (deformation x10, VP red, contact nodes black)", fontsize=8)
-            fig.tight_layout()
-            fig.savefig(os.path.join(run, "fig_snapshots.png"), dpi=100)
-            plt.close(fig)
+    sn = json.load(open(snap_path)) if os.path.exists(snap_path) else None
+    out = {"fig_node_position.png": fig_node(summary, tr, sn["contact_nodes"] if sn else None),
+           "fig_device_force.png": fig_force(summary, tr, se),
+           "fig_energy.png": fig_energy(summary, tr, se),
+           "fig_consensus.png": fig_consensus(summary, se)}
+    if sn and sn["snapshots"]:
+        out["fig_snapshots.png"] = fig_snapshots(summary, sn)
+    return out
+
+
+def main(run):
+    for name, fig in figures(run).items():
+        fig.savefig(os.path.join(run, name), dpi=100 if name == "fig_snapshots.png" else 110)
+        plt.close(fig)
 
 
 if __name__ == "__main__":

@@ -133,11 +133,11 @@ def main(out):
             continue
         w("## %s" % name)
         w("")
-        for fig, cap in (("fig_node_position.png", "node position per user (paper Figs. 8-10, middle)"),
+        for fig, cap in (("fig_node_position.png", "the traced node's x-displacement from rest in every copy (paper Figs. 8-10, middle)"),
                          ("fig_device_force.png", "device force per user and their sum"),
                          ("fig_energy.png", "port energy (13) and controller energy (14)"),
                          ("fig_consensus.png", "consensus error and deformation"),
-                         ("fig_snapshots.png", "the four copies at key times (deformation x10)")):
+                         ("fig_snapshots.png", "the four copies at key times, coloured by distance from the consensus shape")):
             if os.path.exists(os.path.join(out, name, fig)):
                 w("![%s: %s](%s/%s)" % (name, cap, name, fig))
                 w("")

@@ -1,0 +1,123 @@
+#!/usr/bin/python3
+"""Checks the figures plot_run.py draws for RUN_DIR against the run's own files (issue 16 item 4),
+then writes them (PNG) like plot_run.py does.
+
+usage: /usr/bin/python3 tools/plots/check_figures.py RUN_DIR
+
+- all five figures exist (a real run's merged directory as well as a simulated one);
+- the node figure names the traced node and plots its x-DISPLACEMENT from rest:
+  1e3 (node_x - rest_x) of trace.csv per user, not its position;
+- the release and push-end lines and the consensus threshold carry text labels;
+- the snapshot figure has axes ticks in mm, a colour bar, and colours each surface triangle by the
+  mean distance of its corners from the consensus shape (the mean of ALL copies, recomputed here
+  from snapshots.json), on one scale for the whole figure.
+Exit 0 when all hold, 1 with every failure listed.
+"""
+import json
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import plot_run  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+
+
+def texts(fig):
+    return [t.get_text() for ax in fig.axes for t in ax.texts]
+
+
+def check_node(fig, summary, tr, fail):
+    ax = fig.axes[0]
+    node = int(summary["trace_node"])
+    if ("node %d" % node) not in ax.get_ylabel() or "displacement" not in ax.get_ylabel():
+        fail.append("node figure's y label %r does not name node %d's displacement" % (ax.get_ylabel(), node))
+    rest_x = summary["trace_node_rest_m"][0]
+    lines = [l for l in ax.get_lines() if l.get_label().startswith("user")]
+    if len(lines) != int(summary["users"]):
+        fail.append("node figure: %d user lines for %d users" % (len(lines), summary["users"]))
+    for u, line in enumerate(lines, start=1):
+        m = tr["user"] == u
+        want = 1e3 * (tr["node_x_m"][m] - rest_x)
+        if not np.allclose(line.get_ydata(), want, rtol=0, atol=1e-9):
+            fail.append("node figure: user %d's line is not 1e3 (node_x - rest_x) (max diff %.3g mm)" % (
+                u, np.max(np.abs(np.asarray(line.get_ydata()) - want))))
+
+
+def check_labels(figs, summary, fail):
+    need = {"fig_node_position.png": ["release"], "fig_consensus.png": ["release", "consensus threshold"],
+            "fig_energy.png": ["passivity bound"]}
+    if summary.get("push_end_s"):
+        need["fig_node_position.png"].append("push ends")
+    for name, words in need.items():
+        t = " | ".join(texts(figs[name]))
+        for w in words:
+            if w not in t:
+                fail.append("%s: no %r label (texts: %s)" % (name, w, t))
+
+
+def expected_face_colours(sn, users, cols):
+    import matplotlib.pyplot as plt
+    from matplotlib import colors
+    surf = np.array(sn["surface"])
+    dist = []
+    for s in sn["snapshots"]:
+        x = np.array(s["x_m"], dtype=float).reshape(users, -1, 3)
+        dist.append(1e3 * np.linalg.norm(x - x.mean(axis=0), axis=2))
+    norm = colors.Normalize(0, max(max(d.max() for d in dist), 1e-12))
+    cmap = plt.get_cmap("viridis")
+    return [[cmap(norm(d[u][surf].mean(axis=1)), alpha=0.85) for u in range(cols)] for d in dist]
+
+
+def check_snapshots(fig, summary, sn, fail):
+    users = int(summary["users"])
+    panels = [ax for ax in fig.axes if hasattr(ax, "get_zlim")]
+    cols = min(users, plot_run.MAX_COPIES_DRAWN)
+    if len(panels) != cols * len(sn["snapshots"]):
+        fail.append("snapshot figure: %d panels for %d snapshots x %d copies" % (len(panels), len(sn["snapshots"]), cols))
+        return
+    if not any("mm" in ax.get_xlabel() for ax in panels) or not all(len(ax.get_xticks()) >= 2 for ax in panels):
+        fail.append("snapshot figure: no axes in mm")
+    bars = [ax for ax in fig.axes if not hasattr(ax, "get_zlim") and "consensus" in ax.get_ylabel()]
+    if not bars:
+        fail.append("snapshot figure: no colour bar labelled with the consensus distance")
+    want = expected_face_colours(sn, users, cols)
+    for i, ax in enumerate(panels):
+        r, u = divmod(i, cols)
+        polys = [c for c in ax.collections if isinstance(c, Poly3DCollection)]
+        got = np.asarray(polys[0].get_facecolor()) if polys else np.zeros((0, 4))
+        exp = np.asarray(want[r][u])
+        # the drawn order is by depth: compare the colours as sorted sets
+        if got.shape != exp.shape or not np.allclose(np.array(sorted(map(tuple, got))), np.array(sorted(map(tuple, exp))), atol=1e-6):
+            fail.append("snapshot figure: t = %.2f s user %d: face colours are not the distance from the consensus shape" % (
+                sn["snapshots"][r]["t_s"], u + 1))
+
+
+def main(run):
+    figs = plot_run.figures(run)
+    summary = json.load(open(os.path.join(run, "summary.json")))
+    tr = plot_run.load_csv(os.path.join(run, "trace.csv"))
+    fail = []
+    for name in ("fig_node_position.png", "fig_device_force.png", "fig_energy.png", "fig_consensus.png", "fig_snapshots.png"):
+        if name not in figs:
+            fail.append("%s not drawn (snapshots.json missing?)" % name)
+    if not fail:
+        check_node(figs["fig_node_position.png"], summary, tr, fail)
+        check_labels(figs, summary, fail)
+        check_snapshots(figs["fig_snapshots.png"], summary, json.load(open(os.path.join(run, "snapshots.json"))), fail)
+    for name, fig in figs.items():
+        fig.savefig(os.path.join(run, name), dpi=100 if name == "fig_snapshots.png" else 110)
+    if fail:
+        print("FAILED (%s):\n  %s" % (run, "\n  ".join(fail)))
+        return 1
+    print("figures ok (%s): %s; node %d displacement, labelled events, snapshot colours = distance from the consensus shape" % (
+        summary.get("mode", "sim"), ", ".join(sorted(figs)), summary["trace_node"]))
+    return 0
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2 or sys.argv[1] in ("-h", "--help"):
+        print(__doc__)
+        sys.exit(0 if len(sys.argv) == 2 else 2)
+    sys.exit(main(sys.argv[1]))

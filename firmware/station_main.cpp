@@ -329,6 +329,8 @@ int sim_command(const SimArgs& a) {
     if (a.view_port > 0) {
       if (!a.record) throw std::invalid_argument("--view-port needs --record (the view replays the recorded session)");
       if (a.view_station < 1 || a.view_station > spec.users) throw std::invalid_argument("--view-station must be 1.." + std::to_string(spec.users));
+      std::signal(SIGINT, on_stop_signal);  // Ctrl-C / SIGTERM end the view and it says what the page showed
+      std::signal(SIGTERM, on_stop_signal);
       serve_timeline(a.out + "/station-" + std::to_string(a.view_station) + ".h5", {}, timeline_options(a.view_port, a.view_bind, a.view_for, "sim"), g_stop);
     }
     return 0;

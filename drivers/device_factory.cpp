@@ -24,21 +24,33 @@ std::string usb_line(const UsbDeviceInfo& d) {
   return buf;
 }
 
-bool try_touch(const DeviceSelection& sel, OpenedDevice& out, const UsbDeviceInfo* usb) {
-  auto dev = std::make_unique<PhantomDevice>(sel.touch, sel.safety);
+// Starts a force-feedback device (Touch or Falcon); how(dev) says how it runs once started. On
+// success it is watched for unplug by its USB identity.
+template <class Dev, class How>
+bool try_haptic(std::unique_ptr<Dev> dev, const char* name, How how, OpenedDevice& out, const UsbDeviceInfo* usb) {
   try {
     dev->start();
   } catch (const std::exception& e) {
-    out.report += std::string("touch: cannot start: ") + e.what() + "\n";
+    out.report += std::string(name) + ": cannot start: " + e.what() + "\n";
     return false;
   }
-  out.report += "touch: started through " + dev->library_path() + "\n";
+  out.report += std::string(name) + ": started " + how(*dev) + "\n";
   if (usb != nullptr && out.monitor) {
     out.monitor->watch(*usb, dev.get());
-    out.report += "touch: unplug detection on " + usb_line(*usb) + "\n";
+    out.report += std::string(name) + ": unplug detection on " + usb_line(*usb) + "\n";
   }
   out.device = std::move(dev);
   return true;
+}
+
+bool try_touch(const DeviceSelection& sel, OpenedDevice& out, const UsbDeviceInfo* usb) {
+  return try_haptic(std::make_unique<PhantomDevice>(sel.touch, sel.safety), "touch",
+                    [](const PhantomDevice& d) { return "through " + d.library_path(); }, out, usb);
+}
+
+bool try_falcon(const DeviceSelection& sel, OpenedDevice& out, const UsbDeviceInfo* usb) {
+  return try_haptic(std::make_unique<FalconDevice>(sel.falcon, sel.safety), "falcon",
+                    [](const FalconDevice&) { return std::string("(firmware loaded, homed; servo through libusb)"); }, out, usb);
 }
 
 bool try_spacemouse(const DeviceSelection& sel, OpenedDevice& out) {
@@ -74,9 +86,9 @@ void use_simulated(const DeviceSelection& sel, OpenedDevice& out) {
 
 OpenedDevice open_device(const DeviceSelection& sel) {
   const std::string& k = sel.kind;
-  if (k != "auto" && k != "touch" && k != "spacemouse" && k != "simulated")
+  if (k != "auto" && k != "touch" && k != "falcon" && k != "spacemouse" && k != "simulated")
     throw std::invalid_argument("device.kind = \"" + k +
-                                "\" is not allowed; allowed: \"auto\", \"touch\", \"spacemouse\", \"simulated\"");
+                                "\" is not allowed; allowed: \"auto\", \"touch\", \"falcon\", \"spacemouse\", \"simulated\"");
   OpenedDevice out;
   if (k == "simulated") {
     use_simulated(sel, out);
@@ -93,14 +105,16 @@ OpenedDevice open_device(const DeviceSelection& sel) {
     out.monitor.reset();
   }
   const UsbDeviceInfo* touch_usb = nullptr;
-  for (const UsbDeviceInfo& d : usb)
-    if (d.kind == DeviceKind::kPhantomTouch) {
-      touch_usb = &d;
-      break;
-    }
+  const UsbDeviceInfo* falcon_usb = nullptr;
+  for (const UsbDeviceInfo& d : usb) {
+    if (d.kind == DeviceKind::kPhantomTouch && touch_usb == nullptr) touch_usb = &d;
+    if (d.kind == DeviceKind::kFalcon && falcon_usb == nullptr) falcon_usb = &d;
+  }
   bool ok = false;
   if (k == "touch" || (k == "auto" && touch_usb != nullptr)) ok = try_touch(sel, out, touch_usb);
   if (!ok && k == "touch") throw DeviceMissing("device.kind = \"touch\": no Touch could be started:\n" + out.report + kMissingHint);
+  if (!ok && (k == "falcon" || (k == "auto" && falcon_usb != nullptr))) ok = try_falcon(sel, out, falcon_usb);
+  if (!ok && k == "falcon") throw DeviceMissing("device.kind = \"falcon\": no Falcon could be started:\n" + out.report + kMissingHint);
   if (!ok && (k == "spacemouse" || k == "auto")) {
     bool have_hid = !sel.spacemouse.hidraw_path.empty();
     for (const HidDeviceInfo& h : list_hid_devices(true)) {
@@ -118,6 +132,7 @@ OpenedDevice open_device(const DeviceSelection& sel) {
 
 std::optional<DeviceCapabilities> published_capabilities(const DeviceSelection& sel) {
   if (sel.kind == "touch") return touch_default_capabilities();
+  if (sel.kind == "falcon") return falcon_capabilities();
   if (sel.kind == "spacemouse") return spacemouse_capabilities(sel.spacemouse);
   if (sel.kind == "simulated") return simulated_capabilities(sel.simulated);
   return std::nullopt;

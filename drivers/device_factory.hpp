@@ -5,11 +5,14 @@
 //                         simulated user: nothing found is a DeviceMissing error
 //   kind = "touch"      : PhantomDevice (OpenHaptics HD library) or DeviceMissing saying what is missing
 //   kind = "spacemouse" : SpaceMouseDevice (position input only, NO force feedback)
+//   kind = "falcon"     : FalconDevice (libusb; needs the firmware file, device.falcon_firmware_path);
+//                         "auto" takes a Falcon found on USB when no Touch started
 //   kind = "simulated"  : SimulatedDevice (owner-stepped: the station must call service()); a
 //                         simulated user is only ever what the configuration asked for
 // A started Touch or SpaceMouse that has a USB identity is watched by a UsbMonitor (hotplug or
 // re-enumeration), so unplugging it puts the device in the safe state.
 #include "drivers/device.hpp"
+#include "drivers/falcon_device.hpp"
 #include "drivers/phantom_device.hpp"
 #include "drivers/simulated_device.hpp"
 #include "drivers/spacemouse.hpp"
@@ -24,8 +27,9 @@
 namespace haptic::drivers {
 
 struct DeviceSelection {
-  std::string kind = "auto";  // drivers key device.kind: "auto" | "touch" | "spacemouse" | "simulated"
+  std::string kind = "auto";  // drivers key device.kind: "auto" | "touch" | "falcon" | "spacemouse" | "simulated"
   PhantomConfig touch{};
+  FalconConfig falcon{};
   SpaceMouseConfig spacemouse{};
   SimulatedDeviceConfig simulated{};
   SafetyLimits safety{};

@@ -9,6 +9,7 @@ constexpr KnownIdentity kTable[] = {
     {0x0301, 0x2988, DeviceKind::kPhantomTouch, "3D Systems Touch, USB model (0301:2988; cdc_acm, /dev/ttyACM*)"},
     {0x2988, 0x0304, DeviceKind::kPhantomTouch, "3D Systems Touch, HID model (2988:0304; /dev/hidraw*)"},
     {0x2988, kAny, DeviceKind::kPhantomTouch, "3D Systems/SensAble device (unlisted model)"},
+    {0x0403, 0xcb48, DeviceKind::kFalcon, "Novint Falcon (FTDI 0403:cb48)"},
     // 3Dconnexion under Logitech's vendor id (product ids from public device lists).
     {0x046d, 0xc603, DeviceKind::kSpaceMouse, "3Dconnexion SpaceMouse Plus XT"},
     {0x046d, 0xc605, DeviceKind::kSpaceMouse, "3Dconnexion CADman"},
@@ -42,6 +43,7 @@ const KnownIdentity* known_identities(int* n) {
 const char* backend_name(DeviceKind kind) {
   switch (kind) {
     case DeviceKind::kPhantomTouch: return "OpenHaptics HD library (libHD.so, dlopen) -> PhantomDevice";
+    case DeviceKind::kFalcon: return "libusb-1.0 -> FalconDevice (open code from libnifalcon's public protocol description; firmware file from device.falcon_firmware_path)";
     case DeviceKind::kSpaceMouse: return "hidapi/hidraw -> SpaceMouseDevice (position input only, NO force feedback)";
     case DeviceKind::kUnknown: break;
   }

@@ -6,6 +6,8 @@
 //    vendor 0x2988 is reported as "unlisted model".
 //  - 3Dconnexion SpaceMouse family: vendor 0x256f (3Dconnexion) any product; vendor 0x046d
 //    (Logitech, older 3Dconnexion devices) only the product ids listed in usb_ids.cpp.
+//  - Novint Falcon: 0403:cb48 (its FTDI FT232 USB-serial chip with Novint's product id, as the
+//    public libnifalcon sources give it).
 #include <cstdint>
 
 namespace haptic::drivers {
@@ -14,6 +16,7 @@ enum class DeviceKind : std::uint8_t {
   kUnknown = 0,
   kPhantomTouch,  // servo through the OpenHaptics HD library (PhantomDevice)
   kSpaceMouse,    // position input through hidapi, no force feedback (SpaceMouseDevice)
+  kFalcon,        // servo through libusb, our own driver (FalconDevice)
 };
 
 struct KnownIdentity {

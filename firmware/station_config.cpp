@@ -99,17 +99,23 @@ void parse_scene_section(View root, StationFile& f) {
 
 void parse_device_section(View root, StationFile& f) {
   const View dv = root["device"];
-  only_keys(dv, "device", {"kind", "hd_library_path", "hd_device_name", "hidraw_path", "max_force_N", "max_power_W", "max_speed_m_per_s", "max_stale_reads",
+  only_keys(dv, "device", {"kind", "hd_library_path", "hd_device_name", "hidraw_path", "falcon_firmware_path", "falcon_index",
+                          "falcon_homing_timeout_s", "max_force_N", "max_power_W", "max_speed_m_per_s", "max_stale_reads",
                           "max_reads_before_first_sample", "workspace_margin", "sim_max_force_N", "damping_Ns_per_m", "coupling_stiffness_N_per_m",
                           "coupling_damping_Ns_per_m", "proxy_damping_Ns_per_m", "map_offset_m", "map_rotation_deg", "map_scale",
                           "ramp_in_s"});
   DeviceSection& d = f.device;
   d.kind = text(dv["kind"], "device.kind", "auto");
-  if (d.kind != "auto" && d.kind != "touch" && d.kind != "spacemouse" && d.kind != "simulated")
-    bad("device.kind", "\"auto\", \"touch\", \"spacemouse\" or \"simulated\"");
+  if (d.kind != "auto" && d.kind != "touch" && d.kind != "falcon" && d.kind != "spacemouse" && d.kind != "simulated")
+    bad("device.kind", "\"auto\", \"touch\", \"falcon\", \"spacemouse\" or \"simulated\"");
   d.hd_library_path = text(dv["hd_library_path"], "device.hd_library_path", "");
   d.hd_device_name = text(dv["hd_device_name"], "device.hd_device_name", "");
   d.hidraw_path = text(dv["hidraw_path"], "device.hidraw_path", "");
+  d.falcon_firmware_path = text(dv["falcon_firmware_path"], "device.falcon_firmware_path", "");
+  d.falcon_index = static_cast<int>(integer(dv["falcon_index"], "device.falcon_index", 0, 0, 15));
+  d.falcon_homing_timeout_s = real(dv["falcon_homing_timeout_s"], "device.falcon_homing_timeout_s", 30.0, 1e-3, 600);
+  if (d.kind == "falcon" && d.falcon_firmware_path.empty())
+    bad("device.falcon_firmware_path", "the Novint firmware file (loaded at every start; not shipped) when device.kind = \"falcon\"");
   d.max_force_N = real(dv["max_force_N"], "device.max_force_N", 1e9, 1e-6, 1e12);
   d.max_stale_reads = static_cast<int>(integer(dv["max_stale_reads"], "device.max_stale_reads", 5, 1, 100000));
   d.max_reads_before_first_sample =

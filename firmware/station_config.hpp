@@ -75,12 +75,15 @@
 //   youngs_modulus_Pa = 0            # 0 = the paper ball's (mean edge spring 100 N/m), [0, 1e12]
 //   max_elements = 200000            # refuse bigger meshes (tetrahedra), [4, 1e6]
 //   [device]                         (drivers/: device_factory.hpp)
-//   kind = "auto"                    # "auto" (first Touch, else SpaceMouse) | "touch" | "spacemouse" | "simulated".
+//   kind = "auto"                    # "auto" (first Touch, else Falcon, else SpaceMouse) | "touch" | "falcon" | "spacemouse" | "simulated".
 //                                    # A device that cannot be started is an error (exit 9), never a silent simulated
 //                                    # user; "simulated" (the scenario's scripted user) is a warning and in the summary
 //   hd_library_path = ""             # the vendor's OpenHaptics libHD.so; "" = $HAPTIC_HD_LIBRARY, else "libHD.so"
 //   hd_device_name = ""              # OpenHaptics device configuration name; "" = the default device
 //   hidraw_path = ""                 # SpaceMouse hidraw node; "" = the first SpaceMouse found
+//   falcon_firmware_path = ""        # Novint Falcon: the firmware file loaded at every start (not shipped); required
+//   falcon_index = 0                 # which Falcon on USB (0 = the first 0403:cb48), [0, 15]
+//   falcon_homing_timeout_s = 30     # the user homes the grip (all the way out, straight in) within this, (0, 600]
 //   max_force_N = 1e9                # extra output clamp below the device's own limit, > 0
 //   max_power_W = 3.0                # cap on F.v into the hand, [0, 1000], 0 disables
 //   max_speed_m_per_s = 3.0          # a faster sample is out of range (safe state), (0, 1000]
@@ -89,7 +92,7 @@
 //   workspace_margin = 1.5           # |p| beyond this x the device's workspace radius is out of range, [1, 100]
 //   sim_max_force_N = 3.3            # simulated device capability, (0, 1000]
 //   damping_Ns_per_m = -1            # the device's damping b_d for eq. (26), [0, 1000]; -1 = the figure the device
-//                                    # publishes (simulated: the model's); REQUIRED for a Touch (none published): measured
+//                                    # publishes (simulated: the model's); REQUIRED for a Touch or Falcon (none published): measured
 //   coupling_stiffness_N_per_m = -1  # K_vc of the virtual coupling (Section III-C), (0, 1e6]; -1 = the scenario's (200)
 //   coupling_damping_Ns_per_m = -1   # B_vc, [0, 1e4]; -1 = the scenario's (0)
 //   proxy_damping_Ns_per_m = -1      # b_v, extra damping of the virtual proxy, [0, 1e4]; -1 = the scenario's (2)
@@ -177,6 +180,9 @@ struct DeviceSection {
   std::string hd_library_path;
   std::string hd_device_name;
   std::string hidraw_path;
+  std::string falcon_firmware_path;
+  int falcon_index = 0;
+  double falcon_homing_timeout_s = 30.0;
   double max_force_N = 1e9;
   double max_power_W = 3.0;
   double max_speed_m_per_s = 3.0;

@@ -81,6 +81,9 @@ drivers::DeviceSelection device_selection(const StationFile& f, const BuiltScena
   sel.touch.hd_library_path = f.device.hd_library_path;
   sel.touch.device_name = f.device.hd_device_name;
   sel.spacemouse.hidraw_path = f.device.hidraw_path;
+  sel.falcon.firmware_path = f.device.falcon_firmware_path;
+  sel.falcon.index = f.device.falcon_index;
+  sel.falcon.homing_timeout_s = f.device.falcon_homing_timeout_s;
   sel.simulated.device = built.spec.device;
   sel.simulated.hand = built.spec.hand;
   sel.simulated.script = built.goal_script(me);

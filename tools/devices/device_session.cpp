@@ -8,6 +8,7 @@
 #include <string>
 #include <thread>
 
+#include "drivers/falcon_device.hpp"
 #include "drivers/phantom_device.hpp"
 #include "drivers/workspace_map.hpp"
 
@@ -34,10 +35,11 @@ class Pacer {
   Clock::time_point t0_, next_;
 };
 
-// The backend's own servo frame count (Touch through the HD library), 0 when it has none.
+// The backend's own servo frame count (Touch: HD scheduler frames; Falcon: USB exchanges), 0 when it has none.
 std::uint64_t frames_of(const drivers::HapticDevice& dev) {
-  const auto* p = dynamic_cast<const drivers::PhantomDevice*>(&dev);
-  return p != nullptr ? p->servo_frames() : 0;
+  if (const auto* p = dynamic_cast<const drivers::PhantomDevice*>(&dev)) return p->servo_frames();
+  if (const auto* f = dynamic_cast<const drivers::FalconDevice*>(&dev)) return f->servo_frames();
+  return 0;
 }
 
 int report_fault(const drivers::HapticDevice& dev, std::ostream& out) {

@@ -154,6 +154,10 @@ static int list_devices(bool all, const std::string& hd_path) {
                                                ? "via the HD library (USB used for presence, serial and unplug only)"
                                                : "UNAVAILABLE: the HD library is missing (see above); "
                                                  "the Touch servo protocol is not public and is not reimplemented");
+      } else if (d.kind == DeviceKind::kFalcon) {
+        ++haptic;
+        std::printf("      servo: our libusb driver (protocol as libnifalcon documents it; never tested on a real Falcon);\n"
+                    "             needs the Novint firmware file: device.falcon_firmware_path (--falcon-firmware here)\n");
       } else {
         ++input;
       }
@@ -210,15 +214,18 @@ struct SessionDevice {
   std::string kind = "auto";
   std::string hd_path;
   std::uint32_t max_stale_reads = 5;
+  std::string falcon_firmware;
   const char* command = "";  // "diag" or "map", for messages
 };
 
 void add_device_options(CLI::App* cmd, SessionDevice& d) {
-  cmd->add_option("--kind", d.kind, "device to open: auto (a plugged-in Touch, else a SpaceMouse), touch, spacemouse")
-      ->check(CLI::IsMember({"auto", "touch", "spacemouse"}))
+  cmd->add_option("--kind", d.kind, "device to open: auto (a plugged-in Touch, else a Falcon, else a SpaceMouse), touch, "
+                                    "falcon, spacemouse")
+      ->check(CLI::IsMember({"auto", "touch", "falcon", "spacemouse"}))
       ->capture_default_str();
   cmd->add_option("--hd-library", d.hd_path, "OpenHaptics HD library for a Touch (as device.hd_library_path; "
                                              "default: $HAPTIC_HD_LIBRARY, else libHD.so)");
+  cmd->add_option("--falcon-firmware", d.falcon_firmware, "Novint Falcon firmware file (as device.falcon_firmware_path)");
   cmd->add_option("--max-stale-reads", d.max_stale_reads, "ticks without a new sample before the stale-sample fault "
                                                           "(as device.max_stale_reads)")
       ->check(CLI::Range(1, 100000))
@@ -230,6 +237,7 @@ std::optional<OpenedDevice> open_for_session(const SessionDevice& d) {
   DeviceSelection sel;
   sel.kind = d.kind;
   sel.touch.hd_library_path = d.hd_path;
+  sel.falcon.firmware_path = d.falcon_firmware;
   sel.safety.max_stale_reads = d.max_stale_reads;
   try {
     OpenedDevice opened = open_device(sel);

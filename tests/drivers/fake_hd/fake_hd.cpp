@@ -12,9 +12,14 @@
 //   FAKEHD_PLANT="m,b,c"           after every frame the stylus moves as a mass m (kg) with viscous
 //                                  damping b (N s/m) and Coulomb friction c (N) under the frame's force
 //   FAKEHD_CIRCLE_MM="r"           the stylus circles (radius r mm, 1 turn per second): never still
+//   FAKEHD_FORCE_LOG=path          every frame's force and position are written to path (CSV) at
+//                                  hdDisableDevice, so a test can see what a station sent
 // The plant is a test model with known b (so a b_d measurement can be checked), not a Touch model.
 #include <atomic>
+#include <array>
 #include <chrono>
+#include <string>
+#include <vector>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -67,6 +72,8 @@ struct State {
   bool force_output = false;
   double plant_mass = 0.0, plant_b = 0.0, plant_coulomb = 0.0;  // plant off when mass == 0
   double circle_mm = 0.0;
+  std::string force_log;                  // FAKEHD_FORCE_LOG
+  std::vector<std::array<double, 7>> log; // per frame: CLOCK_MONOTONIC s, force N, position mm
   HDSchedulerCallback cb = nullptr;
   void* cb_data = nullptr;
   HDerror errors[16] = {};
@@ -88,6 +95,10 @@ void read_environment(State& s) {
     std::sscanf(p, "%lf,%lf,%lf", &s.position_mm[0], &s.position_mm[1], &s.position_mm[2]);
   if (const char* p = std::getenv("FAKEHD_PLANT")) std::sscanf(p, "%lf,%lf,%lf", &s.plant_mass, &s.plant_b, &s.plant_coulomb);
   if (const char* c = std::getenv("FAKEHD_CIRCLE_MM")) s.circle_mm = std::atof(c);
+  if (const char* f = std::getenv("FAKEHD_FORCE_LOG")) {
+    s.force_log = f;
+    s.log.reserve(200000);
+  }
 }
 // One 1 ms step of the environment's motion after a frame (semi-implicit Euler). Called with s.mu held.
 void move_stylus(State& s) {
@@ -190,6 +201,9 @@ void hdStartScheduler() {
       {
         std::lock_guard<std::mutex> l2(s.mu);
         run_frames_locked(s, 1);
+        if (!s.force_log.empty() && s.log.size() < 2000000)
+          s.log.push_back({std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(), s.last_force[0],
+                           s.last_force[1], s.last_force[2], s.position_mm[0], s.position_mm[1], s.position_mm[2]});
         move_stylus(s);
       }
       next += std::chrono::milliseconds(1);
@@ -252,6 +266,16 @@ void hdDisableDevice(HHD) {
   State& s = g();
   std::lock_guard<std::mutex> l(s.mu);
   s.initialized = false;
+  if (!s.force_log.empty()) {
+    if (FILE* f = std::fopen(s.force_log.c_str(), "w")) {
+      std::fprintf(f, "frame,t_s,fx_N,fy_N,fz_N,x_mm,y_mm,z_mm\n");
+      for (std::size_t i = 0; i < s.log.size(); ++i)
+        std::fprintf(f, "%zu,%.6f,%.9g,%.9g,%.9g,%.6f,%.6f,%.6f\n", i, s.log[i][0], s.log[i][1], s.log[i][2], s.log[i][3], s.log[i][4],
+                     s.log[i][5], s.log[i][6]);
+      std::fclose(f);
+    }
+    s.log.clear();
+  }
 }
 
 // ---- test controls ---------------------------------------------------------------------------

@@ -61,6 +61,38 @@ std::vector<Eigen::Vector3d> spread_directions(int N, const Eigen::Vector3d& c0)
   return d;
 }
 void assign_pushes(BuiltScenario& b);
+
+// T_i^min, T_i^max and the clock rate per user from the spec's clock model or its explicit bounds
+// (ScenarioSpec). Start-up only.
+void set_step_bounds(BuiltScenario& b) {
+  const ScenarioSpec& s = b.spec;
+  const int N = s.users;
+  const double T = s.period_s;
+  for (int i = 0; i < N; ++i) {
+    const double c = N > 1 ? s.clock_drift_ppm * (2.0 * i / (N - 1) - 1.0) : 0.0;
+    const double rate = 1.0 + c * 1e-6;
+    b.clock_rate.push_back(rate);
+    // wake-to-wake: one grid interval T rate (1 +- F) plus the difference of two wake delays in [0, J]
+    double lo = std::min(T, T * rate * (1 - s.step_jitter) - s.timer_jitter_s);
+    double hi = std::max(T, T * rate * (1 + s.step_jitter) + s.timer_jitter_s);
+    if (s.period_min_s > 0) lo = s.period_min_s;
+    if (s.period_max_s > 0) hi = s.period_max_s;
+    b.t_min_s.push_back(lo);
+    b.t_max_s.push_back(hi);
+  }
+}
+
+// Extra index delay (ticks) the clock model can add to N_ij^k = k_i - seq_j: a late wake of the
+// receiver (timer jitter, at most one tick more), the drift of two clocks over the run
+// (2 ppm T_run / T), and the wander of free-running tick counts (3 sigma of the difference of two
+// sums of i.i.d. steps, sqrt(2 k / 3) F ticks). Start-up only.
+int step_clock_allowance_ticks(const ScenarioSpec& s) {
+  if (!s.has_clock_model()) return 0;
+  const double ticks = s.duration_s / s.period_s;
+  const double drift = 2.0 * s.clock_drift_ppm * 1e-6 * ticks;
+  const double wander = 3.0 * std::sqrt(2.0 * ticks / 3.0) * s.step_jitter;
+  return static_cast<int>(std::ceil(s.timer_jitter_s / s.period_s + drift + wander));
+}
 }  // namespace
 
 std::vector<std::string> scenario_names() { return {"paper-best", "paper-worst", "paper-unstable"}; }
@@ -121,6 +153,11 @@ void ScenarioSpec::validate() const {
   if (loss_allowance_ticks < 0 || loss_allowance_ticks > 1000) bad("loss allowance must be in [0, 1000] ticks");
   if (!(tx_deadband.position_deadband_m >= 0 && tx_deadband.position_deadband_m < 0.1)) bad("--tx-deadband-mm must be in [0, 100)");
   if (tx_deadband.max_interval_ticks < 1 || tx_deadband.max_interval_ticks > 1000) bad("--tx-max-interval must be in [1, 1000]");
+  if (!(timer_jitter_s >= 0 && timer_jitter_s < 0.5 * period_s)) bad("--timer-jitter-ms must be in [0, period/2) = [0, " + std::to_string(0.5e3 * period_s) + ") ms");
+  if (!(step_jitter >= 0 && step_jitter <= 0.5)) bad("--step-jitter must be in [0, 0.5] (a fraction of the period)");
+  if (!(clock_drift_ppm >= 0 && clock_drift_ppm <= 10000)) bad("--clock-drift-ppm must be in [0, 10000]");
+  if (!(period_min_s >= 0 && period_min_s <= period_s)) bad("period_min_s must be in [0, period] (0: from the clock model)");
+  if (!(period_max_s == 0 || (period_max_s >= period_s && period_max_s < 2 * period_s))) bad("period_max_s must be in [period, 2 period) (0: from the clock model)");
   if (!(script.asymmetry_tilt_deg >= 0 && script.asymmetry_tilt_deg <= 90)) bad("asymmetry tilt must be in [0, 90] degrees");
   if (!(script.asymmetry_depth >= 0 && script.asymmetry_depth <= 0.9)) bad("asymmetry depth must be in [0, 0.9]");
   scene.validate();
@@ -197,9 +234,11 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
   for (int i = 0; i < N; ++i)
     if (static_cast<int>(b.neighbors[static_cast<std::size_t>(i)].size()) > rt::kMaxNeighbors)
       bad("--topology: user " + std::to_string(i + 1) + " has more than " + std::to_string(rt::kMaxNeighbors) + " links");
-  // The sender's deadband may hold its state up to max_interval - 1 extra ticks: extra allowance.
+  set_step_bounds(b);
+  // The sender's deadband may hold its state up to max_interval - 1 extra ticks: extra allowance;
+  // the clock model adds its own (step_clock_allowance_ticks).
   b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T,
-                                                 spec.loss_allowance_ticks + spec.tx_deadband.added_index_delay_ticks());
+                                                 spec.loss_allowance_ticks + spec.tx_deadband.added_index_delay_ticks() + step_clock_allowance_ticks(spec));
   const Eigen::VectorXd half_sums = model::round_trip_half_sums_ms(spec.topology, b.nbar_ticks, T);
   b.round_trip_sum_ms.assign(half_sums.data(), half_sums.data() + half_sums.size());
   b.damping_min.assign(static_cast<std::size_t>(N), 0.0);
@@ -325,8 +364,10 @@ double BuiltScenario::damping_min_eq18(int user, const std::vector<double>& roun
   if (round_trip_sum_ticks.size() != edges.size()) throw std::invalid_argument("damping_min_eq18: one round trip per neighbour needed");
   std::vector<rt::Eq18Neighbor> nb;
   for (std::size_t n = 0; n < edges.size(); ++n)
-    nb.push_back({round_trip_sum_ticks[n], spec.period_s, &gains[static_cast<std::size_t>(edges[n])]});
-  return rt::damping_min_eq18(spec.period_s, nb);
+    nb.push_back({round_trip_sum_ticks[n], t_max_s[static_cast<std::size_t>(neighbors[static_cast<std::size_t>(user)][n])],
+                  &gains[static_cast<std::size_t>(edges[n])]});
+  // eq. (18) with T_j^max and T_i^min: its D_ij term 1/2 (T_j^max / T_i^min - 1) D_ij counts when steps vary
+  return rt::damping_min_eq18(t_min_s[static_cast<std::size_t>(user)], nb);
 }
 
 rt::StationConfig BuiltScenario::station_config(int i) const {
@@ -334,6 +375,8 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
   c.station_id = i;
   c.users = spec.users;
   c.period_s = spec.period_s;
+  c.period_min_s = t_min_s[static_cast<std::size_t>(i)];
+  c.period_max_s = t_max_s[static_cast<std::size_t>(i)];
   c.scene = &scene;
   c.damping_Ns_per_m = damping[static_cast<std::size_t>(i)];
   for (std::size_t n = 0; n < neighbors[static_cast<std::size_t>(i)].size(); ++n) {

@@ -89,6 +89,18 @@ struct ScenarioSpec {
   int loss_allowance_ticks = model::kDefaultLossAllowanceTicks;  // Nbar_ij = ceil(max one-way delay / T) + this (firmware/model/delay_model.hpp)
   rt::TxDeadbandConfig tx_deadband{};    // transmission deadband (off); Nbar_ij adds its interval - 1
   rt::RxRule receive_rule = rt::RxRule::kNewestBySequence;  // --receive-rule newest|paper (rt/rx_link.hpp)
+  // Variable steps T_k (rt/README.md "Variable steps"). The simulator's station clocks: every wake
+  // is late by a uniform draw in [0, timer_jitter_s] after its grid time; step_jitter F makes each
+  // grid interval T (1 + F u), u uniform in [-1, 1] (a free-running loop: the station's tick count
+  // wanders against the others'); station i's grid interval is T (1 + c_i 1e-6), c_i spread evenly
+  // over [-clock_drift_ppm, +clock_drift_ppm]. T_k = the interval between two wakes.
+  double timer_jitter_s = 0;   // --timer-jitter-ms
+  double step_jitter = 0;      // --step-jitter
+  double clock_drift_ppm = 0;  // --clock-drift-ppm
+  // Bounds T^min <= T_k <= T^max of every station (eq. 18's D term, eq. 26, the core's steps);
+  // 0: from the clock model above (= period_s without one). The real station: station.period_min_s/max_s.
+  double period_min_s = 0, period_max_s = 0;
+  bool has_clock_model() const { return timer_jitter_s > 0 || step_jitter > 0 || clock_drift_ppm > 0; }
   UserScriptSpec script{};
   int trace_node = -1;                   // -1: first node of user 2's contact mesh (paper: node 19)
 
@@ -127,6 +139,8 @@ struct BuiltScenario {
   std::vector<std::vector<int>> neighbor_edge;  // edge index of neighbors[i][n]
   Eigen::MatrixXi nbar_ticks;                   // Nbar_ij bound used by eq. (18) and the guard (model::index_delay_bounds_ticks)
   std::vector<double> round_trip_sum_ms;        // sum_j (Nbar_ij + Nbar_ji) T / 2, per user (model::round_trip_half_sums_ms)
+  std::vector<double> t_min_s, t_max_s;         // T_i^min, T_i^max per user (eq. 18, 26)
+  std::vector<double> clock_rate;               // grid interval / T = 1 + c_i 1e-6 per user (ScenarioSpec::clock_drift_ppm)
   std::vector<double> damping_min;              // eq. (18), per user
   std::vector<double> damping;                  // B_i used
   std::vector<std::vector<int>> contact_nodes;  // contact mesh per user

@@ -39,6 +39,32 @@ struct Channel {
 };
 
 
+// One station's clock in simulated time (ScenarioSpec's clock model): tick k wakes at its grid
+// time g(k) plus a wake delay in [0, timer_jitter]; g advances by T rate (1 + F u). Without a clock
+// model every station wakes at exactly k T (the lockstep of earlier versions, bit for bit).
+struct StationClock {
+  double rate = 1, T = 0, F = 0, J = 0;
+  net::Rng rng;
+  std::int64_t k = 0;          // the station's next tick
+  double grid = 0, wake = 0;   // g(k) and its wake time
+  double next_grid = 0, next_wake = 0;
+  StationClock(double T_s, double rate_, double F_, double J_, std::uint64_t seed) : rate(rate_), T(T_s), F(F_), J(J_), rng(seed) {
+    wake = J > 0 ? J * rng.uniform01() : 0.0;
+    draw_next();
+  }
+  void draw_next() {
+    next_grid = F > 0 || rate != 1.0 ? grid + T * rate * (1 + F * (2 * rng.uniform01() - 1)) : static_cast<double>(k + 1) * T;
+    next_wake = next_grid + (J > 0 ? J * rng.uniform01() : 0.0);
+  }
+  double step() const { return next_wake - wake; }  // T_k
+  void advance() {
+    ++k;
+    grid = next_grid;
+    wake = next_wake;
+    draw_next();
+  }
+};
+
 // UDP payload bytes of one state on the station's default wire (float32 values, headers, MACs).
 std::uint64_t state_wire_bytes(int dofs) {
   net::WireConfig wc;
@@ -86,6 +112,8 @@ struct Simulation {
   std::vector<rt::TxDeadband> tx;  // transmission policy per station (rt/tx_deadband)
   std::uint64_t state_bytes;
   std::vector<Channel> ch;
+  std::vector<StationClock> clk;  // per station (ScenarioSpec's clock model)
+  std::vector<unsigned char> due; // stations waking at the current event time
   std::vector<std::vector<int>> out_channels;  // channels each station sends on
   std::vector<Eigen::Vector3d> forces;
   std::vector<const double*> copies;
@@ -132,6 +160,12 @@ Simulation::Simulation(const BuiltScenario& built, const SimOptions& options)
       metrics(metrics_windows(built.spec.script), built.spec.period_s),
       snap_times(options.snapshot_times_s) {
   if (opt.trace_every < 1) throw std::invalid_argument("--trace-every must be >= 1");
+  if (opt.record && b.spec.has_clock_model())
+    throw std::invalid_argument("--record does not store the steps T_k yet: not with --timer-jitter-ms, --step-jitter or --clock-drift-ppm");
+  due.assign(static_cast<std::size_t>(N), 0);
+  for (int i = 0; i < N; ++i)
+    clk.emplace_back(T, b.clock_rate[static_cast<std::size_t>(i)], b.spec.step_jitter, b.spec.timer_jitter_s,
+                     b.spec.seed * 6364136223846793005ULL + 977ULL * static_cast<std::uint64_t>(i) + 11ULL);
   for (int i = 0; i < N; ++i) {
     st.push_back(std::make_unique<rt::StationCore>(b.station_config(i)));
     users.emplace_back(b.spec.device, b.spec.hand, b.goal_script(i));
@@ -151,8 +185,10 @@ Simulation::Simulation(const BuiltScenario& built, const SimOptions& options)
 }
 
 // 1. Every packet that has arrived by t reaches its receive link.
-void deliver_packets(Simulation& s, std::int64_t k, double t) {
+void deliver_packets(Simulation& s, double t) {
   for (auto& c : s.ch) {
+    if (!s.due[static_cast<std::size_t>(c.to)]) continue;
+    const std::int64_t k = s.clk[static_cast<std::size_t>(c.to)].k;
     auto& rx = s.st[static_cast<std::size_t>(c.to)]->rx(c.rx_index);
     while (!c.queue.empty() && c.queue.top().arrive_s <= t + 1e-12) {
       const InFlight p = c.queue.top();
@@ -169,12 +205,15 @@ void deliver_packets(Simulation& s, std::int64_t k, double t) {
   }
 }
 
-// 2. Every station ticks with its device sampled at t.
-void tick_stations(Simulation& s, std::int64_t k, double t) {
+// 2. Every station waking at t ticks with its device sampled at t and its step T_k.
+void tick_stations(Simulation& s, double t) {
   for (int i = 0; i < s.N; ++i) {
+    if (!s.due[static_cast<std::size_t>(i)]) continue;
+    const auto& ck = s.clk[static_cast<std::size_t>(i)];
+    const std::int64_t k = ck.k;
     auto& core = *s.st[static_cast<std::size_t>(i)];
     const auto& q = s.users[static_cast<std::size_t>(i)].position_m();
-    const auto out = core.tick(q);
+    const auto out = core.tick(k, q, ck.step());
     if (!s.rec.empty()) s.rec[static_cast<std::size_t>(i)]->rt_tick(make_tick_record(core, k, q, out));
     s.forces[static_cast<std::size_t>(i)] = out.device_force_N;
     if ((out.flags & rt::kDiverged) && !s.diverged_at_s) {
@@ -199,8 +238,10 @@ double passivity_bound_J(const Simulation& s) {
 }
 
 // 3. Every station sends x_hat(k), v_hat(k) to its neighbours through the impaired links.
-void send_states(Simulation& s, std::int64_t k, double t) {
+void send_states(Simulation& s, double t) {
   for (int i = 0; i < s.N; ++i) {
+    if (!s.due[static_cast<std::size_t>(i)]) continue;
+    const std::int64_t k = s.clk[static_cast<std::size_t>(i)].k;
     const auto& core = *s.st[static_cast<std::size_t>(i)];
     if (!s.tx[static_cast<std::size_t>(i)].should_send(k, core.x_hat())) continue;
     auto payload = std::make_shared<std::vector<double>>(static_cast<std::size_t>(2 * s.dofs));
@@ -287,19 +328,29 @@ void report_progress(Simulation& s, std::int64_t k, double t_next, double err) {
                s.b.spec.duration_s, wall, err * 1e3);
 }
 
-// One simulated tick k: deliver, tick, send, move the users, measure, record.
-void step(Simulation& s, std::int64_t k) {
-  const double t = static_cast<double>(k) * s.T;
-  deliver_packets(s, k, t);
-  tick_stations(s, k, t);
-  if (k == 0) s.d2 = passivity_bound_J(s);
-  send_states(s, k, t);
-  // 4. the users' devices move under the commanded force until t_{k+1}
-  for (int i = 0; i < s.N; ++i) s.users[static_cast<std::size_t>(i)].advance(t, s.T, s.forces[static_cast<std::size_t>(i)]);
-  const SeriesRow row = measure(s, k);
-  write_trace(s, k, row);
+// The stations waking at t (every station's clock at the earliest wake): deliver, tick, send,
+// move their users over their steps T_k, advance their clocks.
+void wake_stations(Simulation& s, double t) {
+  for (int i = 0; i < s.N; ++i) s.due[static_cast<std::size_t>(i)] = s.clk[static_cast<std::size_t>(i)].wake == t ? 1 : 0;
+  deliver_packets(s, t);
+  tick_stations(s, t);
+  send_states(s, t);
+  // 4. the users' devices move under the commanded force until their station's next wake
+  for (int i = 0; i < s.N; ++i) {
+    if (!s.due[static_cast<std::size_t>(i)]) continue;
+    auto& ck = s.clk[static_cast<std::size_t>(i)];
+    s.users[static_cast<std::size_t>(i)].advance(t, ck.step(), s.forces[static_cast<std::size_t>(i)]);
+    ck.advance();
+  }
+}
+
+// Measurement m, on the common grid t = (m + 1) T (all wakes before it done): metrics, records.
+void measure_at(Simulation& s, std::int64_t m) {
+  if (m == 0) s.d2 = passivity_bound_J(s);
+  const SeriesRow row = measure(s, m);
+  write_trace(s, m, row);
   take_snapshots(s, row.t_s);
-  report_progress(s, k, row.t_s, row.consensus_error_m);
+  report_progress(s, m, row.t_s, row.consensus_error_m);
 }
 
 SimResult finish(Simulation& s, std::int64_t ticks_run) {
@@ -314,6 +365,7 @@ SimResult finish(Simulation& s, std::int64_t ticks_run) {
     r.links.push_back(c.stats);
   }
   for (const auto& core : s.st) {
+    r.steps_clamped += core->step_clamped_ticks();
     r.final_port_J.push_back(core->energy().port_J);
     r.final_controller_J.push_back(core->energy().controller_J);
     r.final_x.push_back(core->x());
@@ -366,13 +418,21 @@ net::SendImpairment simulator_channel(const ScenarioSpec& spec, int receiver, in
 
 SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
   Simulation s(b, opt);
-  std::int64_t k = 0;
-  while (k < s.ticks) {
-    step(s, k);
-    ++k;
-    if (s.diverged_at_s && static_cast<double>(k - 1) * s.T > *s.diverged_at_s + 0.5) break;
+  std::int64_t m = 0;  // measurements taken (common grid)
+  while (m < s.ticks) {
+    double t = s.clk[0].wake;
+    for (const auto& c : s.clk) t = std::min(t, c.wake);
+    bool stop = false;
+    while (m < s.ticks && t >= static_cast<double>(m + 1) * s.T - 1e-12) {
+      measure_at(s, m);
+      ++m;
+      if (s.diverged_at_s && static_cast<double>(m - 1) * s.T > *s.diverged_at_s + 0.5) stop = true;
+      if (stop) break;
+    }
+    if (stop || m >= s.ticks) break;
+    wake_stations(s, t);
   }
-  return finish(s, k);
+  return finish(s, m);
 }
 
 void write_summary_json(const std::string& path, const BuiltScenario& b, const SimResult& r) {
@@ -383,6 +443,10 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["damping_min_Ns_per_m"] = b.damping_min;
   j["round_trip_half_sum_ms"] = b.round_trip_sum_ms;
   j["passivity_condition_met"] = b.passivity_condition_met;
+  j["period_min_s"] = b.t_min_s;  // T_i^min, T_i^max of eq. (18) and (26) (the clock model's bounds)
+  j["period_max_s"] = b.t_max_s;
+  j["clock"] = {{"timer_jitter_ms", 1e3 * b.spec.timer_jitter_s}, {"step_jitter", b.spec.step_jitter}, {"clock_drift_ppm", b.spec.clock_drift_ppm}};
+  j["steps_clamped"] = r.steps_clamped;
   j["push_pattern"] = b.spec.script.push_pattern == UserScriptSpec::PushPattern::kAsymmetric ? "asymmetric" : "spread";
   j["push_depth_m"] = b.push_depth_m;
   j["push_imbalance_ratio"] = b.push_imbalance_ratio;

@@ -32,6 +32,7 @@ struct SimResult {
   double passivity_bound_J = 0;             // d^2 of eq. (13) from the initial energies
   std::vector<LinkStats> links;
   std::uint64_t ticks = 0;
+  std::uint64_t steps_clamped = 0;  // T_k outside [T^min, T^max] over all stations (0 with the clock model's own bounds)
   double wall_time_s = 0;
   std::vector<double> final_port_J, final_controller_J;
   std::vector<Eigen::VectorXd> final_x;  // every copy's configuration at the end

@@ -22,6 +22,9 @@
 //   nodes = 33                       # scene size (33 = the paper's ball), 4..5000
 //   duration_s = 0                   # run time from the run start, (0, 3600]; 0 = the scenario's
 //   seed = 1                         # run seed: impairment link seeds as the simulator's
+//   period_min_s = 0                 # bounds of the measured step T_k the core integrates with (rt/README.md
+//   period_max_s = 0                 # "Variable steps"): eq. (18)'s D term and eq. (26) use them; a wake-to-wake
+//                                    # period outside is clamped and counted (steps_clamped); 0 = loop.period_ns
 //   push_start_s = -1                # user script times (s from the run start); -1 = scenario's
 //   push_end_s = -1
 //   release_s = -1
@@ -142,6 +145,7 @@ struct StationSection {
   int nodes = 33;
   double duration_s = 0.0;
   std::uint64_t seed = 1;
+  double period_min_s = 0, period_max_s = 0;  // bounds of the measured step T_k (0: the period)
   double push_start_s = -1, push_end_s = -1, release_s = -1;
   std::string start_clock = "monotonic";
   double start_at = 0.0;

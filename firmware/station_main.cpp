@@ -75,6 +75,7 @@ std::string sim_result_line(const std::string& name, const SimResult& r) {
 
 struct SimArgs {
   std::string scenario, out, topology, damping, delay_matrix, topology_file, pushes = "spread", receive_rule = "newest";
+  double timer_jitter_ms = 0, step_jitter = 0, clock_drift_ppm = 0;  // station clocks (variable steps T_k)
   int users = 0;
   std::uint64_t push_seed = 1;
   double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1, push_end = -1, release = -1;
@@ -164,6 +165,13 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
                   "With --tx-deadband-mm: a state at least every this many ticks; Nbar_ij grows by this - 1 (default 1)");
   sim->add_option("--receive-rule", a.receive_rule,
                   "Which packet a tick uses: newest (by sequence number) or paper (the most recently received, Fig. 4; late data used) (default newest)");
+  sim->add_option("--timer-jitter-ms", a.timer_jitter_ms,
+                  "Each station's wake is late by a uniform draw in [0, this] ms after its grid time; the core integrates each tick over "
+                  "the wake-to-wake step T_k (rt/README.md, Variable steps), in [0, T/2) (default 0)");
+  sim->add_option("--step-jitter", a.step_jitter,
+                  "Free-running loops: each station's grid interval is T (1 + F u), u uniform in [-1, 1], F = this in [0, 0.5] (default 0)");
+  sim->add_option("--clock-drift-ppm", a.clock_drift_ppm,
+                  "Clock drift: station i ticks every T (1 + c_i 1e-6), c_i spread evenly over [-this, +this] ppm (user 1 shortest), in [0, 10000]; its tick count drifts against the others (default 0)");
   sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
   sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)");
   sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)");
@@ -303,6 +311,9 @@ int sim_command(const SimArgs& a) {
     spec.tx_deadband.max_interval_ticks = a.tx_interval;
     spec.trace_node = a.trace_node;
     spec.receive_rule = haptic::rt::parse_rx_rule(a.receive_rule, "--receive-rule");
+    spec.timer_jitter_s = a.timer_jitter_ms * 1e-3;
+    spec.step_jitter = a.step_jitter;
+    spec.clock_drift_ppm = a.clock_drift_ppm;
     const BuiltScenario built = build_scenario(spec);
     fs::create_directories(a.out);
     SimOptions opt;

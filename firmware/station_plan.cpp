@@ -149,6 +149,9 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
                           "(name the kind to have --check-config check it)");
   }
   p->ramp_in_ticks = ramp_in_ticks(f, spec.period_s);
+  if (f.record.enabled && (f.station.period_min_s > 0 || f.station.period_max_s > 0))
+    p->warnings.push_back("station.record with station.period_min_s/period_max_s: the session log does not store the measured steps T_k, "
+                          "so a replay of it is not bit-exact");
   p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
   p->net.endpoint.fingerprint = p->fingerprint;  // sent to every neighbour (net/)
   p->net.endpoint.io_priority = f.station.io_priority;  // the I/O thread's RtThread (SCHED_FIFO or 0)
@@ -207,6 +210,11 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
     spec.scene_file.max_elements = f.scene.max_elements;
   }
   spec.seed = s.seed;
+  if (s.period_min_s > spec.period_s) bad("station.period_min_s = " + number_text(s.period_min_s) + " must be at most the period " + number_text(spec.period_s) + " s (0 = the period)");
+  if (s.period_max_s > 0 && (s.period_max_s < spec.period_s || s.period_max_s >= 2 * spec.period_s))
+    bad("station.period_max_s = " + number_text(s.period_max_s) + " must be in [period, 2 period) = [" + number_text(spec.period_s) + ", " + number_text(2 * spec.period_s) + ") s (0 = the period)");
+  spec.period_min_s = s.period_min_s;
+  spec.period_max_s = s.period_max_s;
   const double dur = o.duration_s > 0 ? o.duration_s : s.duration_s;
   if (dur > 0) spec.duration_s = dur;
   if (s.push_start_s >= 0) spec.script.push_start_s = s.push_start_s;

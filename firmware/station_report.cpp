@@ -73,6 +73,7 @@ void add_run_json(const StationOutcome& o, json& j) {
   j["controller_energy_final_J"] = core && ran ? json(core->energy().controller_J) : json(nullptr);
   j["edge_drop_events"] = core ? json(core->edge_drop_events()) : json(nullptr);
   j["safe_state_ticks"] = core ? json(core->safe_state_ticks()) : json(nullptr);
+  j["steps_clamped"] = core ? json(core->step_clamped_ticks()) : json(nullptr);  // measured T_k outside period_min_s..period_max_s
 }
 
 void add_bounds_json(const StationOutcome& o, json& j) {

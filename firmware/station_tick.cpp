@@ -178,7 +178,11 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   if (in.recorder && cnt.ticks_run == 0) in.recorder->rt_initial_state(in.core->x().data(), in.core->v().data());
   drain_rx(in, cnt, kr);
   platform::trace::solve_begin();
-  const auto out = in.core->tick(kr, q);  // the coupled VO + VP step at run cycle kr
+  // T_k: the measured wake-to-wake period (the first tick: the nominal one); the core clamps it to
+  // station.period_min_s..period_max_s and counts it when outside (rt/README.md "Variable steps")
+  const double step_s = cnt.ticks_run > 0 ? static_cast<double>(info.wake_ns - cnt.last_wake_ns) * 1e-9 : in.period_s;
+  cnt.last_wake_ns = info.wake_ns;
+  const auto out = in.core->tick(kr, q, step_s);  // the coupled VO + VP step at run cycle kr
   platform::trace::solve_end();
   const double F[3] = {out.device_force_N[0], out.device_force_N[1], out.device_force_N[2]};
   {

@@ -71,6 +71,7 @@ struct TickCounters {
   std::uint64_t rx_refused = 0;          // packets the receive links refused (future sequence, non-finite, stale, duplicate)
   std::uint64_t outside_workspace_ticks = 0;  // device samples beyond its workspace radius (clamped onto it)
   std::int64_t ticks_run = 0;
+  std::int64_t last_wake_ns = 0;  // the previous tick's wake (the measured step T_k = wake - this)
   bool diverged = false;
   double diverged_at_s = -1, port_min_J = 0, max_speed_m_per_s = 0;
 };

@@ -35,6 +35,11 @@ void StationConfig::validate() const {
   if (!scene) bad("scene", "set");
   if (users < 1) bad("users", ">= 1");
   if (!(period_s > 0 && period_s < 1)) bad("period_s", "in (0, 1)");
+  if (!(period_min_s >= 0 && t_min() <= period_s)) bad("period_min_s", "in (0, period_s] (0: period_s)");
+  if (!(period_max_s >= 0 && t_max() >= period_s && t_max() < 1)) bad("period_max_s", "in [period_s, 1) (0: period_s)");
+  if (!(step_resolution_s >= 0 && std::isfinite(step_resolution_s))) bad("step_resolution_s", ">= 0");
+  if (t_max() > t_min() && step_levels(*this).size() > static_cast<std::size_t>(kMaxStepLevels))
+    bad("step_resolution_s", "coarse enough for at most " + std::to_string(kMaxStepLevels) + " steps between period_min_s and period_max_s");
   if (!(damping_Ns_per_m >= 0 && std::isfinite(damping_Ns_per_m))) bad("damping_Ns_per_m", ">= 0");
   if (static_cast<int>(neighbors.size()) > kMaxNeighbors) bad("neighbors", "at most " + std::to_string(kMaxNeighbors));
   for (const auto& n : neighbors) {
@@ -53,33 +58,34 @@ void StationConfig::validate() const {
     if (p < 0 || p >= scene->nodes) bad("contact_nodes[]", "valid node indices");
   if (!(max_device_force_N > 0)) bad("max_device_force_N", "> 0");
   if (!vp_initial_position_m.allFinite()) bad("vp_initial_position_m", "finite");
-  if (device_force_feedback) check_eq26(vp.coupling, device_damping_Ns_per_m, period_s);
+  // eq. (26) at the worst step: T_k = T^max, T_k / T_{k-1} = T^max / T^min
+  if (device_force_feedback) check_eq26(vp.coupling, device_damping_Ns_per_m, t_max(), t_max() / t_min());
   solver.validate();
 }
 
+std::vector<double> step_levels(const StationConfig& c) {
+  const double T = c.period_s, lo = c.t_min(), hi = c.t_max();
+  std::vector<double> levels = {lo};
+  if (hi > lo) {
+    const double h = c.step_resolution_s > 0 ? c.step_resolution_s : (hi - lo) / 8.0;
+    const double tol = 1e-9 * T;
+    for (double m = std::ceil((lo - T) / h); T + m * h < hi - tol; m += 1.0)
+      if (T + m * h > lo + tol) levels.push_back(T + m * h);
+    levels.push_back(hi);
+  }
+  return levels;
+}
+
 StationCore::StationCore(const StationConfig& config)
-    : cfg_(config), scene_((config.validate(), *config.scene)), T_(config.period_s) {
+    : cfg_(config), scene_((config.validate(), *config.scene)), T_(config.period_s), T_prev_(config.period_s) {
   n_ = scene_.nodes;
   dofs_ = scene_.dofs;
-  const double N = cfg_.users;
   const int nn = neighbor_count();
-  // Constant part: (1/N)(2M/T + B + T/2 K) + B_i
-  const SpatialMatrix I = SpatialMatrix::identity(n_);
-  std::vector<std::pair<double, const SpatialMatrix*>> base = {
-      {2.0 / (N * T_), &scene_.M}, {1.0 / N, &scene_.B}, {T_ / (2.0 * N), &scene_.K}, {cfg_.damping_Ns_per_m, &I}};
   bool iso = scene_.M.is_isotropic() && scene_.B.is_isotropic() && scene_.K.is_isotropic();
   for (const auto& nb : cfg_.neighbors) iso = iso && nb.gains->P.is_isotropic() && nb.gains->D.is_isotropic();
   w_ = iso ? 3 : 1;
   nf_ = iso ? n_ : dofs_;
   {
-    // Every configured edge stays in A (an over-bound edge acts as a damper, rt/README.md).
-    auto terms = base;
-    for (int j = 0; j < nn; ++j) {
-      terms.emplace_back(1.0, &cfg_.neighbors[static_cast<std::size_t>(j)].gains->D);
-      terms.emplace_back(T_ / 2.0, &cfg_.neighbors[static_cast<std::size_t>(j)].gains->P);
-    }
-    SpatialMatrix A = combine(terms);
-    solver_ = make_step_solver(cfg_.solver, iso ? SparseColMajor(A.S) : SparseColMajor(A.as_full()), w_);
     std::vector<const SpatialMatrix*> rhs_terms = {&scene_.M, &scene_.K};
     if (nn > 0) {
       const EdgeGains* g0 = cfg_.neighbors[0].gains;
@@ -132,12 +138,34 @@ StationCore::StationCore(const StationConfig& config)
   }
   R_.resize(m_units_ + vp_units_, w_);
   X_.resize(m_units_ + vp_units_, w_);
-  const auto& g = cfg_.vp.coupling;
-  a_w_ = 2.0 * cfg_.vp.mass_kg / T_ + g.b_v_Ns_per_m + g.B_vc_Ns_per_m + g.K_vc_N_per_m * T_ / 2.0;
   // Orientation of the contact face normal: outward at rest.
   const ContactFace rest = contact_face(x_, cfg_.contact_nodes);
   normal_sign_ = outward_normal_sign(rest, scene_);
-  prepare_contact_solve();
+  const std::vector<double> levels = step_levels(cfg_);
+  steps_.resize(levels.size());
+  for (std::size_t l = 0; l < levels.size(); ++l) build_level(steps_[l], levels[l], iso);
+  step_ = &steps_[0];
+  for (auto& l : steps_)
+    if (std::abs(l.T - cfg_.period_s) < std::abs(step_->T - cfg_.period_s)) step_ = &l;
+}
+
+void StationCore::build_level(StepLevel& level, double T, bool iso) {
+  level.T = T;
+  const double N = cfg_.users;
+  // A(T) = (1/N)(2M/T + B + T/2 K) + B_i + sum_j (D_ij + T/2 P_ij) over every configured edge (an
+  // over-bound edge acts as a damper, rt/README.md).
+  const SpatialMatrix I = SpatialMatrix::identity(n_);
+  std::vector<std::pair<double, const SpatialMatrix*>> terms = {
+      {2.0 / (N * T), &scene_.M}, {1.0 / N, &scene_.B}, {T / (2.0 * N), &scene_.K}, {cfg_.damping_Ns_per_m, &I}};
+  for (const auto& nb : cfg_.neighbors) {
+    terms.emplace_back(1.0, &nb.gains->D);
+    terms.emplace_back(T / 2.0, &nb.gains->P);
+  }
+  const SpatialMatrix A = combine(terms);
+  level.solver = make_step_solver(cfg_.solver, iso ? SparseColMajor(A.S) : SparseColMajor(A.as_full()), w_);
+  const auto& g = cfg_.vp.coupling;
+  level.a_w = 2.0 * cfg_.vp.mass_kg / T + g.b_v_Ns_per_m + g.B_vc_Ns_per_m + g.K_vc_N_per_m * T / 2.0;
+  prepare_contact_solve(level);
 }
 
 bool StationCore::first_of_gain(int j) const {
@@ -158,14 +186,14 @@ void StationCore::engage_contact() {
   in_contact_ = true;
 }
 
-void StationCore::prepare_contact_solve() {
-  const double c = cfg_.vp.contact_damping_Ns_per_m + cfg_.vp.contact_stiffness_N_per_m * T_ / 2.0;
-  Eigen::MatrixXd& Z = Z_;
+void StationCore::prepare_contact_solve(StepLevel& level) {
+  const double c = cfg_.vp.contact_damping_Ns_per_m + cfg_.vp.contact_stiffness_N_per_m * level.T / 2.0;
+  Eigen::MatrixXd& Z = level.Z;
   Z = Eigen::MatrixXd::Zero(nf_, m_units_);
   Eigen::VectorXd unit = Eigen::VectorXd::Zero(nf_);
   for (int a = 0; a < m_units_; ++a) {
     unit[unit_row_[static_cast<std::size_t>(a)]] = 1.0;
-    solver_->solve_accurately(unit.data(), Z.col(a).data(), 1);
+    level.solver->solve_accurately(unit.data(), Z.col(a).data(), 1);
     unit[unit_row_[static_cast<std::size_t>(a)]] = 0.0;
   }
   const int m = m_units_;
@@ -179,8 +207,8 @@ void StationCore::prepare_contact_solve() {
     G(m + unit_vp_[static_cast<std::size_t>(a)], a) = -c;
   }
   const int per_vp = m / vp_units_;
-  for (int e = 0; e < vp_units_; ++e) G(m + e, m + e) = a_w_ + c * per_vp;
-  lu_.compute(G);
+  for (int e = 0; e < vp_units_; ++e) G(m + e, m + e) = level.a_w + c * per_vp;
+  level.lu.compute(G);
 }
 
 void StationCore::sum_group(int g, double* sx, double* sv, double* d) const {
@@ -244,7 +272,7 @@ double StationCore::predict_and_count_residual() {
   }
   // The VO rows' residual r of an inexact solve acted as the extra force -r (A v_hat = b - r; the
   // Schur step solves the contact/VP part exactly on top, so r is y0's residual).
-  if (!solver_->exact()) energy_.solver_residual_J -= vr * T_;
+  if (!step_->solver->exact()) energy_.solver_residual_J -= vr * T_;
   return vv;
 }
 
@@ -262,8 +290,22 @@ double StationCore::advance_state() {
   return nonfinite == 0.0 ? vmax : std::nan("");
 }
 
-StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
+StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double step_s) {
   TickOutput out;
+  // --- 0. this tick's step T_k: clamped to [T^min, T^max], the nearest prefactored one ---
+  {
+    double want = step_s;
+    if (!(want >= cfg_.t_min() * (1 - 1e-9) && want <= cfg_.t_max() * (1 + 1e-9))) {
+      ++step_clamped_ticks_;
+      want = std::isfinite(want) ? std::clamp(want, cfg_.t_min(), cfg_.t_max()) : cfg_.period_s;
+    }
+    StepLevel* best = &steps_[0];
+    for (auto& l : steps_)
+      if (std::abs(l.T - want) < std::abs(best->T - want)) best = &l;
+    step_ = best;
+    if (stepped_) T_prev_ = T_;
+    T_ = best->T;
+  }
   const auto& g = cfg_.vp.coupling;
   const double kc = cfg_.vp.contact_stiffness_N_per_m, bc = cfg_.vp.contact_damping_Ns_per_m;
   const double c = bc + kc * T_ / 2.0;
@@ -276,7 +318,8 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
     out.flags |= kBadDeviceSample | kSafeState;
     qk = q_prev_;
   }
-  const Vec3 vq = !stepped_ ? Vec3::Zero() : Vec3((qk - q_prev_) / T_);
+  // v_hat_q(k-1) = (q_k - q_{k-1}) / T_{k-1} (Section III-C)
+  const Vec3 vq = !stepped_ ? Vec3::Zero() : Vec3((qk - q_prev_) / T_prev_);
   Vec3 f_dev = -g.B_vc_Ns_per_m * (vq - w_hat_prev_) - g.K_vc_N_per_m * (qk - y_);
   // Energy the station put into the device over the last hold interval: F(k-1) . (q_k - q_{k-1}).
   if (stepped_) energy_.device_port_J += f_dev_prev_.dot(qk - q_prev_);
@@ -336,7 +379,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
 
   // --- 5. solve: A y0 = b (warm start: last v_hat), then the contact/VP Schur complement ---
   {
-    const StepSolver::Report rep = solver_->solve(rhs_.data(), v_hat_.data(), resid_.data(), w_);
+    const StepSolver::Report rep = step_->solver->solve(rhs_.data(), v_hat_.data(), resid_.data(), w_);
     solver_last_iterations_ = rep.iterations;
     if (!rep.converged) ++solver_unconverged_ticks_;
   }
@@ -347,9 +390,9 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
       for (int col = 0; col < w_; ++col) R_(a, col) = v_hat_[unit_row_[a] * w_ + col];
     for (int e = 0; e < vp_units_; ++e)
       for (int col = 0; col < w_; ++col) R_(m + e, col) = (w_ == 3) ? bw[col] : bw[e];
-    X_.noalias() = lu_.solve(R_);
+    X_.noalias() = step_->lu.solve(R_);
     for (int a = 0; a < m; ++a) {
-      const double* za = Z_.col(a).data();
+      const double* za = step_->Z.col(a).data();
       for (int col = 0; col < w_; ++col) {
         const double coef = c * (X_(m + unit_vp_[a], col) - X_(a, col));
         if (coef == 0.0) continue;
@@ -358,7 +401,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q) {
     }
     for (int d = 0; d < 3; ++d) w_hat[d] = (w_ == 3) ? X_(m, d) : X_(m + d, 0);
   } else {
-    w_hat = bw / a_w_;
+    w_hat = bw / step_->a_w;
   }
 
   // --- 6. predicted states, contact force, energies (13), (14) ---

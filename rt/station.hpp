@@ -63,7 +63,16 @@ struct NeighborConfig {
 struct StationConfig {
   int station_id = 0;
   int users = 1;                 // N (the VO is scaled by 1/N, eq. 9)
-  double period_s = 0.002;       // T
+  double period_s = 0.002;       // T (nominal step)
+  // Variable steps T_k (eq. 9, rt/README.md "Variable steps"): the bounds T_i^min <= T_k <= T_i^max
+  // that eq. (18)'s D term and eq. (26)'s T_k/T_{k-1} assume (0: period_s). tick(k, q, step_s)
+  // clamps a requested step into them (counted) and integrates with the nearest of the prefactored
+  // steps: period_s + m * step_resolution_s inside the bounds, plus the two bounds themselves.
+  double period_min_s = 0;
+  double period_max_s = 0;
+  double step_resolution_s = 0;  // 0: (period_max - period_min) / 8
+  double t_min() const { return period_min_s > 0 ? period_min_s : period_s; }
+  double t_max() const { return period_max_s > 0 ? period_max_s : period_s; }
   const Scene* scene = nullptr;
   double damping_Ns_per_m = 0;   // B_i = beta I (eq. 15), set from eq. (18)
   std::vector<NeighborConfig> neighbors;
@@ -78,6 +87,11 @@ struct StationConfig {
   double divergence_speed_m_per_s = 50;  // any node faster than this: diverged, safe state
   void validate() const;                 // throws std::invalid_argument naming the key
 };
+
+// The prefactored steps of a configuration, ascending: period_s + m * resolution inside
+// [t_min, t_max], plus t_min and t_max (at most kMaxStepLevels). Start-up only.
+inline constexpr int kMaxStepLevels = 33;
+std::vector<double> step_levels(const StationConfig& config);
 
 // Centroid and (unnormalized) normal, from the order of its first three nodes, of a contact mesh
 // in configuration x. RT-safe.
@@ -133,9 +147,12 @@ class StationCore {
   const NeighborConfig& neighbor(int n) const { return cfg_.neighbors[static_cast<std::size_t>(n)]; }
 
   // One step at cycle k (the caller's loop index, the same index its rx(n).offer sequence numbers
-  // use: N_ij^k = k - seq) with the device position sampled at t_k. Cycles the caller skipped
-  // (overruns) are simply absent: k may jump. RT-safe.
-  TickOutput tick(std::int64_t k, const Vec3& device_position_m);
+  // use: N_ij^k = k - seq) with the device position sampled at t_k, integrating over the nominal
+  // step period_s. Cycles the caller skipped (overruns) are simply absent: k may jump. RT-safe.
+  TickOutput tick(std::int64_t k, const Vec3& device_position_m) { return tick(k, device_position_m, cfg_.period_s); }
+  // The same with this tick's step T_k = step_s (eq. 9, 21): clamped to [t_min, t_max] (counted in
+  // step_clamped_ticks) and rounded to the nearest prefactored step (last_step_s()). RT-safe.
+  TickOutput tick(std::int64_t k, const Vec3& device_position_m, double step_s);
   // The next cycle (sequence() + 1): for callers that never skip a cycle. RT-safe.
   TickOutput tick(const Vec3& device_position_m) { return tick(k_, device_position_m); }
 
@@ -160,15 +177,34 @@ class StationCore {
   }
   std::uint64_t edge_drop_events(int n) const { return edge_drops_[static_cast<std::size_t>(n)]; }
   std::uint64_t safe_state_ticks() const { return safe_state_ticks_; }
-  const char* solver_name() const { return solver_->name(); }
-  long solver_stored_doubles() const { return solver_->stored_doubles(); }
+  double last_step_s() const { return T_; }  // T_k of the last tick (a prefactored step)
+  std::uint64_t step_clamped_ticks() const { return step_clamped_ticks_; }  // requested steps outside [t_min, t_max]
+  int step_level_count() const { return static_cast<int>(steps_.size()); }
+  const char* solver_name() const { return steps_[0].solver->name(); }
+  long solver_stored_doubles() const {
+    long total = 0;
+    for (const auto& l : steps_) total += l.solver->stored_doubles();
+    return total;
+  }
   int solver_last_iterations() const { return solver_last_iterations_; }
   std::uint64_t solver_unconverged_ticks() const { return solver_unconverged_ticks_; }
   // Start-up / tests: overwrite the state (allocates nothing; sizes must match).
   void set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v);
 
  private:
-  void prepare_contact_solve();  // start-up: Z, G and its LU
+  using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxContactNodes + 3, 3 * kMaxContactNodes + 3>;
+  using SmallRhs = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxContactNodes + 3, 3>;
+  // Everything of the step that depends on T: A(T)'s solver, the contact Schur data Z = A^{-1} U
+  // and the LU of the bordered system, the VP diagonal a_w(T). One per prefactored step.
+  struct StepLevel {
+    double T = 0;
+    std::unique_ptr<StepSolver> solver;
+    Eigen::MatrixXd Z;  // nf x m: A^{-1} e_unit
+    Eigen::PartialPivLU<Small> lu;
+    double a_w = 0;     // VP diagonal without contact
+  };
+  void build_level(StepLevel& level, double T, bool iso);  // start-up: A(T)'s solver, contact data
+  void prepare_contact_solve(StepLevel& level);  // start-up: Z, G and its LU
   void engage_contact();
   bool first_of_gain(int j) const;  // first neighbour using this gain object
   // Step 4 without contact: b and energy_.vo_J in one fused pass for the first gain group (+ two
@@ -184,12 +220,15 @@ class StationCore {
 
   StationConfig cfg_;
   const Scene& scene_;
-  double T_;
+  double T_;            // T_k of the current (last) tick
+  double T_prev_;       // T_{k-1}: the interval of the device sample difference (Section III-C)
   int n_;        // nodes
   int dofs_;     // 3n
   int w_;        // 3 when the system is isotropic (factor n x n, 3 RHS), else 1 (factor 3n x 3n)
   int nf_;       // factor dimension
-  std::unique_ptr<StepSolver> solver_;  // A (constant at any neighbour state)
+  std::vector<StepLevel> steps_;  // prefactored steps, ascending T (A constant at any neighbour state)
+  StepLevel* step_ = nullptr;     // this tick's
+  std::uint64_t step_clamped_ticks_ = 0;
   int solver_last_iterations_ = 0;
   std::uint64_t solver_unconverged_ticks_ = 0;
   std::vector<RxLink> rx_;
@@ -223,17 +262,11 @@ class StationCore {
   std::vector<RxLink::TickView> views_;
   std::vector<unsigned char> active_;
 
-  // Contact Schur data, precomputed at start-up (the contact mesh is fixed per station):
-  // Z_ = A^{-1} U and the LU of the small bordered system.
-  using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxContactNodes + 3, 3 * kMaxContactNodes + 3>;
-  using SmallRhs = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxContactNodes + 3, 3>;
+  // Contact Schur data (per step level above; the contact mesh is fixed per station).
   int m_units_ = 0, vp_units_ = 0;
   std::vector<int> unit_row_;     // factor row of contact unit a
   std::vector<int> unit_vp_;      // VP unit that contact unit a couples to
-  Eigen::MatrixXd Z_;                // nf x m: A^{-1} e_unit
-  Eigen::PartialPivLU<Small> lu_;
   SmallRhs R_, X_;
-  double a_w_ = 0;  // VP diagonal without contact
 };
 
 }  // namespace haptic::rt

@@ -180,7 +180,9 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   platform::trace::solve_begin();
   // T_k: the measured wake-to-wake period (the first tick: the nominal one); the core clamps it to
   // station.period_min_s..period_max_s and counts it when outside (rt/README.md "Variable steps")
-  const double step_s = cnt.ticks_run > 0 ? static_cast<double>(info.wake_ns - cnt.last_wake_ns) * 1e-9 : in.period_s;
+  // (a fixed-step configuration, period_min_s = period_max_s, integrates over the nominal period)
+  const bool variable = in.core->config().t_max() > in.core->config().t_min();
+  const double step_s = variable && cnt.ticks_run > 0 ? static_cast<double>(info.wake_ns - cnt.last_wake_ns) * 1e-9 : in.period_s;
   cnt.last_wake_ns = info.wake_ns;
   const auto out = in.core->tick(kr, q, step_s);  // the coupled VO + VP step at run cycle kr
   platform::trace::solve_end();

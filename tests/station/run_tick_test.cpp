@@ -31,6 +31,13 @@ std::string net_toml(int self, int port_base, const std::vector<int>& peers) {
   return t;
 }
 
+firmware::BuiltScenario rig_scenario(double period_min_s, double period_max_s) {
+  firmware::ScenarioSpec s = firmware::make_scenario("paper-best");
+  s.period_min_s = period_min_s;
+  s.period_max_s = period_max_s;
+  return firmware::build_scenario(s);
+}
+
 // Station 1 of the paper's scene with a real UDP endpoint, a neighbour stand-in (a second
 // endpoint in this process) sending states, the simulated device and the 33-node core.
 struct OneStationRig {
@@ -48,7 +55,7 @@ struct OneStationRig {
   std::vector<double> x0, v0;
   platform::TickInfo info;
 
-  explicit OneStationRig(int ticks) {
+  explicit OneStationRig(int ticks, double period_min_s = 0, double period_max_s = 0) : b(rig_scenario(period_min_s, period_max_s)) {
     c1 = net::parse_net_config(net_toml(1, port_base, {2, 3, 4}), static_cast<std::uint32_t>(dofs));
     c2 = net::parse_net_config(net_toml(2, port_base, {1}), static_cast<std::uint32_t>(dofs));
     // As the station does: the endpoint is told the tick period (for net.tx_spin).
@@ -91,6 +98,32 @@ struct OneStationRig {
 }  // namespace
 
 TEST_GROUP(RunTick){};
+
+TEST(RunTick, the_core_integrates_over_the_measured_wake_to_wake_period_clamped_to_the_bounds) {
+  // station.period_min_s = 1.8 ms, period_max_s = 2.2 ms: prefactored steps every 0.05 ms. The
+  // tick hands the core the interval between this wake and the previous one (T_k); an overrun's
+  // 6 ms is clamped to 2.2 ms and counted.
+  {
+    OneStationRig r(8, 0.0018, 0.0022);
+    const std::int64_t wake_us[] = {1000, 3100, 5000, 11000, 13000};
+    const double want_s[] = {0.002, 0.0021, 0.0019, 0.0022, 0.002};
+    for (int k = 0; k < 5; ++k) {
+      r.info.wake_ns = wake_us[k] * 1000;
+      r.step(k);
+      DOUBLES_EQUAL(want_s[k], r.core.last_step_s(), 1e-12);
+    }
+    CHECK_EQUAL(1u, r.core.step_clamped_ticks());
+  }
+  // a fixed-step configuration integrates over the nominal period whatever the wake times (the
+  // first rig is gone: the same ports)
+  OneStationRig fixed(4);
+  for (int k = 0; k < 3; ++k) {
+    fixed.info.wake_ns = (k * 2500 + 7) * 1000;
+    fixed.step(k);
+    DOUBLES_EQUAL(0.002, fixed.core.last_step_s(), 1e-15);
+  }
+  CHECK_EQUAL(0u, fixed.core.step_clamped_ticks());
+}
 
 TEST(RunTick, OneLoopIterationAllocatesNothingAndUsesTheNeighboursPackets) {
   CHECK(test::allocation_counter_works());

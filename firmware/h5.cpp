@@ -1,5 +1,6 @@
 #include "firmware/h5.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace haptic::firmware::h5 {
@@ -30,6 +31,8 @@ hid_t mem_type(Type t) {
   }
   return H5T_NATIVE_DOUBLE;
 }
+
+std::size_t native_bytes(Type t) { return H5Tget_size(mem_type(t)); }
 
 hid_t file_type(Type t) {
   switch (t) {
@@ -181,8 +184,10 @@ std::vector<std::int64_t> read_i64(hid_t loc, const std::string& name) {
   return v;
 }
 
-Appendable::Appendable(hid_t loc, const std::string& name, Type ftype, std::uint64_t cols, std::uint64_t chunk_rows, int deflate_level)
-    : cols_(cols), name_(name) {
+Appendable::Appendable(hid_t loc, const std::string& name, Type ftype, std::uint64_t cols, std::uint64_t chunk_rows, int deflate_level,
+                       std::uint64_t ring_rows)
+    : cols_(cols), ring_(ring_rows), name_(name) {
+  if (ring_rows > 0) chunk_rows = std::min(chunk_rows, ring_rows);
   const hsize_t dims[2] = {0, cols}, maxdims[2] = {H5S_UNLIMITED, cols}, chunk[2] = {chunk_rows < 1 ? 1 : chunk_rows, cols};
   Id sp(H5Screate_simple(cols ? 2 : 1, dims, maxdims), Id::Kind::kSpace, "space of " + name);
   Id dcpl(H5Pcreate(H5P_DATASET_CREATE), Id::Kind::kPlist, "properties of " + name);
@@ -191,16 +196,40 @@ Appendable::Appendable(hid_t loc, const std::string& name, Type ftype, std::uint
   ds_ = Id(H5Dcreate2(loc, name.c_str(), file_type(ftype), sp.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), Id::Kind::kDataset, "dataset " + name);
 }
 
-void Appendable::append(Type mtype, const void* data, std::uint64_t rows) {
-  if (rows == 0) return;
-  const hsize_t newdims[2] = {rows_ + rows, cols_};
-  check(H5Dset_extent(ds_.get(), newdims), "extending " + name_);
+void Appendable::write_at(Type mtype, const void* data, std::uint64_t row0, std::uint64_t rows) {
+  if (row0 + rows > rows_) {
+    const hsize_t newdims[2] = {row0 + rows, cols_};
+    check(H5Dset_extent(ds_.get(), newdims), "extending " + name_);
+    rows_ = row0 + rows;
+  }
   Id fs(H5Dget_space(ds_.get()), Id::Kind::kSpace, "space of " + name_);
-  const hsize_t start[2] = {rows_, 0}, count[2] = {rows, cols_ ? cols_ : 1};
+  const hsize_t start[2] = {row0, 0}, count[2] = {rows, cols_ ? cols_ : 1};
   check(H5Sselect_hyperslab(fs.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), "selecting " + name_);
   Id ms = space(rows, cols_);
   check(H5Dwrite(ds_.get(), mem_type(mtype), ms.get(), fs.get(), H5P_DEFAULT, data), "appending to " + name_);
-  rows_ += rows;
+}
+
+void Appendable::append(Type mtype, const void* data, std::uint64_t rows) {
+  if (rows == 0) return;
+  if (ring_ == 0) {
+    write_at(mtype, data, rows_, rows);
+    total_ += rows;
+    return;
+  }
+  const std::size_t row_bytes = native_bytes(mtype) * (cols_ ? cols_ : 1);
+  const auto* p = static_cast<const unsigned char*>(data);
+  if (rows > ring_) {  // only the newest ring_ rows survive
+    p += (rows - ring_) * row_bytes;
+    total_ += rows - ring_;
+    rows = ring_;
+  }
+  while (rows > 0) {  // at most two writes: up to the end of the ring, then from its start
+    const std::uint64_t at = total_ % ring_, n = std::min(rows, ring_ - at);
+    write_at(mtype, p, at, n);
+    p += n * row_bytes;
+    total_ += n;
+    rows -= n;
+  }
 }
 
 }  // namespace haptic::firmware::h5

@@ -60,17 +60,25 @@ std::vector<std::int64_t> read_i64(hid_t loc, const std::string& name);
 
 // A dataset with an unlimited number of rows of `cols` values (cols = 0: scalars), stored as
 // `file_type`, chunked `chunk_rows` rows at a time, optionally deflated (level 1..9, 0 = none).
+// With ring_rows > 0 it is a ring: it grows to ring_rows rows, then each new row overwrites the
+// oldest (row total % ring_rows), so the file stays bounded; next_row() is where the oldest row is
+// once the ring is full (chronological order = rotate left by next_row()).
 class Appendable {
  public:
   Appendable() = default;
-  Appendable(hid_t loc, const std::string& name, Type file_type, std::uint64_t cols, std::uint64_t chunk_rows, int deflate_level = 0);
-  // Appends `rows` rows of native `mem_type` values (HDF5 converts, e.g. double -> float32).
+  Appendable(hid_t loc, const std::string& name, Type file_type, std::uint64_t cols, std::uint64_t chunk_rows, int deflate_level = 0,
+             std::uint64_t ring_rows = 0);
+  // Appends `rows` rows of native `mem_type` values (HDF5 converts, e.g. double -> float32); in a
+  // full ring they replace the oldest rows.
   void append(Type mem_type, const void* data, std::uint64_t rows);
-  std::uint64_t rows() const { return rows_; }
+  std::uint64_t rows() const { return rows_; }            // rows in the dataset
+  std::uint64_t total() const { return total_; }          // rows ever appended
+  std::uint64_t next_row() const { return ring_ ? total_ % ring_ : rows_; }
 
  private:
+  void write_at(Type mem_type, const void* data, std::uint64_t row0, std::uint64_t rows);
   Id ds_;
-  std::uint64_t cols_ = 0, rows_ = 0;
+  std::uint64_t cols_ = 0, rows_ = 0, total_ = 0, ring_ = 0;
   std::string name_;
 };
 

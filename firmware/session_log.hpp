@@ -8,7 +8,9 @@
 //                    station_id (1-based), users, nodes, dofs, period_s, config_text (station
 //                    file or sim command line), fingerprint, packet_values ("float32" | "float64"),
 //                    and at close: ticks, packets, dropped_records, dropped_ticks, truncated_at_tick,
-//                    lossy_packet_values, bytes_limit
+//                    lossy_packet_values, bytes_limit, ring_ticks (0: the whole run), first_tick (the
+//                    oldest tick row; > 0 only for a ring that wrapped), packets_complete_from_tick
+//                    (the oldest tick all of whose packets are in the log)
 //   /core            the core's configuration (rt::StationConfig: gains, B_i, bounds, VP, contact
 //                    mesh, solver), /core/scene (mesh, M, B, K_int, K, x_d as CSR arrays),
 //                    /core/gains/<e>/{P,D}: the exact matrices, so replay does not rebuild the scenario
@@ -18,6 +20,10 @@
 //                    wake_latency_ns, exec_ns, dropped (records this tick lost to a full ring)
 //   /packets         one row per packet offered to rx(n) before that tick: tick, neighbour
 //                    (index), seq (run index), send_time_s, x (dofs), v (dofs)
+//   A ring log (station.record_ring_s, sim --record-ring-s): /ticks and /packets are rings of
+//   fixed row counts; their attribute ring_next_row is the row of the oldest entry
+//   (chronological order: numpy.roll(a, -ring_next_row, axis=0)). A wrapped ring is for
+//   inspection; replay refuses it (no core state at first_tick).
 //
 // Packets are stored as float32 when the wire is float32 (lossless: the values are floats; the
 // writer counts any that are not in lossy_packet_values), else float64.

@@ -1,5 +1,6 @@
 #include "firmware/session_recorder.hpp"
 
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 #include <vector>
@@ -43,34 +44,54 @@ struct SessionRecorder::Writer {
     packets_g = h5::create_group(file.get(), "packets");
     using h5::Type;
     const hid_t t = ticks_g.get(), p = packets_g.get();
-    k = h5::Appendable(t, "k", Type::kI64, 0, 4096);
-    q = h5::Appendable(t, "q", Type::kF64, 3, 4096);
-    force = h5::Appendable(t, "force", Type::kF64, 3, 4096);
-    vp = h5::Appendable(t, "vp", Type::kF64, 3, 4096);
-    port = h5::Appendable(t, "port_J", Type::kF64, 0, 4096);
-    ctrl = h5::Appendable(t, "controller_J", Type::kF64, 0, 4096);
-    vo = h5::Appendable(t, "vo_J", Type::kF64, 0, 4096);
-    hash = h5::Appendable(t, "hash", Type::kU64, 0, 4096);
-    flags = h5::Appendable(t, "flags", Type::kU32, 0, 4096);
-    contact = h5::Appendable(t, "contact", Type::kU8, 0, 4096);
-    wake = h5::Appendable(t, "wake_latency_ns", Type::kI32, 0, 4096);
-    exec = h5::Appendable(t, "exec_ns", Type::kI32, 0, 4096);
-    dropped = h5::Appendable(t, "dropped", Type::kU32, 0, 4096);
+    const std::uint64_t rt = cfg.ring_ticks, rp = rt ? ring_packet_rows(rt, static_cast<int>(core.neighbors.size())) : 0;
+    k = h5::Appendable(t, "k", Type::kI64, 0, 4096, 0, rt);
+    q = h5::Appendable(t, "q", Type::kF64, 3, 4096, 0, rt);
+    force = h5::Appendable(t, "force", Type::kF64, 3, 4096, 0, rt);
+    vp = h5::Appendable(t, "vp", Type::kF64, 3, 4096, 0, rt);
+    port = h5::Appendable(t, "port_J", Type::kF64, 0, 4096, 0, rt);
+    ctrl = h5::Appendable(t, "controller_J", Type::kF64, 0, 4096, 0, rt);
+    vo = h5::Appendable(t, "vo_J", Type::kF64, 0, 4096, 0, rt);
+    hash = h5::Appendable(t, "hash", Type::kU64, 0, 4096, 0, rt);
+    flags = h5::Appendable(t, "flags", Type::kU32, 0, 4096, 0, rt);
+    contact = h5::Appendable(t, "contact", Type::kU8, 0, 4096, 0, rt);
+    wake = h5::Appendable(t, "wake_latency_ns", Type::kI32, 0, 4096, 0, rt);
+    exec = h5::Appendable(t, "exec_ns", Type::kI32, 0, 4096, 0, rt);
+    dropped = h5::Appendable(t, "dropped", Type::kU32, 0, 4096, 0, rt);
     const auto chunk = std::max<std::uint64_t>(1, (1u << 18) / (static_cast<std::uint64_t>(dofs) * (float32 ? 4 : 8)));
-    p_tick = h5::Appendable(p, "tick", Type::kI64, 0, 4096);
-    p_nbr = h5::Appendable(p, "neighbour", Type::kI64, 0, 4096);
-    p_seq = h5::Appendable(p, "seq", Type::kI64, 0, 4096);
-    p_send = h5::Appendable(p, "send_time_s", Type::kF64, 0, 4096);
-    p_x = h5::Appendable(p, "x", float32 ? Type::kF32 : Type::kF64, static_cast<std::uint64_t>(dofs), chunk, cfg.deflate_level);
-    p_v = h5::Appendable(p, "v", float32 ? Type::kF32 : Type::kF64, static_cast<std::uint64_t>(dofs), chunk, cfg.deflate_level);
+    // A ring overwrites its chunks in place; deflated chunks change size, so a ring is not deflated.
+    const int deflate = rt ? 0 : cfg.deflate_level;
+    p_tick = h5::Appendable(p, "tick", Type::kI64, 0, 4096, 0, rp);
+    p_nbr = h5::Appendable(p, "neighbour", Type::kI64, 0, 4096, 0, rp);
+    p_seq = h5::Appendable(p, "seq", Type::kI64, 0, 4096, 0, rp);
+    p_send = h5::Appendable(p, "send_time_s", Type::kF64, 0, 4096, 0, rp);
+    p_x = h5::Appendable(p, "x", float32 ? Type::kF32 : Type::kF64, static_cast<std::uint64_t>(dofs), chunk, deflate, rp);
+    p_v = h5::Appendable(p, "v", float32 ? Type::kF32 : Type::kF64, static_cast<std::uint64_t>(dofs), chunk, deflate, rp);
+  }
+
+  // The ticks the log holds, as attributes (ring or not). Not RT-safe.
+  void write_extent_attrs(const RecorderConfig& cfg) {
+    const auto oldest = [](const h5::Appendable& a, hid_t g, const char* name) -> std::int64_t {
+      if (a.rows() == 0) return 0;
+      const std::vector<std::int64_t> v = h5::read_i64(g, name);
+      return *std::min_element(v.begin(), v.end());
+    };
+    st.first_tick = oldest(k, ticks_g.get(), "k");
+    st.packets_complete_from_tick = p_tick.total() > p_tick.rows() ? oldest(p_tick, packets_g.get(), "tick") + 1 : 0;
+    const hid_t f = file.get();
+    h5::attr(f, "ring_ticks", static_cast<std::int64_t>(cfg.ring_ticks));
+    h5::attr(f, "first_tick", st.first_tick);
+    h5::attr(f, "packets_complete_from_tick", std::max(st.first_tick, st.packets_complete_from_tick));
+    h5::attr(ticks_g.get(), "ring_next_row", static_cast<std::int64_t>(k.next_row() % std::max<std::uint64_t>(1, k.rows())));
+    h5::attr(packets_g.get(), "ring_next_row", static_cast<std::int64_t>(p_tick.next_row() % std::max<std::uint64_t>(1, p_tick.rows())));
   }
 
   std::uint64_t packet_bytes() const { return 32 + 2 * static_cast<std::uint64_t>(dofs) * (float32 ? 4 : 8); }
 
   // Accepts (or, past the size bound, refuses) the row of tick k with `bytes`.
-  bool admit(std::int64_t tick, std::uint64_t bytes, std::uint64_t max_bytes) {
+  bool admit(std::int64_t tick, std::uint64_t bytes, std::uint64_t max_bytes, bool ring) {
     if (stopped_writing) return false;
-    if (st.bytes + bytes > max_bytes) {
+    if (!ring && st.bytes + bytes > max_bytes) {  // a ring's size is bounded by its rows (checked at plan time)
       stopped_writing = true;
       st.truncated_at_tick = tick;
       return false;
@@ -93,7 +114,7 @@ struct SessionRecorder::Writer {
       h5::write(g.get(), "v", h5::Type::kF64, values.data() + n, n);
       return;
     }
-    if (!admit(head.a, packet_bytes(), cfg.max_bytes)) return;
+    if (!admit(head.a, packet_bytes(), cfg.max_bytes, cfg.ring_ticks > 0)) return;
     count_lossy(values.data(), 2 * n);
     pk_tick.push_back(head.a);
     pk_seq.push_back(head.b);
@@ -107,7 +128,7 @@ struct SessionRecorder::Writer {
     if (s.type == kTick) {
       TickRecord r;
       std::memcpy(&r, s.payload, sizeof r);
-      if (admit(r.k, 120, cfg.max_bytes)) tick_rows.push_back(r);
+      if (admit(r.k, 120, cfg.max_bytes, cfg.ring_ticks > 0)) tick_rows.push_back(r);
     } else if (s.type == kPacket || s.type == kInitial) {
       head = s;
       values.assign(2 * static_cast<std::size_t>(dofs), 0.0);
@@ -257,6 +278,11 @@ RecorderStats SessionRecorder::finish() {
   h5::attr(f, "lossy_packet_values", static_cast<std::int64_t>(w.st.lossy_packet_values));
   h5::attr(f, "bytes_limit", static_cast<std::int64_t>(cfg_.max_bytes));
   h5::attr(f, "writer_error", w.st.error);
+  try {
+    w.write_extent_attrs(cfg_);
+  } catch (const std::exception& e) {
+    if (w.st.error.empty()) w.st.error = e.what();
+  }
   final_ = w.st;
   writer_.reset();  // closes the file
   return final_;

@@ -4,7 +4,10 @@
 // session log (firmware/session_log.hpp). The tick never waits: a record that does not fit is
 // dropped and counted (the next tick row says how many were lost, so replay knows where its
 // inputs are incomplete). The file is bounded: past `max_bytes` the writer stops appending and the
-// log says at which tick (truncated_at_tick).
+// log says at which tick (truncated_at_tick). Or it is a ring of the last minutes (ring_ticks > 0):
+// the tick rows and the packet rows are fixed-size rings in the file (h5::Appendable), so memory
+// and disk stay bounded however long the session runs; the log then says which ticks it holds
+// (first_tick, and packets_complete_from_tick: the oldest tick with all its packets).
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -21,13 +24,27 @@ struct RecorderConfig {
   std::uint64_t max_bytes = 1ull << 30;     // stop appending past this many bytes of rows (station.record_max_mb)
   bool lossless = false;                    // the recording side waits for room (the simulator; never the RT station)
   int deflate_level = 0;                    // HDF5 deflate on the packet values, 0 = none
+  std::uint64_t ring_ticks = 0;             // > 0: keep only the newest this many ticks (station.record_ring_s / T)
 };
+
+// Rows of the packet ring for a tick ring of `ring_ticks` at a station with `neighbours`: one
+// packet per neighbour and tick plus a quarter for duplicates and bursts.
+inline std::uint64_t ring_packet_rows(std::uint64_t ring_ticks, int neighbours) {
+  const std::uint64_t per_tick = static_cast<std::uint64_t>(neighbours < 1 ? 1 : neighbours);
+  return ring_ticks * per_tick + (ring_ticks * per_tick + 3) / 4;
+}
+// Bytes of the two rings (tick rows 120 B; packet rows 32 B + 2 dofs values).
+inline std::uint64_t ring_bytes(std::uint64_t ring_ticks, int neighbours, int dofs, bool float32) {
+  return ring_ticks * 120 + ring_packet_rows(ring_ticks, neighbours) * (32 + 2 * static_cast<std::uint64_t>(dofs) * (float32 ? 4 : 8));
+}
 
 struct RecorderStats {
   std::uint64_t ticks = 0, packets = 0;     // rows written
   std::uint64_t dropped_records = 0;        // records the tick could not hand over (ring full)
   std::uint64_t bytes = 0;                  // bytes of rows written (before HDF5 overhead)
   std::int64_t truncated_at_tick = -1;      // first tick not written because of max_bytes (-1: none)
+  std::int64_t first_tick = 0;              // the oldest tick row in the log (> 0: a ring that wrapped)
+  std::int64_t packets_complete_from_tick = 0;  // the oldest tick whose packets are all in the log
   std::uint64_t lossy_packet_values = 0;    // float32 storage: values that were not floats
   std::string error;                        // the writer's I/O error, if any
 };

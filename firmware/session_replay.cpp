@@ -116,6 +116,11 @@ std::string ReplayResult::summary() const {
 ReplayResult replay_session(const std::string& path, const ReplayOptions& opt, const ReplayObserver& observer) {
   h5::Id file = h5::open_file_read(path);
   auto setup = read_core_setup(file.get());
+  if (h5::has_attr(file.get(), "first_tick") && h5::attr_i64(file.get(), "first_tick") > 0)
+    throw NotReplayable("a ring of the last " + std::to_string(h5::attr_i64(file.get(), "ring_ticks")) + " ticks (station.record_ring_s) that starts at tick " +
+                        std::to_string(h5::attr_i64(file.get(), "first_tick")) +
+                        ": it holds no core state there, so it is for inspection (h5py; rows in ring order, see ring_next_row), not replay;"
+                        " record the whole run (record_ring_s = 0) to replay");
   ReplayResult res;
   res.station_id = static_cast<int>(h5::attr_i64(file.get(), "station_id"));
   res.source = h5::attr_str(file.get(), "source");

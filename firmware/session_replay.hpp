@@ -7,6 +7,7 @@
 // core (no comparison) so "what if" can be asked of a recorded problem. Not RT-safe.
 #include <cstdint>
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -38,7 +39,14 @@ struct ReplayResult {
 // Called after every replayed tick with the core, the recorded row and the tick's index in the log.
 using ReplayObserver = std::function<void(const rt::StationCore& core, const TickRecord& recorded, std::int64_t index)>;
 
-// Replays the log at `path`. Throws std::runtime_error when it is not a session log or is damaged.
+// A session log that cannot be replayed although it is one: a ring of the last minutes
+// (station.record_ring_s) that wrapped holds no core state at its first tick.
+struct NotReplayable : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Replays the log at `path`. Throws NotReplayable for a wrapped ring log, std::runtime_error when
+// it is not a session log or is damaged.
 ReplayResult replay_session(const std::string& path, const ReplayOptions& options, const ReplayObserver& observer = {});
 
 // Every recorded tick row of a log (for viewers and tests).

@@ -86,6 +86,7 @@ std::vector<std::unique_ptr<SessionRecorder>> open_sim_recorders(const BuiltScen
     rc.path = opt.out_dir + "/station-" + std::to_string(i + 1) + ".h5";
     rc.lossless = true;
     rc.max_bytes = ~0ull;
+    rc.ring_ticks = static_cast<std::uint64_t>(std::llround(opt.record_ring_s / b.spec.period_s));
     SessionInfo info;
     info.source = "sim";
     info.station_id = static_cast<int>(i) + 1;

@@ -44,6 +44,7 @@ struct SimOptions {
   bool progress = false;      // progress lines on stderr
   std::vector<double> snapshot_times_s;  // node positions of every copy at these times
   bool record = false;        // session logs out_dir/station-<i>.h5 (firmware/session_log.hpp), lossless
+  double record_ring_s = 0;   // > 0: each log keeps only the last this many seconds (a bounded ring)
   std::string command_line;   // stored in each log as its config_text
 };
 

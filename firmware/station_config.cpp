@@ -29,7 +29,7 @@ void parse_station_section(View root, StationFile& f) {
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
                             "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
-                            "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks"});
+                            "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "record_ring_s", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks"});
   StationSection& s = f.station;
   if (!st["id"]) bad("station.id", "present: this station's user number, 1..users");
   s.id = static_cast<int>(integer(st["id"], "station.id", 1, 1, 64));
@@ -217,6 +217,7 @@ void parse_record_view_keys(View st, StationFile& f) {
   f.record.enabled = boolean(st["record"], "station.record", false);
   f.record.max_mb = real(st["record_max_mb"], "station.record_max_mb", 1024.0, 1.0, 1e6);
   f.record.deflate = static_cast<int>(integer(st["record_deflate"], "station.record_deflate", 0, 0, 9));
+  f.record.ring_s = real(st["record_ring_s"], "station.record_ring_s", 0.0, 0.0, 86400.0);
   f.view.port = static_cast<int>(integer(st["view_port"], "station.view_port", 0, 0, 65535));
   f.view.bind = text(st["view_bind"], "station.view_bind", "127.0.0.1");
   if (f.view.bind.empty()) bad("station.view_bind", "an interface address, e.g. \"127.0.0.1\" (the default) or \"0.0.0.0\"");

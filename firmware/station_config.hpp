@@ -62,6 +62,9 @@
 //                                    # `haptic-station replay` re-runs it bit-exactly)
 //   record_max_mb = 1024             # rows past this many MB are not written (the log says from which tick), [1, 1e6]
 //   record_deflate = 0               # HDF5 deflate level of the recorded packet values, 0 = none, [0, 9]
+//   record_ring_s = 0                # > 0: keep only the last this many seconds (a ring of fixed size in the file:
+//                                    # bounded memory and disk; for inspection, not replay; not deflated; its size
+//                                    # must fit record_max_mb), 0 = the whole run, [0, 86400]
 //   view_port = 0                    # > 0: serve the live web view (HTTP + WebSocket) on this port, [0, 65535]
 //   view_bind = "127.0.0.1"          # interface the view listens on (localhost by default; another only by configuration)
 //   view_rate_hz = 30                # frames per second sent to each browser, [1, 60]
@@ -208,6 +211,7 @@ struct RecordSection {
   bool enabled = false;
   double max_mb = 1024.0;
   int deflate = 0;
+  double ring_s = 0;
 };
 
 struct ViewSection {

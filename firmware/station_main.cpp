@@ -85,6 +85,7 @@ struct SimArgs {
   std::string scene;                          // --scene FILE
   double scene_unit_m = 1, density = 0, youngs = 0;
   bool no_plots = false, quiet = false, record = false;
+  double record_ring_s = 0;
   std::string command_line;
   int view_port = 0, view_station = 1;
   std::string view_bind = "127.0.0.1";
@@ -180,6 +181,8 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   add_view_options(sim, a.view_port, a.view_bind, a.view_for);
   sim->add_option("--view-station", a.view_station, "Station (1-based) the view shows (default 1; needs --record)");
   sim->add_flag("--record", a.record, "Write each station's session log OUT/station-<i>.h5 (HDF5; `haptic-station replay` re-runs it bit-exactly)");
+  sim->add_option("--record-ring-s", a.record_ring_s, "With --record: keep only the last S seconds in each log (a ring of bounded size; for inspection, not replay)")
+      ->check(CLI::Range(0.0, 86400.0));
   sim->add_flag("--quiet", a.quiet, "No progress lines");
 
   return sim;
@@ -210,7 +213,7 @@ CLI::App* add_replay_options(CLI::App& app, ReplayArgs& a) {
   add_view_options(rp, a.view_port, a.view_bind, a.view_for);
   rp->add_option("--trace", a.trace, "Write the replayed ticks to this CSV (force, VP, energies, the recorded force, hash match)");
   rp->footer("Exit status: 0 bit-exact at every tick (or, with changed gains, re-run done); 3 a tick's state differs from the recording, "
-             "or the log's inputs are incomplete (dropped records, size bound); 2 not a session log or bad options.");
+             "or the log's inputs are incomplete (dropped records, size bound), or it is a ring log that wrapped; 2 not a session log or bad options.");
   return rp;
 }
 
@@ -242,6 +245,9 @@ int replay_command(const ReplayArgs& a) {
     std::cout << r.summary() << "\n";
     if (r.gains_changed) return r.ticks > 0 ? 0 : kExitRunFailed;
     return r.bit_exact() && r.inputs_end < 0 ? 0 : kExitRunFailed;
+  } catch (const NotReplayable& e) {
+    std::cerr << "haptic-station replay: " << a.log << ": cannot replay " << e.what() << "\n";
+    return kExitRunFailed;
   } catch (const std::exception& e) {
     std::cerr << "haptic-station replay: error: " << a.log << ": " << e.what() << "\n";
     return kExitConfigError;
@@ -321,6 +327,7 @@ int sim_command(const SimArgs& a) {
     opt.trace_every = a.trace_every;
     opt.progress = !a.quiet;
     opt.record = a.record;
+    opt.record_ring_s = a.record_ring_s;
     opt.command_line = a.command_line;
     opt.snapshot_times_s = snapshot_times_s(spec);
     if (!a.quiet) {

@@ -19,6 +19,8 @@
 #include <system_error>
 
 #include "firmware/link_impairment.hpp"
+#include "firmware/session_recorder.hpp"
+#include "platform/toml_config.hpp"
 #include "net/transport_udp.hpp"
 #include "net/wire.hpp"
 #include "platform/clock.hpp"
@@ -94,6 +96,14 @@ drivers::DeviceSelection device_selection(const StationFile& f, const BuiltScena
   return sel;
 }
 
+}  // namespace
+
+std::uint64_t record_ring_ticks(const StationPlan& p) {
+  return p.file.record.ring_s > 0 ? static_cast<std::uint64_t>(std::max(1LL, std::llround(p.file.record.ring_s / p.built->spec.period_s))) : 0;
+}
+
+namespace {
+
 void plan_records(StationPlan& p) {
   const StationSection& s = p.file.station;
   const std::int64_t run_ticks = p.times.run_ticks;
@@ -102,6 +112,15 @@ void plan_records(StationPlan& p) {
   if (p.trace_capacity > kMaxTraceRecords) bad("station.trace_every too small for duration_s (over 4e6 records)");
   if (p.state_capacity * static_cast<std::size_t>(p.built->scene.dofs) > kMaxStateValues)
     bad("station.state_every too small for duration_s and nodes (over 64e6 values)");
+  const RecordSection& r = p.file.record;
+  if (r.enabled && r.ring_s > 0) {
+    const bool f32 = p.net.endpoint.wire.encoding == net::ValueEncoding::float32;
+    const auto bytes = ring_bytes(record_ring_ticks(p), static_cast<int>(p.neighbours().size()), p.built->scene.dofs, f32);
+    if (static_cast<double>(bytes) > r.max_mb * 1024 * 1024)
+      bad("station.record_ring_s = " + number_text(r.ring_s) + " needs " + number_text(std::ceil(static_cast<double>(bytes) / (1024 * 1024))) +
+          " MB at " + std::to_string(p.built->scene.nodes) + " nodes and " + std::to_string(p.neighbours().size()) +
+          " neighbours, above station.record_max_mb = " + number_text(r.max_mb) + ": shorten the ring or raise the bound");
+  }
 }
 
 void plan_release_warning(StationPlan& p) {

@@ -99,6 +99,9 @@ struct PlanResult {
 // The plan phase. Never throws: every error becomes kConfigError with its message.
 PlanResult plan_station(const StationFile& file, const RunOverrides& overrides, const ClockReading& now);
 
+// Ticks the session log's ring keeps (station.record_ring_s / T, at least 1), 0 = the whole run. Pure.
+std::uint64_t record_ring_ticks(const StationPlan& p);
+
 // The individual checks (each throws std::invalid_argument naming the key; exposed for tests).
 PeerTable plan_peer_table(const StationFile& file, const BuiltScenario& built, int me, const net::NetConfig& net);
 // The payload envelope of net/ (net.envelope_radii object radii around the rest shape, the core's

@@ -147,6 +147,7 @@ std::unique_ptr<SessionRecorder> open_recorder(const StationPlan& plan, const rt
   rc.path = plan.base_path + ".h5";
   rc.max_bytes = static_cast<std::uint64_t>(plan.file.record.max_mb * 1024 * 1024);
   rc.deflate_level = plan.file.record.deflate;
+  rc.ring_ticks = record_ring_ticks(plan);
   SessionInfo info;
   info.source = "station";
   info.station_id = plan.station_id;
@@ -406,7 +407,8 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
 
 nlohmann::json recording_json(const RecorderStats& s, const std::string& path) {
   return {{"path", path}, {"ticks", s.ticks}, {"packets", s.packets}, {"dropped_records", s.dropped_records}, {"bytes", s.bytes},
-          {"truncated_at_tick", s.truncated_at_tick}, {"lossy_packet_values", s.lossy_packet_values}, {"error", s.error}};
+          {"truncated_at_tick", s.truncated_at_tick}, {"lossy_packet_values", s.lossy_packet_values}, {"error", s.error},
+          {"first_tick", s.first_tick}, {"packets_complete_from_tick", s.packets_complete_from_tick}};
 }
 
 // report: stop what was opened, name the conditions, write the outputs; returns the exit code.

@@ -171,3 +171,14 @@ TEST(CheckConfig, TheFingerprintNamesTheFieldsThatDiffer) {
   STRCMP_EQUAL("gains (hash) differs", fingerprint_difference(fa, scene_fingerprint(build_scenario(stiffer), 2'000'000)).c_str());
   STRCMP_EQUAL("period_ns: 2000000 here, 1000000 at the peer", fingerprint_difference(fa, scene_fingerprint(a, 1'000'000)).c_str());
 }
+
+// A session-log ring that cannot fit station.record_max_mb is refused at plan time, naming both
+// keys (a ring never truncates: its size must be known to fit); a short ring is accepted.
+TEST(CheckConfig, ARecordRingLargerThanTheSizeBoundIsRejectedNamingBothKeys) {
+  test::StationText s = hub();
+  s.station_extra = "record = true\nrecord_max_mb = 100\nrecord_ring_s = 600\n";
+  rejected_with_key(s.text(), "station.record_ring_s = 600 needs");
+  CHECK(contains(check(s.text()).err, "above station.record_max_mb = 100"));
+  s.station_extra = "record = true\nrecord_max_mb = 100\nrecord_ring_s = 10\n";
+  LONGS_EQUAL(kExitOk, check(s.text()).code);
+}

@@ -1,5 +1,6 @@
 // haptic-jitter: cyclictest-style wake-up latency check of the station's periodic loop
 // (platform/periodic_loop.hpp) at given periods, with and without a synthetic tick workload.
+#include <algorithm>
 #include <memory>
 #include <signal.h>
 
@@ -21,6 +22,54 @@
 namespace {
 std::atomic<bool> g_stop{false};  // set by SIGINT/SIGTERM (lock-free atomic: async-signal-safe)
 void on_signal(int) { g_stop.store(true, std::memory_order_release); }
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+// --record-blocks: pairs of station blocks, recording off and on, in alternating order (off-on,
+// on-off, ...) so neither mode always runs first. Runs on the RT thread. Not RT-safe between blocks.
+void record_compare_blocks(haptic::tools::StationJitterWorkload& station, const haptic::tools::JitterRunConfig& run, int pairs,
+                           std::vector<haptic::tools::JitterResult>& results) {
+  for (int i = 0; i < pairs && !g_stop.load(std::memory_order_acquire); ++i)
+    for (int b = 0; b < 2; ++b) {
+      station.set_recording((i % 2 == 0) == (b == 1));
+      results.push_back(haptic::tools::run_jitter(run, station, g_stop));
+      std::fputs(haptic::tools::format_result(results.back(), false).c_str(), stdout);
+      std::fflush(stdout);
+    }
+  station.set_recording(false);
+}
+
+// Ratios recording on / off per block pair (medians over the pairs) of the wake-up latency P99
+// and max and the tick execution time mean and P99, as text and as a JSON object.
+std::string record_compare_summary(const std::vector<haptic::tools::JitterResult>& r, std::uint64_t dropped, std::string& json) {
+  std::vector<double> p99, mx, ex, ex99;
+  const auto on = [](const haptic::tools::JitterResult& x) { return x.workload.find("recording on") != std::string::npos; };
+  for (std::size_t i = 0; i + 1 < r.size(); i += 2) {
+    const auto& a = on(r[i]) ? r[i] : r[i + 1];
+    const auto& b = on(r[i]) ? r[i + 1] : r[i];
+    const auto ratio = [](double x, double y) { return y > 0 ? x / y : 0.0; };
+    p99.push_back(ratio(a.stats.wake_latency.percentile_ns(0.99), b.stats.wake_latency.percentile_ns(0.99)));
+    mx.push_back(ratio(a.stats.wake_latency.max_ns, b.stats.wake_latency.max_ns));
+    ex.push_back(ratio(a.stats.exec_time.mean_ns(), b.stats.exec_time.mean_ns()));
+    ex99.push_back(ratio(a.stats.exec_time.percentile_ns(0.99), b.stats.exec_time.percentile_ns(0.99)));
+  }
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "recording on / off, median over %zu block pairs: wake-up latency P99 %.3f, max %.3f; tick execution time mean %.3f, "
+                "P99 %.3f; records dropped %llu\n",
+                p99.size(), median(p99), median(mx), median(ex), median(ex99), static_cast<unsigned long long>(dropped));
+  char js[512];
+  std::snprintf(js, sizeof js,
+                "{\"pairs\": %zu, \"median_ratio_on_off\": {\"latency_p99\": %.4f, \"latency_max\": %.4f, \"exec_mean\": %.4f, "
+                "\"exec_p99\": %.4f}, \"records_dropped\": %llu}",
+                p99.size(), median(p99), median(mx), median(ex), median(ex99), static_cast<unsigned long long>(dropped));
+  json = js;
+  return buf;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -44,6 +93,8 @@ int main(int argc, char** argv) {
   bool no_mlock = false;
   bool station_workload = false;
   std::string json_path;
+  int record_blocks = 0;
+  std::string record_file = "/tmp/haptic-jitter-record.h5";
   platform::RtConfig rt;
   rt.prefault_heap_bytes = 1u << 20;
   app.add_option("-i,--period-us", periods_us, "loop periods to measure, microseconds")->default_str("1000 2000")->check(CLI::Range(10.0, 1e6));
@@ -69,7 +120,13 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1000.0));
   app.add_flag("--no-isolate", no_isolate, "leave the process's other threads on the measuring CPU (default: move them off, rt.isolate_cpu)");
+  app.add_option("--record-blocks", record_blocks,
+                 "with the station's tick: N pairs of blocks (each --duration-s or --loops) with the session recorder off and on, in alternating "
+                 "order, then the on/off ratios (issue 16: recording must not change the tick's timing); the other runs are skipped")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--record-file", record_file, "the session log the recording blocks write (HDF5, overwritten)")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  if (record_blocks > 0) station_workload = true;
   rt.lock_memory = !no_mlock;
 
   struct sigaction sa {};
@@ -83,10 +140,28 @@ int main(int argc, char** argv) {
     // Built (and factored) before the real-time thread starts: construction allocates.
     std::unique_ptr<tools::StationJitterWorkload> station;
     if (station_workload) station = std::make_unique<tools::StationJitterWorkload>("paper-best");
+    std::unique_ptr<firmware::SessionRecorder> recorder;
+    if (record_blocks > 0) {
+      firmware::RecorderConfig rc;
+      rc.path = record_file;
+      firmware::SessionInfo info;
+      info.config_text = "haptic-jitter --record-blocks";
+      recorder = std::make_unique<firmware::SessionRecorder>(rc, info, station->core().config());
+      station->attach_recorder(recorder.get());
+    }
+    std::string compare_json;
     rt.isolate_cpu = !no_isolate;
     std::atomic<bool> finished{false};
     platform::RtThread thread(rt, [&](const platform::RtReport& report) {
       for (double period_us : periods_us) {
+        if (record_blocks > 0) {
+          tools::JitterRunConfig run;
+          run.period_ns = static_cast<std::int64_t>(period_us * 1e3);
+          run.ticks = loops != 0 ? loops : static_cast<std::uint64_t>(duration_s * 1e6 / period_us);
+          run.histogram_bin_ns = static_cast<std::int64_t>(histogram_bin_us * 1e3);
+          record_compare_blocks(*station, run, record_blocks, results);
+          continue;
+        }
         for (double workload_us : workloads_us) {
           if (g_stop.load(std::memory_order_acquire)) break;
           tools::JitterRunConfig run;
@@ -121,6 +196,12 @@ int main(int argc, char** argv) {
       while (!finished.load(std::memory_order_acquire)) std::this_thread::sleep_for(step);
     }
     thread.join();
+    if (recorder) {
+      const firmware::RecorderStats st = recorder->finish();
+      std::fputs(record_compare_summary(results, st.dropped_records, compare_json).c_str(), stdout);
+      json.erase(json.rfind('}'));
+      json += ",\n  \"record_compare\": " + compare_json + ",\n  \"record_file\": \"" + record_file + "\"\n}\n";
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "haptic-jitter: %s\n", e.what());
     return 2;

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "firmware/scenario.hpp"
+#include "firmware/session_recorder.hpp"
 #include "rt/station.hpp"
 #include "rt/user_model.hpp"
 #include "tools/jitter/jitter.hpp"
@@ -25,17 +26,31 @@ class StationJitterWorkload final : public JitterWorkload {
         v0_(static_cast<std::size_t>(built_.scene.dofs), 0.0) {
     user_.reset(built_.vp_start[0]);
   }
-  // One station tick: synthetic packets into rx(n).offer, tick, device step. RT-safe.
+  // One station tick: synthetic packets into rx(n).offer, tick, device step; with recording on,
+  // the session recorder's RT calls as the station's run_tick makes them (every packet offered,
+  // then the tick row). RT-safe.
   void tick(const platform::TickInfo& info) override {
     const auto k = static_cast<std::int64_t>(info.index);
     const double T = built_.spec.period_s;
-    for (int n = 0; n < core_.neighbor_count(); ++n)
+    const bool rec = recording_ && recorder_ != nullptr;
+    for (int n = 0; n < core_.neighbor_count(); ++n) {
       core_.rx(n).offer(k - 3, static_cast<double>(k - 3) * T, x0_.data(), v0_.data(), built_.scene.dofs);
-    const auto out = core_.tick(user_.position_m());
+      if (rec) recorder_->rt_packet(k, n, k - 3, static_cast<double>(k - 3) * T, x0_.data(), v0_.data());
+    }
+    const rt::Vec3 q = user_.position_m();
+    const auto out = core_.tick(q);
+    if (rec) recorder_->rt_tick(firmware::make_tick_record(core_, k, q, out));
     user_.advance(static_cast<double>(k) * T, T, out.device_force_N);
     flags_ |= out.flags;
   }
-  std::string name() const override { return "station (" + built_.spec.name + ", user 1, " + std::to_string(built_.scene.nodes) + " nodes, 3 neighbours)"; }
+  std::string name() const override {
+    return "station (" + built_.spec.name + ", user 1, " + std::to_string(built_.scene.nodes) + " nodes, 3 neighbours" +
+           (recorder_ ? (recording_ ? ", recording on" : ", recording off") : "") + ")";
+  }
+  // The session recorder the tick feeds while recording is on (set before the RT thread starts;
+  // set_recording between runs). Not RT-safe / RT-safe.
+  void attach_recorder(firmware::SessionRecorder* recorder) { recorder_ = recorder; }
+  void set_recording(bool on) { recording_ = on; }
   std::uint32_t flags_seen() const { return flags_; }
   const rt::StationCore& core() const { return core_; }
 
@@ -45,6 +60,8 @@ class StationJitterWorkload final : public JitterWorkload {
   rt::SimulatedUser user_;
   std::vector<double> x0_, v0_;
   std::uint32_t flags_ = 0;
+  firmware::SessionRecorder* recorder_ = nullptr;
+  bool recording_ = false;
 };
 
 }  // namespace haptic::tools

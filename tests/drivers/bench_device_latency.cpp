@@ -9,15 +9,29 @@
 //   FakeHdThreaded:  the fake library's own 1 kHz scheduler thread and a 2 ms station loop on
 //                    another thread; reports the time from the servo frame that read the
 //                    position to the servo frame that wrote the force computed from it.
+//   FalconMath:      the Falcon driver's own per-exchange computation (our open servo path): force
+//                    -> motor commands at the current position (Jacobian by IK), encode, decode a
+//                    status packet, encoders -> angles -> forward kinematics
+//   FalconUmockdev:  FalconDevice through libusb against the umockdev stand-in (tests/drivers/
+//                    falcon_standin.hpp), owner-stepped: one service() = one USB exchange (two bulk
+//                    transfers). Dominated by umockdev's socket round trips to the emulation: it is
+//                    the cost of the real libusb code path here, NOT a Falcon's USB latency.
+//                    Needs LD_PRELOAD=libumockdev-preload.so.0, else it reports an error and skips.
 #include "drivers/device.hpp"
+#include "drivers/falcon_device.hpp"
+#include "drivers/falcon_protocol.hpp"
 #include "drivers/phantom_device.hpp"
 #include "drivers/simulated_device.hpp"
+#ifdef HAPTIC_BENCH_UMOCKDEV
+#include "tests/drivers/falcon_standin.hpp"
+#endif
 
 #include <benchmark/benchmark.h>
 #include <dlfcn.h>
 #include <time.h>
 
 #include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -197,6 +211,59 @@ void BM_FakeHdThreaded_SampleToForceOut(benchmark::State& state) {
   state.counters["max_us"] = latency_us.back();
 }
 BENCHMARK(BM_FakeHdThreaded_SampleToForceOut)->Iterations(2000)->UseRealTime()->Unit(benchmark::kMicrosecond);
+void BM_FalconMath_ForceToMotorAndBack(benchmark::State& state) {
+  namespace fa = haptic::drivers::falcon;
+  Eigen::Vector3d p(0.01, -0.02, 0.12), q;
+  const Eigen::Vector3d force(0.5, -0.2, 1.0);
+  Eigen::Vector3d theta;
+  fa::inverse_kinematics(p, theta);
+  const std::int16_t enc[3] = {static_cast<std::int16_t>(std::lround((theta[0] - fa::encoder_to_theta(0)) / (fa::encoder_to_theta(1) - fa::encoder_to_theta(0)))),
+                               static_cast<std::int16_t>(std::lround((theta[1] - fa::encoder_to_theta(0)) / (fa::encoder_to_theta(1) - fa::encoder_to_theta(0)))),
+                               static_cast<std::int16_t>(std::lround((theta[2] - fa::encoder_to_theta(0)) / (fa::encoder_to_theta(1) - fa::encoder_to_theta(0))))};
+  unsigned char status[fa::kPacketSize], cmd[fa::kPacketSize];
+  fa::encode_command(enc, 0, status);  // same nibble layout as a status packet for the encoder part
+  for (auto _ : state) {
+    std::int16_t motor[3];
+    fa::force_to_motor(p, force, motor);
+    fa::encode_command(motor, fa::kLedBlue, cmd);
+    fa::Status st{};
+    fa::decode_status(status, st);
+    const Eigen::Vector3d th(fa::encoder_to_theta(st.encoder[0]), fa::encoder_to_theta(st.encoder[1]), fa::encoder_to_theta(st.encoder[2]));
+    fa::forward_kinematics(th, p, q);
+    benchmark::DoNotOptimize(cmd);
+    benchmark::DoNotOptimize(q);
+  }
+}
+BENCHMARK(BM_FalconMath_ForceToMotorAndBack);
+
+#ifdef HAPTIC_BENCH_UMOCKDEV
+void BM_FalconUmockdev_ReadToForceOut(benchmark::State& state) {
+  try {
+    haptic::testing::FalconBed bed;
+    FalconConfig c;
+    c.firmware_path = bed.firmware_path;
+    c.own_thread = false;
+    SafetyLimits lenient;
+    lenient.max_stale_reads = 100000;
+    FalconDevice d(c, lenient);
+    d.start();
+    d.service();
+    DeviceSample s{};
+    double f[3];
+    for (auto _ : state) {
+      d.read_newest(s);
+      spring(s, f);
+      d.command_force(f);
+      if (!d.service()) break;
+    }
+    if (d.fault() != DeviceFault::kNone) state.SkipWithError("device faulted");
+    d.stop();
+  } catch (const std::exception& e) {
+    state.SkipWithError(e.what());
+  }
+}
+BENCHMARK(BM_FalconUmockdev_ReadToForceOut)->Unit(benchmark::kMicrosecond);
+#endif
 }  // namespace
 
 BENCHMARK_MAIN();

@@ -9,6 +9,7 @@
 // The stand-in answers through umockdev's socket to this process, a few hundred exchanges per
 // second instead of a Falcon's 1000 (measured and printed), so station 1 allows 250 stale reads
 // (device.max_stale_reads; default 5): an artefact of the emulation, not of the driver.
+// Before the lab: `haptic-devices diag --kind falcon` against the same stand-in (exit 0, servo rate).
 // Usage: falcon_station_session BUILD_BIN_DIR WORK_DIR   (exit 0 ok, 1 failed)
 #include "tests/drivers/falcon_standin.hpp"
 
@@ -53,12 +54,22 @@ int main(int argc, char** argv) {
   try {
     haptic::testing::FalconBed bed;
     if (std::system(("rm -rf '" + work + "' && mkdir -p '" + work + "'").c_str()) != 0) return 1;
+    // Diagnostics mode first (the deploy guide's check before a session): exit 0, servo rate measured.
+    const std::string diag = "'" + bin + "/haptic-devices' diag --kind falcon --falcon-firmware '" + bed.firmware_path +
+                             "' --max-stale-reads 250 --force-N 0.3 --push-s 0.3 > '" + work + "/diag.log' 2>&1";
+    const int diag_rc = std::system(diag.c_str());
+    const std::string diag_out = slurp(work + "/diag.log");
+    std::cout << diag_out;
+    int diag_fails = 0;
+    if (diag_rc != 0) std::printf("FAIL: haptic-devices diag --kind falcon exited %d\n", diag_rc), ++diag_fails;
+    contains(diag_out, "servo frames of the device's own loop", "diag output", diag_fails);
+    contains(diag_out, "force 0.3 N along x", "diag output", diag_fails);
     write_lab(work + "/lab.toml", bed.firmware_path);
     const std::string cmd = "'" + bin + "/haptic-lab' run '" + work + "/lab.toml' --runs-dir '" + work + "/runs' --no-plots > '" + work +
                             "/lab.log' 2>&1";
     const int rc = std::system(cmd.c_str());
     std::cout << slurp(work + "/lab.log");
-    int fails = 0;
+    int fails = diag_fails;
     if (rc != 0) {
       std::printf("FAIL: haptic-lab run exited %d\n", rc);
       ++fails;

@@ -133,6 +133,11 @@ inline gboolean on_usbdevfs(UMockdevIoctlBase*, UMockdevIoctlClient* client, gpo
           const int value = setup[2] | (setup[3] << 8);
           s.controls.emplace_back(setup[1], value);
           if (setup[1] == falcon::kFtdiBaud) s.baud = value;
+          if (setup[1] == falcon::kFtdiBaud && value == falcon::kBaud9600) {  // a new start: boot loader again
+            s.firmware_mode_ok = false;
+            s.firmware.clear();
+            s.homing_packets = s.plain_packets = 0;
+          }
         }
       } else if (urb->endpoint == falcon::kEndpointOut) {
         s.host_wrote(buf->data, urb->buffer_length);

@@ -209,3 +209,28 @@ TEST(FalconUmockdev, KindFalconWithoutOneIsDeviceMissingSayingWhy) {
     CHECK_TEXT(what.find("no Novint Falcon (USB 0403:cb48)") != std::string::npos, what.c_str());
   }
 }
+
+TEST(FalconUmockdev, OwnThreadLatchesTheUnplugAndTheNextReadIsFalse) {
+  FalconBed bed;
+  FalconConfig c = bed.config();
+  c.own_thread = true;
+  SafetyLimits lenient;  // the stand-in is slower than a Falcon; staleness is not under test here
+  lenient.max_stale_reads = 100000;
+  FalconDevice dev(c, lenient);
+  STRCMP_EQUAL("", start_error(dev).c_str());
+  DeviceSample s{};
+  bool got = false;
+  for (int i = 0; i < 2000 && !got; ++i) {  // bounded wait for the first sample
+    got = dev.read_newest(s);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  CHECK(got);
+  {
+    std::lock_guard<std::mutex> l(bed.dev.mu);
+    bed.dev.unplugged = true;
+  }
+  for (int i = 0; i < 2000 && dev.fault() == DeviceFault::kNone; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  CHECK(dev.fault() == DeviceFault::kUnplugged);  // latched by the servo thread's failing exchange
+  CHECK_FALSE(dev.read_newest(s));                // the tick's next read
+  dev.stop();
+}

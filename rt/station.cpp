@@ -106,6 +106,8 @@ StationCore::StationCore(const StationConfig& config)
   tmp2_.resize(dofs_);
   scratch_.resize(dofs_);
   resid_ = Eigen::VectorXd::Zero(dofs_);
+  y0_ = Eigen::VectorXd::Zero(dofs_);
+  y0_prev_ = Eigen::VectorXd::Zero(dofs_);
   rx_.resize(static_cast<std::size_t>(nn));
   for (auto& r : rx_) r.init(dofs_, x_.data(), v_.data(), -1, cfg_.rx_rule);
   views_.resize(static_cast<std::size_t>(nn));
@@ -276,6 +278,18 @@ double StationCore::predict_and_count_residual() {
   return vv;
 }
 
+void StationCore::warm_start_y0() {
+  // y0_prev_ := 2 y0(k-1) - y0(k-2) (y0(k-1) until two solves exist), then swap: y0_ is the guess.
+  double* g = y0_prev_.data();
+  const double* y = y0_.data();
+  if (y0_solves_ >= 2)
+    for (int i = 0; i < dofs_; ++i) g[i] = 2.0 * y[i] - g[i];
+  else
+    for (int i = 0; i < dofs_; ++i) g[i] = y[i];
+  y0_.swap(y0_prev_);  // swaps the buffers: no allocation
+  if (y0_solves_ < 2) ++y0_solves_;
+}
+
 double StationCore::advance_state() {
   const double* vh = v_hat_.data();
   double* x = x_.data();
@@ -377,9 +391,16 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
     }
   }
 
-  // --- 5. solve: A y0 = b (warm start: last v_hat), then the contact/VP Schur complement ---
+  // --- 5. solve: A y0 = b, then the contact/VP Schur complement ---
   {
-    const StepSolver::Report rep = step_->solver->solve(rhs_.data(), v_hat_.data(), resid_.data(), w_);
+    StepSolver::Report rep;
+    if (step_->solver->exact()) {
+      rep = step_->solver->solve(rhs_.data(), v_hat_.data(), resid_.data(), w_);
+    } else {
+      warm_start_y0();
+      rep = step_->solver->solve(rhs_.data(), y0_.data(), resid_.data(), w_);
+      v_hat_ = y0_;  // same size: a copy, no allocation
+    }
     solver_last_iterations_ = rep.iterations;
     if (!rep.converged) ++solver_unconverged_ticks_;
   }

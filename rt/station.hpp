@@ -210,6 +210,9 @@ class StationCore {
   // Step 4 without contact: b and energy_.vo_J in one fused pass for the first gain group (+ two
   // matvecs per further group). RT-safe.
   void build_rhs();
+  // The iterative solver's initial guess in y0_: 2 y0(k-1) - y0(k-2), the linear extrapolation of
+  // the last two solutions of A y0 = b (y0(k-1) until two exist). RT-safe: one pass, no allocation.
+  void warm_start_y0();
   // Sums of gain group g (neighbours sharing cfg_.neighbors[g].gains): sx = sum_active (x - x_hat_j),
   // sv = sum_{active, fresh} v_hat_j, and (if d) d = x - x_d, in one pass. RT-safe.
   void sum_group(int g, double* sx, double* sv, double* d) const;
@@ -259,6 +262,10 @@ class StationCore {
 
   // Scratch (sized at start-up)
   Eigen::VectorXd rhs_, tmp_, tmp2_, scratch_, resid_;
+  // The VO solve's solutions y0 = A^{-1} b of the last two ticks (before the contact correction):
+  // the iterative solver's warm start is their linear extrapolation (rt/README.md).
+  Eigen::VectorXd y0_, y0_prev_;
+  int y0_solves_ = 0;
   std::vector<RxLink::TickView> views_;
   std::vector<unsigned char> active_;
 

@@ -131,3 +131,41 @@ TEST(SolverEnergy, eq12_balance_is_exact_with_a_loose_iterative_solve_when_its_r
   CHECK_TRUE(std::abs(e.solver_residual_J) > 1e-6 * flows);  // the residual term matters here
   CHECK_TRUE(std::abs(Eend - supplied) < 1e-9 * flows);
 }
+
+TEST_GROUP(WarmStart){};
+
+// The iterative solve starts from the linear extrapolation 2 y0(k-1) - y0(k-2) of the last two
+// solutions of A y0 = b (before the contact correction). On a 1021-node ball pushed into contact
+// while three neighbours send their state every tick, the CG needs 4.12 iterations per tick to
+// 1e-10 over ticks 100-399; starting from the last v_hat (the guess before, which carries the
+// contact correction) it needed 4.91. The check sits between the two. Iteration counts are
+// deterministic (no timing).
+TEST(WarmStart, extrapolated_guess_needs_fewer_cg_iterations_than_the_last_v_hat_on_a_1021_node_ball) {
+  Scene scene = build_scene(make_lattice_ball(1000, 0.05), SceneParams{});
+  const EdgeGains gains = paper_edge_gains(scene);
+  StationConfig cfg;
+  cfg.users = 4;
+  cfg.scene = &scene;
+  cfg.damping_Ns_per_m = 30.45;
+  for (int p = 1; p <= 3; ++p) cfg.neighbors.push_back({p, &gains, 1 << 30});
+  const int f = scene.mesh.face_towards(Eigen::Vector3d(1, 1, 1));
+  const auto& face = scene.mesh.surface[static_cast<std::size_t>(f)];
+  cfg.contact_nodes = {face[0], face[1], face[2]};
+  cfg.vp_initial_position_m = scene.mesh.face_center(f);
+  cfg.solver.kind = StepSolverKind::kIterative;
+  cfg.solver.relative_tolerance = 1e-10;
+  StationCore st(cfg);
+  const Eigen::Vector3d push = cfg.vp_initial_position_m - 0.01 * scene.mesh.face_normal(f);
+  std::vector<double> x(scene.x_d.data(), scene.x_d.data() + scene.dofs), v(static_cast<std::size_t>(scene.dofs), 1e-4);
+  long iterations = 0;
+  for (int k = 0; k < 400; ++k) {
+    for (int n = 0; n < 3; ++n) st.rx(n).offer(k, 0, x.data(), v.data(), scene.dofs);
+    st.tick(push);
+    if (k >= 100) iterations += st.solver_last_iterations();
+  }
+  CHECK_TRUE(st.in_contact());
+  CHECK_EQUAL(0, static_cast<int>(st.solver_unconverged_ticks()));
+  const double mean = static_cast<double>(iterations) / 300.0;
+  printf("\n  warm start: %.2f CG iterations per tick (1021 nodes, 1e-10)\n", mean);
+  CHECK_TRUE(mean <= 4.5);
+}

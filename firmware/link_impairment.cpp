@@ -10,6 +10,7 @@ LinkSetup scenario_link(const ScenarioSpec& spec, int receiver, int sender, std:
     s.model.loss_probability = spec.loss_probability;
     s.model.duplicate_probability = spec.duplicate_probability;
   }
+  s.model.delay_correlation = spec.delay_correlation;  // the one delay model, i.i.d. or time-correlated
   s.seed = net::link_seed(run_seed, receiver, sender);
   return s;
 }

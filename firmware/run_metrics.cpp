@@ -63,6 +63,7 @@ void RunMetrics::add_copies(std::int64_t k, const CopiesSample& s) {
   last_k_ = k;
   last_err_ = err;
   max_err_ = std::max(max_err_, err);
+  growth_.add(t_next, err);
   if (t_next > w_.release_s) {
     if (!after_release_ && err_at_release_)
       for (std::size_t f = 0; f < 2; ++f) rel_[f].level_m = kConsensusFractions[f] * *err_at_release_;
@@ -146,6 +147,9 @@ RunMetricsResult RunMetrics::result(std::int64_t ticks_run) const {
   r.controller_energy_max_J = ctrl_max_;
   r.diverged = diverged_at_.has_value();
   r.diverged_at_s = diverged_at_;
+  r.growth_detected_at_s = growth_.detected_at_s();
+  r.growth_rate_per_s = growth_.rate_per_s();
+  r.unstable = r.diverged || r.growth_detected_at_s.has_value();
   r.max_node_speed_m_per_s = speed_max_;
   return r;
 }

@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include "firmware/growth_detector.hpp"
 #include "firmware/scenario.hpp"
 
 namespace haptic::firmware {
@@ -53,8 +54,12 @@ struct RunMetricsResult {
   std::optional<double> deformation_rise_time_s;      // to 90 % of the hold deformation
   std::optional<double> port_energy_min_J;            // min over time of the cumulative total (13), from 0
   std::optional<double> controller_energy_max_J;      // max over time of the cumulative total (14), from 0
-  bool diverged = false;
+  bool diverged = false;                              // by speed (the core's divergence_speed_m_per_s)
   std::optional<double> diverged_at_s;
+  // Divergence by growth (firmware/growth_detector.hpp): the consensus error's 0.5 s maxima grew
+  // 1.5x or more three times in a row, to above 0.1 mm. unstable = diverged || growth detected.
+  std::optional<double> growth_detected_at_s, growth_rate_per_s;
+  bool unstable = false;
   std::optional<double> max_node_speed_m_per_s;       // may be inf
 };
 
@@ -93,6 +98,7 @@ class RunMetrics {
   double hold_sum_ = 0, hold_mean_ = 0, deform_sum_ = 0;
   std::int64_t hold_n_ = 0, deform_n_ = 0;
   std::optional<double> port_min_, ctrl_max_, speed_max_, diverged_at_;
+  GrowthDetector growth_;  // on the consensus error
 };
 
 }  // namespace haptic::firmware

@@ -81,13 +81,16 @@ json metrics_json(const RunMetricsResult& m) {
       {"deformation_rise_time_s", &RunMetricsResult::deformation_rise_time_s},
       {"port_energy_min_J", &RunMetricsResult::port_energy_min_J},
       {"controller_energy_max_J", &RunMetricsResult::controller_energy_max_J},
-      {"diverged_at_s", &RunMetricsResult::diverged_at_s}};
+      {"diverged_at_s", &RunMetricsResult::diverged_at_s},
+      {"growth_detected_at_s", &RunMetricsResult::growth_detected_at_s},
+      {"growth_rate_per_s", &RunMetricsResult::growth_rate_per_s}};
   json j;
   j["simulated_s"] = m.simulated_s;
   j["release_time_s"] = m.release_time_s;
   j["hold_window_s"] = {m.hold_window_start_s, m.hold_window_end_s};
   for (const auto& [key, field] : optional_fields) j[key] = opt(m.*field);
   j["diverged"] = m.diverged;
+  j["unstable"] = m.unstable;  // diverged by speed or growing consensus error (firmware/growth_detector.hpp)
   const auto& v = m.max_node_speed_m_per_s;
   j["max_node_speed_m_per_s"] = !v ? json(nullptr) : std::isfinite(*v) ? json(*v) : json("inf");
   return j;

@@ -140,7 +140,9 @@ void ScenarioSpec::validate() const {
     for (double b : *damping_Ns_per_m)
       if (!(b >= 0)) bad("--damping values must be >= 0 N s/m");
   }
-  if (!(jitter_fraction >= 0 && jitter_fraction <= 1)) bad("jitter_fraction must be in [0, 1]");
+  if (!(jitter_fraction >= 0 && jitter_fraction <= 1)) bad("--jitter must be in [0, 1] (a fraction of the mean delay)");
+  if (!(delay_correlation >= 0 && delay_correlation < 1)) bad("--delay-correlation must be in [0, 1)");
+  if (!(scene.node_mass_kg > 0 && std::isfinite(scene.node_mass_kg))) bad("--node-mass-kg must be > 0");
   if (!(loss_probability >= 0 && loss_probability < 1)) bad("loss_probability must be in [0, 1)");
   if (!(duplicate_probability >= 0 && duplicate_probability <= 1)) bad("duplicate_probability must be in [0, 1]");
   if (scene_nodes < 7 || scene_nodes > 20000) bad("--nodes must be in [7, 20000]");

@@ -69,6 +69,7 @@ struct ScenarioSpec {
   model::Graph topology;                     // undirected links, 0-based (firmware/model/graph.hpp)
   Eigen::MatrixXd delay_ms;                  // mean one-way delay, row i receives from column j
   double jitter_fraction = model::kPaperJitterFraction;
+  double delay_correlation = 0;              // --delay-correlation: AR(1) per packet of the delay (net::LinkImpairment), 0 = i.i.d.
   double loss_probability = 0.05;
   double duplicate_probability = 0.01;
   int scene_nodes = 33;                      // 33: the paper's ball; otherwise a lattice ball

@@ -64,7 +64,9 @@ std::string opt_fmt(const std::optional<double>& v, double scale, int prec, cons
 // The one-line result of `sim`. Not RT-safe.
 std::string sim_result_line(const std::string& name, const SimResult& r) {
   const RunMetricsResult& m = r.metrics;
-  return "scenario " + name + ": " + (m.diverged ? "DIVERGED at " + fmt(m.diverged_at_s.value_or(0), 2) + " s" : std::string("stable")) +
+  const std::string growth = m.growth_detected_at_s ? ", GROWING consensus error from " + fmt(*m.growth_detected_at_s, 2) + " s (x" +
+                                                          fmt(std::exp(m.growth_rate_per_s.value_or(0)), 2) + " per s)" : std::string();
+  return "scenario " + name + ": " + (m.diverged ? "DIVERGED at " + fmt(m.diverged_at_s.value_or(0), 2) + " s" : std::string(m.unstable ? "unstable" : "stable")) + growth +
          ", consensus error at end " + opt_fmt(m.consensus_error_m, 1e3, 4, " mm", "n/a") + ", consensus time after release " +
          opt_fmt(m.consensus_time_s, 1, 2, " s", "never") + " (< 1 mm), " + opt_fmt(m.consensus_time_10pct_s, 1, 2, " s", "never") + " (10 %), " +
          opt_fmt(m.consensus_time_1pct_s, 1, 2, " s", "never") + " (1 %) of the error at release " +
@@ -76,6 +78,7 @@ std::string sim_result_line(const std::string& name, const SimResult& r) {
 struct SimArgs {
   std::string scenario, out, topology, damping, delay_matrix, topology_file, pushes = "spread", receive_rule = "newest";
   double timer_jitter_ms = 0, step_jitter = 0, clock_drift_ppm = 0;  // station clocks (variable steps T_k)
+  double jitter = -1, delay_correlation = 0, node_mass_kg = -1;     // delay model and object (stability maps)
   int users = 0;
   std::uint64_t push_seed = 1;
   double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1, push_end = -1, release = -1;
@@ -166,6 +169,11 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
                   "With --tx-deadband-mm: a state at least every this many ticks; Nbar_ij grows by this - 1 (default 1)");
   sim->add_option("--receive-rule", a.receive_rule,
                   "Which packet a tick uses: newest (by sequence number) or paper (the most recently received, Fig. 4; late data used) (default newest)");
+  sim->add_option("--jitter", a.jitter, "Delay jitter: each delay in mean x [1 - this, 1 + this], in [0, 1] (default 0.5, the paper's)");
+  sim->add_option("--delay-correlation", a.delay_correlation,
+                  "Time-correlated delays: AR(1) coefficient per packet of a latent Gaussian mapped onto the same uniform support "
+                  "(net::LinkImpairment), in [0, 1); 0 = i.i.d. (default 0)");
+  sim->add_option("--node-mass-kg", a.node_mass_kg, "Mass of each of the ball's nodes in kg (default: the paper ball's 0.04)");
   sim->add_option("--timer-jitter-ms", a.timer_jitter_ms,
                   "Each station's wake is late by a uniform draw in [0, this] ms after its grid time; the core integrates each tick over "
                   "the wake-to-wake step T_k (rt/README.md, Variable steps), in [0, T/2) (default 0)");
@@ -317,6 +325,9 @@ int sim_command(const SimArgs& a) {
     spec.tx_deadband.max_interval_ticks = a.tx_interval;
     spec.trace_node = a.trace_node;
     spec.receive_rule = haptic::rt::parse_rx_rule(a.receive_rule, "--receive-rule");
+    if (a.jitter != -1) spec.jitter_fraction = a.jitter;
+    spec.delay_correlation = a.delay_correlation;
+    if (a.node_mass_kg != -1) spec.scene.node_mass_kg = a.node_mass_kg;
     spec.timer_jitter_s = a.timer_jitter_ms * 1e-3;
     spec.step_jitter = a.step_jitter;
     spec.clock_drift_ppm = a.clock_drift_ppm;

@@ -108,6 +108,7 @@ ImpairedLink::ImpairedLink(const LinkImpairment& model, std::uint64_t seed)
     bad("burst_exit_probability", "in (0, 1]");
   if (!prob(model.burst_loss_probability)) bad("burst_loss_probability", "in [0, 1]");
   if (!prob(model.reorder_probability)) bad("reorder_probability", "in [0, 1]");
+  if (!(model.delay_correlation >= 0.0 && model.delay_correlation < 1.0)) bad("delay_correlation", "in [0, 1)");
   if (!(model.reorder_extra_delay_s >= 0.0) || !std::isfinite(model.reorder_extra_delay_s))
     bad("reorder_extra_delay_s", ">= 0");
   if (!(model.blackout_length_s >= 0.0) || !std::isfinite(model.blackout_length_s))
@@ -174,6 +175,17 @@ PacketFate ImpairedLink::draw(bool blacked_out) {
       bad_state_ = true;
     }
     burst_lost = bad_state_ && u_bad < model_.burst_loss_probability;
+  }
+  if (model_.delay_correlation > 0.0) {
+    // Box-Muller normal, then the AR(1) step and the normal CDF onto the uniform's support
+    const double u1 = 1.0 - rng_.uniform01(), u2 = rng_.uniform01();
+    const double n = std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2);
+    const double rho = model_.delay_correlation;
+    latent_z_ = latent_started_ ? rho * latent_z_ + std::sqrt(1.0 - rho * rho) * n : n;
+    latent_started_ = true;
+    const double phi = 0.5 * std::erfc(-latent_z_ / std::sqrt(2.0));
+    const double j = model_.jitter_fraction;
+    d0 = model_.mean_delay_s * (1.0 - j + 2.0 * j * phi);
   }
   bool reordered = false;
   if (model_.reorder_probability > 0.0) reordered = rng_.uniform01() < model_.reorder_probability;

@@ -45,6 +45,12 @@ struct LinkImpairment {
   // Blackout of a given length (off when blackout_length_s == 0), by send time.
   double blackout_start_s = 0.0;
   double blackout_length_s = 0.0;
+  // Time-correlated delay (off when 0; issue 15 item 5): the delay of each packet is driven by a
+  // latent Gaussian AR(1) z_k = rho z_{k-1} + sqrt(1 - rho^2) n_k (one step per packet drawn) mapped
+  // through the normal CDF onto the same support mean*[1-j, 1+j], so the marginal stays the
+  // paper's uniform and only the correlation differs (about 1/(1 - rho) packets). A duplicate's
+  // own delay stays i.i.d.
+  double delay_correlation = 0.0;
   // Recorded one-way delays in seconds, replayed cyclically (replaces the uniform draw).
   std::shared_ptr<const std::vector<double>> delay_trace;
 
@@ -119,6 +125,8 @@ class ImpairedLink {
   LinkImpairment model_{};
   Rng rng_{1};
   bool bad_state_ = false;
+  double latent_z_ = 0.0;       // AR(1) state of the correlated delay
+  bool latent_started_ = false;
   std::size_t trace_index_ = 0;
   std::uint64_t next_seq_ = 0;  // fate_of(): sequence number the next draw belongs to
 };

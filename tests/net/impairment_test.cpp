@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "net/impairment.hpp"
 
@@ -166,4 +167,48 @@ TEST(Impairment, BadModelsAndPresetNamesAreRejectedWithTheKey) {
   }
   CHECK_EQUAL(0.05, LinkImpairment::preset("paper", 0.1).loss_probability);
   CHECK_EQUAL(0.0, LinkImpairment::preset("none", 0.1).loss_probability);
+}
+
+// The time-correlated delay (issue 15 item 5): the same uniform support and mean as the paper's
+// i.i.d. delay, but consecutive packets' delays strongly correlated; rho = 0 is the i.i.d. model.
+TEST(Impairment, CorrelatedDelayKeepsTheUniformSupportAndCorrelatesConsecutivePackets) {
+  auto stats = [](double rho, double* lag1, double* mean, double* lo, double* hi, double* frac_low_quarter) {
+    LinkImpairment m = LinkImpairment::paper(0.010);
+    m.loss_probability = 0;
+    m.duplicate_probability = 0;
+    m.delay_correlation = rho;
+    ImpairedLink link(m, 11);
+    const int n = 200000;
+    std::vector<double> d(n);
+    for (int i = 0; i < n; ++i) d[static_cast<std::size_t>(i)] = link.next_packet().delay_s[0];
+    double s = 0, lo_ = 1, hi_ = 0, low = 0;
+    for (double x : d) {
+      s += x;
+      lo_ = std::min(lo_, x);
+      hi_ = std::max(hi_, x);
+      low += x < 0.0075 ? 1 : 0;
+    }
+    const double mu = s / n;
+    double c0 = 0, c1 = 0;
+    for (int i = 0; i < n; ++i) {
+      c0 += (d[static_cast<std::size_t>(i)] - mu) * (d[static_cast<std::size_t>(i)] - mu);
+      if (i > 0) c1 += (d[static_cast<std::size_t>(i)] - mu) * (d[static_cast<std::size_t>(i - 1)] - mu);
+    }
+    *lag1 = c1 / c0;
+    *mean = mu;
+    *lo = lo_;
+    *hi = hi_;
+    *frac_low_quarter = low / n;
+  };
+  double lag1, mean, lo, hi, q;
+  stats(0.0, &lag1, &mean, &lo, &hi, &q);
+  CHECK(std::abs(lag1) < 0.01);
+  stats(0.99, &lag1, &mean, &lo, &hi, &q);
+  CHECK(lag1 > 0.97);                       // consecutive delays nearly equal
+  DOUBLES_EQUAL(0.010, mean, 0.0004);       // the same mean ...
+  CHECK(lo >= 0.005 && hi <= 0.015);        // ... and support mean x [1 - j, 1 + j]
+  DOUBLES_EQUAL(0.25, q, 0.03);             // ... and uniform marginal (a quarter below 7.5 ms)
+  LinkImpairment bad = LinkImpairment::paper(0.01);
+  bad.delay_correlation = 1.0;
+  CHECK_THROWS(std::invalid_argument, ImpairedLink(bad, 1));
 }

@@ -1,0 +1,67 @@
+// Divergence by growth (issue 15 item 5, firmware/growth_detector.hpp): a slowly growing
+// instability is reported long before any node reaches the 50 m/s speed threshold, and a push
+// that raises the error for a while and then settles is not.
+#include <CppUTest/TestHarness.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+
+#include "firmware/growth_detector.hpp"
+#include "firmware/scenario.hpp"
+#include "firmware/simulator.hpp"
+
+using namespace haptic::firmware;
+
+TEST_GROUP(Growth){};
+
+TEST(Growth, an_exponential_is_detected_with_its_rate_and_a_settling_push_is_not) {
+  GrowthDetector g;
+  for (int k = 0; k < 5000; ++k) {  // 0.2 mm x e^{t}: x1.65 per 0.5 s
+    const double t = k * 0.002;
+    g.add(t, 2e-4 * std::exp(t));
+  }
+  CHECK_TRUE(g.detected_at_s().has_value());
+  DOUBLES_EQUAL(2.0, *g.detected_at_s(), 1e-9);  // the 3rd growing 0.5 s window ends at 2 s
+  DOUBLES_EQUAL(1.0, *g.rate_per_s(), 0.01);
+  GrowthDetector push;  // rises over 2.5 s, holds, decays
+  for (int k = 0; k < 10000; ++k) {
+    const double t = k * 0.002;
+    const double e = t < 0.5 ? 1e-9 : t < 3.0 ? 1.5e-3 * (t - 0.5) / 2.5 : 1.5e-3 * std::exp(-(t - 3.0));
+    push.add(t, e);
+  }
+  CHECK_FALSE(push.detected_at_s().has_value());
+  GrowthDetector tiny;  // growth far below the floor (roundoff) does not count
+  for (int k = 0; k < 5000; ++k) tiny.add(k * 0.002, 1e-12 * std::exp(k * 0.002));
+  CHECK_FALSE(tiny.detected_at_s().has_value());
+}
+
+namespace {
+ScenarioSpec tight(double factor_of_eq18, double correlation) {
+  ScenarioSpec s = make_scenario("paper-unstable");
+  s.delay_ms = Eigen::MatrixXd::Constant(4, 4, 1.33);
+  s.delay_ms.diagonal().setZero();
+  s.loss_probability = 0;
+  s.duplicate_probability = 0;
+  s.loss_allowance_ticks = 0;
+  s.d_gain_Ns_per_m = 0;
+  s.delay_correlation = correlation;
+  s.damping_Ns_per_m.reset();
+  const BuiltScenario b = build_scenario(s);
+  std::vector<double> d;
+  for (double m : b.damping_min) d.push_back(factor_of_eq18 * m);
+  s.damping_Ns_per_m = d;
+  return s;
+}
+}  // namespace
+
+TEST(Growth, the_tight_case_below_eq18_is_flagged_by_growth_before_the_speed_threshold) {
+  // 0.45 x eq. (18): diverges by speed at 6.76 s; the consensus error's growth is reported earlier.
+  const SimResult r = run_simulation(build_scenario(tight(0.45, 0.0)), SimOptions{});
+  CHECK_TRUE(r.metrics.diverged);
+  CHECK_TRUE(r.metrics.growth_detected_at_s.has_value());
+  CHECK_TRUE(*r.metrics.growth_detected_at_s < *r.metrics.diverged_at_s);
+  CHECK_TRUE(r.metrics.unstable);
+  // at eq. (18): neither
+  const SimResult ok = run_simulation(build_scenario(tight(1.0, 0.0)), SimOptions{});
+  CHECK_FALSE(ok.metrics.unstable);
+}

@@ -25,7 +25,7 @@ using platform::config::View;
 void parse_station_section(View root, StationFile& f) {
   const View st = root["station"];
   if (!st) bad("[station]", "present (with at least id = 1..users)");
-  only_keys(st, "station", {"id", "scenario", "users", "topology", "delay_matrix", "pushes", "push_seed", "allow_routed_peers", "run_subdir", "nodes", "duration_s", "seed", "period_min_s", "period_max_s", "push_start_s", "push_end_s", "release_s",
+  only_keys(st, "station", {"id", "scenario", "users", "topology", "delay_matrix", "pushes", "push_seed", "allow_routed_peers", "run_subdir", "nodes", "duration_s", "seed", "period_min_s", "period_max_s", "delay_correlation", "push_start_s", "push_end_s", "release_s",
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
                             "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
@@ -46,6 +46,7 @@ void parse_station_section(View root, StationFile& f) {
   s.nodes = static_cast<int>(integer(st["nodes"], "station.nodes", 33, 4, 5000));
   s.duration_s = real(st["duration_s"], "station.duration_s", 0.0, 0.0, 3600.0, " (0 = the scenario's)");
   s.seed = static_cast<std::uint64_t>(integer(st["seed"], "station.seed", 1, 0, 1ll << 40));
+  s.delay_correlation = real(st["delay_correlation"], "station.delay_correlation", 0.0, 0.0, 0.999999);
   s.period_min_s = real(st["period_min_s"], "station.period_min_s", 0.0, 0.0, 0.05, " (0 = the period)");
   s.period_max_s = real(st["period_max_s"], "station.period_max_s", 0.0, 0.0, 0.1, " (0 = the period)");
   s.push_start_s = real(st["push_start_s"], "station.push_start_s", -1, -1, 3600, " (-1 = the scenario's)");

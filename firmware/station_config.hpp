@@ -22,6 +22,7 @@
 //   nodes = 33                       # scene size (33 = the paper's ball), 4..5000
 //   duration_s = 0                   # run time from the run start, (0, 3600]; 0 = the scenario's
 //   seed = 1                         # run seed: impairment link seeds as the simulator's
+//   delay_correlation = 0            # impaired links: AR(1) per packet of the emulated delay, [0, 1) (sim --delay-correlation)
 //   period_min_s = 0                 # bounds of the measured step T_k the core integrates with (rt/README.md
 //   period_max_s = 0                 # "Variable steps"): eq. (18)'s D term and eq. (26) use them; a wake-to-wake
 //                                    # period outside is clamped and counted (steps_clamped); 0 = loop.period_ns
@@ -149,6 +150,7 @@ struct StationSection {
   double duration_s = 0.0;
   std::uint64_t seed = 1;
   double period_min_s = 0, period_max_s = 0;  // bounds of the measured step T_k (0: the period)
+  double delay_correlation = 0;               // the emulated delay's AR(1) coefficient (net::LinkImpairment)
   double push_start_s = -1, push_end_s = -1, release_s = -1;
   std::string start_clock = "monotonic";
   double start_at = 0.0;

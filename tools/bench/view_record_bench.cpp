@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <thread>
@@ -73,21 +74,25 @@ struct Browsers {
   std::vector<pid_t> pids;
   Browsers(const std::string& url, int n) {
     for (int i = 0; i < n; ++i) {
-      const std::string profile = "--user-data-dir=/tmp/bench-view-chrome-" + std::to_string(getpid()) + "-" + std::to_string(i);
+      const std::string base = "/tmp/bench-view-chrome-" + std::to_string(getpid()) + "-" + std::to_string(i);
+      const std::string profile = "--user-data-dir=" + base;
       std::vector<std::string> args = {"chromium", "--headless=new", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
                                        "--use-angle=swiftshader", profile, "--window-size=1400,900", "--timeout=600000",
-                                       "--screenshot=/dev/null", url};
+                                       "--screenshot=" + base + ".png", url};  // a .png name: chromium refuses any other (it quit at once with /dev/null)
       std::vector<char*> argv;
       for (auto& a : args) argv.push_back(a.data());
       argv.push_back(nullptr);
       pid_t pid = 0;
       if (posix_spawnp(&pid, "chromium", nullptr, nullptr, argv.data(), environ) == 0) pids.push_back(pid);
+      bases.push_back(base);
     }
   }
   ~Browsers() {
     for (pid_t p : pids) kill(p, SIGTERM);
     for (pid_t p : pids) waitpid(p, nullptr, 0);
+    for (const auto& b : bases) std::filesystem::remove_all(b), std::filesystem::remove(b + ".png");
   }
+  std::vector<std::string> bases;
 };
 
 bool have_chromium() { return std::system("command -v chromium > /dev/null 2>&1") == 0; }

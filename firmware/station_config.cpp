@@ -187,8 +187,8 @@ void parse_net_keys(const toml::table& cd, View root, StationFile& f) {
   const std::string P = cd.contains("network") ? "network" : "net";
   const View nt = root[P];
   f.net_section = P;
-  if (!nt) bad("[net]", "present (transport, addresses, session key, peers: see net/config.hpp)");
-  only_keys(nt, P, {"station_id", "transport", "bind", "listen", "interface", "session_id", "session_key", "encoding",
+  if (!nt) bad("[net]", "present (transport, addresses, key_file, peers: see net/config.hpp)");
+  only_keys(nt, P, {"station_id", "transport", "bind", "listen", "interface", "session_id", "session_key", "shared_session_key", "key_file", "encoding",
                     "max_datagram_bytes", "io_busy_poll", "io_cpu", "tx_spin", "tx_spin_lead_us", "tx_spin_tail_us", "delay_queue_datagrams", "rtt_margin_fraction", "rtt_margin_s",
                     "rtt_min_probe_samples", "impairment", "peers", "listen_any", "max_sequence_ahead_ticks", "rx_rate_limit_per_s",
                     "envelope_radii", "demo_keys"});
@@ -202,7 +202,7 @@ void parse_net_keys(const toml::table& cd, View root, StationFile& f) {
       const std::string k = P + ".peers[" + std::to_string(i++) + "]";
       if (!node.is_table()) bad(k, "a table");
       const View p{node};
-      only_keys(p, k, {"id", "station", "address", "mac", "mean_delay_ms"});
+      only_keys(p, k, {"id", "station", "address", "mac", "mean_delay_ms", "public_key"});
       const View idv = p["id"] ? p["id"] : p["station"];
       f.peer_id_keys.push_back(p["id"] || !p["station"] ? "id" : "station");
       const int id = static_cast<int>(integer(idv, k + ".id", -1, 0, 65534));

@@ -141,7 +141,9 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   p->built = std::make_shared<const BuiltScenario>(build_scenario(spec));
   p->station_id = f.station.id;
   p->me = f.station.id - 1;
-  p->net = net::parse_net_config(f.text, static_cast<std::uint32_t>(p->built->scene.dofs));
+  const std::size_t slash = f.path.rfind('/');
+  p->net = net::parse_net_config(f.text, static_cast<std::uint32_t>(p->built->scene.dofs),
+                                 f.path.empty() ? std::string() : slash == std::string::npos ? std::string(".") : f.path.substr(0, slash == 0 ? 1 : slash));
   if (p->net.endpoint.wire.station_id != f.station.id)
     bad("the wire station id (" + f.net_section + ".station_id / station.id) must be station.id = " + std::to_string(f.station.id));
   p->peers = plan_peer_table(f, *p->built, p->me, p->net);

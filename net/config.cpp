@@ -29,7 +29,39 @@ T integer(View n, const std::string& key, T def, long long lo, long long hi) {
 
 }  // namespace
 
-NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count) {
+namespace {
+// net.key_file (pairwise keys) or net.shared_session_key (one key for the whole session).
+void parse_keys(const toml::node_view<const toml::node>& net, const std::string& P, const std::string& config_dir,
+                EndpointConfig& e) {
+  const bool demo = boolean(net["demo_keys"], P + "demo_keys", false);
+  if (net["session_key"])
+    bad(P + "session_key", "gone: set " + P + "key_file (this station's key pair, `haptic-keygen FILE`; each of " + P +
+                               "peers lists its public_key) or, where every station shares one secret, " + P +
+                               "shared_session_key (then any key holder can forge any station's packets)");
+  e.pairwise_keys = static_cast<bool>(net["key_file"]);
+  if (e.pairwise_keys && net["shared_session_key"])
+    bad(P + "shared_session_key", "absent when " + P + "key_file is set (pairwise keys replace the shared key)");
+  if (e.pairwise_keys) {
+    std::string path = text(net["key_file"], P + "key_file", "");
+    if (path.empty()) bad(P + "key_file", "a file name");
+    if (path[0] != '/' && !config_dir.empty()) path = config_dir + "/" + path;
+    e.own_keys = read_key_file(path, P + "key_file", demo);
+    return;
+  }
+  if (!net["shared_session_key"])
+    bad(P + "key_file", "set: this station's key pair (`haptic-keygen FILE`, mode 0600), with every " + P +
+                            "peers entry's public_key; or " + P + "shared_session_key for one key shared by the session");
+  const std::string K = P + "shared_session_key";
+  e.wire.key = SessionKey::from_hex(text(net["shared_session_key"], K, ""), K);
+  // A key that is no secret (all bytes alike, a byte sequence, the old lab files' 00..00ff) only
+  // for an explicit demonstration.
+  if (!demo && is_example_key(e.wire.key.bytes.data(), e.wire.key.bytes.size()))
+    bad(K, "a secret, not an example key (all bytes alike or a byte sequence): generate one with "
+           "`openssl rand -hex 32`, or set " + P + "demo_keys = true for a demonstration");
+}
+}  // namespace
+
+NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count, const std::string& config_dir) {
   const toml::table doc = platform::config::parse_document(toml_text);
   // The section is [net]; [network] (firmware/deploy's lab configs) is accepted as an alias,
   // with `listen` for `bind` and peers' `station` for `id`.
@@ -47,13 +79,7 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
   c.transport = text(net["transport"], P + "transport", "udp");
   if (c.transport != "udp" && c.transport != "raw") bad(P + "transport", "\"udp\" or \"raw\"");
   e.wire.session_id = integer<std::uint32_t>(net["session_id"], P + "session_id", 1, 0, 0xFFFFFFFFll);
-  if (!net["session_key"]) bad(P + "session_key", "present: 64 hexadecimal digits (a 32-byte key)");
-  e.wire.key = SessionKey::from_hex(text(net["session_key"], P + "session_key", ""), P + "session_key");
-  // A key that is no secret (all bytes alike, a byte sequence, the old lab files' 00..00ff) only
-  // for an explicit demonstration.
-  if (!boolean(net["demo_keys"], P + "demo_keys", false) && is_example_key(e.wire.key.bytes.data(), e.wire.key.bytes.size()))
-    bad(P + "session_key", "a secret, not an example key (all bytes alike or a byte sequence): generate one with "
-                               "`openssl rand -hex 32`, or set " + P + "demo_keys = true for a demonstration");
+  parse_keys(net, P, config_dir, e);
   const std::string enc = text(net["encoding"], P + "encoding", "float32");
   if (enc == "float64") e.wire.encoding = ValueEncoding::float64;
   else if (enc == "float32") e.wire.encoding = ValueEncoding::float32;
@@ -134,6 +160,13 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
       ImpairedLink check(l.impairment, l.seed);  // validates the model now, naming the key
       (void)check;
     }
+    if (e.pairwise_keys) {
+      if (!p["public_key"]) bad(k + ".public_key", "set when " + P + "key_file is (the neighbour's public key, 64 hex digits)");
+      l.public_key = public_key_from_hex(text(p["public_key"], k + ".public_key", ""), k + ".public_key");
+      if (l.public_key == e.own_keys.public_key) bad(k + ".public_key", "the neighbour's key, not this station's own");
+    } else if (p["public_key"]) {
+      bad(k + ".public_key", "absent with " + P + "shared_session_key (public keys go with " + P + "key_file)");
+    }
     e.peers.push_back(l);
     if (c.transport == "udp") {
       if (!p["address"]) bad(k + ".address", "set for transport = \"udp\"");
@@ -151,7 +184,9 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
 }
 
 NetConfig load_net_config(const std::string& path, std::uint32_t value_count) {
-  return parse_net_config(platform::config::read_file(path), value_count);
+  const std::size_t slash = path.rfind('/');
+  return parse_net_config(platform::config::read_file(path), value_count,
+                          slash == std::string::npos ? std::string(".") : path.substr(0, slash == 0 ? 1 : slash));
 }
 
 std::unique_ptr<Transport> NetConfig::make_transport() const {

@@ -9,9 +9,15 @@
 //   bind = "127.0.0.1:7000"        # udp: numeric address:port, IPv6 as "[::1]:7000"
 //   interface = "hpn0"             # raw: interface name
 //   session_id = 1                 # 0..2^32-1; use a new one per run
-//   session_key = "<64 hex>"       # 32-byte MAC key (required); example keys (all bytes alike, byte
-//                                  # sequences such as 0001..1f) are refused unless demo_keys = true
-//   demo_keys = false              # true: accept an example session_key (demonstrations only)
+//   key_file = "station-1.key"     # this station's key pair (net/keys.hpp: mode 0600, `haptic-keygen FILE`);
+//                                  # relative names are relative to the config file's folder. Pairwise keys:
+//                                  # every [[net.peers]] lists its public_key; each directed pair gets its own
+//                                  # traffic key per run, agreed by hellos while probing (net/README.md "Keys")
+//   shared_session_key = "<64 hex>" # instead of key_file: ONE 32-byte MAC key for every station of the session
+//                                  # (any key holder can forge any station; for tests and old set-ups). Example
+//                                  # keys (all bytes alike, byte sequences such as 0001..1f) are refused unless
+//                                  # demo_keys = true. (The old name session_key is refused, naming both.)
+//   demo_keys = false              # true: accept example keys (demonstrations only)
 //   encoding = "float32"           # "float32" | "float64" (float32: one datagram for 33 nodes; tools/bench/results/net_float32_consensus.json)
 //   max_datagram_bytes = 1400      # 96..65507 and <= the transport's MTU
 //   io_busy_poll = false
@@ -40,6 +46,7 @@
 //   address = "127.0.0.1:7001"     # udp
 //   mac = "02:48:50:00:00:02"      # raw
 //   mean_delay_ms = 4.0            # impairment mean for the directed link self -> id (>= 0)
+//   public_key = "<64 hex>"        # the neighbour's public key (required with net.key_file)
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -67,8 +74,9 @@ struct NetConfig {
   std::unique_ptr<Transport> make_transport() const;
 };
 
-// Parses the whole TOML document text; value_count is the scene's 3n.
-NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count);
+// Parses the whole TOML document text; value_count is the scene's 3n; config_dir: the folder a
+// relative net.key_file is read from ("" = the working directory).
+NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count, const std::string& config_dir = "");
 NetConfig load_net_config(const std::string& path, std::uint32_t value_count);
 
 }  // namespace haptic::net

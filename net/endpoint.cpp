@@ -103,7 +103,8 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
       silence_ns_(static_cast<std::int64_t>(std::llround(cfg.peer_silence_s * 1e9))),
       max_sequence_ahead_(cfg.max_sequence_ahead_ticks),
       envelope_{cfg.envelope_max_offset_m > 0.0 ? cfg.envelope_rest_x : std::vector<double>{}, cfg.envelope_max_offset_m,
-                cfg.envelope_max_speed_m_per_s} {
+                cfg.envelope_max_speed_m_per_s},
+      pairwise_(cfg.pairwise_keys) {
   if (frags_per_packet_ == 0)
     throw std::invalid_argument("net: scene too large for " + std::to_string(kMaxFragments) +
                                 " fragments of net.max_datagram_bytes = " + std::to_string(cfg.wire.max_datagram_bytes));
@@ -118,9 +119,14 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
     if (l.impaired) p->impaired = SendImpairment(l.impairment, l.seed, cfg.impairment_first_run_seq);
     p->rtt = RttEstimator(cfg.rtt);
     p->stats.station_id = l.station_id;
+    if (pairwise_) {
+      p->pair = pair_keys(cfg.own_keys, cfg.wire.station_id, l.public_key, l.station_id);
+      decoder_.set_peer_keys(l.station_id, p->pair.rx, nullptr);  // hellos only, until agreed
+    }
     p->box.writer_publish(p->stats);
     peers_.push_back(std::move(p));
   }
+  if (pairwise_) my_nonce_ = new_run_nonce();
   send_records_.resize(kSendRecords);
   rx_meta_.resize(kRxBuffers);
   rx_store_.resize(kRxBuffers * 2 * value_count_);
@@ -445,6 +451,7 @@ bool Endpoint::spin_for_push(std::int64_t until_ns) {
 void Endpoint::on_incarnation(PeerState& p, std::uint64_t incarnation) {
   if (p.has_incarnation && incarnation == p.stats.incarnation) return;
   if (p.has_incarnation) {
+    if (pairwise_) forget_keys(p);  // a new process, a new nonce: agree again
     // A restarted neighbour: its sequence numbers and echoes start afresh.
     ++p.stats.incarnation_changes;
     p.echo = {};
@@ -553,7 +560,7 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
       continue;
     }
     const DecodeStatus ds = decoder_.decode(rx_buf_.data(), len, st, lim);
-    if (ds != DecodeStatus::complete && ds != DecodeStatus::fingerprint) continue;
+    if (ds != DecodeStatus::complete && ds != DecodeStatus::fingerprint && ds != DecodeStatus::hello) continue;
     const int pi = find_peer(st.sender);
     if (pi < 0) continue;  // cannot happen: the decoder knows the same peers
     PeerState& p = *peers_[static_cast<std::size_t>(pi)];
@@ -564,6 +571,10 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
       p.stats.up = true;
       ++p.stats.up_events;
       p.stats.last_change_s = p.stats.last_up_s = static_cast<double>(now_ns) * 1e-9;
+    }
+    if (ds == DecodeStatus::hello) {
+      on_hello(p, st);
+      continue;
     }
     if (ds == DecodeStatus::fingerprint) {
       ++counters_.fingerprints_received;
@@ -615,14 +626,65 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
 void Endpoint::send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns) {
   if (fingerprint_.scene_nodes == 0) return;
   // The first pushes, then every 25th (20 Hz at a 2 ms tick): a neighbour that starts or
-  // restarts later learns it within 50 ms.
-  if (pushes_sent_ > 8 && pushes_sent_ % 25 != 0) return;
+  // restarts later learns it within 50 ms. Pairwise keys: only to a neighbour whose keys are
+  // agreed, and at once after an agreement.
+  const bool scheduled = pushes_sent_ <= 8 || pushes_sent_ % 25 == 0;
   for (auto& pp : peers_) {
+    PeerState& p = *pp;
+    if (pairwise_ && !p.stats.keys_agreed) continue;
+    if (!scheduled && !p.fingerprint_due) continue;
+    p.fingerprint_due = false;
     const std::size_t len =
-        encoder_.encode_fingerprint(pp->link.station_id, seq, stamp_ns, fingerprint_, tx_buf_.data(), tx_buf_.size(),
-                                    static_cast<std::uint64_t>(std::llround(pp->rtt.probe_bound_s() * 1e9)));
-    if (len) send_now(pp->link.station_id, tx_buf_.data(), len, *pp);
+        encoder_.encode_fingerprint(p.link.station_id, seq, stamp_ns, fingerprint_, tx_buf_.data(), tx_buf_.size(),
+                                    static_cast<std::uint64_t>(std::llround(p.rtt.probe_bound_s() * 1e9)),
+                                    pairwise_ ? &p.tx_traffic : nullptr);
+    if (len) send_now(p.link.station_id, tx_buf_.data(), len, p);
   }
+}
+
+void Endpoint::send_hellos(std::uint64_t seq, std::int64_t stamp_ns) {
+  // Every push until the pair has agreed; after that only when a hello of the peer asked for
+  // one (it lacks our nonce or our agreement), so at most one hello per peer per push.
+  for (auto& pp : peers_) {
+    PeerState& p = *pp;
+    if (p.stats.keys_agreed && !p.hello_due) continue;
+    p.hello_due = false;
+    const bool agreed = p.stats.keys_agreed && p.agreed_nonce == p.seen_nonce;
+    const std::size_t len = encoder_.encode_hello(p.link.station_id, seq, stamp_ns, my_nonce_, p.seen_nonce, agreed,
+                                                  p.pair.tx, tx_buf_.data(), tx_buf_.size());
+    if (len == 0) continue;
+    send_now(p.link.station_id, tx_buf_.data(), len, p);
+    ++p.stats.hellos_sent;
+  }
+}
+
+void Endpoint::on_hello(PeerState& p, const DecodedState& st) {
+  ++p.stats.hellos_received;
+  if (st.hello_nonce != p.seen_nonce) {
+    p.seen_nonce = st.hello_nonce;  // a nonce we have not echoed yet: echo it with our next push
+    p.hello_due = true;
+  }
+  // The peer's nonce is adopted only from a hello that echoes OUR nonce of this run: the peer
+  // made it after it saw ours, so it is of this run (a hello recorded in another run echoes
+  // another nonce, and our nonce is fresh random per Endpoint).
+  if (st.hello_echo == my_nonce_ && !(p.stats.keys_agreed && p.agreed_nonce == st.hello_nonce)) {
+    p.agreed_nonce = st.hello_nonce;
+    p.tx_traffic = traffic_key(p.pair.tx, my_nonce_, p.agreed_nonce);
+    p.rx_traffic = traffic_key(p.pair.rx, p.agreed_nonce, my_nonce_);
+    decoder_.set_peer_keys(p.link.station_id, p.pair.rx, &p.rx_traffic);
+    p.stats.keys_agreed = true;
+    ++p.stats.key_agreements;
+    p.fingerprint_due = true;
+  }
+  // The peer lacks our nonce, or has not adopted it yet: it needs a hello from us.
+  if (st.hello_echo != my_nonce_ || !st.hello_agreed) p.hello_due = true;
+}
+
+void Endpoint::forget_keys(PeerState& p) {
+  p.stats.keys_agreed = false;
+  p.seen_nonce = RunNonce{};
+  p.agreed_nonce = RunNonce{};
+  decoder_.set_peer_keys(p.link.station_id, p.pair.rx, nullptr);
 }
 
 void Endpoint::send_now(std::uint16_t dest, const std::uint8_t* d, std::size_t len, PeerState& p) {
@@ -650,10 +712,16 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
                                                      : now_ns;
     send_records_[m.seq % kSendRecords] = SendRecord{true, m.seq, stamp};
     if (m.safe_state) ++counters_.tx_safe_state;
+    if (pairwise_) send_hellos(m.seq, stamp);
     send_fingerprints(m.seq, stamp);
     ++pushes_sent_;
     for (auto& pp : peers_) {
       PeerState& p = *pp;
+      if (pairwise_ && !p.stats.keys_agreed) {  // no state leaves before the pair has agreed
+        ++p.stats.tx_without_keys;
+        continue;
+      }
+      const SessionKey* key = pairwise_ ? &p.tx_traffic : nullptr;
       OutgoingState o;
       o.dest = p.link.station_id;
       o.seq = m.seq;
@@ -678,7 +746,7 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
         const std::int64_t release = now_ns + static_cast<std::int64_t>(fate.delay_s[c] * 1e9);
         for (std::size_t f = 0; f < frags_per_packet_; ++f) {
           if (release <= now_ns) {
-            const std::size_t len = encoder_.encode_fragment(o, f, tx_buf_.data(), tx_buf_.size());
+            const std::size_t len = encoder_.encode_fragment(o, f, tx_buf_.data(), tx_buf_.size(), key);
             if (len) send_now(o.dest, tx_buf_.data(), len, p);
             continue;
           }
@@ -688,7 +756,7 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
           }
           const std::uint32_t slot = delay_free_.back();
           const std::size_t len =
-              encoder_.encode_fragment(o, f, delay_store_.data() + std::size_t{slot} * max_datagram_, max_datagram_);
+              encoder_.encode_fragment(o, f, delay_store_.data() + std::size_t{slot} * max_datagram_, max_datagram_, key);
           if (len == 0) continue;
           delay_free_.pop_back();
           delay_heap_.push_back(Delayed{release, delay_order_++, o.dest, static_cast<std::uint32_t>(len), slot});

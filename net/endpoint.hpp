@@ -44,6 +44,7 @@
 
 #include "net/envelope.hpp"
 #include "net/impairment.hpp"
+#include "net/keys.hpp"
 #include "net/rtt.hpp"
 #include "net/transport.hpp"
 #include "net/wire.hpp"
@@ -65,6 +66,7 @@ struct PeerLink {
   bool impaired = false;           // apply `impairment` to packets we send to this peer
   LinkImpairment impairment{};     // directed link this station -> peer
   std::uint64_t seed = 1;          // seed of this directed link
+  PublicKey public_key{};          // the neighbour's long-term public key (EndpointConfig::pairwise_keys)
 };
 
 struct EndpointConfig {
@@ -100,6 +102,13 @@ struct EndpointConfig {
   // tick (note_tick), an authentic datagram with a sequence beyond that tick + this is dropped
   // (future_sequence) before it touches any state.
   std::uint64_t max_sequence_ahead_ticks = 50;
+  // Pairwise keys (net/keys.hpp; net.key_file): each directed pair has its own traffic key, from
+  // the pair's key exchange (own_keys, PeerLink::public_key) and a fresh per-run nonce of each
+  // end, agreed by hello messages (wire kind 3) from the first push on. Until a pair has agreed,
+  // no state or fingerprint is sent to that neighbour or accepted from it. false: the one shared
+  // session key wire.key for everything (net.shared_session_key).
+  bool pairwise_keys = false;
+  StationKeyPair own_keys{};
   // Per-source datagram rate limit on the I/O thread (token bucket, burst = 0.1 s of it), applied
   // before the MAC is computed; 0 = automatic: 20x the expected rate (fragments per packet per
   // tx_period_s, 500 packets/s without a period). net.rx_rate_limit_per_s.
@@ -157,6 +166,11 @@ struct PeerStats {
   std::uint64_t safe_state_packets = 0;
   bool peer_safe_state = false;
   std::uint64_t rate_limited = 0;         // datagrams from this neighbour's address over the rate limit
+  // Pairwise keys: this run's traffic keys with the neighbour are agreed; how often they were
+  // (re)agreed (a restarted neighbour brings a new nonce); hellos sent / received; state packets
+  // not sent to it because no keys were agreed yet.
+  bool keys_agreed = false;
+  std::uint64_t key_agreements = 0, hellos_sent = 0, hellos_received = 0, tx_without_keys = 0;
 };
 
 // Totals of the I/O thread (a copy).
@@ -347,6 +361,13 @@ class Endpoint {
     std::uint64_t offset_window_n = 0;   // samples in the current clock-offset window
     double offset_window_best_rtt = 0.0, offset_window_best = 0.0;
     RateBucket bucket;                   // datagrams from this neighbour's configured address
+    // Pairwise keys (I/O thread): the pair's static keys (hellos), the newest nonce of the peer
+    // in an authentic hello (echoed back in ours), the nonce adopted for this run (only from a
+    // hello echoing OUR nonce), this run's traffic keys, and whether a hello / fingerprint is due.
+    PairKeys pair{};
+    RunNonce seen_nonce{}, agreed_nonce{};
+    SessionKey tx_traffic{}, rx_traffic{};
+    bool hello_due = false, fingerprint_due = false;
     PeerStats stats;                     // I/O thread only; published to `box`
     platform::SnapshotBox<PeerStats> box;
     std::atomic<std::uint64_t> bound_ns{0};
@@ -374,6 +395,9 @@ class Endpoint {
   void apply_probe_command();
   void publish_stats();
   void send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns);
+  void send_hellos(std::uint64_t seq, std::int64_t stamp_ns);                 // I/O thread, per push
+  void on_hello(PeerState& p, const DecodedState& st);                        // nonce agreement
+  void forget_keys(PeerState& p);                                             // a restarted neighbour
   void handle_rx(std::int64_t now_ns);
   void handle_tx(std::int64_t now_ns, bool caught_spinning = false);
   void release_due(std::int64_t now_ns);
@@ -444,6 +468,8 @@ class Endpoint {
   RateBucket unknown_bucket_;              // datagrams from addresses no neighbour is configured at
   PayloadEnvelope envelope_;  // I/O thread (net/envelope.hpp)
   std::uint64_t pushes_sent_ = 0;          // I/O thread only
+  bool pairwise_;                          // EndpointConfig::pairwise_keys
+  RunNonce my_nonce_{};                    // this run's nonce (pairwise keys), fresh per Endpoint
 
   // I/O thread only; published to counters_box_.
   EndpointCounters counters_{};

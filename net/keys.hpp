@@ -20,9 +20,8 @@
 namespace haptic::net {
 
 inline constexpr std::size_t kPublicKeyBytes = 32;
-inline constexpr std::size_t kNonceBytes = 16;
+inline constexpr std::size_t kNonceBytes = kRunNonceBytes;  // RunNonce: net/wire.hpp
 using PublicKey = std::array<std::uint8_t, kPublicKeyBytes>;
-using RunNonce = std::array<std::uint8_t, kNonceBytes>;
 
 struct StationKeyPair {
   PublicKey public_key{};

@@ -55,6 +55,7 @@ const char* to_string(DropReason r) {
     case DropReason::out_of_envelope: return "out_of_envelope";
     case DropReason::rate_limited: return "rate_limited";
     case DropReason::zero_length: return "zero_length";
+    case DropReason::keys_not_agreed: return "keys_not_agreed";
     case DropReason::count_: break;
   }
   return "?";
@@ -145,7 +146,7 @@ std::size_t Encoder::fragment_count(std::uint32_t value_count) const {
 }
 
 std::size_t Encoder::encode_fragment(const OutgoingState& s, std::size_t index, std::uint8_t* out,
-                                     std::size_t cap) const {
+                                     std::size_t cap, const SessionKey* key) const {
   const std::size_t nfrag = fragment_count(s.value_count);
   if (nfrag == 0 || index >= nfrag) return 0;
   const std::size_t total = payload_bytes(s.value_count);
@@ -184,7 +185,7 @@ std::size_t Encoder::encode_fragment(const OutgoingState& s, std::size_t index, 
       std::memcpy(p + 4 * i, &f, 4);
     }
   }
-  mac(out, kHeaderBytes + len, cfg_.key, out + kHeaderBytes + len);
+  mac(out, kHeaderBytes + len, key ? *key : cfg_.key, out + kHeaderBytes + len);
   return size;
 }
 
@@ -206,7 +207,7 @@ void Encoder::put_common(std::uint8_t* out, PayloadKind kind, std::uint8_t flags
 
 std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
                                         const Fingerprint& f, std::uint8_t* out, std::size_t cap,
-                                        std::uint64_t round_trip_bound_ns) const {
+                                        std::uint64_t round_trip_bound_ns, const SessionKey* key) const {
   const std::size_t size = kHeaderBytes + kFingerprintBytes + kMacBytes;
   if (cap < size) return 0;
   namespace o = wire_offset;
@@ -226,7 +227,28 @@ std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, s
   put<std::uint64_t>(p, 16, f.period_ns);
   put<std::uint64_t>(p, 24, f.gains_hash);
   put<std::uint64_t>(p, 32, round_trip_bound_ns);
-  mac(out, kHeaderBytes + kFingerprintBytes, cfg_.key, out + kHeaderBytes + kFingerprintBytes);
+  mac(out, kHeaderBytes + kFingerprintBytes, key ? *key : cfg_.key, out + kHeaderBytes + kFingerprintBytes);
+  return size;
+}
+
+std::size_t Encoder::encode_hello(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns, const RunNonce& mine,
+                                  const RunNonce& echo, bool agreed, const SessionKey& key, std::uint8_t* out,
+                                  std::size_t cap) const {
+  const std::size_t size = kHeaderBytes + kHelloBytes + kMacBytes;
+  if (cap < size) return 0;
+  namespace o = wire_offset;
+  put_common(out, PayloadKind::hello, agreed ? kFlagHelloAgreed : 0, dest, seq, send_time_ns);
+  put<std::uint64_t>(out, o::echo_seq, 0);
+  put<std::int64_t>(out, o::echo_hold, 0);
+  put<std::uint32_t>(out, o::value_count, 0);
+  put<std::uint16_t>(out, o::frag_index, 0);
+  put<std::uint16_t>(out, o::frag_count, 1);
+  put<std::uint32_t>(out, o::frag_offset, 0);
+  put<std::uint16_t>(out, o::frag_len, static_cast<std::uint16_t>(kHelloBytes));
+  put<std::uint16_t>(out, o::frag_stride, static_cast<std::uint16_t>(kHelloBytes));
+  std::memcpy(out + kHeaderBytes, mine.data(), kRunNonceBytes);
+  std::memcpy(out + kHeaderBytes + kRunNonceBytes, echo.data(), kRunNonceBytes);
+  mac(out, kHeaderBytes + kHelloBytes, key, out + kHeaderBytes + kHelloBytes);
   return size;
 }
 
@@ -317,6 +339,16 @@ Decoder::Decoder(const WireConfig& cfg, std::span<const std::uint16_t> peers, st
   slots_.resize(peers_.size() * slots_per_peer_);
   storage_.resize(slots_.size() * max_payload_bytes_);
   for (std::size_t i = 0; i < slots_.size(); ++i) slots_[i].buffer = storage_.data() + i * max_payload_bytes_;
+}
+
+void Decoder::set_peer_keys(std::uint16_t sender, const SessionKey& hello_key, const SessionKey* traffic_key) {
+  const int pi = peer_index(sender);
+  if (pi < 0) throw std::invalid_argument("decoder: station " + std::to_string(sender) + " is not a neighbour");
+  Peer& p = peers_[static_cast<std::size_t>(pi)];
+  p.pairwise = true;
+  p.hello_key = hello_key;
+  p.has_traffic_key = traffic_key != nullptr;
+  p.traffic_key = traffic_key ? *traffic_key : SessionKey{};
 }
 
 int Decoder::peer_index(std::uint16_t id) const {
@@ -429,12 +461,34 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
   if (lim.source_station == kSourceUnknown || (lim.source_station >= 0 && lim.source_station != h.sender))
     return drop(DropReason::wrong_source);
   if (h.dest != cfg_.station_id) return drop(DropReason::wrong_destination);
+  Peer& peer = peers_[static_cast<std::size_t>(pi)];
+  // Pairwise keys: a hello verifies with the pair's static key, everything else with this run's
+  // traffic key; before the run's keys are agreed nothing but hellos can be of this run.
+  const bool is_hello = h.kind == static_cast<std::uint8_t>(PayloadKind::hello);
+  if (peer.pairwise && !is_hello && !peer.has_traffic_key) return drop(DropReason::keys_not_agreed);
+  const SessionKey& key = !peer.pairwise ? cfg_.key : is_hello ? peer.hello_key : peer.traffic_key;
   std::uint8_t tag[kMacBytes];
-  mac(d, kHeaderBytes + h.frag_len, cfg_.key, tag);
+  mac(d, kHeaderBytes + h.frag_len, key, tag);
   if (sodium_memcmp(tag, d + kHeaderBytes + h.frag_len, kMacBytes) != 0) return drop(DropReason::bad_mac);
 
   // Authenticated from here on; still validate every field before touching state.
-  Peer& peer = peers_[static_cast<std::size_t>(pi)];
+  if (is_hello) {
+    if (!peer.pairwise || (h.flags & ~kFlagHelloAgreed) != 0 || h.value_count != 0 || h.frag_index != 0 ||
+        h.frag_count != 1 || h.frag_offset != 0 || h.frag_len != kHelloBytes || h.frag_stride != kHelloBytes)
+      return drop(DropReason::garbled);
+    // Hellos obey the incarnation rule (a hello of an earlier process, e.g. replayed from an
+    // earlier run, is dropped once a newer one was seen) but not the replay window: they are
+    // idempotent, and the nonce they echo decides whether they count (net/endpoint.cpp).
+    bool raised = false;
+    if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
+    out = DecodedState{};
+    report(out, h, peer, raised, PayloadKind::hello);
+    std::memcpy(out.hello_nonce.data(), d + kHeaderBytes, kRunNonceBytes);
+    std::memcpy(out.hello_echo.data(), d + kHeaderBytes + kRunNonceBytes, kRunNonceBytes);
+    out.hello_agreed = (h.flags & kFlagHelloAgreed) != 0;
+    ++accepted_datagrams_;
+    return DecodeStatus::hello;
+  }
   if (h.kind == static_cast<std::uint8_t>(PayloadKind::fingerprint)) {
     if (h.flags != 0 || h.value_count != 0 || h.frag_index != 0 || h.frag_count != 1 || h.frag_offset != 0 ||
         h.frag_len != kFingerprintBytes || h.frag_stride != kFingerprintBytes)

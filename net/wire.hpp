@@ -33,7 +33,15 @@ inline constexpr std::size_t kDefaultDatagramBytes = 1400;  // fits UDP/IPv4, UD
 inline constexpr std::size_t kMaxFragments = 256;
 inline constexpr std::uint16_t kNoStation = 0xFFFF;
 
-enum class PayloadKind : std::uint8_t { state = 1, fingerprint = 2 };
+enum class PayloadKind : std::uint8_t { state = 1, fingerprint = 2, hello = 3 };
+// Hello (kind 3, pairwise keys, net/keys.hpp): the sender's per-run nonce, then the newest nonce
+// it received from the destination (zeros: none yet); MAC'd with the pair's static key.
+// Flag bit 0 of a hello (kFlagHelloAgreed): the sender has adopted the nonce it echoes, i.e. holds
+// this run's traffic keys with the destination.
+inline constexpr std::size_t kRunNonceBytes = 16;
+inline constexpr std::size_t kHelloBytes = 2 * kRunNonceBytes;
+using RunNonce = std::array<std::uint8_t, kRunNonceBytes>;
+inline constexpr std::uint8_t kFlagHelloAgreed = 0x01;
 enum class ValueEncoding : std::uint8_t { float64 = 0, float32 = 1 };
 
 // Header flag bits.
@@ -86,6 +94,7 @@ enum class DropReason : std::uint8_t {
   out_of_envelope,    // authentic, but a state outside the physically possible envelope (endpoint)
   rate_limited,       // over the per-source datagram rate (net.rx_rate_limit_per_s), dropped unread
   zero_length,        // an empty datagram
+  keys_not_agreed,    // pairwise keys: a state/fingerprint datagram from a neighbour before this run's keys are agreed
   count_
 };
 inline constexpr std::size_t kDropReasonCount = static_cast<std::size_t>(DropReason::count_);
@@ -160,14 +169,21 @@ class Encoder {
   std::size_t fragment_count(std::uint32_t value_count) const;
   // Writes datagram `index` of the packet into out[0..cap). Returns its size, or 0 when
   // cap is too small or index is out of range. RT-safe (no allocation, no syscall).
+  // key: the pair's traffic key (pairwise keys); nullptr = the configured shared session key.
   std::size_t encode_fragment(const OutgoingState& s, std::size_t index, std::uint8_t* out,
-                              std::size_t cap) const;
+                              std::size_t cap, const SessionKey* key = nullptr) const;
   // Writes one fingerprint datagram (kind 2) to `dest` into out[0..cap); its size or 0 when
   // cap is too small. RT-safe.
   // round_trip_bound_ns: our probing's round-trip bound to `dest` (0: none yet).
   std::size_t encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
                                  const Fingerprint& f, std::uint8_t* out, std::size_t cap,
-                                 std::uint64_t round_trip_bound_ns = 0) const;
+                                 std::uint64_t round_trip_bound_ns = 0, const SessionKey* key = nullptr) const;
+  // One hello datagram (kind 3) to `dest`: our run nonce, the newest nonce we received from
+  // dest (echo), whether we hold this run's traffic keys with it (agreed); MAC'd with `key`, the
+  // pair's static key of direction us -> dest. Its size or 0 when cap is too small. RT-safe.
+  std::size_t encode_hello(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns, const RunNonce& mine,
+                           const RunNonce& echo, bool agreed, const SessionKey& key, std::uint8_t* out,
+                           std::size_t cap) const;
   const WireConfig& config() const { return cfg_; }
 
  private:
@@ -188,6 +204,8 @@ struct DecodedState {
   PayloadKind kind = PayloadKind::state;
   Fingerprint fingerprint{};      // kind == fingerprint (DecodeStatus::fingerprint)
   std::uint64_t round_trip_bound_ns = 0;  // kind == fingerprint: the sender's probing bound to us (0: none yet)
+  RunNonce hello_nonce{}, hello_echo{};   // kind == hello: the sender's run nonce, the newest of ours it received
+  bool hello_agreed = false;              // kind == hello: kFlagHelloAgreed
   std::uint64_t seq = 0;
   std::int64_t send_time_ns = 0;
   bool has_echo = false;
@@ -217,7 +235,8 @@ struct DecodeLimits {
 // fingerprint: an authentic fingerprint message (out.fingerprint); complete: a state packet.
 struct HeaderView;  // below
 
-enum class DecodeStatus : std::uint8_t { dropped, fragment_stored, complete, fingerprint };
+// hello: an authentic hello (pairwise keys; out.hello_*).
+enum class DecodeStatus : std::uint8_t { dropped, fragment_stored, complete, fingerprint, hello };
 
 class Decoder {
  public:
@@ -234,6 +253,13 @@ class Decoder {
   // limits: sequence ceiling and source check (DecodeLimits). Non-finite payloads are dropped
   // (non_finite) before their sequence enters the replay window.
   DecodeStatus decode(const std::uint8_t* data, std::size_t len, DecodedState& out, const DecodeLimits& limits = {});
+  // Pairwise keys of one neighbour (net/keys.hpp): its hellos verify with hello_key (the pair's
+  // static key, direction sender -> us), everything else with traffic_key (this run's key of that
+  // direction); traffic_key == nullptr: none agreed (yet, or any more), so its state and fingerprint
+  // datagrams are dropped unverified (keys_not_agreed). A neighbour never given keys uses the
+  // configured shared session key. Throws std::invalid_argument for an unknown sender. RT-safe
+  // (no allocation: copies two keys).
+  void set_peer_keys(std::uint16_t sender, const SessionKey& hello_key, const SessionKey* traffic_key);
   // Counts a drop decided outside the decoder (rate limit, empty datagram, envelope). RT-safe.
   void count_drop(DropReason r) { ++drops_.by_reason[static_cast<std::size_t>(r)]; }
   const DropCounters& drops() const { return drops_; }
@@ -263,9 +289,11 @@ class Decoder {
     std::uint64_t incarnation = 0;
     bool raise_pending = false;  // raised; not yet reported with a delivered packet
     bool any = false;
-    std::uint64_t newest = 0;  // newest delivered sequence
+    std::uint64_t newest = 0;  // newest delivered sequence (of the current incarnation)
     std::array<std::uint64_t, kReplayWindow / 64> window{};  // bit (newest - seq) set = seen
     std::size_t first_slot = 0;
+    bool pairwise = false, has_traffic_key = false;
+    SessionKey hello_key{}, traffic_key{};
   };
   int peer_index(std::uint16_t id) const;
   bool seen(const Peer& p, std::uint64_t seq, DropReason& why) const;

@@ -103,7 +103,7 @@ TEST(NUsers, topology_file_of_the_optimizer_sets_users_delays_and_best_graph) {
 
 TEST(NUsers, station_file_runs_station_sixteen_of_sixteen) {
   const std::string net = "[net]\ntransport = \"udp\"\nsession_id = 1\nbind = \"127.0.0.1:43001\"\n"
-                          "session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n";
+                          "shared_session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n";
   StationFile f = parse_station_file("[station]\nid = 16\nusers = 16\npushes = \"asymmetric\"\ntopology = \"1-2,2-3,3-4,4-5,5-6,6-7,7-8,8-9,9-10,10-11,11-12,12-13,13-14,14-15,15-16\"\n" + net);
   const ScenarioSpec s = station_scenario_spec(f, RunOverrides{});
   CHECK_EQUAL(16, s.users);

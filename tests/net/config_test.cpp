@@ -14,7 +14,7 @@ const std::string kKey = "5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f
 
 std::string udp_doc(const std::string& extra_net = "", const std::string& peer_extra = "") {
   return "[station]\nid = 2\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:7002\"\nsession_id = 9\n"
-         "session_key = \"" + kKey + "\"\n" + extra_net +
+         "shared_session_key = \"" + kKey + "\"\n" + extra_net +
          "[net.impairment]\npreset = \"paper\"\nseed = 5\n"
          "[[net.peers]]\nid = 0\naddress = \"127.0.0.1:7000\"\nmean_delay_ms = 4\n" + peer_extra +
          "[[net.peers]]\nid = 3\naddress = \"127.0.0.1:7003\"\nmean_delay_ms = 200\n";
@@ -49,13 +49,13 @@ TEST(NetConfig, UdpConfigParsesWithPaperImpairmentAndSimulatorSeeds) {
 }
 
 TEST(NetConfig, RawConfigNeedsInterfaceAndMacs) {
-  const std::string doc = "[net]\nstation_id = 0\ntransport = \"raw\"\ninterface = \"hpn0\"\nsession_key = \"" + kKey +
+  const std::string doc = "[net]\nstation_id = 0\ntransport = \"raw\"\ninterface = \"hpn0\"\nshared_session_key = \"" + kKey +
                           "\"\n[[net.peers]]\nid = 1\nmac = \"02:48:50:00:00:02\"\n";
   const NetConfig c = parse_net_config(doc, 99);
   CHECK_EQUAL(std::string("hpn0"), c.interface);
   CHECK_EQUAL(0x02, c.raw_peers[0].mac[5]);
   CHECK_FALSE(c.endpoint.peers[0].impaired);
-  CHECK(error_of("[net]\ntransport = \"raw\"\nsession_key = \"" + kKey + "\"\n[[net.peers]]\nid = 1\n")
+  CHECK(error_of("[net]\ntransport = \"raw\"\nshared_session_key = \"" + kKey + "\"\n[[net.peers]]\nid = 1\n")
             .find("net.interface") != std::string::npos);
 }
 
@@ -77,7 +77,7 @@ TEST(NetConfig, BadValuesNameTheirKey) {
   CHECK(error_of(bad_addr).find("net.peers[1].address") != std::string::npos);
   std::string bad_key = udp_doc();
   bad_key.replace(bad_key.find(kKey), 4, "zzzz");
-  CHECK(error_of(bad_key).find("net.session_key") != std::string::npos);
+  CHECK(error_of(bad_key).find("net.shared_session_key") != std::string::npos);
   std::string bad_preset = udp_doc();
   bad_preset.replace(bad_preset.find("\"paper\""), 7, "\"awful\"");
   CHECK(error_of(bad_preset).find("net.impairment.preset") != std::string::npos);
@@ -97,23 +97,23 @@ TEST(NetConfig, Float32IsTheDefaultAndTickSynchronousTxIsOptIn) {
 }
 
 TEST(NetConfig, DeployStyleNetworkSectionIsAccepted) {
-  const std::string doc = "[station]\nid = 1\n[network]\ntransport = \"udp\"\nlisten = \"192.168.10.11:47000\"\nsession_key = \"" +
+  const std::string doc = "[station]\nid = 1\n[network]\ntransport = \"udp\"\nlisten = \"192.168.10.11:47000\"\nshared_session_key = \"" +
                           kKey + "\"\npeers = [{ station = 2, address = \"192.168.10.12:47000\" }]\n";
   const NetConfig c = parse_net_config(doc, 99);
   CHECK_EQUAL(1, c.endpoint.wire.station_id);
   CHECK_EQUAL(std::string("192.168.10.11:47000"), c.bind);
   CHECK_EQUAL(2, c.endpoint.peers[0].station_id);
-  CHECK(error_of("[network]\ntransport = \"udp\"\nlisten = \"127.0.0.1:1\"\nsession_key = \"" + kKey +
+  CHECK(error_of("[network]\ntransport = \"udp\"\nlisten = \"127.0.0.1:1\"\nshared_session_key = \"" + kKey +
                  "\"\npeers = [{ station = 2, address = \"nowhere\" }]\n")
             .find("network.peers[0].address") != std::string::npos);
 }
 
 TEST(NetConfig, ListeningOnAllInterfacesNeedsAnExplicitSetting) {
-  const std::string head = "[station]\nid = 1\n[network]\ntransport = \"udp\"\nsession_key = \"" + kKey + "\"\n";
+  const std::string head = "[station]\nid = 1\n[network]\ntransport = \"udp\"\nshared_session_key = \"" + kKey + "\"\n";
   const std::string peers = "peers = [{ station = 2, address = \"127.0.0.1:47002\" }]\n";
   const std::string e4 = error_of(head + "listen = \"0.0.0.0:47000\"\n" + peers);
   CHECK_TEXT(e4.find("network.listen") != std::string::npos && e4.find("listen_any") != std::string::npos, e4.c_str());
-  const std::string e6 = error_of("[station]\nid = 1\n[net]\ntransport = \"udp\"\nsession_key = \"" + kKey +
+  const std::string e6 = error_of("[station]\nid = 1\n[net]\ntransport = \"udp\"\nshared_session_key = \"" + kKey +
                                   "\"\nbind = \"[::]:47000\"\n[[net.peers]]\nid = 2\naddress = \"[::1]:47002\"\n");
   CHECK_TEXT(e6.find("net.bind") != std::string::npos, e6.c_str());
   const NetConfig ok = parse_net_config(head + "listen = \"0.0.0.0:47000\"\nlisten_any = true\n" + peers, 99);

@@ -38,7 +38,7 @@ ScenarioSpec box_spec(const std::string& path) {
 std::string station_text(const std::string& scene) {
   return "[station]\nid = 1\nout_dir = \"/tmp\"\n" + scene +
          "[device]\nkind = \"simulated\"\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:0\"\n"
-         "session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n"
+         "shared_session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n"
          "[[net.peers]]\nid = 2\naddress = \"127.0.0.1:9\"\n[[net.peers]]\nid = 3\naddress = \"127.0.0.1:9\"\n"
          "[[net.peers]]\nid = 4\naddress = \"127.0.0.1:9\"\n";
 }

@@ -125,7 +125,7 @@ TEST(CheckConfig, AnOutDirThatCannotBeCreatedIsRejected) {
 
 TEST(CheckConfig, KeysAreNamedAsWrittenUnderTheNetworkAlias) {
   std::string t = "[station]\nid = 2\nio_priority = 0\nout_dir = \"/tmp\"\n[network]\nlisten = \"127.0.0.1:50002\"\n";
-  t += "session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n";
+  t += "shared_session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n";
   t += "peers = [{ station = 3, address = \"127.0.0.1:50003\" }]\n";
   rejected_with_key(t, "network.peers[0].station = 3 is not a neighbour");
 }

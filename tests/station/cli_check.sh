@@ -9,7 +9,7 @@ fail=0
 port=$(( 50950 + ($$ % 40) ))
 key=5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d
 write() {  # write FILE PEER_ID EXTRA_NET
-  printf '[station]\nid = 2\nprobe_s = 0.3\nsetup_gap_s = 0.1\nstart_delay_s = 0.2\nduration_s = 1\nio_priority = 0\nout_dir = "%s"\n[device]\nkind = "simulated"\n[rt]\nlock_memory = false\n[net]\nbind = "127.0.0.1:%d"\nsession_key = "%s"\n%s[[net.peers]]\nid = %d\naddress = "127.0.0.1:%d"\n' \
+  printf '[station]\nid = 2\nprobe_s = 0.3\nsetup_gap_s = 0.1\nstart_delay_s = 0.2\nduration_s = 1\nio_priority = 0\nout_dir = "%s"\n[device]\nkind = "simulated"\n[rt]\nlock_memory = false\n[net]\nbind = "127.0.0.1:%d"\nshared_session_key = "%s"\n%s[[net.peers]]\nid = %d\naddress = "127.0.0.1:%d"\n' \
     "$out" "$port" "$key" "$3" "$2" "$((port + 1))" > "$1"
 }
 expect() {  # expect NAME WANT_RC REGEX -- command...

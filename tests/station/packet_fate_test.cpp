@@ -24,7 +24,7 @@ namespace {
 std::string station_toml(int id, const BuiltScenario& b, const std::string& impairment_extra) {
   std::string t = "[station]\nid = " + std::to_string(id) + "\nscenario = \"" + b.spec.name + "\"\nseed = " +
                   std::to_string(b.spec.seed) + "\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:" + std::to_string(49100 + id) +
-                  "\"\nsession_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n"
+                  "\"\nshared_session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n"
                   "[net.impairment]\npreset = \"paper\"\n" + impairment_extra;
   for (int j : b.neighbors[static_cast<std::size_t>(id - 1)])
     t += "[[net.peers]]\nid = " + std::to_string(j + 1) + "\naddress = \"127.0.0.1:" + std::to_string(49100 + j + 1) + "\"\n";

@@ -25,7 +25,7 @@ using namespace haptic;
 namespace {
 std::string net_toml(int self, int port_base, const std::vector<int>& peers) {
   std::string t = "[station]\nid = " + std::to_string(self) + "\n[net]\ntransport = \"udp\"\nsession_id = 9\n";
-  t += "session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n";
+  t += "shared_session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n";
   t += "bind = \"127.0.0.1:" + std::to_string(port_base + self) + "\"\n";
   for (int p : peers) t += "[[net.peers]]\nid = " + std::to_string(p) + "\naddress = \"127.0.0.1:" + std::to_string(port_base + p) + "\"\n";
   return t;

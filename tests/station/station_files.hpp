@@ -35,7 +35,7 @@ struct StationText {
     t += "[device]\n" + device;
     t += "[rt]\nlock_memory = false\n";
     t += "[net]\ntransport = \"udp\"\nsession_id = " + std::to_string(session) + "\n";
-    t += "session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n";
+    t += "shared_session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n";
     t += "bind = \"127.0.0.1:" + std::to_string(port_base + id) + "\"\n" + net_extra;
     for (int p : peers) t += "[[net.peers]]\nid = " + std::to_string(p) + "\naddress = \"127.0.0.1:" + std::to_string(port_base + p) + "\"\n";
     return t;

@@ -130,6 +130,9 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
   l["rtt_over_bound_events"] = ps.rtt_over_bound_events;
   l["peer_safe_state_packets"] = ps.safe_state_packets;
   l["rate_limited"] = ps.rate_limited;
+  // Pairwise keys (net.key_file): agreed with this neighbour, how often (a restart re-agrees), hellos.
+  l["keys"] = json::object({{"agreed", ps.keys_agreed}, {"agreements", ps.key_agreements}, {"hellos_sent", ps.hellos_sent},
+               {"hellos_received", ps.hellos_received}, {"states_held_back", ps.tx_without_keys}});
   if (o.build && o.build->status == PhaseStatus::kOk) {
     l["round_trip_bound_ticks"] = o.build->bounds.round_trip_ticks[n];
     l["index_delay_bound_ticks"] = o.build->bounds.index_guard_ticks[n];

@@ -127,6 +127,7 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
     peers_.push_back(std::move(p));
   }
   if (pairwise_) my_nonce_ = new_run_nonce();
+  if (tx_period_ns_ > 0) hello_interval_ns_ = tx_period_ns_;
   send_records_.resize(kSendRecords);
   rx_meta_.resize(kRxBuffers);
   rx_store_.resize(kRxBuffers * 2 * value_count_);
@@ -349,6 +350,10 @@ void Endpoint::io_step(std::int64_t now_ns, bool rx, bool caught_spinning) {
   }
   if (rx) handle_rx(now_ns);
   handle_tx(now_ns, caught_spinning);
+  if (pairwise_ && now_ns >= next_hello_ns_ && hellos_wanted()) {
+    send_hellos(pushes_sent_, now_ns);
+    next_hello_ns_ = now_ns + hello_interval_ns_;
+  }
   release_due(monotonic_ns());
   check_silence(monotonic_ns());
   publish_stats();
@@ -383,6 +388,7 @@ void Endpoint::run() {
     std::int64_t wake_at = now + 100'000'000;  // re-check running_ at least every 100 ms
     wake_at = std::min(wake_at, now + silence_ns_ / 2);  // notice a silent neighbour in time
     if (!delay_heap_.empty()) wake_at = std::min(wake_at, delay_heap_.front().release_ns);
+    if (pairwise_ && hellos_wanted()) wake_at = std::min(wake_at, next_hello_ns_);
     if (tx_spin_ && last_push_ns_ >= 0 && missed_windows_ < kMaxMissedWindows) {
       // The next push is due one period after the previous one (the previous push's stamp,
       // not our wake-up, so a late wake-up does not shift the window).
@@ -643,8 +649,9 @@ void Endpoint::send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns) {
 }
 
 void Endpoint::send_hellos(std::uint64_t seq, std::int64_t stamp_ns) {
-  // Every push until the pair has agreed; after that only when a hello of the peer asked for
-  // one (it lacks our nonce or our agreement), so at most one hello per peer per push.
+  // Every push (and every hello_interval_ns_ without pushes) until the pair has agreed; after
+  // that only when a hello of the peer asked for one (it lacks our nonce or our agreement), so
+  // at most one hello per peer per push or interval.
   for (auto& pp : peers_) {
     PeerState& p = *pp;
     if (p.stats.keys_agreed && !p.hello_due) continue;
@@ -656,6 +663,12 @@ void Endpoint::send_hellos(std::uint64_t seq, std::int64_t stamp_ns) {
     send_now(p.link.station_id, tx_buf_.data(), len, p);
     ++p.stats.hellos_sent;
   }
+}
+
+bool Endpoint::hellos_wanted() const {
+  for (const auto& pp : peers_)
+    if (!pp->stats.keys_agreed || pp->hello_due) return true;
+  return false;
 }
 
 void Endpoint::on_hello(PeerState& p, const DecodedState& st) {
@@ -712,7 +725,10 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
                                                      : now_ns;
     send_records_[m.seq % kSendRecords] = SendRecord{true, m.seq, stamp};
     if (m.safe_state) ++counters_.tx_safe_state;
-    if (pairwise_) send_hellos(m.seq, stamp);
+    if (pairwise_ && hellos_wanted()) {
+      send_hellos(m.seq, stamp);
+      next_hello_ns_ = now_ns + hello_interval_ns_;
+    }
     send_fingerprints(m.seq, stamp);
     ++pushes_sent_;
     for (auto& pp : peers_) {

@@ -395,7 +395,8 @@ class Endpoint {
   void apply_probe_command();
   void publish_stats();
   void send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns);
-  void send_hellos(std::uint64_t seq, std::int64_t stamp_ns);                 // I/O thread, per push
+  void send_hellos(std::uint64_t seq, std::int64_t stamp_ns);                 // I/O thread: per push and timer
+  bool hellos_wanted() const;  // a neighbour without agreed keys, or one that asked for a hello
   void on_hello(PeerState& p, const DecodedState& st);                        // nonce agreement
   void forget_keys(PeerState& p);                                             // a restarted neighbour
   void handle_rx(std::int64_t now_ns);
@@ -470,6 +471,9 @@ class Endpoint {
   std::uint64_t pushes_sent_ = 0;          // I/O thread only
   bool pairwise_;                          // EndpointConfig::pairwise_keys
   RunNonce my_nonce_{};                    // this run's nonce (pairwise keys), fresh per Endpoint
+  // Hellos also go out on a timer (one period, 2 ms without one) while hellos_wanted(): a station
+  // that does not push yet (probing before its k = 0) still agrees keys with a running neighbour.
+  std::int64_t hello_interval_ns_ = 2'000'000, next_hello_ns_ = 0;  // I/O thread
 
   // I/O thread only; published to counters_box_.
   EndpointCounters counters_{};

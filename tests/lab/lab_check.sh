@@ -79,9 +79,18 @@ b=$("$lab" plan "$work/three.toml" --runs-dir "$work/runs" | tail -1)
 sa=$(python3 -c "import json;print(json.load(open('$a/plan.json'))['session_id'])")
 sb=$(python3 -c "import json;print(json.load(open('$b/plan.json'))['session_id'])")
 [ "$sa" != "$sb" ] || fail "two plans gave one session id $sa"
-for f in "$a"/station-*.toml "$a"/keys/session.key; do
+for f in "$a"/station-*.toml "$a"/keys/station-*.key; do
   [ "$(stat -c %a "$f")" = 600 ] || fail "$f has mode $(stat -c %a "$f"), not 600"
 done
+[ "$(stat -c %a "$a/keys")" = 700 ] || fail "$a/keys has mode $(stat -c %a "$a/keys"), not 700"
+[ "$(ls "$a"/keys/station-*.key | wc -l)" = 3 ] || fail "not one key file per station in $a/keys"
+# each station's own key file, and its neighbours' public keys (station 2 is the middle of 1-2-3)
+grep -q 'key_file = "keys/station-2.key"' "$a/station-2.toml" || fail "station 2 does not read its own key file"
+for j in 1 3; do
+  pk=$(grep '^public_key' "$a/keys/station-$j.key" | cut -d'"' -f2)
+  grep -q "public_key = \"$pk\"" "$a/station-2.toml" || fail "station 2 does not list station $j's public key"
+done
+! grep -q "secret_key\|session_key" "$a/station-2.toml" || fail "a station file holds a secret"
 p2=$(python3 -c "import json;print(json.load(open('$a/plan.json'))['stations'][1]['port'])")
 grep -q "address = \"127.0.0.1:$p2\"" "$a/station-1.toml" || fail "station 1 does not send to station 2's planned port $p2"
 echo "ok: two plans, two folders ($(basename "$a"), $(basename "$b")), sessions $sa / $sb, files 0600"

@@ -12,7 +12,16 @@ here="$(cd "$(dirname "$0")" && pwd)"
 mode="$1"; bin="$2"; secs="${3:-5}"; work="${4:-$(mktemp -d /tmp/hpn-four.XXXXXX)}"; preset="${5:-paper}"
 mkdir -p "$work"
 export HPN_PREFIX="${HPN_PREFIX:-hpn}"
-key=$(od -An -N32 -tx1 /dev/urandom | tr -d ' \n')  # a fresh secret per run (example keys are refused)
+# Per-station key pairs (net.key_file, 0600) from haptic-keygen next to PEER_BIN; each file lists
+# its neighbours' public keys (pairwise traffic keys, agreed per run).
+keygen="$(dirname "$bin")/haptic-keygen"
+[ -x "$keygen" ] || { echo "run_four.sh: $keygen not found (build the haptic-keygen target)" >&2; exit 2; }
+(umask 077; mkdir -p "$work/keys"); chmod 700 "$work/keys"
+declare -A pub
+for i in 0 1 2 3; do
+  rm -f "$work/keys/station-$i.key"
+  pub[$i]=$("$keygen" "$work/keys/station-$i.key" | awk '{print $2}')
+done
 session=$(( ($(date +%s) ^ $$) & 0x7fffffff ))
 # Mean one-way delay (ms), row i receives from column j (DESIGN.md / paper Section V).
 D=( "0 4 4 4" "8 0 80 200" "4 100 0 200" "6 240 200 0" )
@@ -36,7 +45,7 @@ for i in 0 1 2 3; do
     echo "[net]"
     echo "station_id = $i"
     echo "session_id = $session"
-    echo "session_key = \"$key\""
+    echo "key_file = \"keys/station-$i.key\""
     case "$mode" in
       udp) echo "transport = \"udp\""; echo "bind = \"127.0.0.1:$((47100 + i))\"" ;;
       udp-ns) echo "transport = \"udp\""; echo "bind = \"10.77.0.$((i + 1)):7000\"" ;;
@@ -49,6 +58,7 @@ for i in 0 1 2 3; do
       echo "[[net.peers]]"
       echo "id = $j"
       echo "mean_delay_ms = $(delay "$j" "$i")"   # link i -> j: row j receives from column i
+      echo "public_key = \"${pub[$j]}\""
       case "$mode" in
         udp) echo "address = \"127.0.0.1:$((47100 + j))\"" ;;
         udp-ns) echo "address = \"10.77.0.$((j + 1)):7000\"" ;;

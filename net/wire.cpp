@@ -205,21 +205,27 @@ void Encoder::put_common(std::uint8_t* out, PayloadKind kind, std::uint8_t flags
   put<std::uint64_t>(out, o::incarnation, cfg_.incarnation);
 }
 
-std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
-                                        const Fingerprint& f, std::uint8_t* out, std::size_t cap,
-                                        std::uint64_t round_trip_bound_ns, const SessionKey* key) const {
-  const std::size_t size = kHeaderBytes + kFingerprintBytes + kMacBytes;
-  if (cap < size) return 0;
+// The header fields of a message that is one fragment of `len` bytes and no state (fingerprint,
+// hello): no echo, value_count 0. RT-safe.
+void Encoder::put_single_fragment(std::uint8_t* out, std::size_t len) {
   namespace o = wire_offset;
-  put_common(out, PayloadKind::fingerprint, 0, dest, seq, send_time_ns);
   put<std::uint64_t>(out, o::echo_seq, 0);
   put<std::int64_t>(out, o::echo_hold, 0);
   put<std::uint32_t>(out, o::value_count, 0);
   put<std::uint16_t>(out, o::frag_index, 0);
   put<std::uint16_t>(out, o::frag_count, 1);
   put<std::uint32_t>(out, o::frag_offset, 0);
-  put<std::uint16_t>(out, o::frag_len, static_cast<std::uint16_t>(kFingerprintBytes));
-  put<std::uint16_t>(out, o::frag_stride, static_cast<std::uint16_t>(kFingerprintBytes));
+  put<std::uint16_t>(out, o::frag_len, static_cast<std::uint16_t>(len));
+  put<std::uint16_t>(out, o::frag_stride, static_cast<std::uint16_t>(len));
+}
+
+std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
+                                        const Fingerprint& f, std::uint8_t* out, std::size_t cap,
+                                        std::uint64_t round_trip_bound_ns, const SessionKey* key) const {
+  const std::size_t size = kHeaderBytes + kFingerprintBytes + kMacBytes;
+  if (cap < size) return 0;
+  put_common(out, PayloadKind::fingerprint, 0, dest, seq, send_time_ns);
+  put_single_fragment(out, kFingerprintBytes);
   std::uint8_t* p = out + kHeaderBytes;
   put<std::uint32_t>(p, 0, f.protocol_version);
   put<std::uint32_t>(p, 4, f.scene_nodes);
@@ -236,16 +242,8 @@ std::size_t Encoder::encode_hello(std::uint16_t dest, std::uint64_t seq, std::in
                                   std::size_t cap) const {
   const std::size_t size = kHeaderBytes + kHelloBytes + kMacBytes;
   if (cap < size) return 0;
-  namespace o = wire_offset;
   put_common(out, PayloadKind::hello, agreed ? kFlagHelloAgreed : 0, dest, seq, send_time_ns);
-  put<std::uint64_t>(out, o::echo_seq, 0);
-  put<std::int64_t>(out, o::echo_hold, 0);
-  put<std::uint32_t>(out, o::value_count, 0);
-  put<std::uint16_t>(out, o::frag_index, 0);
-  put<std::uint16_t>(out, o::frag_count, 1);
-  put<std::uint32_t>(out, o::frag_offset, 0);
-  put<std::uint16_t>(out, o::frag_len, static_cast<std::uint16_t>(kHelloBytes));
-  put<std::uint16_t>(out, o::frag_stride, static_cast<std::uint16_t>(kHelloBytes));
+  put_single_fragment(out, kHelloBytes);
   std::memcpy(out + kHeaderBytes, mine.data(), kRunNonceBytes);
   std::memcpy(out + kHeaderBytes + kRunNonceBytes, echo.data(), kRunNonceBytes);
   mac(out, kHeaderBytes + kHelloBytes, key, out + kHeaderBytes + kHelloBytes);

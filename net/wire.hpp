@@ -190,6 +190,7 @@ class Encoder {
   // Magic, version, kind, flags, header_len, session, sender, dest, seq, send_time, incarnation.
   void put_common(std::uint8_t* out, PayloadKind kind, std::uint8_t flags, std::uint16_t dest, std::uint64_t seq,
                   std::int64_t send_time_ns) const;
+  static void put_single_fragment(std::uint8_t* out, std::size_t len);
   WireConfig cfg_;
   std::size_t value_bytes_;
   std::size_t stride_;

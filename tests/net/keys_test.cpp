@@ -186,6 +186,17 @@ struct Run {
   }
 };
 
+// A state packet (x, v: 99 values) to station 0 with sequence seq, for forging.
+OutgoingState state_to_0(std::uint64_t seq, const std::vector<double>& x, const std::vector<double>& v) {
+  OutgoingState o;
+  o.dest = 0;
+  o.seq = seq;
+  o.value_count = 99;
+  o.x_hat = x.data();
+  o.v_hat = v.data();
+  return o;
+}
+
 std::uint64_t kind_of(const std::vector<std::uint8_t>& d) { return d.size() > wire_offset::kind ? d[wire_offset::kind] : 0; }
 
 // What a replay must not change at station 0 (its view of station 1).
@@ -318,12 +329,7 @@ TEST(Keys, AThirdStationCannotForgeAnothersPackets) {
   CHECK(tx20.bytes == rx2.bytes);  // the pair 2 -> 0 agrees
   const SessionKey shared = exchange_wire(0).key;
   std::vector<double> x(99, 0.01), v(99, 0.0);
-  OutgoingState o;
-  o.dest = 0;
-  o.seq = 5;
-  o.value_count = 99;
-  o.x_hat = x.data();
-  o.v_hat = v.data();
+  const OutgoingState o = state_to_0(5, x, v);
   std::vector<std::uint8_t> d(kDefaultDatagramBytes);
   DecodedState st;
   std::uint64_t forged = 0;
@@ -408,12 +414,7 @@ std::size_t genuine_after_forged_future(bool pairwise) {
   CHECK(first.size() >= 40);
   const PairKeys p20 = pair_keys(k.k2, 2, k.k0.public_key, 0);
   std::vector<double> x(99, 0.0), v(99, 0.0);
-  OutgoingState o;
-  o.dest = 0;
-  o.seq = 1000000;
-  o.value_count = 99;
-  o.x_hat = x.data();
-  o.v_hat = v.data();
+  const OutgoingState o = state_to_0(1000000, x, v);
   WireConfig w1 = r.c1.wire;
   w1.incarnation = r.e1->incarnation();  // station 1's header, even its incarnation
   Encoder as1(w1);

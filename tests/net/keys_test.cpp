@@ -131,12 +131,13 @@ struct Run {
   std::unique_ptr<Endpoint> e0, e1;
   EndpointConfig c0, c1;
   // station1_knows: the public key station 1 is told for station 0 (default: the right one).
-  Run(const KeyFiles& k, bool pairwise = true, const PublicKey* station1_knows = nullptr)
+  // start_station1 = false: station 1 starts later (start1()).
+  Run(const KeyFiles& k, bool pairwise = true, const PublicKey* station1_knows = nullptr, bool start_station1 = true)
       : c0(keyed(0, k.k0, 1, k.k1.public_key, pairwise)),
         c1(keyed(1, k.k1, 0, station1_knows ? *station1_knows : k.k0.public_key, pairwise)) {
     CHECK_EQUAL(0, ::socketpair(AF_UNIX, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0, sv));
     start0();
-    start1();
+    if (start_station1) start1();
   }
   void start0() {
     auto a = std::make_unique<PairTransport>(sv[0], false);
@@ -153,8 +154,8 @@ struct Run {
     e1->start();
   }
   ~Run() {
-    e0->stop();
-    e1->stop();
+    if (e0) e0->stop();
+    if (e1) e1->stop();
     ::close(sv[0]);
     ::close(sv[1]);
   }
@@ -366,11 +367,26 @@ TEST(Keys, ARunsDatagramsReplayedIntoTheNextRunAreRefusedAndChangeNothing) {
   for (const auto& d : capture) hellos += kind_of(d) == static_cast<std::uint64_t>(PayloadKind::hello);
   CHECK(hellos >= 1);
   CHECK(capture.size() >= hellos + 100);
-  Run two(k);  // same key files, same session id, a new run (new processes, new nonces)
-  two.t1->record(false);
+  // Same key files, same session id, a new run (new processes, new nonces). Station 0 starts
+  // first, and before station 1's new process says anything, run 1 is played into station 0:
+  // its hellos are the first authentic datagrams station 0 sees from "station 1" (the incarnation
+  // rule cannot refuse them yet), but they echo run 1's nonce, so none is adopted.
+  Run two(k, true, nullptr, false);
   two.e0->begin_probing();
-  // While probing, before the pair has agreed: run 1 played into run 2.
-  for (const auto& d : capture) two.t1->inject(d);
+  {
+    PairTransport attacker(two.sv[1], false);
+    attacker.record(false);
+    for (const auto& d : capture) attacker.inject(d);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const EndpointStats first = two.e0->stats();
+  CHECK_EQUAL(hellos, first.peers[0].hellos_received);  // authentic (static pair key) hellos...
+  CHECK_FALSE(first.peers[0].keys_agreed);               // ...but none adopted
+  CHECK_EQUAL(0u, first.peers[0].key_agreements);
+  CHECK_EQUAL(0u, first.peers[0].packets_received);
+  two.start1();
+  two.t1->record(false);
+  for (const auto& d : capture) two.t1->inject(d);  // and again while probing, station 1 running
   std::uint64_t corrupt = 0;
   std::vector<std::uint64_t> got = two.exchange(1, 80, corrupt);
   CHECK_TRUE(two.e0->finish_probing());

@@ -110,7 +110,22 @@ json link_json(const LinkSummary& l) {
   j["max_index_delay_ticks"] = l.max_index_delay_ticks ? json(*l.max_index_delay_ticks) : json(nullptr);
   j["bound_violations"] = l.bound_violations ? json(*l.bound_violations) : json(nullptr);
   j["index_delay_bound_ticks"] = l.index_delay_bound_ticks ? json(*l.index_delay_bound_ticks) : json(nullptr);
+  if (l.edge_energy) j["edge_energy"] = edge_energy_json(*l.edge_energy);
   return j;
+}
+
+EdgeEnergySummary edge_energy_summary(const rt::StationCore& core, int n) {
+  const auto& a = core.edge_energy();
+  const auto& g = core.edge_gate();
+  return {a.edge_J(n), a.peak_J(n), g.bound_J(n), g.trips(n), g.gated_ticks(n)};
+}
+
+json edge_energy_json(const EdgeEnergySummary& e) {
+  return {{"account_J", e.account_J},
+          {"peak_J", e.peak_J},
+          {"bound_J", std::isfinite(e.bound_J) ? json(e.bound_J) : json(nullptr)},
+          {"trips", e.trips},
+          {"gated_ticks", e.gated_ticks}};
 }
 
 json packets_json(const std::vector<LinkSummary>& links) {

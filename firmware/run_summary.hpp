@@ -33,6 +33,17 @@ MetricsWindows metrics_windows_from_json(const nlohmann::json& scenario);
 // The metrics part of summary.json (nulls for empty windows; a speed that is not finite is "inf").
 nlohmann::json metrics_json(const RunMetricsResult& m);
 
+// The receiver's per-edge energy account of neighbour n (eq. 14 split per edge, rt/edge_energy.hpp)
+// and its damage bound (station.edge_energy_bound_J): the same fields in summary.json's link_stats
+// and station-<id>.json's links ("edge_energy"). Not RT-safe.
+struct EdgeEnergySummary {
+  double account_J = 0, peak_J = 0;  // energy the edge put into the receiver's copy: now, and its maximum
+  double bound_J = 0;                // +inf: no bound (written as null)
+  std::uint64_t trips = 0, gated_ticks = 0;
+};
+EdgeEnergySummary edge_energy_summary(const rt::StationCore& core, int n);
+nlohmann::json edge_energy_json(const EdgeEnergySummary& e);
+
 // One directed link, row `to` receives from column `from` (1-based), as summary.json's link_stats.
 struct LinkSummary {
   int to = 0, from = 0;
@@ -41,6 +52,7 @@ struct LinkSummary {
   std::optional<std::int64_t> max_index_delay_ticks;  // max N_ij^k at the receiver
   std::optional<std::uint64_t> bound_violations;      // edge drop events at the receiver
   std::optional<std::int64_t> index_delay_bound_ticks;
+  std::optional<EdgeEnergySummary> edge_energy;       // the receiver's account of this edge
 };
 nlohmann::json link_json(const LinkSummary& l);
 // summary.json's "packets": totals over the links.

@@ -153,6 +153,7 @@ void ScenarioSpec::validate() const {
   }
   if (!(damping_margin >= 0 && damping_margin <= 10)) bad("damping margin must be in [0, 10]");
   if (loss_allowance_ticks < 0 || loss_allowance_ticks > 1000) bad("loss allowance must be in [0, 1000] ticks");
+  if (!(edge_energy_bound_J >= 0 && edge_energy_bound_J <= 1e6)) bad("--edge-energy-bound must be in [0, 1e6] J (0 = off)");
   if (!(tx_deadband.position_deadband_m >= 0 && tx_deadband.position_deadband_m < 0.1)) bad("--tx-deadband-mm must be in [0, 100)");
   if (tx_deadband.max_interval_ticks < 1 || tx_deadband.max_interval_ticks > 1000) bad("--tx-max-interval must be in [1, 1000]");
   if (!(timer_jitter_s >= 0 && timer_jitter_s < 0.5 * period_s)) bad("--timer-jitter-ms must be in [0, period/2) = [0, " + std::to_string(0.5e3 * period_s) + ") ms");
@@ -386,6 +387,10 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
     nc.peer_id = neighbors[static_cast<std::size_t>(i)][n];
     nc.gains = &gains[static_cast<std::size_t>(neighbor_edge[static_cast<std::size_t>(i)][n])];
     nc.index_delay_bound_ticks = nbar_ticks(i, nc.peer_id);
+    if (spec.edge_energy_bound_J > 0) {
+      nc.energy_bound_J = spec.edge_energy_bound_J;
+      nc.energy_release_J = 0.5 * spec.edge_energy_bound_J;
+    }
     c.neighbors.push_back(nc);
   }
   c.rx_rule = spec.receive_rule;

@@ -363,6 +363,7 @@ SimResult finish(Simulation& s, std::int64_t ticks_run) {
     auto& core = *s.st[static_cast<std::size_t>(c.to)];
     c.stats.max_index_delay = core.rx(c.rx_index).counters().max_index_delay;
     c.stats.bound_violations = core.edge_drop_events(c.rx_index);
+    c.stats.edge_energy = edge_energy_summary(core, c.rx_index);
     r.links.push_back(c.stats);
   }
   for (const auto& core : s.st) {
@@ -402,6 +403,7 @@ nlohmann::json sim_link_json(const BuiltScenario& b, const SimResult& r, const L
   ls.max_index_delay_ticks = l.max_index_delay;
   ls.bound_violations = l.bound_violations;
   ls.index_delay_bound_ticks = b.nbar_ticks(l.to, l.from);
+  ls.edge_energy = l.edge_energy;
   nlohmann::json j = link_json(ls);
   j["packets_per_s"] = run_s > 0 ? nlohmann::json(static_cast<double>(l.sent) / run_s) : nlohmann::json(nullptr);
   j["bytes_per_s"] = run_s > 0 ? nlohmann::json(static_cast<double>(l.bytes_sent) / run_s) : nlohmann::json(nullptr);
@@ -455,6 +457,10 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["passivity_bound_J"] = r.passivity_bound_J;
   j["port_energy_final_J"] = r.final_port_J;
   j["controller_energy_final_J"] = r.final_controller_J;
+  j["edge_energy_bound_J"] = b.spec.edge_energy_bound_J > 0 ? json(b.spec.edge_energy_bound_J) : json(nullptr);
+  std::uint64_t trips = 0;
+  for (const auto& l : r.links) trips += l.edge_energy.trips;
+  j["edge_energy_trips"] = trips;
   const double run_s = r.metrics.simulated_s;
   const auto& ct = r.metrics.consensus_time_s;
   const double settled_from_s = ct ? r.metrics.release_time_s + *ct : run_s;
@@ -465,7 +471,7 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
     links.push_back(sim_link_json(b, r, l, settled_from_s));
     sent_hold += links.back()["sent_in_hold_window"].get<std::uint64_t>();
     sent_settled += links.back()["sent_after_consensus"].get<std::uint64_t>();
-    totals.push_back(LinkSummary{0, 0, l.sent, l.delivered, l.lost, l.duplicated, l.reordered, {}, {}, {}, {}, {}});
+    totals.push_back(LinkSummary{0, 0, l.sent, l.delivered, l.lost, l.duplicated, l.reordered, {}, {}, {}, {}, {}, {}});
   }
   json pk = packets_json(totals);
   pk["sent_in_hold_window"] = sent_hold;

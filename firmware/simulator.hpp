@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 
 #include "firmware/run_metrics.hpp"
+#include "firmware/run_summary.hpp"
 #include "firmware/scenario.hpp"
 #include "net/impairment.hpp"
 
@@ -25,6 +26,7 @@ struct LinkStats {
   std::uint64_t bound_violations = 0; // edge drop events at the receiver
   std::uint64_t bytes_sent = 0;       // UDP payload bytes of the states sent (float32 wire, headers, MACs)
   std::vector<std::int64_t> sent_ticks;  // tick of every state sent (bandwidth by window)
+  EdgeEnergySummary edge_energy{};       // the receiver's energy account of this edge and its bound
 };
 
 struct SimResult {

@@ -29,7 +29,7 @@ void parse_station_section(View root, StationFile& f) {
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
                             "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
-                            "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "record_ring_s", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks"});
+                            "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "record_ring_s", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks", "edge_energy_bound_J"});
   StationSection& s = f.station;
   if (!st["id"]) bad("station.id", "present: this station's user number, 1..users");
   s.id = static_cast<int>(integer(st["id"], "station.id", 1, 1, 64));
@@ -61,6 +61,7 @@ void parse_station_section(View root, StationFile& f) {
   s.setup_gap_s = real(st["setup_gap_s"], "station.setup_gap_s", 0.5, 0.05, 10);
   s.damping_margin = real(st["damping_margin"], "station.damping_margin", 0.05, 0, 10);
   s.loss_allowance_ticks = static_cast<int>(integer(st["loss_allowance_ticks"], "station.loss_allowance_ticks", 1, 0, 1000));
+  s.edge_energy_bound_J = real(st["edge_energy_bound_J"], "station.edge_energy_bound_J", rt::kDefaultEdgeEnergyBoundJ, 0.0, 1e6, " (0 = off)");
   s.solver = text(st["solver"], "station.solver", "auto");
   if (s.solver != "auto" && s.solver != "direct" && s.solver != "iterative") bad("station.solver", "\"auto\", \"direct\" or \"iterative\"");
   s.tx_deadband_mm = real(st["tx_deadband_mm"], "station.tx_deadband_mm", 0.0, 0.0, 99.999);

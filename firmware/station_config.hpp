@@ -39,6 +39,9 @@
 //   setup_gap_s = 0.5                # from the end of probing to the run start (StationCore built meanwhile), [0.05, 10]
 //   damping_margin = 0.05            # B_i = (1 + margin) x eq. (18) of the MEASURED bounds, [0, 10]
 //   loss_allowance_ticks = 1         # ticks added to the measured round-trip bound, [0, 1000]
+//   edge_energy_bound_J = 0.1        # per-edge damage bound: an edge whose energy account (eq. 14 split per edge)
+//                                    # exceeds it acts as a damper until the account fell to half of it
+//                                    # (net/README.md, "Bounded damage"), [0, 1e6]; 0 = off
 //   solver = "auto"                  # linear step: "auto" (direct LDL^T below 600 nodes, Jacobi-PCG above),
 //                                    # "direct" or "iterative" (rt/step_solver)
 //   tx_deadband_mm = 0               # > 0: send a state only when some node moved more than this since the
@@ -133,6 +136,7 @@
 #include "platform/periodic_loop.hpp"
 #include "platform/rt_thread.hpp"
 #include "platform/telemetry.hpp"
+#include "rt/edge_energy.hpp"
 
 namespace haptic::firmware {
 
@@ -160,6 +164,7 @@ struct StationSection {
   double setup_gap_s = 0.5;
   double damping_margin = 0.05;
   int loss_allowance_ticks = 1;
+  double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
   std::string solver = "auto";
   double tx_deadband_mm = 0;
   int tx_max_interval_ticks = 1;

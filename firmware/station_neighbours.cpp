@@ -82,6 +82,25 @@ PeerEventLog::PeerEventLog(const StationPlan& plan, std::int64_t run_epoch_ns, d
       ups_(plan.neighbours().size(), 0),
       incarnation_changes_(plan.neighbours().size(), 0) {}
 
+std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::StationCore& core) {
+  std::vector<std::string> lines;
+  const auto& nbrs = plan.neighbours();
+  const auto& gate = core.edge_gate();
+  const auto& acc = core.edge_energy();
+  for (std::size_t n = 0; n < nbrs.size() && static_cast<int>(n) < core.neighbor_count(); ++n) {
+    const int j = static_cast<int>(n);
+    if (gate.trips(j) == 0) continue;
+    char b[300];
+    std::snprintf(b, sizeof b,
+                  "neighbour %d: energy bound %.4g J (station.edge_energy_bound_J) tripped %llu time(s); the edge acted as a damper for %llu "
+                  "ticks (its account: peak %.4g J, now %.4g J, released at %.4g J)",
+                  nbrs[n] + 1, gate.bound_J(j), static_cast<unsigned long long>(gate.trips(j)), static_cast<unsigned long long>(gate.gated_ticks(j)),
+                  acc.peak_J(j), acc.edge_J(j), gate.release_J(j));
+    lines.emplace_back(b);
+  }
+  return lines;
+}
+
 std::vector<std::string> PeerEventLog::poll(const net::EndpointStats& stats) {
   std::vector<std::string> lines;
   const auto& nbrs = plan_->neighbours();

@@ -10,6 +10,7 @@
 
 #include "firmware/station_plan.hpp"
 #include "net/endpoint.hpp"
+#include "rt/station.hpp"
 
 namespace haptic::firmware {
 
@@ -43,6 +44,11 @@ ClockCheck check_clock_offsets(const StationPlan& plan, const net::EndpointStats
 // Events before run_epoch_ns + quiet_s are counted silently: the first up of each neighbour
 // (probing found it) and the pause between probing and the run (no packets are sent while the
 // core is built) are not events.
+// The per-edge energy bound's trips (rt::EdgeEnergyGate, net/README.md "Bounded damage from an
+// authenticated peer"), one line per neighbour that tripped: "neighbour 3: energy bound 0.1 J
+// tripped 1 time(s) ...". Called after the run loop ended (reads the core). Not RT-safe.
+std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::StationCore& core);
+
 class PeerEventLog {
  public:
   PeerEventLog(const StationPlan& plan, std::int64_t run_epoch_ns, double quiet_s);

@@ -244,6 +244,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   if (s.release_s >= 0) spec.script.release_s = s.release_s;
   spec.damping_margin = s.damping_margin;
   spec.loss_allowance_ticks = s.loss_allowance_ticks;
+  spec.edge_energy_bound_J = s.edge_energy_bound_J;
   spec.tx_deadband.position_deadband_m = s.tx_deadband_mm * 1e-3;
   spec.tx_deadband.max_interval_ticks = s.tx_max_interval_ticks;
   if (std::llabs(std::llround(spec.period_s * 1e9) - f.loop.period_ns) > 0)

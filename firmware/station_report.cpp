@@ -72,6 +72,7 @@ void add_run_json(const StationOutcome& o, json& j) {
   j["port_energy_final_J"] = core && ran ? json(core->energy().port_J) : json(nullptr);
   j["controller_energy_final_J"] = core && ran ? json(core->energy().controller_J) : json(nullptr);
   j["edge_drop_events"] = core ? json(core->edge_drop_events()) : json(nullptr);
+  j["edge_energy_trips"] = core ? json(core->edge_gate().trips()) : json(nullptr);
   j["safe_state_ticks"] = core ? json(core->safe_state_ticks()) : json(nullptr);
   j["steps_clamped"] = core ? json(core->step_clamped_ticks()) : json(nullptr);  // measured T_k outside period_min_s..period_max_s
 }
@@ -155,6 +156,7 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
     l["rx_sustained_ticks"] = rc.sustained_ticks;
     l["max_index_delay_ticks"] = rc.max_index_delay;
     l["bound_violations"] = core.edge_drop_events(static_cast<int>(n));
+    l["edge_energy"] = edge_energy_json(edge_energy_summary(core, static_cast<int>(n)));
   }
   return l;
 }

@@ -261,6 +261,10 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
     pr.run = run_loop(plan, in, pr.records, pr.counters, stop, observer);
   }
   pr.ran = true;
+  for (const auto& line : energy_bound_events(plan, *pr.build.core)) {  // after the loop: no race with the tick
+    log.say(line);
+    ev.push_back(line);
+  }
   pr.lifecycle["device"]["outside_workspace_ticks"] = pr.counters.outside_workspace_ticks;
   if (plan.times.rejoin) {
     pr.lifecycle["rejoin"]["state_from_station"] = pr.adopted.from_station;

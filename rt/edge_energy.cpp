@@ -46,4 +46,39 @@ double EdgeEnergyAccount::total_J() const {
   return t;
 }
 
+void EdgeEnergyGate::init(int edges, std::span<const double> bound_J, std::span<const double> release_J) {
+  if (edges < 0 || edges > kMaxEdgeAccounts)
+    throw std::invalid_argument("edge energy gate: edges must be in [0, " + std::to_string(kMaxEdgeAccounts) + "]");
+  if (static_cast<int>(bound_J.size()) != edges || static_cast<int>(release_J.size()) != edges)
+    throw std::invalid_argument("edge energy gate: one bound and one release level per edge needed");
+  *this = EdgeEnergyGate{};
+  edges_ = edges;
+  for (int j = 0; j < edges; ++j) {
+    const double b = bound_J[idx(j)], r = release_J[idx(j)];
+    if (!(b > 0)) throw std::invalid_argument("edge energy gate: the bound must be > 0 J (+inf: off)");
+    if (std::isfinite(b) && !(std::isfinite(r) && r < b))
+      throw std::invalid_argument("edge energy gate: the release level must be finite and below the bound");
+    bound_[idx(j)] = b;
+    release_[idx(j)] = r;
+  }
+}
+
+bool EdgeEnergyGate::update(int j, double account_J) {
+  const std::size_t i = idx(j);
+  if (tripped_[i]) {
+    if (account_J <= release_[i]) tripped_[i] = 0;
+  } else if (account_J > bound_[i]) {
+    tripped_[i] = 1;
+    ++trips_[i];
+  }
+  if (tripped_[i]) ++gated_ticks_[i];
+  return tripped_[i] != 0;
+}
+
+std::uint64_t EdgeEnergyGate::trips() const {
+  std::uint64_t t = 0;
+  for (int j = 0; j < edges_; ++j) t += trips_[idx(j)];
+  return t;
+}
+
 }  // namespace haptic::rt

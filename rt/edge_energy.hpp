@@ -14,11 +14,15 @@
 // the adaptive passivity controller (issue 15) read it.
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <span>
 
 namespace haptic::rt {
 
 inline constexpr int kMaxEdgeAccounts = 16;
+// The default per-edge damage bound of the simulator and the station (station.edge_energy_bound_J,
+// sim --edge-energy-bound; 0 = off): net/README.md, "Bounded damage from an authenticated peer".
+inline constexpr double kDefaultEdgeEnergyBoundJ = 0.1;
 
 class EdgeEnergyAccount {
  public:
@@ -47,6 +51,37 @@ class EdgeEnergyAccount {
   std::array<double, kMaxEdgeAccounts> share_{}, coupling_{}, damping_{}, last_{}, peak_{};
   double unshared_ = 0;
   std::uint64_t ticks_ = 0;
+};
+
+// The per-edge damage bound (issue 11 item 5; argument in net/README.md, "Bounded damage from an
+// authenticated peer", and rt/README.md): edge j trips when its account edge_J(j) exceeds
+// bound_J(j) and stays tripped (latched) until the account has fallen to release_J(j) < bound_J(j)
+// (hysteresis). While tripped the station applies the over-bound action to the edge (the damper
+// D_ij + T/2 P_ij: its account can only fall), so the net energy the edge ever puts into the
+// copy is at most bound_J + one tick's. The decision is taken at the start of a tick from the
+// account after the previous tick.
+class EdgeEnergyGate {
+ public:
+  static constexpr double kOff = std::numeric_limits<double>::infinity();
+  // Start-up (throws std::invalid_argument): per edge bound (> 0, +inf = off) and release level
+  // (finite, < bound when the bound is finite).
+  void init(int edges, std::span<const double> bound_J, std::span<const double> release_J);
+  // Start of a tick: updates the latch of edge j from its account; true = act as the damper this
+  // tick. RT-safe.
+  bool update(int j, double account_J);
+  bool tripped(int j) const { return tripped_[idx(j)] != 0; }
+  std::uint64_t trips(int j) const { return trips_[idx(j)]; }            // times the latch closed
+  std::uint64_t gated_ticks(int j) const { return gated_ticks_[idx(j)]; }  // ticks acted as the damper
+  std::uint64_t trips() const;  // over all edges
+  double bound_J(int j) const { return bound_[idx(j)]; }
+  double release_J(int j) const { return release_[idx(j)]; }
+
+ private:
+  static std::size_t idx(int j) { return static_cast<std::size_t>(j); }
+  int edges_ = 0;
+  std::array<double, kMaxEdgeAccounts> bound_{}, release_{};
+  std::array<std::uint64_t, kMaxEdgeAccounts> trips_{}, gated_ticks_{};
+  std::array<unsigned char, kMaxEdgeAccounts> tripped_{};
 };
 
 }  // namespace haptic::rt

@@ -47,6 +47,9 @@ void StationConfig::validate() const {
     if (n.gains->P.dofs() != scene->dofs) bad("neighbors[].gains", "sized like the scene");
     if (n.index_delay_bound_ticks < 0) bad("neighbors[].index_delay_bound_ticks", ">= 0");
     if (!(n.damping_share >= 0 && std::isfinite(n.damping_share))) bad("neighbors[].damping_share", "finite and >= 0");
+    if (!(n.energy_bound_J > 0)) bad("neighbors[].energy_bound_J", "> 0 (+inf: off)");
+    if (std::isfinite(n.energy_bound_J) && !(std::isfinite(n.energy_release_J) && n.energy_release_J < n.energy_bound_J))
+      bad("neighbors[].energy_release_J", "finite and below energy_bound_J");
   }
   if (!(vp.mass_kg > 0)) bad("vp.mass_kg", "> 0");
   if (!(vp.contact_damping_Ns_per_m >= 0)) bad("vp.contact_damping_Ns_per_m", ">= 0");
@@ -118,6 +121,12 @@ StationCore::StationCore(const StationConfig& config)
     std::vector<double> shares;
     for (const auto& nb : cfg_.neighbors) shares.push_back(nb.damping_share);
     edge_energy_.init(nn, shares);
+    std::vector<double> bounds, releases;
+    for (const auto& nb : cfg_.neighbors) {
+      bounds.push_back(nb.energy_bound_J);
+      releases.push_back(nb.energy_release_J);
+    }
+    edge_gate_.init(nn, bounds, releases);
   }
   y_ = cfg_.vp_initial_position_m;
   q_prev_ = y_;
@@ -344,12 +353,16 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
   }
 
   // --- 2. neighbours: newest packet, indexing delay, duplication avoidance, delay bound ---
-  // Over the bound: x_hat_j := x(k), delta_ij = 0 (the edge acts as the damper D_ij + T/2 P_ij).
+  // Over the delay bound or the energy bound: x_hat_j := x(k), delta_ij = 0 (the edge acts as the
+  // damper D_ij + T/2 P_ij).
   for (int j = 0; j < nn; ++j) {
     views_[j] = rx_[j].begin_tick(k);
     // A negative delay (data stamped ahead of our tick) is never trusted: over the bound.
     const bool ok = views_[j].index_delay >= 0 && views_[j].index_delay <= cfg_.neighbors[j].index_delay_bound_ticks;
-    active_[j] = ok ? 1 : 0;
+    // The per-edge damage bound: an edge whose account is over its bound takes the same action.
+    const bool gated = edge_gate_.update(j, edge_energy_.edge_J(j));
+    if (gated) out.flags |= kEdgeEnergyGated;
+    active_[j] = (ok && !gated) ? 1 : 0;
     if (ok) {
       edge_was_dropped_[j] = 0;
     } else {

@@ -58,6 +58,11 @@ struct NeighborConfig {
   // This edge's share of B_i in the per-edge energy account (rt/edge_energy.hpp); shares are
   // normalized over the neighbours, all 0 (default): equal shares.
   double damping_share = 0;
+  // Per-edge damage bound (issue 11 item 5, rt/edge_energy.hpp EdgeEnergyGate): when this edge's
+  // energy account exceeds energy_bound_J the edge takes the over-bound action above (the damper),
+  // latched until the account has fallen to energy_release_J. +inf: off.
+  double energy_bound_J = EdgeEnergyGate::kOff;
+  double energy_release_J = 0;
 };
 
 struct StationConfig {
@@ -114,6 +119,7 @@ enum TickFlags : std::uint32_t {
   kDiverged = 1u << 4,         // state not finite or too fast: safe state entered
   kBadDeviceSample = 1u << 5,  // non-finite device position: safe state for this tick
   kSafeState = 1u << 6,
+  kEdgeEnergyGated = 1u << 7,  // an edge's energy account is over its bound: it acts as the damper
 };
 
 // Cumulative energies (J) for the passivity monitor.
@@ -169,6 +175,8 @@ class StationCore {
   // eq. (14)'s controller energy split per edge (neighbour index n = edge n); sums to
   // energy().controller_J.
   const EdgeEnergyAccount& edge_energy() const { return edge_energy_; }
+  // The per-edge damage bound on those accounts: trips, gated ticks, latch state per edge.
+  const EdgeEnergyGate& edge_gate() const { return edge_gate_; }
   const StationConfig& config() const { return cfg_; }
   std::uint64_t edge_drop_events() const {
     std::uint64_t total = 0;
@@ -250,6 +258,7 @@ class StationCore {
   double normal_sign_ = 1.0;
   EnergyMonitor energy_{};
   EdgeEnergyAccount edge_energy_{};
+  EdgeEnergyGate edge_gate_{};
   std::array<double, kMaxNeighbors> edge_tick_J_{};  // this tick's coupling energy per edge
   std::uint64_t safe_state_ticks_ = 0;
   std::vector<unsigned char> edge_was_dropped_;

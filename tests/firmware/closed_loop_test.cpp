@@ -66,6 +66,19 @@ TEST(ClosedLoop, n_port_passive_eq13_and_controller_passive_eq14_under_the_impai
   CHECK_TRUE(reordered > 0);
 }
 
+TEST(ClosedLoop, the_honest_paper_best_run_never_trips_the_per_edge_energy_bound) {
+  // The default damage bound (net/README.md, "Bounded damage from an authenticated peer") is on
+  // and never acts on honest stations: no trip, every account's peak well below it.
+  const auto& r = best_result();
+  CHECK_TRUE(best().spec.edge_energy_bound_J > 0);
+  for (const auto& l : r.links) {
+    DOUBLES_EQUAL(best().spec.edge_energy_bound_J, l.edge_energy.bound_J, 0.0);
+    CHECK_EQUAL(0u, l.edge_energy.trips);
+    CHECK_EQUAL(0u, l.edge_energy.gated_ticks);
+    CHECK_TRUE(l.edge_energy.peak_J < 0.5 * l.edge_energy.bound_J);
+  }
+}
+
 TEST(ClosedLoop, consensus_after_release_eq19) {
   const auto& b = best();
   const auto& r = best_result();

@@ -287,6 +287,10 @@ TEST(Station, tick_allocates_nothing_over_10000_ticks_of_four_users_with_contact
     cfg.solver.kind = solver;
     cfg.period_min_s = 0.0018;  // variable steps T_k: the tick switches between prefactored steps
     cfg.period_max_s = 0.0022;
+    for (auto& nb : cfg.neighbors) {  // a small per-edge energy bound: the gate trips and releases too
+      nb.energy_bound_J = 1e-4;
+      nb.energy_release_J = 0.5e-4;
+    }
     st.push_back(std::make_unique<StationCore>(cfg));
   }
   STRCMP_EQUAL(solver == StepSolverKind::kDirect ? "direct" : "iterative", st[0]->solver_name());
@@ -298,7 +302,7 @@ TEST(Station, tick_allocates_nothing_over_10000_ticks_of_four_users_with_contact
     for (int s = 0; s < D; ++s) {
       std::copy(w.scene.x_d.data(), w.scene.x_d.data() + dofs, line.begin() + ((i * D + s) * 2) * dofs);
     }
-  std::uint64_t onsets = 0, releases = 0, drops = 0;
+  std::uint64_t onsets = 0, releases = 0, drops = 0, gated = 0;
   haptic::test::AllocationCounter count;
   for (int k = 0; k < 10000; ++k) {
     const double t = k * 0.002;
@@ -312,13 +316,15 @@ TEST(Station, tick_allocates_nothing_over_10000_ticks_of_four_users_with_contact
           s.rx(n).offer(seq, 0, p, p + dofs, dofs);
         }
       }
-      const double depth = 0.015 * std::sin(t * 3.0);  // in and out: contact on and off
+      // in and out: contact on and off (station 0 rests: energy flows into it, its gate trips)
+      const double depth = i == 0 ? 0.0 : 0.015 * std::sin(t * 3.0);
       const double step = 0.002 + 0.00025 * std::sin(0.37 * k + i);  // some outside the bounds: clamped
       const auto out = s.tick(k, w.face_center(test::tetra_dirs()[static_cast<std::size_t>(i)]) +
                               depth * w.face_inward(test::tetra_dirs()[static_cast<std::size_t>(i)]), step);
       onsets += (out.flags & kContactOnset) != 0;
       releases += (out.flags & kContactRelease) != 0;
       drops += (out.flags & kEdgeDropped) != 0;
+      gated += (out.flags & kEdgeEnergyGated) != 0;
       double* dst = line.data() + ((i * D + k % D) * 2) * dofs;
       std::copy(s.x_hat(), s.x_hat() + dofs, dst);
       std::copy(s.v_hat(), s.v_hat() + dofs, dst + dofs);
@@ -329,6 +335,7 @@ TEST(Station, tick_allocates_nothing_over_10000_ticks_of_four_users_with_contact
   CHECK_TRUE(releases >= 4);
   CHECK_TRUE(drops > 0);
   CHECK_TRUE(st[0]->step_clamped_ticks() > 0 && st[0]->step_level_count() > 2);  // the steps did vary
+  CHECK_TRUE(gated > 0);
   CHECK_EQUAL(0u, allocs);
   }
 }

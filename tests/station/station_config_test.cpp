@@ -55,6 +55,7 @@ TEST(StationConfig, MinimalFileGetsTheDocumentedDefaults) {
   DOUBLES_EQUAL(0.5, f.station.setup_gap_s, 0);
   DOUBLES_EQUAL(0.05, f.station.damping_margin, 0);
   LONGS_EQUAL(1, f.station.loss_allowance_ticks);
+  DOUBLES_EQUAL(0.1, f.station.edge_energy_bound_J, 0);
   LONGS_EQUAL(5, f.station.state_every);
   DOUBLES_EQUAL(-1, f.station.damping_Ns_per_m, 0);
   LONGS_EQUAL(2, f.station.agreement_ticks);
@@ -81,6 +82,8 @@ TEST(StationConfig, BadValuesNameTheKeyAndTheRange) {
   CHECK(contains(e, "station.solver") && contains(e, "\"iterative\""));
   e = error_of("[station]\nid = 1\ntx_max_interval_ticks = 0\n" + kNet);
   CHECK(contains(e, "station.tx_max_interval_ticks") && contains(e, "[1, 1000]"));
+  e = error_of("[station]\nid = 1\nedge_energy_bound_J = -0.5\n" + kNet);
+  CHECK(contains(e, "station.edge_energy_bound_J") && contains(e, "[0, 1e+06]"));
   e = error_of("[station]\nid = 0\n" + kNet);
   CHECK(contains(e, "station.id") && contains(e, "[1, 64]"));
   e = error_of("[station]\nscenario = \"paper-best\"\n" + kNet);

@@ -377,6 +377,7 @@ int main(int argc, char** argv) {
               spec.d_gain_Ns_per_m = D;
               spec.script.kind = firmware::UserScriptSpec::Kind::kRandom;
               spec.damping_margin = 0.0;
+              spec.edge_energy_bound_J = 0;  // the map is about eq. (18) alone: no per-edge energy bound
               auto probe = firmware::build_scenario(spec);
               std::vector<double> B(probe.damping_min.size());
               for (std::size_t i = 0; i < B.size(); ++i) B[i] = bs * probe.damping_min[i];

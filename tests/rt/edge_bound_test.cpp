@@ -1,0 +1,169 @@
+// Bounded damage from an authenticated peer (issue 11 item 5; net/README.md, "Bounded damage from
+// an authenticated peer"): a peer whose packets pass every network check (valid keys, sequence,
+// envelope) but whose states are chosen to push energy into a neighbour. The victim V has an
+// honest neighbour H (a real StationCore, 2-tick delay both ways) and the attacker A. With the
+// per-edge energy bound (rt/edge_energy.hpp EdgeEnergyGate) the energy A's edge ever puts into
+// V's copy stays <= bound + one tick, and so does the energy the honest pair V, H holds beyond
+// what their own users put in; without the bound the same attack injects many times more.
+#include <CppUTest/TestHarness.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <vector>
+
+#include "rt/edge_energy.hpp"
+#include "rt/station.hpp"
+#include "tests/rt/fixtures.hpp"
+
+using namespace haptic;
+using namespace haptic::rt;
+using haptic::test::PaperWorld;
+
+namespace {
+
+enum class Attack { kDrift, kPump };
+
+struct AttackResult {
+  double attacker_peak_J = 0;     // max over ticks of V's account of A's edge
+  double one_tick_J = 0;          // largest single-tick increase of that account
+  double honest_excess_J = 0;     // max over ticks of E_V + E_H - E(0) - port_V - port_H
+  std::uint64_t trips = 0, gated_ticks = 0, honest_gated_ticks = 0;
+  bool diverged = false;
+};
+
+// V = station 0 (neighbours H = 1, A = 2), H = station 1 (neighbour V). ticks at T = 2 ms.
+AttackResult run_attack(Attack attack, double bound_J, int ticks) {
+  const auto& w = PaperWorld::get();
+  const auto& dirs = test::tetra_dirs();
+  auto cv = w.station(0, 3, {1, 2}, 30, dirs[0]);
+  auto ch = w.station(1, 3, {0}, 30, dirs[1]);
+  if (bound_J > 0)
+    for (auto* c : {&cv, &ch})
+      for (auto& nb : c->neighbors) {
+        nb.energy_bound_J = bound_J;
+        nb.energy_release_J = 0.5 * bound_J;
+      }
+  StationCore V(cv), H(ch);
+  const int dofs = w.scene.dofs, kDelay = 2;
+  const double T = cv.period_s;
+  // delay lines: states of V and H by tick (ring of kDelay + 1)
+  std::vector<Eigen::VectorXd> vx(kDelay + 1, w.scene.x_d), vv(kDelay + 1, Eigen::VectorXd::Zero(dofs));
+  std::vector<Eigen::VectorXd> hx = vx, hv = vv;
+  Eigen::VectorXd ax(dofs), av(dofs);
+  const Eigen::Vector3d e = Eigen::Vector3d(1, 0.5, -0.3).normalized();
+  const double E0 = (w.scene.energy(V.x(), V.v()) + w.scene.energy(H.x(), H.v())) / 3.0;
+  AttackResult r;
+  double prev_account = 0;
+  for (int k = 0; k < ticks; ++k) {
+    const double t = k * T;
+    if (k >= kDelay) {
+      const auto s = static_cast<std::size_t>((k - kDelay) % (kDelay + 1));
+      V.rx(0).offer(k - kDelay, 0, hx[s].data(), hv[s].data(), dofs);
+      H.rx(0).offer(k - kDelay, 0, vx[s].data(), vv[s].data(), dofs);
+    }
+    // The attacker's packet for tick k (sequence k - 1: it has V's state of tick k - 1).
+    if (k >= 1) {
+      const auto s = static_cast<std::size_t>((k - 1) % (kDelay + 1));
+      if (attack == Attack::kDrift) {
+        // a slowly drifting copy: the whole object translated at 10 mm/s (stays inside the
+        // payload envelope of net/, 3 radii, for the 6 s of the test)
+        for (int p = 0; p < w.scene.nodes; ++p) {
+          ax.segment<3>(3 * p) = w.scene.x_d.segment<3>(3 * p) + 0.01 * t * e;
+          av.segment<3>(3 * p) = 0.01 * e;
+        }
+      } else {
+        // tuned to pump: lead V's own predicted state along its velocity, so the P coupling is a
+        // negative damper (power c v^T P v > 0) and the D coupling too (v_hat_A = 4 v_hat_V);
+        // a 1 mm offset for the first 0.2 s starts the motion.
+        ax = vx[s] + 0.05 * vv[s];
+        av = 4.0 * vv[s];
+        if (t < 0.2)
+          for (int p = 0; p < w.scene.nodes; ++p) ax.segment<3>(3 * p) += 1e-3 * e;
+      }
+      V.rx(1).offer(k - 1, 0, ax.data(), av.data(), dofs);
+    }
+    const auto ov = V.tick(k, w.face_center(dirs[0]));
+    const auto oh = H.tick(k, w.face_center(dirs[1]));
+    r.diverged = r.diverged || ((ov.flags | oh.flags) & kDiverged) != 0;
+    const auto s = static_cast<std::size_t>(k % (kDelay + 1));
+    // what a station sends: its predicted state x_hat, v_hat of the tick
+    vx[s] = Eigen::Map<const Eigen::VectorXd>(V.x_hat(), dofs);
+    vv[s] = Eigen::Map<const Eigen::VectorXd>(V.v_hat(), dofs);
+    hx[s] = Eigen::Map<const Eigen::VectorXd>(H.x_hat(), dofs);
+    hv[s] = Eigen::Map<const Eigen::VectorXd>(H.v_hat(), dofs);
+    const double acc = V.edge_energy().edge_J(1);
+    r.attacker_peak_J = std::max(r.attacker_peak_J, acc);
+    r.one_tick_J = std::max(r.one_tick_J, acc - prev_account);
+    prev_account = acc;
+    const double E = (w.scene.energy(V.x(), V.v()) + w.scene.energy(H.x(), H.v())) / 3.0;
+    r.honest_excess_J = std::max(r.honest_excess_J, E - E0 - V.energy().port_J - H.energy().port_J);
+  }
+  r.trips = V.edge_gate().trips(1);
+  r.gated_ticks = V.edge_gate().gated_ticks(1);
+  r.honest_gated_ticks = V.edge_gate().gated_ticks(0) + H.edge_gate().gated_ticks(0);
+  return r;
+}
+
+void check_bounded(Attack attack, double bound_J) {
+  const int ticks = 3000;
+  const AttackResult open = run_attack(attack, 0, ticks);
+  const AttackResult gated = run_attack(attack, bound_J, ticks);
+  // the attack works without the bound ...
+  CHECK_TRUE(open.attacker_peak_J > 5 * bound_J);
+  CHECK_TRUE(open.honest_excess_J > 5 * bound_J);
+  // ... and with it, the attacker's edge and the honest pair hold at most bound + one tick
+  CHECK_TRUE(gated.one_tick_J < 0.5 * bound_J);
+  CHECK_TRUE(gated.attacker_peak_J <= bound_J + gated.one_tick_J);
+  CHECK_TRUE(gated.honest_excess_J <= bound_J + gated.one_tick_J + 1e-9);
+  CHECK_TRUE(gated.trips >= 1);
+  CHECK_TRUE(gated.gated_ticks > 100);
+  CHECK_EQUAL(0u, gated.honest_gated_ticks);  // the honest edge is never touched
+  CHECK_FALSE(gated.diverged);
+}
+
+}  // namespace
+
+TEST_GROUP(EdgeBound){};
+
+TEST(EdgeBound, gate_latches_above_the_bound_and_releases_below_the_release_level) {
+  EdgeEnergyGate g;
+  const std::vector<double> b = {1.0, EdgeEnergyGate::kOff}, rel = {0.5, 0.0};
+  g.init(2, b, rel);
+  CHECK_FALSE(g.update(0, 0.9));
+  CHECK_FALSE(g.update(0, 1.0));  // at the bound: not over it
+  CHECK_TRUE(g.update(0, 1.01));
+  CHECK_TRUE(g.update(0, 0.8));   // latched: still above the release level
+  CHECK_TRUE(g.update(0, 0.51));
+  CHECK_FALSE(g.update(0, 0.5));  // released
+  CHECK_TRUE(g.update(0, 2.0));
+  CHECK_EQUAL(2u, g.trips(0));
+  CHECK_EQUAL(4u, g.gated_ticks(0));
+  CHECK_FALSE(g.update(1, 1e300));  // off
+  CHECK_EQUAL(2u, g.trips());
+  const std::vector<double> zero = {0.0}, r0 = {0.0}, b1 = {1.0}, r1 = {1.0};
+  CHECK_THROWS(std::invalid_argument, g.init(1, zero, r0));
+  CHECK_THROWS(std::invalid_argument, g.init(1, b1, r1));  // release must lie below the bound
+}
+
+TEST(EdgeBound, a_station_refuses_a_bad_bound_naming_the_key) {
+  const auto& w = PaperWorld::get();
+  auto c = w.station(0, 2, {1}, 30, test::tetra_dirs()[0]);
+  c.neighbors[0].energy_bound_J = 0.1;
+  c.neighbors[0].energy_release_J = 0.2;
+  try {
+    StationCore s(c);
+    FAIL("accepted a release level above the bound");
+  } catch (const std::invalid_argument& e) {
+    STRCMP_CONTAINS("energy_release_J", e.what());
+  }
+}
+
+TEST(EdgeBound, a_slowly_drifting_authenticated_peer_injects_at_most_the_bound_plus_one_tick) {
+  check_bounded(Attack::kDrift, 0.002);
+}
+
+TEST(EdgeBound, a_peer_tuned_to_pump_energy_injects_at_most_the_bound_plus_one_tick) {
+  check_bounded(Attack::kPump, 0.05);
+}

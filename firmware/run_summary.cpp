@@ -32,7 +32,7 @@ json scenario_json(const BuiltScenario& b) {
   j["trace_node_rest_m"] = std::vector<double>(b.scene.x_d.data() + 3 * b.trace_node, b.scene.x_d.data() + 3 * b.trace_node + 3);
   j["snapshot_times_s"] = snapshot_times_s(s);
   j["damping_margin"] = s.damping_margin;
-  j["loss_allowance_ticks"] = s.loss_allowance_ticks;
+  j["loss_allowance_ticks"] = b.loss_allowance_ticks;  // the one used (given, or from the loss model)
   j["receive_rule"] = rt::rx_rule_name(s.receive_rule);
   j["tx_deadband"] = {{"position_m", s.tx_deadband.position_deadband_m}, {"max_interval_ticks", s.tx_deadband.max_interval_ticks}};
   j["release_time_s"] = s.script.release_s;

@@ -152,7 +152,7 @@ void ScenarioSpec::validate() const {
     if (!(scene_file.youngs_modulus_Pa >= 0 && std::isfinite(scene_file.youngs_modulus_Pa))) bad(scene_file.key("youngs_modulus_Pa") + " must be > 0 Pa");
   }
   if (!(damping_margin >= 0 && damping_margin <= 10)) bad("damping margin must be in [0, 10]");
-  if (loss_allowance_ticks < 0 || loss_allowance_ticks > 1000) bad("loss allowance must be in [0, 1000] ticks");
+  if (loss_allowance_ticks < -1 || loss_allowance_ticks > 1000) bad("--loss-allowance must be in [0, 1000] ticks (-1: from the loss model)");
   if (!(edge_energy_bound_J >= 0 && edge_energy_bound_J <= 1e6)) bad("--edge-energy-bound must be in [0, 1e6] J (0 = off)");
   if (!(tx_deadband.position_deadband_m >= 0 && tx_deadband.position_deadband_m < 0.1)) bad("--tx-deadband-mm must be in [0, 100)");
   if (tx_deadband.max_interval_ticks < 1 || tx_deadband.max_interval_ticks > 1000) bad("--tx-max-interval must be in [1, 1000]");
@@ -240,8 +240,12 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
   set_step_bounds(b);
   // The sender's deadband may hold its state up to max_interval - 1 extra ticks: extra allowance;
   // the clock model adds its own (step_clock_allowance_ticks).
+  // The loss allowance: given, or from the loss model's support (model::loss_allowance_from_loss).
+  b.loss_allowance_ticks = spec.loss_allowance_ticks >= 0
+                               ? spec.loss_allowance_ticks
+                               : model::loss_allowance_from_loss(spec.loss_probability, spec.duration_s / T, 2 * static_cast<int>(spec.topology.size()));
   b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T,
-                                                 spec.loss_allowance_ticks + spec.tx_deadband.added_index_delay_ticks() + step_clock_allowance_ticks(spec));
+                                                 b.loss_allowance_ticks + spec.tx_deadband.added_index_delay_ticks() + step_clock_allowance_ticks(spec));
   const Eigen::VectorXd half_sums = model::round_trip_half_sums_ms(spec.topology, b.nbar_ticks, T);
   b.round_trip_sum_ms.assign(half_sums.data(), half_sums.data() + half_sums.size());
   b.damping_min.assign(static_cast<std::size_t>(N), 0.0);

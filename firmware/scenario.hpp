@@ -87,7 +87,9 @@ struct ScenarioSpec {
   rt::HandParams hand{};
   std::optional<std::vector<double>> damping_Ns_per_m;  // B_i override (one per user)
   double damping_margin = 0.05;          // B_i = (1 + margin) * eq. (18) minimum
-  int loss_allowance_ticks = model::kDefaultLossAllowanceTicks;  // Nbar_ij = ceil(max one-way delay / T) + this (firmware/model/delay_model.hpp)
+  // Nbar_ij = ceil(max one-way delay / T) + this (firmware/model/delay_model.hpp); -1 (default):
+  // from the loss model, model::loss_allowance_from_loss(loss_probability, run ticks, directed links)
+  int loss_allowance_ticks = -1;
   rt::TxDeadbandConfig tx_deadband{};    // transmission deadband (off); Nbar_ij adds its interval - 1
   rt::RxRule receive_rule = rt::RxRule::kNewestBySequence;  // --receive-rule newest|paper (rt/rx_link.hpp)
   // Variable steps T_k (rt/README.md "Variable steps"). The simulator's station clocks: every wake
@@ -142,6 +144,7 @@ struct BuiltScenario {
   std::vector<std::vector<int>> neighbors;      // neighbors[i] = peers of i (0-based)
   std::vector<std::vector<int>> neighbor_edge;  // edge index of neighbors[i][n]
   Eigen::MatrixXi nbar_ticks;                   // Nbar_ij bound used by eq. (18) and the guard (model::index_delay_bounds_ticks)
+  int loss_allowance_ticks = 0;                 // the allowance in nbar_ticks (spec's, or from the loss model)
   std::vector<double> round_trip_sum_ms;        // sum_j (Nbar_ij + Nbar_ji) T / 2, per user (model::round_trip_half_sums_ms)
   std::vector<double> t_min_s, t_max_s;         // T_i^min, T_i^max per user (eq. 18, 26)
   std::vector<double> clock_rate;               // grid interval / T = 1 + c_i 1e-6 per user (ScenarioSpec::clock_drift_ppm)

@@ -162,7 +162,7 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   auto* nodes = sim->add_option("--nodes", a.nodes, "Scene size: 33 is the paper's ball, other values a lattice ball of about that many nodes (default 33)");
   add_scene_options(*sim, a, nodes);
   sim->add_option("--damping-margin", a.margin, "B_i = (1 + margin) x eq. (18) minimum (default 0.05)");
-  sim->add_option("--loss-allowance", a.allowance, "Ticks added to ceil(max delay / T) for the bound Nbar_ij (default 1)");
+  sim->add_option("--loss-allowance", a.allowance, "Ticks added to ceil(max delay / T) for the bound Nbar_ij (default: from the loss model, the smallest L with run ticks x directed links x loss^(L+1) <= 0.01)");
   sim->add_option("--tx-deadband-mm", a.tx_deadband_mm,
                   "Send a state only when some node moved more than this since the last one sent, in mm (default 0: every tick)");
   sim->add_option("--tx-max-interval", a.tx_interval,

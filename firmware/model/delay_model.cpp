@@ -1,5 +1,6 @@
 #include "firmware/model/delay_model.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -68,6 +69,16 @@ int index_delay_bound_ticks(double max_delay_ms, double period_s, int loss_allow
   if (!(max_delay_ms >= 0) || !std::isfinite(max_delay_ms)) bad("delay: a link's maximum delay must be finite and >= 0 ms");
   // 1e-9: a delay of exactly m periods is m ticks, not m + 1 from rounding noise.
   return static_cast<int>(std::ceil(max_delay_ms * 1e-3 / period_s - 1e-9)) + loss_allowance_ticks;
+}
+
+int loss_allowance_from_loss(double p, double ticks, int directed_links, double per_run) {
+  if (!(p >= 0 && p < 1)) bad("loss probability must be in [0, 1)");
+  if (!(per_run > 0 && per_run < 1)) bad("over-bound chance per run must be in (0, 1)");
+  const double events = std::max(1.0, ticks) * std::max(1, directed_links);
+  int L = 0;
+  // p^(L+1) events <= per_run; the cap keeps absurd inputs finite (p -> 1)
+  while (L < 1000 && std::pow(p, L + 1) * events > per_run) ++L;
+  return L;
 }
 
 Eigen::MatrixXi index_delay_bounds_ticks(const Eigen::MatrixXd& mean_delay_ms, double jitter_fraction, double period_s,

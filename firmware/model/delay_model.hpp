@@ -18,10 +18,20 @@
 namespace haptic::model {
 
 // The paper's per-packet delay spread (Section V: uniform in 50-150 % of the mean) and the
-// default loss allowance of Nbar (one lost packet per direction): the defaults of scenarios
-// (firmware/scenario.hpp) and of haptic-topology, so both compute the same Nbar.
+// fixed loss allowance of Nbar (one lost packet per direction) that haptic-topology and the real
+// station (station.loss_allowance_ticks) use; scenarios take theirs from the loss model
+// (loss_allowance_from_loss below) unless one is given.
 inline constexpr double kPaperJitterFraction = 0.5;
 inline constexpr int kDefaultLossAllowanceTicks = 1;
+
+// The loss allowance of Nbar from the loss model's support. Under independent loss with
+// probability p per packet, N_ij^k > ceil(max delay / T) + L at tick k only if the L + 1 packets
+// sent in ticks k - ceil(max delay / T) - L .. k - ceil(max delay / T) were all lost (each of
+// them, delivered, arrives by tick k): probability <= p^(L+1). The allowance is the smallest L
+// with ticks x directed_links x p^(L+1) <= per_run (union bound: the chance that a run sees an
+// over-bound event at all). p = 0: 0. Throws std::invalid_argument for p outside [0, 1).
+inline constexpr double kOverBoundChancePerRun = 0.01;
+int loss_allowance_from_loss(double loss_probability, double ticks, int directed_links, double per_run = kOverBoundChancePerRun);
 
 // The paper's mean one-way delays (ms), Section V: [[0,4,4,4],[8,0,80,200],[4,100,0,200],[6,240,200,0]].
 Eigen::MatrixXd paper_delay_matrix_ms();

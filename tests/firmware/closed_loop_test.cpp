@@ -16,6 +16,10 @@ const BuiltScenario& best() {
   static const BuiltScenario b = [] {
     auto s = make_scenario("paper-best");
     s.duration_s = 16.0;
+    // The fixed allowance of one lost packet these checks were tuned with (the loss model's
+    // allowance, the default, nearly doubles B_i and slows the decay after the release; the paper
+    // runs with the default are checked in no_index_delay_exceeds_its_bound_in_the_paper_runs).
+    s.loss_allowance_ticks = 1;
     return build_scenario(s);
   }();
   return b;
@@ -34,7 +38,7 @@ TEST(ClosedLoop, damping_from_eq18_meets_the_condition_for_the_best_topology) {
   // asks B_i >= sum_j (Nbar_ij + Nbar_ji) / 2 x T x 1000 N/m on the star around user 1.
   const auto& b = best();
   const double mean[4][4] = {{0, 4, 4, 4}, {8, 0, 80, 200}, {4, 100, 0, 200}, {6, 240, 200, 0}};
-  auto nbar = [&](int i, int j) { return std::ceil(1.5 * mean[i][j] / 2.0 - 1e-9) + 1; };
+  auto nbar = [&](int i, int j) { return std::ceil(1.5 * mean[i][j] / 2.0 - 1e-9) + 1; };  // allowance 1 (best())
   double need[4] = {0, 0, 0, 0};
   for (int leaf = 1; leaf < 4; ++leaf) {
     const double per_edge = (nbar(0, leaf) + nbar(leaf, 0)) / 2.0 * 0.002 * 1000.0;
@@ -64,6 +68,18 @@ TEST(ClosedLoop, n_port_passive_eq13_and_controller_passive_eq14_under_the_impai
   CHECK_TRUE(lost > sent / 40 && lost < sent / 10);  // ~5 %
   CHECK_TRUE(dup > 0);
   CHECK_TRUE(reordered > 0);
+}
+
+TEST(ClosedLoop, no_index_delay_exceeds_its_bound_in_the_paper_runs) {
+  // Nbar_ij from the delay model's support (max delay, and the loss allowance the loss model
+  // needs for an over-bound chance <= 1 % per run): the paper runs have no over-bound event.
+  const SimResult rb = run_simulation(build_scenario(make_scenario("paper-best")), SimOptions{});
+  const SimResult rw = run_simulation(build_scenario(make_scenario("paper-worst")), SimOptions{});
+  for (const SimResult* r : {&rb, &rw})
+    for (const auto& l : r->links) {
+      CHECK_EQUAL(0u, l.bound_violations);
+      CHECK_TRUE(l.max_index_delay > 0);
+    }
 }
 
 TEST(ClosedLoop, the_honest_paper_best_run_never_trips_the_per_edge_energy_bound) {

@@ -2,6 +2,7 @@
 // round trips) that the simulator, the station and haptic-topology share.
 #include <CppUTest/TestHarness.h>
 
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -41,9 +42,24 @@ TEST(Model, nbar_is_the_ceiling_of_the_largest_delay_in_ticks_plus_the_loss_allo
 
 TEST(Model, eq18_sums_of_the_paper_star_are_what_the_simulator_builds) {
   const auto built = firmware::build_scenario(firmware::make_scenario("paper-best"));
-  // (Nbar_ij + Nbar_ji) T/2 per link of the star, + 1 tick of allowance each way: 1-2: 4+7, 1-3: 4+4, 1-4: 4+6.
-  const double expect[4] = {29, 11, 8, 10};
+  // (Nbar_ij + Nbar_ji) T/2 per link of the star with the loss model's allowance of 5 ticks each way
+  // (20 s = 10000 ticks, 6 directed links, loss 0.05: 0.05^5 x 60000 = 0.019 > 0.01 >= 0.05^6 x 60000):
+  // 1-2: 8+11, 1-3: 8+8, 1-4: 8+10.
+  CHECK_EQUAL(5, built.loss_allowance_ticks);
+  const double expect[4] = {53, 19, 16, 18};
   for (int i = 0; i < 4; ++i) DOUBLES_EQUAL(expect[i], built.round_trip_sum_ms[static_cast<std::size_t>(i)], 1e-12);
+}
+
+TEST(Model, loss_allowance_is_the_smallest_with_an_over_bound_chance_per_run_below_the_target) {
+  CHECK_EQUAL(0, model::loss_allowance_from_loss(0.0, 1e6, 6));
+  for (double p : {0.001, 0.01, 0.05, 0.2})
+    for (double ticks : {1e3, 1e4, 1e5}) {
+      const int L = model::loss_allowance_from_loss(p, ticks, 6);
+      CHECK(ticks * 6 * std::pow(p, L + 1) <= model::kOverBoundChancePerRun);
+      CHECK(L == 0 || ticks * 6 * std::pow(p, L) > model::kOverBoundChancePerRun);
+    }
+  CHECK_EQUAL(5, model::loss_allowance_from_loss(0.05, 10000, 6));
+  CHECK_THROWS(std::invalid_argument, model::loss_allowance_from_loss(1.0, 10, 1));
 }
 
 TEST(Model, bounds_from_a_measured_round_trip_cover_the_peer_within_the_agreement_margin) {

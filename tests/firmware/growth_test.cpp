@@ -44,6 +44,7 @@ ScenarioSpec tight(double factor_of_eq18, double correlation) {
   s.duplicate_probability = 0;
   s.loss_allowance_ticks = 0;
   s.d_gain_Ns_per_m = 0;
+  s.edge_energy_bound_J = 0;  // eq. (18) alone (the per-edge energy bound keeps 0.45x from diverging)
   s.delay_correlation = correlation;
   s.damping_Ns_per_m.reset();
   const BuiltScenario b = build_scenario(s);

@@ -18,7 +18,7 @@ Writes tools/study/results/tight_map.{json,png} (or --out DIR). Usage:
 import argparse, json, math, os, subprocess, sys, tempfile, time
 
 TIGHT = ["--scenario", "paper-unstable", "--loss", "0", "--duplication", "0", "--loss-allowance", "0",
-         "--d-gain", "0", "--damping-margin", "0", "--no-plots", "--quiet"]
+         "--d-gain", "0", "--damping-margin", "0", "--edge-energy-bound", "0", "--no-plots", "--quiet"]  # eq. (18) alone
 
 
 def delay_matrix(ms):

@@ -255,9 +255,11 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
     std::vector<double> sums;
     for (int j : b.neighbors[static_cast<std::size_t>(i)]) sums.push_back(b.nbar_ticks(i, j) + b.nbar_ticks(j, i));
     b.damping_min[static_cast<std::size_t>(i)] = b.damping_min_eq18(i, sums);
+    const bool pspm = spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation;
     b.damping[static_cast<std::size_t>(i)] = spec.damping_Ns_per_m ? (*spec.damping_Ns_per_m)[static_cast<std::size_t>(i)]
-                                                                   : (1.0 + spec.damping_margin) * b.damping_min[static_cast<std::size_t>(i)];
-    if (b.damping[static_cast<std::size_t>(i)] < b.damping_min[static_cast<std::size_t>(i)] * (1 - 1e-12))
+                                             : pspm ? 0.0  // eq. (14) by the modulation, not by B_i
+                                                    : (1.0 + spec.damping_margin) * b.damping_min[static_cast<std::size_t>(i)];
+    if (!pspm && b.damping[static_cast<std::size_t>(i)] < b.damping_min[static_cast<std::size_t>(i)] * (1 - 1e-12))
       b.passivity_condition_met = false;
   }
   assign_pushes(b);
@@ -398,6 +400,8 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
     c.neighbors.push_back(nc);
   }
   c.rx_rule = spec.receive_rule;
+  c.consensus_passivity = spec.consensus_passivity;
+  c.pspm_reservoir0_J = spec.pspm_reservoir0_J;
   c.vp = spec.vp;
   c.contact_nodes = contact_nodes[static_cast<std::size_t>(i)];
   c.vp_initial_position_m = vp_start[static_cast<std::size_t>(i)];

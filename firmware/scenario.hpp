@@ -107,6 +107,10 @@ struct ScenarioSpec {
   // Per-edge damage bound (issue 11 item 5, rt/edge_energy.hpp): an edge whose energy account
   // exceeds this acts as the damper until the account has fallen to half of it. 0 = off.
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
+  // --consensus-passivity eq18|pspm (rt/set_position_modulation.hpp): with pspm, B_i defaults to 0
+  // (eq. 14 holds by construction) and pspm_reservoir0_J is each edge's initial reservoir.
+  rt::ConsensusPassivity consensus_passivity = rt::ConsensusPassivity::kEq18Damping;
+  double pspm_reservoir0_J = 0.0;
   UserScriptSpec script{};
   int trace_node = -1;                   // -1: first node of user 2's contact mesh (paper: node 19)
 

@@ -127,6 +127,8 @@ void write_core_attrs(hid_t g, const rt::StationConfig& c) {
   h5::attr(g, "B_vc_Ns_per_m", c.vp.coupling.B_vc_Ns_per_m);
   h5::attr(g, "K_vc_N_per_m", c.vp.coupling.K_vc_N_per_m);
   h5::attr(g, "rx_rule", static_cast<std::int64_t>(c.rx_rule));
+  h5::attr(g, "consensus_passivity", static_cast<std::int64_t>(c.consensus_passivity));
+  h5::attr(g, "pspm_reservoir0_J", c.pspm_reservoir0_J);
   h5::attr(g, "solver_kind", static_cast<std::int64_t>(c.solver.kind));
   h5::attr(g, "solver_iterative_from_rows", static_cast<std::int64_t>(c.solver.iterative_from_rows));
   h5::attr(g, "solver_relative_tolerance", c.solver.relative_tolerance);
@@ -148,6 +150,10 @@ void read_core_attrs(hid_t g, rt::StationConfig& c) {
   c.vp.coupling.B_vc_Ns_per_m = h5::attr_f64(g, "B_vc_Ns_per_m");
   c.vp.coupling.K_vc_N_per_m = h5::attr_f64(g, "K_vc_N_per_m");
   c.rx_rule = static_cast<rt::RxRule>(h5::attr_i64(g, "rx_rule"));
+  if (h5::has_attr(g, "consensus_passivity")) {  // logs from before set-position modulation: eq. (18)
+    c.consensus_passivity = static_cast<rt::ConsensusPassivity>(h5::attr_i64(g, "consensus_passivity"));
+    c.pspm_reservoir0_J = h5::attr_f64(g, "pspm_reservoir0_J");
+  }
   c.solver.kind = static_cast<rt::StepSolverKind>(h5::attr_i64(g, "solver_kind"));
   c.solver.iterative_from_rows = static_cast<int>(h5::attr_i64(g, "solver_iterative_from_rows"));
   c.solver.relative_tolerance = h5::attr_f64(g, "solver_relative_tolerance");

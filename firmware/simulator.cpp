@@ -224,7 +224,8 @@ void tick_stations(Simulation& s, double t) {
   }
 }
 
-// d^2 of eq. (13) after the first tick: the copies' energies plus phi_pq(0) = |x_p - x_q|_P^2 / 4.
+// d^2 of eq. (13) after the first tick: the copies' energies plus phi_pq(0) = |x_p - x_q|_P^2 / 4
+// (plus the modulation's reservoirs with --consensus-passivity pspm).
 double passivity_bound_J(const Simulation& s) {
   double d2 = 0;
   for (int i = 0; i < s.N; ++i) d2 += s.st[static_cast<std::size_t>(i)]->energy().vo_J;
@@ -235,6 +236,10 @@ double passivity_bound_J(const Simulation& s) {
     s.b.gains[e].P.multiply_add(1.0, dx.data(), Pdx.data());
     d2 += dx.dot(Pdx) / 4.0;
   }
+  // Set-position modulation lets each edge end put in at most its initial reservoir (eq. 14 with
+  // c^2 = E0 per directed edge, rt/set_position_modulation.hpp): 2 E0 per link.
+  if (s.b.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation)
+    d2 += 2.0 * static_cast<double>(s.b.spec.topology.size()) * s.b.spec.pspm_reservoir0_J;
   return d2;
 }
 
@@ -364,6 +369,11 @@ SimResult finish(Simulation& s, std::int64_t ticks_run) {
     c.stats.max_index_delay = core.rx(c.rx_index).counters().max_index_delay;
     c.stats.bound_violations = core.edge_drop_events(c.rx_index);
     c.stats.edge_energy = edge_energy_summary(core, c.rx_index);
+    if (const rt::SetPositionModulator* m = core.set_position_modulator(c.rx_index)) {
+      c.stats.pspm_limited_ticks = m->limited_ticks();
+      c.stats.pspm_injected_J = m->injected_J();
+      c.stats.pspm_reservoir_J = m->reservoir_J();
+    }
     r.links.push_back(c.stats);
   }
   for (const auto& core : s.st) {
@@ -409,6 +419,11 @@ nlohmann::json sim_link_json(const BuiltScenario& b, const SimResult& r, const L
   j["bytes_per_s"] = run_s > 0 ? nlohmann::json(static_cast<double>(l.bytes_sent) / run_s) : nlohmann::json(nullptr);
   j["sent_in_hold_window"] = sent_between(l, r.metrics.hold_window_start_s, r.metrics.hold_window_end_s, T);
   j["sent_after_consensus"] = sent_between(l, settled_from_s, run_s + T, T);
+  if (b.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation) {
+    j["pspm_limited_ticks"] = l.pspm_limited_ticks;
+    j["pspm_injected_J"] = l.pspm_injected_J;
+    j["pspm_reservoir_J"] = l.pspm_reservoir_J;
+  }
   return j;
 }
 
@@ -450,6 +465,9 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["period_max_s"] = b.t_max_s;
   j["clock"] = {{"timer_jitter_ms", 1e3 * b.spec.timer_jitter_s}, {"step_jitter", b.spec.step_jitter}, {"clock_drift_ppm", b.spec.clock_drift_ppm}};
   j["steps_clamped"] = r.steps_clamped;
+  j["passivity_condition_met"] = b.passivity_condition_met;  // eq. (18) (eq18), by construction (pspm)
+  j["consensus_passivity"] = rt::consensus_passivity_name(b.spec.consensus_passivity);
+  if (b.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation) j["pspm_reservoir0_J"] = b.spec.pspm_reservoir0_J;
   j["push_pattern"] = b.spec.script.push_pattern == UserScriptSpec::PushPattern::kAsymmetric ? "asymmetric" : "spread";
   j["push_depth_m"] = b.push_depth_m;
   j["push_imbalance_ratio"] = b.push_imbalance_ratio;

@@ -27,6 +27,10 @@ struct LinkStats {
   std::uint64_t bytes_sent = 0;       // UDP payload bytes of the states sent (float32 wire, headers, MACs)
   std::vector<std::int64_t> sent_ticks;  // tick of every state sent (bandwidth by window)
   EdgeEnergySummary edge_energy{};       // the receiver's energy account of this edge and its bound
+  // With --consensus-passivity pspm: the modulation's ticks limited by the reservoir, energy its
+  // jumps put in, and the reservoir at the end (rt/set_position_modulation.hpp).
+  std::uint64_t pspm_limited_ticks = 0;
+  double pspm_injected_J = 0, pspm_reservoir_J = 0;
 };
 
 struct SimResult {

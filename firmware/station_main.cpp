@@ -76,7 +76,9 @@ std::string sim_result_line(const std::string& name, const SimResult& r) {
 }
 
 struct SimArgs {
-  std::string scenario, out, topology, damping, delay_matrix, topology_file, pushes = "spread", receive_rule = "newest";
+  std::string scenario, out, topology, damping, delay_matrix, topology_file, pushes = "spread", receive_rule = "newest",
+              consensus_passivity = "eq18";
+  double pspm_reservoir_J = 0.0;
   double timer_jitter_ms = 0, step_jitter = 0, clock_drift_ppm = 0;  // station clocks (variable steps T_k)
   double jitter = -1, delay_correlation = 0, node_mass_kg = -1;     // delay model and object (stability maps)
   int users = 0;
@@ -184,6 +186,11 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
                   "Free-running loops: each station's grid interval is T (1 + F u), u uniform in [-1, 1], F = this in [0, 0.5] (default 0)");
   sim->add_option("--clock-drift-ppm", a.clock_drift_ppm,
                   "Clock drift: station i ticks every T (1 + c_i 1e-6), c_i spread evenly over [-this, +this] ppm (user 1 shortest), in [0, 10000]; its tick count drifts against the others (default 0)");
+  sim->add_option("--consensus-passivity", a.consensus_passivity,
+                  "How eq. (14) is kept: eq18 (the paper: damping B_i from eq. 18 over the delay bound Nbar) or pspm (passive "
+                  "set-position modulation per edge: B_i = 0 unless --damping, no delay bound; rt/set_position_modulation.hpp) "
+                  "(default eq18)");
+  sim->add_option("--pspm-reservoir-J", a.pspm_reservoir_J, "With --consensus-passivity pspm: each edge's initial energy reservoir, J (default 0)");
   sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
   sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)");
   sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)");
@@ -335,6 +342,10 @@ int sim_command(const SimArgs& a) {
     spec.timer_jitter_s = a.timer_jitter_ms * 1e-3;
     spec.step_jitter = a.step_jitter;
     spec.clock_drift_ppm = a.clock_drift_ppm;
+    spec.consensus_passivity = haptic::rt::parse_consensus_passivity(a.consensus_passivity, "--consensus-passivity");
+    if (!(a.pspm_reservoir_J >= 0 && std::isfinite(a.pspm_reservoir_J)))
+      throw std::invalid_argument("--pspm-reservoir-J = " + std::to_string(a.pspm_reservoir_J) + " must be finite and >= 0");
+    spec.pspm_reservoir0_J = a.pspm_reservoir_J;
     const BuiltScenario built = build_scenario(spec);
     fs::create_directories(a.out);
     SimOptions opt;

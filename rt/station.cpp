@@ -41,6 +41,7 @@ void StationConfig::validate() const {
   if (t_max() > t_min() && step_levels(*this).size() > static_cast<std::size_t>(kMaxStepLevels))
     bad("step_resolution_s", "coarse enough for at most " + std::to_string(kMaxStepLevels) + " steps between period_min_s and period_max_s");
   if (!(damping_Ns_per_m >= 0 && std::isfinite(damping_Ns_per_m))) bad("damping_Ns_per_m", ">= 0");
+  if (!(pspm_reservoir0_J >= 0 && std::isfinite(pspm_reservoir0_J))) bad("pspm_reservoir0_J", "finite and >= 0");
   if (static_cast<int>(neighbors.size()) > kMaxNeighbors) bad("neighbors", "at most " + std::to_string(kMaxNeighbors));
   for (const auto& n : neighbors) {
     if (!n.gains) bad("neighbors[].gains", "set");
@@ -117,6 +118,11 @@ StationCore::StationCore(const StationConfig& config)
   active_.assign(static_cast<std::size_t>(nn), 0);
   edge_was_dropped_.assign(static_cast<std::size_t>(nn), 0);
   edge_drops_.assign(static_cast<std::size_t>(nn), 0);
+  if (cfg_.consensus_passivity == ConsensusPassivity::kSetPositionModulation) {
+    pspm_.resize(static_cast<std::size_t>(nn));
+    for (auto& m : pspm_) m.init(dofs_, x_.data(), cfg_.pspm_reservoir0_J);
+    pspm_scratch_ = Eigen::VectorXd::Zero(dofs_);
+  }
   {
     std::vector<double> shares;
     for (const auto& nb : cfg_.neighbors) shares.push_back(nb.damping_share);
@@ -189,6 +195,7 @@ void StationCore::set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v) 
   if (x.size() != dofs_ || v.size() != dofs_) throw std::invalid_argument("set_state: size mismatch");
   x_ = x;
   v_ = v;
+  for (auto& m : pspm_) m.reset(x_.data());  // the adopted copy's springs start relaxed
 }
 
 void StationCore::engage_contact() {
@@ -357,6 +364,14 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
   // damper D_ij + T/2 P_ij).
   for (int j = 0; j < nn; ++j) {
     views_[j] = rx_[j].begin_tick(k);
+    if (!pspm_.empty()) {  // set-position modulation: passive for any delay, no bound, no drop
+      auto& m = pspm_[static_cast<std::size_t>(j)];
+      if (views_[j].index_delay >= 0) m.update(views_[j].x_hat, x_.data(), cfg_.neighbors[j].gains->P, pspm_scratch_.data());
+      views_[j].x_hat = m.ybar();
+      views_[j].fresh = false;  // D acts on the local velocity only
+      active_[j] = 1;
+      continue;
+    }
     // A negative delay (data stamped ahead of our tick) is never trusted: over the bound.
     const bool ok = views_[j].index_delay >= 0 && views_[j].index_delay <= cfg_.neighbors[j].index_delay_bound_ticks;
     // The per-edge damage bound: an edge whose account is over its bound takes the same action.
@@ -480,6 +495,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
       for (int i = 0; i < dofs_; ++i) e += tmp_[i] * (v_hat_[i] - delta * vj[i]) + tmp2_[i] * (x_hat_[i] - xj[i]);
       edge_tick_J_[static_cast<std::size_t>(i2)] = -e * T_;
       ctrl_J -= e * T_;
+      if (!pspm_.empty()) pspm_[static_cast<std::size_t>(i2)].credit(T_ * tmp_.dot(v_hat_));  // T v_hat^T D v_hat: dissipated
     }
   }
   edge_energy_.record_tick(std::span<const double>(edge_tick_J_.data(), static_cast<std::size_t>(nn)), damping_J);

@@ -30,6 +30,7 @@
 #include "rt/multi_term_operator.hpp"
 #include "rt/rx_link.hpp"
 #include "rt/scene.hpp"
+#include "rt/set_position_modulation.hpp"
 #include "rt/step_solver.hpp"
 
 namespace haptic::rt {
@@ -82,6 +83,12 @@ struct StationConfig {
   double damping_Ns_per_m = 0;   // B_i = beta I (eq. 15), set from eq. (18)
   std::vector<NeighborConfig> neighbors;
   RxRule rx_rule = RxRule::kNewestBySequence;  // receive rule of every neighbour (rt/rx_link.hpp)
+  // kSetPositionModulation: every edge's P term acts towards a modulated set-position and its D term
+  // on the local velocity only (rt/set_position_modulation.hpp); eq. (14) holds by construction with
+  // c^2 = pspm_reservoir0_J per edge, so no index-delay bound applies (no edge is dropped) and B_i
+  // may be 0. kEq18Damping: the paper's law with B_i from eq. (18) and the bound above.
+  ConsensusPassivity consensus_passivity = ConsensusPassivity::kEq18Damping;
+  double pspm_reservoir0_J = 0.0;  // initial energy reservoir of each edge (>= 0)
   VirtualProxyParams vp{};
   std::vector<int> contact_nodes;     // the contact mesh C_i (node indices)
   StepSolverConfig solver{};          // the linear step's solver (auto: by scene size)
@@ -184,6 +191,10 @@ class StationCore {
     return total;
   }
   std::uint64_t edge_drop_events(int n) const { return edge_drops_[static_cast<std::size_t>(n)]; }
+  // Set-position modulation of edge n (consensus_passivity = pspm; nullptr otherwise).
+  const SetPositionModulator* set_position_modulator(int n) const {
+    return pspm_.empty() ? nullptr : &pspm_[static_cast<std::size_t>(n)];
+  }
   std::uint64_t safe_state_ticks() const { return safe_state_ticks_; }
   double last_step_s() const { return T_; }  // T_k of the last tick (a prefactored step)
   std::uint64_t step_clamped_ticks() const { return step_clamped_ticks_; }  // requested steps outside [t_min, t_max]
@@ -261,6 +272,8 @@ class StationCore {
   EdgeEnergyGate edge_gate_{};
   std::array<double, kMaxNeighbors> edge_tick_J_{};  // this tick's coupling energy per edge
   std::uint64_t safe_state_ticks_ = 0;
+  std::vector<SetPositionModulator> pspm_;  // one per edge when consensus_passivity = pspm
+  Eigen::VectorXd pspm_scratch_;
   std::vector<unsigned char> edge_was_dropped_;
   std::vector<std::uint64_t> edge_drops_;
 

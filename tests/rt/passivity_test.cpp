@@ -54,11 +54,21 @@ struct Drive {
   double amplitude_m_per_s = 0.01;
 };
 
+struct DriveResult {
+  double worst_J = 0;        // max_k sum_i sum_{k'<=k} s_E (the left side of eq. 14; c^2 = 0 for eq. 18)
+  double dissipated_J = 0;   // the run's total B_i dissipation
+  double edge_peak_J = 0;    // the largest per-edge account (rt/edge_energy.hpp) at any station
+};
+
+// Set-position modulation instead of eq. (18) (rt/set_position_modulation.hpp): B_i = 0, reservoir E0.
+struct Pspm {
+  bool on = false;
+  double reservoir0_J = 0;
+};
+
 // A star: station 0 the hub, `leaves` stations each on one edge with constant delays n_in (to the
-// hub) and n_out (to the leaf). B_i = factor x eq. (18) from rt::damping_min_eq18. Returns
-// max_k sum_i sum_{k'<=k} s_E (the left side of eq. 14) divided by the run's total B_i dissipation
-// (c^2 = 0: all copies start equal).
-double worst_generated_energy(double factor, int leaves, int n_in, int n_out, const Drive& d, int ticks, bool paper_d = false) {
+// hub) and n_out (to the leaf). B_i = factor x eq. (18) from rt::damping_min_eq18 (0 with pspm).
+DriveResult drive_star(double factor, int leaves, int n_in, int n_out, const Drive& d, int ticks, bool paper_d, const Pspm& pspm) {
   const auto& w = HeavyWorld::get();
   const EdgeGains& g = paper_d ? w.gains_d5 : w.gains;
   const double T = 0.002;
@@ -79,14 +89,18 @@ double worst_generated_energy(double factor, int leaves, int n_in, int n_out, co
       c.neighbors.push_back({0, &g, n_out});
       nb.push_back({static_cast<double>(n_in + n_out), T, &g});
     }
-    c.damping_Ns_per_m = factor * damping_min_eq18(T, nb);
+    c.damping_Ns_per_m = pspm.on ? 0.0 : factor * damping_min_eq18(T, nb);
+    if (pspm.on) {
+      c.consensus_passivity = ConsensusPassivity::kSetPositionModulation;
+      c.pspm_reservoir0_J = pspm.reservoir0_J;
+    }
     c.contact_nodes = PaperWorld::get().face_nodes(Eigen::Vector3d(1, 1, 1));
     c.vp_initial_position_m = Eigen::Vector3d(5, 5, 5);  // far away: no contact, f = 0
     st.push_back(std::make_unique<StationCore>(c));
   }
   // history[i][k] = (x_hat_i(k), v_hat_i(k))
   std::vector<std::vector<Eigen::VectorXd>> hx(N), hv(N);
-  double worst = 0, dissipated = 0;
+  DriveResult r;
   for (int k = 0; k < ticks; ++k) {
     for (int i = 0; i < N; ++i) {
       auto& s = *st[static_cast<std::size_t>(i)];
@@ -105,15 +119,22 @@ double worst_generated_energy(double factor, int leaves, int n_in, int n_out, co
     for (int i = 0; i < N; ++i) {
       auto& s = *st[static_cast<std::size_t>(i)];
       const auto out = s.tick(Eigen::Vector3d(5, 5, 5));
-      CHECK_FALSE(out.flags & kEdgeDropped);  // every packet exactly at its bound, never over
+      CHECK_FALSE(out.flags & kEdgeDropped);  // every packet exactly at its bound, never over (pspm: no bound at all)
       hx[i].emplace_back(Eigen::Map<const Eigen::VectorXd>(s.x_hat(), dofs));
       hv[i].emplace_back(Eigen::Map<const Eigen::VectorXd>(s.v_hat(), dofs));
       total += s.energy().controller_J;
-      dissipated += s.config().damping_Ns_per_m * hv[i].back().squaredNorm() * T;
+      r.dissipated_J += s.config().damping_Ns_per_m * hv[i].back().squaredNorm() * T;
+      for (int n = 0; n < s.neighbor_count(); ++n) r.edge_peak_J = std::max(r.edge_peak_J, s.edge_energy().peak_J(n));
     }
-    worst = std::max(worst, total);
+    r.worst_J = std::max(r.worst_J, total);
   }
-  return worst / std::max(dissipated, 1e-300);
+  return r;
+}
+
+// max_k sum_i sum_{k'<=k} s_E divided by the run's total B_i dissipation (c^2 = 0: all copies start equal).
+double worst_generated_energy(double factor, int leaves, int n_in, int n_out, const Drive& d, int ticks, bool paper_d = false) {
+  const DriveResult r = drive_star(factor, leaves, n_in, n_out, d, ticks, paper_d, Pspm{});
+  return r.worst_J / std::max(r.dissipated_J, 1e-300);
 }
 
 double worst_over_drives(double factor, int leaves, int n_in, int n_out, bool paper_d = false) {
@@ -169,4 +190,73 @@ TEST(Theorem1, below_eq18_the_same_velocities_generate_energy_so_the_test_can_fa
   CHECK_TRUE(worst_over_drives(0.9, 1, 3, 17) > 0.05);
   CHECK_TRUE(worst_over_drives(0.9, 3, 5, 5) > 0.05);
   CHECK_TRUE(worst_over_drives(0.5, 1, 10, 10) > 0.5);
+}
+
+// Passive set-position modulation (rt/set_position_modulation.hpp) with B_i = 0: the same adversarial
+// drives, and delays far beyond any bound eq. (18) would need, cannot make the controller ports put
+// more than the reservoirs' E0 into the copies (eq. 14 with c^2 = E0 per edge end), while without it
+// (B_i = 0, the paper's law) they generate energy: the property the modulation guards.
+double worst_pspm_J(double reservoir0_J, int leaves, int n_in, int n_out, double* edge_peak_J) {
+  const int rt = n_in + n_out;
+  double worst = -1;
+  *edge_peak_J = 0;
+  for (double periods : {4.0, 8.0, 16.0})
+    for (double phase : {M_PI, 0.75 * M_PI}) {
+      Drive d;
+      d.period_ticks = periods * rt;
+      d.phase_rad = phase;
+      const DriveResult r = drive_star(0.0, leaves, n_in, n_out, d, static_cast<int>(6 * d.period_ticks), true, Pspm{true, reservoir0_J});
+      worst = std::max(worst, r.worst_J);
+      *edge_peak_J = std::max(*edge_peak_J, r.edge_peak_J);
+    }
+  return worst;
+}
+
+TEST_GROUP(SetPositionModulation){};
+
+TEST(SetPositionModulation, controller_ports_put_in_at_most_the_reservoirs_under_adversarial_drives_with_no_damping) {
+  double peak = 0;
+  for (double E0 : {0.0, 1e-6}) {
+    const int ends_1 = 2, ends_3 = 6;  // edge ends: one edge, a 3-leaf star
+    CHECK_TRUE(worst_pspm_J(E0, 1, 10, 10, &peak) <= ends_1 * E0 + 1e-12);
+    CHECK_TRUE(peak <= E0 + 1e-12);
+    CHECK_TRUE(worst_pspm_J(E0, 1, 3, 17, &peak) <= ends_1 * E0 + 1e-12);
+    CHECK_TRUE(peak <= E0 + 1e-12);
+    CHECK_TRUE(worst_pspm_J(E0, 3, 40, 60, &peak) <= ends_3 * E0 + 1e-12);  // delays no bound was set for
+    CHECK_TRUE(peak <= E0 + 1e-12);
+  }
+}
+
+TEST(SetPositionModulation, the_same_drives_without_modulation_or_damping_generate_energy_so_the_test_can_fail) {
+  // B_i = 0 with the paper's law: the delayed coupling generates energy for these drives.
+  Drive d;
+  d.period_ticks = 16 * 20;
+  const DriveResult r = drive_star(0.0, 1, 10, 10, d, static_cast<int>(6 * d.period_ticks), true, Pspm{});
+  CHECK_TRUE(r.worst_J > 1e-6);
+}
+
+TEST(SetPositionModulation, a_full_jump_when_affordable_and_the_largest_affordable_one_otherwise) {
+  // One node's worth of state, P = 2 I: V(x; ybar) = |x - ybar|^2.
+  const SpatialMatrix P = SpatialMatrix::identity(1, 2.0);
+  const double x[3] = {0, 0, 0}, y[3] = {1, 0, 0};
+  double scratch[3];
+  SetPositionModulator m;
+  m.init(3, x, 0.25);  // moving ybar from 0 to 1 would cost V = 1 J; 0.25 J buys alpha = 0.5
+  DOUBLES_EQUAL(0.5, m.update(y, x, P, scratch), 1e-12);
+  DOUBLES_EQUAL(0.5, m.ybar()[0], 1e-12);
+  DOUBLES_EQUAL(0.0, m.reservoir_J(), 1e-12);
+  DOUBLES_EQUAL(0.25, m.injected_J(), 1e-12);
+  CHECK_EQUAL(1u, m.limited_ticks());
+  DOUBLES_EQUAL(0.0, m.update(y, x, P, scratch), 1e-12);  // empty reservoir: no move that costs energy
+  m.credit(0.75);  // dissipation refills it: 0.75 J buys the rest (1 - 0.25 = 0.75)
+  DOUBLES_EQUAL(1.0, m.update(y, x, P, scratch), 1e-12);
+  DOUBLES_EQUAL(1.0, m.ybar()[0], 1e-12);
+  DOUBLES_EQUAL(0.0, m.reservoir_J(), 1e-9);
+  // A jump that relaxes the spring is free and credits the reservoir: x at 1, ybar back towards x.
+  const double x1[3] = {1, 0, 0}, y0[3] = {0.5, 0, 0};
+  m.update(y0, x1, P, scratch);  // ybar 1 -> 0.5 stretches it by 0.25 J: unaffordable, stays
+  DOUBLES_EQUAL(1.0, m.ybar()[0], 1e-12);
+  m.init(3, x, 0.0);  // ybar 0, x at 1: V = 1; y = 0.5 relaxes it to 0.25, crediting 0.75 J
+  DOUBLES_EQUAL(1.0, m.update(y0, x1, P, scratch), 1e-12);
+  DOUBLES_EQUAL(0.75, m.reservoir_J(), 1e-12);
 }

@@ -1,6 +1,7 @@
 #include "firmware/station_config.hpp"
 
 #include "platform/toml_config.hpp"
+#include "rt/set_position_modulation.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -26,7 +27,7 @@ void parse_station_section(View root, StationFile& f) {
   const View st = root["station"];
   if (!st) bad("[station]", "present (with at least id = 1..users)");
   only_keys(st, "station", {"id", "scenario", "users", "topology", "delay_matrix", "pushes", "push_seed", "allow_routed_peers", "run_subdir", "nodes", "duration_s", "seed", "period_min_s", "period_max_s", "delay_correlation", "push_start_s", "push_end_s", "release_s",
-                            "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin",
+                            "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin", "consensus_passivity", "pspm_reservoir_J",
                             "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
                             "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "record_ring_s", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks", "edge_energy_bound_J"});
@@ -60,6 +61,9 @@ void parse_station_section(View root, StationFile& f) {
   s.probe_s = real(st["probe_s"], "station.probe_s", 1.5, 0.2, 60);
   s.setup_gap_s = real(st["setup_gap_s"], "station.setup_gap_s", 0.5, 0.05, 10);
   s.damping_margin = real(st["damping_margin"], "station.damping_margin", 0.05, 0, 10);
+  s.consensus_passivity = text(st["consensus_passivity"], "station.consensus_passivity", "eq18");
+  rt::parse_consensus_passivity(s.consensus_passivity, "station.consensus_passivity");  // named error at parse time
+  s.pspm_reservoir_J = real(st["pspm_reservoir_J"], "station.pspm_reservoir_J", 0.001, 0, 1);
   s.loss_allowance_ticks = static_cast<int>(integer(st["loss_allowance_ticks"], "station.loss_allowance_ticks", 1, 0, 1000));
   s.edge_energy_bound_J = real(st["edge_energy_bound_J"], "station.edge_energy_bound_J", rt::kDefaultEdgeEnergyBoundJ, 0.0, 1e6, " (0 = off)");
   s.solver = text(st["solver"], "station.solver", "auto");

@@ -38,6 +38,10 @@
 //   probe_s = 1.5                    # probing phase with zero coupling, [0.2, 60]
 //   setup_gap_s = 0.5                # from the end of probing to the run start (StationCore built meanwhile), [0.05, 10]
 //   damping_margin = 0.05            # B_i = (1 + margin) x eq. (18) of the MEASURED bounds, [0, 10]
+//   consensus_passivity = "eq18"     # "eq18": B_i from eq. (18) (the paper); "pspm": passive set-position modulation
+//                                    # per edge (rt/set_position_modulation.hpp): B_i = 0 unless damping_Ns_per_m,
+//                                    # no delay bound, eq. (14) by construction (same on all stations)
+//   pspm_reservoir_J = 0.001         # with "pspm": each edge's initial energy reservoir E0, J, [0, 1]
 //   loss_allowance_ticks = 1         # ticks added to the measured round-trip bound, [0, 1000]
 //   edge_energy_bound_J = 0.1        # per-edge damage bound: an edge whose energy account (eq. 14 split per edge)
 //                                    # exceeds it acts as a damper until the account fell to half of it
@@ -163,6 +167,8 @@ struct StationSection {
   double probe_s = 1.5;
   double setup_gap_s = 0.5;
   double damping_margin = 0.05;
+  std::string consensus_passivity = "eq18";
+  double pspm_reservoir_J = 0.001;
   int loss_allowance_ticks = 1;
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
   std::string solver = "auto";

@@ -243,6 +243,8 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   if (s.push_end_s >= 0) spec.script.push_end_s = s.push_end_s;
   if (s.release_s >= 0) spec.script.release_s = s.release_s;
   spec.damping_margin = s.damping_margin;
+  spec.consensus_passivity = rt::parse_consensus_passivity(s.consensus_passivity, "station.consensus_passivity");
+  spec.pspm_reservoir0_J = s.pspm_reservoir_J;
   spec.loss_allowance_ticks = s.loss_allowance_ticks;
   spec.edge_energy_bound_J = s.edge_energy_bound_J;
   spec.tx_deadband.position_deadband_m = s.tx_deadband_mm * 1e-3;

@@ -209,7 +209,13 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
     const int allowance = S.loss_allowance_ticks + built.spec.tx_deadband.added_index_delay_ticks();
     r.bounds = bounds_from_round_trips(built, plan.me, probe.rtt_bound_ticks, allowance, S.damping_margin, S.damping_Ns_per_m,
                                        S.agreement_ticks);
-    r.passivity_condition_met = r.bounds.damping_Ns_per_m >= r.bounds.damping_min_Ns_per_m * (1 - 1e-12);
+    if (built.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation) {
+      // eq. (14) by the modulation (rt/set_position_modulation.hpp): B_i only if the file gives one
+      r.bounds.damping_Ns_per_m = S.damping_Ns_per_m >= 0 ? S.damping_Ns_per_m : 0.0;
+      r.passivity_condition_met = true;
+    } else {
+      r.passivity_condition_met = r.bounds.damping_Ns_per_m >= r.bounds.damping_min_Ns_per_m * (1 - 1e-12);
+    }
     rt::StationConfig sc = built.station_config(plan.me);
     sc.damping_Ns_per_m = r.bounds.damping_Ns_per_m;
     // the opened device's own capabilities + the [device] keys; eq. (26) again (the plan checked the published figures)

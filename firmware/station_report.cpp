@@ -81,7 +81,16 @@ void add_bounds_json(const StationOutcome& o, json& j) {
   const bool built = o.build != nullptr && o.build->status == PhaseStatus::kOk;
   j["damping_Ns_per_m"] = built ? json(o.build->bounds.damping_Ns_per_m) : json(nullptr);
   j["damping_min_Ns_per_m"] = built ? json(o.build->bounds.damping_min_Ns_per_m) : json(nullptr);
-  j["passivity_condition_met"] = built && o.build->passivity_condition_met;
+  j["passivity_condition_met"] = built && o.build->passivity_condition_met;  // eq. (18) (eq18), by construction (pspm)
+  if (o.plan) j["consensus_passivity"] = o.plan->file.station.consensus_passivity;
+  const rt::StationCore* core = built ? o.build->core.get() : nullptr;
+  if (core && core->set_position_modulator(0)) {  // per edge: ticks the reservoir limited, energy the jumps put in
+    json m = json::array();
+    for (int n = 0; n < core->neighbor_count(); ++n)
+      m.push_back({{"limited_ticks", core->set_position_modulator(n)->limited_ticks()}, {"injected_J", core->set_position_modulator(n)->injected_J()},
+                   {"reservoir_J", core->set_position_modulator(n)->reservoir_J()}, {"edge_energy_peak_J", core->edge_energy().peak_J(n)}});
+    j["pspm_edges"] = m;
+  }
 }
 
 json endpoint_json(const net::EndpointStats& st, const net::EndpointConfig& ec, const std::string& io_sched) {

@@ -39,6 +39,8 @@ default_host = "127.0.0.1"
 transport = "udp"
 [topology]
 links = "1-2"
+[station]
+max_no_neighbour_fraction = 0.5   # this checks the device path, not the host: a loaded VM stalls for 0.5 s
 [[stations]]
 id = 1
 host = "127.0.0.1"
@@ -49,7 +51,8 @@ host = "127.0.0.1"
 device = "simulated"
 EOT
   FAKEHD_AUTO=1 FAKEHD_PLANT=$plant FAKEHD_FORCE_LOG="$dir/forces.csv" \
-    haptic-lab run "$dir/lab.toml" --runs-dir "$dir/runs" --no-plots > "$dir/lab.log" 2>&1 || { cat "$dir/lab.log"; echo "FAIL: haptic-lab run ($1)"; exit 1; }
+    haptic-lab run "$dir/lab.toml" --runs-dir "$dir/runs" --no-plots > "$dir/lab.log" 2>&1 ||
+    { cat "$dir/lab.log" >&2; echo "FAIL: haptic-lab run ($1)" >&2; exit 1; }  # stderr: stdout is the caller's $(...)
   ls -d "$dir"/runs/*/ | head -1
 }
 ramped=$(run_lab ramp 1.0)

@@ -126,6 +126,35 @@ TEST(StationPhases, FourStationsOnThreadsRunEveryPhaseAndExitZero) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(StationPhases, FourStationsUnderSetPositionModulationRunWithoutDampingAndReportTheirEdges) {
+  // station.consensus_passivity = "pspm" (rt/set_position_modulation.hpp): B_i = 0 at every station,
+  // eq. (14) by construction, every edge's account within its reservoir E0 = pspm_reservoir_J.
+  const std::string dir = test::fresh_dir("pspm");
+  const std::string pspm = std::string(kShort) + "consensus_passivity = \"pspm\"\npspm_reservoir_J = 0.002\n";
+  const std::vector<int> codes = run_four(dir, 103, {pspm, pspm, pspm, pspm});
+  for (int i = 1; i <= 4; ++i) {
+    LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
+    const json j = station_json(dir, i);
+    STRCMP_EQUAL("pspm", j["consensus_passivity"].get<std::string>().c_str());
+    DOUBLES_EQUAL(0.0, number(j["damping_Ns_per_m"]), 0.0);
+    CHECK(number(j["damping_min_Ns_per_m"]) > 0);  // what eq. (18) would have asked for
+    CHECK(j["passivity_condition_met"].get<bool>());
+    LONGS_EQUAL(0, j["edge_drop_events"].get<int>());  // no delay bound: nothing dropped
+    CHECK_EQUAL(static_cast<std::size_t>(i == 1 ? 3 : 1), j["pspm_edges"].size());
+    for (const auto& e : j["pspm_edges"]) CHECK(number(e["edge_energy_peak_J"]) <= 0.002 + 1e-12);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, AnUnknownConsensusPassivityIsAConfigErrorNamingTheKey) {
+  try {
+    parse_station_file("[station]\nid = 1\nconsensus_passivity = \"adaptive\"\n[net]\nsession_id = 1\n");
+    FAIL("no error");
+  } catch (const std::exception& e) {
+    CHECK_TEXT(std::string(e.what()).find("station.consensus_passivity = \"adaptive\"") != std::string::npos, e.what());
+  }
+}
+
 TEST(StationPhases, BothEndsOfEveryLinkUseTheSameRoundTripBoundTheLargerOfTheTwo) {
   // The hub adds 20 ms to every bound it measures (net.rtt_margin_s), so its own bounds are about
   // 10 ticks above the leaves'; each end learns the other's frozen bound while probing and both

@@ -9,6 +9,7 @@
 #include "firmware/growth_detector.hpp"
 #include "firmware/scenario.hpp"
 #include "firmware/simulator.hpp"
+#include "tests/firmware/tight_case.hpp"
 
 using namespace haptic::firmware;
 
@@ -36,23 +37,7 @@ TEST(Growth, an_exponential_is_detected_with_its_rate_and_a_settling_push_is_not
 }
 
 namespace {
-ScenarioSpec tight(double factor_of_eq18, double correlation) {
-  ScenarioSpec s = make_scenario("paper-unstable");
-  s.delay_ms = Eigen::MatrixXd::Constant(4, 4, 1.33);
-  s.delay_ms.diagonal().setZero();
-  s.loss_probability = 0;
-  s.duplicate_probability = 0;
-  s.loss_allowance_ticks = 0;
-  s.d_gain_Ns_per_m = 0;
-  s.edge_energy_bound_J = 0;  // eq. (18) alone (the per-edge energy bound keeps 0.45x from diverging)
-  s.delay_correlation = correlation;
-  s.damping_Ns_per_m.reset();
-  const BuiltScenario b = build_scenario(s);
-  std::vector<double> d;
-  for (double m : b.damping_min) d.push_back(factor_of_eq18 * m);
-  s.damping_Ns_per_m = d;
-  return s;
-}
+ScenarioSpec tight(double factor_of_eq18, double correlation) { return haptic::test::tight_case_spec(factor_of_eq18, correlation); }
 }  // namespace
 
 TEST(Growth, the_tight_case_below_eq18_is_flagged_by_growth_before_the_speed_threshold) {

@@ -11,31 +11,12 @@
 
 #include "firmware/scenario.hpp"
 #include "firmware/simulator.hpp"
+#include "tests/firmware/tight_case.hpp"
 
 using namespace haptic::firmware;
 
 namespace {
-ScenarioSpec tight_spec(std::optional<double> factor_of_eq18) {
-  ScenarioSpec s = make_scenario("paper-unstable");
-  s.delay_ms = Eigen::MatrixXd::Constant(4, 4, 1.33);
-  s.delay_ms.diagonal().setZero();
-  s.loss_probability = 0;
-  s.duplicate_probability = 0;
-  s.loss_allowance_ticks = 0;
-  s.d_gain_Ns_per_m = 0;
-  // eq. (18) alone decides: the per-edge energy bound (on by default) keeps the 0.45x case from
-  // diverging (its tripped edges act as dampers), so it is off here.
-  s.edge_energy_bound_J = 0;
-  s.duration_s = 8.0;
-  s.damping_Ns_per_m.reset();
-  if (factor_of_eq18) {
-    const BuiltScenario b = build_scenario(s);
-    std::vector<double> d;
-    for (double m : b.damping_min) d.push_back(*factor_of_eq18 * m);
-    s.damping_Ns_per_m = d;
-  }
-  return s;
-}
+ScenarioSpec tight_spec(std::optional<double> factor_of_eq18) { return haptic::test::tight_case_spec(factor_of_eq18, 0.0, 8.0); }
 }  // namespace
 
 TEST_GROUP(Theorem1ClosedLoop){};

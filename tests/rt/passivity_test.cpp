@@ -137,16 +137,24 @@ double worst_generated_energy(double factor, int leaves, int n_in, int n_out, co
   return r.worst_J / std::max(r.dissipated_J, 1e-300);
 }
 
-double worst_over_drives(double factor, int leaves, int n_in, int n_out, bool paper_d = false) {
-  const int rt = n_in + n_out;
-  double worst = -1;
+// The drives of every test here: periods of 4, 8 and 16 round trips, antiphase and 3/4 of it, six
+// periods each; f(drive, ticks).
+template <class F>
+void for_each_drive(int n_in, int n_out, F&& f) {
   for (double periods : {4.0, 8.0, 16.0})
     for (double phase : {M_PI, 0.75 * M_PI}) {
       Drive d;
-      d.period_ticks = periods * rt;
+      d.period_ticks = periods * (n_in + n_out);
       d.phase_rad = phase;
-      worst = std::max(worst, worst_generated_energy(factor, leaves, n_in, n_out, d, static_cast<int>(6 * d.period_ticks), paper_d));
+      f(d, static_cast<int>(6 * d.period_ticks));
     }
+}
+
+double worst_over_drives(double factor, int leaves, int n_in, int n_out, bool paper_d = false) {
+  double worst = -1;
+  for_each_drive(n_in, n_out, [&](const Drive& d, int ticks) {
+    worst = std::max(worst, worst_generated_energy(factor, leaves, n_in, n_out, d, ticks, paper_d));
+  });
   return worst;
 }
 
@@ -197,18 +205,13 @@ TEST(Theorem1, below_eq18_the_same_velocities_generate_energy_so_the_test_can_fa
 // more than the reservoirs' E0 into the copies (eq. 14 with c^2 = E0 per edge end), while without it
 // (B_i = 0, the paper's law) they generate energy: the property the modulation guards.
 double worst_pspm_J(double reservoir0_J, int leaves, int n_in, int n_out, double* edge_peak_J) {
-  const int rt = n_in + n_out;
   double worst = -1;
   *edge_peak_J = 0;
-  for (double periods : {4.0, 8.0, 16.0})
-    for (double phase : {M_PI, 0.75 * M_PI}) {
-      Drive d;
-      d.period_ticks = periods * rt;
-      d.phase_rad = phase;
-      const DriveResult r = drive_star(0.0, leaves, n_in, n_out, d, static_cast<int>(6 * d.period_ticks), true, Pspm{true, reservoir0_J});
-      worst = std::max(worst, r.worst_J);
-      *edge_peak_J = std::max(*edge_peak_J, r.edge_peak_J);
-    }
+  for_each_drive(n_in, n_out, [&](const Drive& d, int ticks) {
+    const DriveResult r = drive_star(0.0, leaves, n_in, n_out, d, ticks, true, Pspm{true, reservoir0_J});
+    worst = std::max(worst, r.worst_J);
+    *edge_peak_J = std::max(*edge_peak_J, r.edge_peak_J);
+  });
   return worst;
 }
 

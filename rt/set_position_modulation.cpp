@@ -28,16 +28,17 @@ void SetPositionModulator::init(int dofs, const double* x0, double reservoir0_J)
 double SetPositionModulator::update(const double* y, const double* x, const SpatialMatrix& P, double* scratch) {
   const int n = static_cast<int>(ybar_.size());
   // d = y - ybar, r = x - ybar; dV(alpha) = a alpha^2 + b alpha with a = d^T P d / 2, b = -d^T P r.
-  double* Pd = scratch;
-  for (int i = 0; i < n; ++i) Pd[i] = 0.0;
+  double* d = scratch;
+  double* Pd = scratch + n;
   double* yb = ybar_.data();
-  // P d without a second buffer: P is linear, so P d = P y - P ybar accumulated into Pd.
-  P.multiply_add(1.0, y, Pd);
-  P.multiply_add(-1.0, yb, Pd);
+  for (int i = 0; i < n; ++i) {
+    d[i] = y[i] - yb[i];
+    Pd[i] = 0.0;
+  }
+  P.multiply_add(1.0, d, Pd);  // one matvec per edge and tick
   double dPd = 0, dPr = 0;
   for (int i = 0; i < n; ++i) {
-    const double d = y[i] - yb[i];
-    dPd += d * Pd[i];
+    dPd += d[i] * Pd[i];
     dPr += (x[i] - yb[i]) * Pd[i];  // P symmetric: d^T P r = r^T P d
   }
   const double a = 0.5 * dPd, b = -dPr;
@@ -55,7 +56,7 @@ double SetPositionModulator::update(const double* y, const double* x, const Spat
   }
   if (!std::isfinite(alpha) || !std::isfinite(a) || !std::isfinite(b)) return 0.0;  // never jump on non-finite data
   const double dV = (a * alpha + b) * alpha;
-  for (int i = 0; i < n; ++i) yb[i] += alpha * (y[i] - yb[i]);
+  for (int i = 0; i < n; ++i) yb[i] += alpha * d[i];
   reservoir_J_ -= dV;
   if (reservoir_J_ < 0) reservoir_J_ = 0;  // rounding only: dV <= E by construction
   if (dV > 0) injected_J_ += dV;

@@ -39,7 +39,7 @@ class SetPositionModulator {
   // Start-up: ybar := x0 (all copies start from the same configuration), E := reservoir0_J (>= 0).
   void init(int dofs, const double* x0, double reservoir0_J);
   // One tick: moves ybar from its current value towards y (the newest received x_hat_j) as far as the
-  // reservoir allows, given this copy's x(k) and the edge's P. scratch: dofs doubles. Returns alpha.
+  // reservoir allows, given this copy's x(k) and the edge's P. scratch: 2 x dofs doubles. Returns alpha.
   double update(const double* y, const double* x, const SpatialMatrix& P, double* scratch);
   // ybar := x (a copy that adopts another state, e.g. on rejoin, starts its springs relaxed); the
   // reservoir is kept. RT-safe (no allocation).

@@ -121,7 +121,7 @@ StationCore::StationCore(const StationConfig& config)
   if (cfg_.consensus_passivity == ConsensusPassivity::kSetPositionModulation) {
     pspm_.resize(static_cast<std::size_t>(nn));
     for (auto& m : pspm_) m.init(dofs_, x_.data(), cfg_.pspm_reservoir0_J);
-    pspm_scratch_ = Eigen::VectorXd::Zero(dofs_);
+    pspm_scratch_ = Eigen::VectorXd::Zero(2 * dofs_);  // SetPositionModulator::update's d and P d
   }
   {
     std::vector<double> shares;
@@ -486,6 +486,8 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
       eg->D.multiply_add(1.0, v_hat_.data(), tmp_.data());
       eg->P.multiply_add(1.0, v_hat_.data(), tmp2_.data());
     }
+    // pspm: T v_hat^T D v_hat, what each edge of this gain group dissipated (D on the local velocity)
+    const double dissipated_J = pspm_.empty() ? 0.0 : T_ * tmp_.dot(v_hat_);
     for (int i2 = j; i2 < nn; ++i2) {
       if (cfg_.neighbors[i2].gains != eg) continue;
       const double delta = (active_[i2] && views_[i2].fresh) ? 1.0 : 0.0;
@@ -495,7 +497,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
       for (int i = 0; i < dofs_; ++i) e += tmp_[i] * (v_hat_[i] - delta * vj[i]) + tmp2_[i] * (x_hat_[i] - xj[i]);
       edge_tick_J_[static_cast<std::size_t>(i2)] = -e * T_;
       ctrl_J -= e * T_;
-      if (!pspm_.empty()) pspm_[static_cast<std::size_t>(i2)].credit(T_ * tmp_.dot(v_hat_));  // T v_hat^T D v_hat: dissipated
+      if (!pspm_.empty()) pspm_[static_cast<std::size_t>(i2)].credit(dissipated_J);
     }
   }
   edge_energy_.record_tick(std::span<const double>(edge_tick_J_.data(), static_cast<std::size_t>(nn)), damping_J);

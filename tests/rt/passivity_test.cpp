@@ -242,7 +242,7 @@ TEST(SetPositionModulation, a_full_jump_when_affordable_and_the_largest_affordab
   // One node's worth of state, P = 2 I: V(x; ybar) = |x - ybar|^2.
   const SpatialMatrix P = SpatialMatrix::identity(1, 2.0);
   const double x[3] = {0, 0, 0}, y[3] = {1, 0, 0};
-  double scratch[3];
+  double scratch[6];  // 2 x dofs
   SetPositionModulator m;
   m.init(3, x, 0.25);  // moving ybar from 0 to 1 would cost V = 1 J; 0.25 J buys alpha = 0.5
   DOUBLES_EQUAL(0.5, m.update(y, x, P, scratch), 1e-12);

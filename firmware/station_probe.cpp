@@ -1,7 +1,6 @@
 #include "firmware/station_probe.hpp"
 
 #include <algorithm>
-#include <cmath>
 #include <sstream>
 #include <stdexcept>
 
@@ -13,7 +12,6 @@ namespace haptic::firmware {
 
 namespace {
 
-std::int64_t bound_ticks(double bound_s, double T);
 
 std::string id_list(const std::vector<int>& ids) {
   std::string s;
@@ -75,8 +73,6 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
   r.loop_missed_cycles = loop.stats().missed_cycles;
 }
 
-// A round trip in ticks of T (ceil), as net::RttEstimator::bound_ticks.
-std::int64_t bound_ticks(double bound_s, double T) { return static_cast<std::int64_t>(std::ceil(bound_s / T - 1e-9)); }
 
 // What the endpoint dropped while probing, by counted cause ("; counted: 120 bad_mac (forged or
 // wrong key), 3 future_sequence"), or "; nothing received at all" (issue 11 item 6).
@@ -141,8 +137,8 @@ void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, 
     const auto p = static_cast<std::size_t>(plan.peers.nbr_to_peer[n]);
     if (!r.stats_at_end.peers[p].rtt_has_bound) r.missing.push_back(nbrs[n] + 1);
     const net::PeerStats& ps = r.stats_at_end.peers[p];
-    r.own_rtt_bound_ticks.push_back(bound_ticks(ps.rtt_probe_bound_s, T));
-    r.peer_rtt_bound_ticks.push_back(ps.peer_rtt_probe_bound_s > 0 ? bound_ticks(ps.peer_rtt_probe_bound_s, T) : -1);
+    r.own_rtt_bound_ticks.push_back(net::bound_ticks(ps.rtt_probe_bound_s, T));
+    r.peer_rtt_bound_ticks.push_back(ps.peer_rtt_probe_bound_s > 0 ? net::bound_ticks(ps.peer_rtt_probe_bound_s, T) : -1);
     r.rtt_bound_ticks.push_back(static_cast<std::uint32_t>(std::max(r.own_rtt_bound_ticks.back(), r.peer_rtt_bound_ticks.back())));
     if (ps.rtt_has_bound && r.peer_rtt_bound_ticks.back() < 0)
       r.warnings.push_back("station " + std::to_string(nbrs[n] + 1) + "'s round-trip bound did not arrive while probing: ours alone is used, "

@@ -51,9 +51,11 @@ bool RttEstimator::add_sample(double rtt_s) {
   return false;
 }
 
-std::uint32_t RttEstimator::bound_ticks(double period_s) const {
+std::uint32_t bound_ticks(double bound_s, double period_s) {
   if (!(period_s > 0.0)) return 0;
-  return static_cast<std::uint32_t>(std::ceil(bound_s_ / period_s - 1e-9));
+  return static_cast<std::uint32_t>(std::ceil(bound_s / period_s - 1e-9));
 }
+
+std::uint32_t RttEstimator::bound_ticks(double period_s) const { return net::bound_ticks(bound_s_, period_s); }
 
 }  // namespace haptic::net

@@ -24,6 +24,10 @@ struct RttConfig {
   void validate() const;  // throws std::invalid_argument naming the key and range
 };
 
+// A round-trip bound in seconds as ticks of period_s (ceil, 1e-9 relative slack for a bound that is
+// a whole number of ticks): N_bar_ij + N_bar_ji of eq. (18). 0 for period_s <= 0. RT-safe.
+std::uint32_t bound_ticks(double bound_s, double period_s);
+
 class RttEstimator {
  public:
   explicit RttEstimator(const RttConfig& cfg = {});

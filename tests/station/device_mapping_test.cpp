@@ -26,15 +26,20 @@ struct FirstTicks {
   bool projected = false;
 };
 
-// One station's core built as the station builds it, with the device held still at `device_m`
-// (device frame), `ticks` coupled ticks; returns the forces the device would get.
-FirstTicks first_ticks(const std::string& device_lines, const double device_m[3], bool place, int ticks) {
+// Station 2 of the default scenario (neighbour 1) with these [device] lines, planned as `run` plans it.
+PlanResult plan_station_2(const std::string& device_lines) {
   test::StationText s;
   s.id = 2;
   s.peers = {1};
   s.out_dir = "/tmp";
   s.device = device_lines;
-  const PlanResult pr = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  return plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+}
+
+// One station's core built as the station builds it, with the device held still at `device_m`
+// (device frame), `ticks` coupled ticks; returns the forces the device would get.
+FirstTicks first_ticks(const std::string& device_lines, const double device_m[3], bool place, int ticks) {
+  const PlanResult pr = plan_station_2(device_lines);
   CHECK_TEXT(pr.status == PhaseStatus::kOk, pr.error.c_str());
   ProbeResult probe;
   probe.status = PhaseStatus::kOk;
@@ -65,12 +70,7 @@ FirstTicks first_ticks(const std::string& device_lines, const double device_m[3]
 // 12 mm inside the object below user 2's contact face, 20 mm sideways: where a person might hold
 // the stylus when the station starts.
 void inside_point(double out[3]) {
-  test::StationText s;
-  s.id = 2;
-  s.peers = {1};
-  s.out_dir = "/tmp";
-  s.device = "kind = \"touch\"\ndamping_Ns_per_m = 0.5\n";
-  const PlanResult pr = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  const PlanResult pr = plan_station_2("kind = \"touch\"\ndamping_Ns_per_m = 0.5\n");
   const auto& b = *pr.plan->built;
   const Eigen::Vector3d inward = b.push_direction[1];
   Eigen::Vector3d side = inward.unitOrthogonal();
@@ -101,12 +101,7 @@ TEST(DeviceMapping, FirstTickForceIsBelowTheRampBoundAndFarBelowTheUnmappedUnram
 TEST(DeviceMapping, AProxyPlacedAtAnOutsideDevicePositionFeelsNoForceAtAll) {
   double q[3];
   inside_point(q);
-  test::StationText s;
-  s.id = 2;
-  s.peers = {1};
-  s.out_dir = "/tmp";
-  s.device = "kind = \"touch\"\ndamping_Ns_per_m = 0.5\n";
-  const PlanResult pr = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  const PlanResult pr = plan_station_2("kind = \"touch\"\ndamping_Ns_per_m = 0.5\n");
   const Eigen::Vector3d out_pt = pr.plan->built->vp_start[1] - 0.03 * pr.plan->built->push_direction[1];  // 30 mm outside
   const double p[3] = {out_pt.x(), out_pt.y(), out_pt.z()};
   const FirstTicks r = first_ticks("kind = \"touch\"\ndamping_Ns_per_m = 0.5\nramp_in_s = 0\n", p, true, 1);
@@ -117,12 +112,7 @@ TEST(DeviceMapping, AProxyPlacedAtAnOutsideDevicePositionFeelsNoForceAtAll) {
 TEST(DeviceMapping, TheMapMovesTheDeviceIntoTheObjectFrameAndScalesEq26AndTheLimit) {
   // A device whose origin is 2 cm off the object, at scale 2 (1 mm of stylus = 2 mm in the scene): the
   // proxy still starts at the mapped position, eq. (26) uses b_d / scale^2, the core's limit is F_max / scale.
-  test::StationText s;
-  s.id = 2;
-  s.peers = {1};
-  s.out_dir = "/tmp";
-  s.device = "kind = \"touch\"\ndamping_Ns_per_m = 1.6\nmap_scale = 2.0\nmap_offset_m = [0.02, 0.0, 0.0]\nramp_in_s = 0\n";
-  const PlanResult pr = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  const PlanResult pr = plan_station_2("kind = \"touch\"\ndamping_Ns_per_m = 1.6\nmap_scale = 2.0\nmap_offset_m = [0.02, 0.0, 0.0]\nramp_in_s = 0\n");
   CHECK_TEXT(pr.status == PhaseStatus::kOk, pr.error.c_str());  // 1.6 / 4 = 0.4 >= K_vc T = 0.4
   ProbeResult probe;
   probe.status = PhaseStatus::kOk;
@@ -136,6 +126,5 @@ TEST(DeviceMapping, TheMapMovesTheDeviceIntoTheObjectFrameAndScalesEq26AndTheLim
   CHECK((b.proxy_start_m - target).norm() < 1e-12);
   DOUBLES_EQUAL(0.4, b.core->config().device_damping_Ns_per_m, 1e-12);
   DOUBLES_EQUAL(3.3 / 2.0, b.core->config().max_device_force_N, 1e-12);
-  s.device = "kind = \"touch\"\ndamping_Ns_per_m = 1.5\nmap_scale = 2.0\n";  // 1.5 / 4 < 0.4: refused
-  CHECK(plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks()).status == PhaseStatus::kConfigError);
+  CHECK(plan_station_2("kind = \"touch\"\ndamping_Ns_per_m = 1.5\nmap_scale = 2.0\n").status == PhaseStatus::kConfigError);  // 1.5 / 4 < 0.4: refused
 }

@@ -50,6 +50,11 @@ bool make_plots(const std::string& dir) {
 
 std::atomic<bool> g_stop{false};
 void on_stop_signal(int) { g_stop.store(true, std::memory_order_release); }
+// Ctrl-C and SIGTERM set g_stop: a run or a served view (replay, sim) ends cleanly and reports.
+void stop_on_signals() {
+  std::signal(SIGINT, on_stop_signal);
+  std::signal(SIGTERM, on_stop_signal);
+}
 
 std::string fmt(double v, int prec = 3) {
   char b[64];
@@ -241,8 +246,6 @@ TimelineOptions timeline_options(int port, const std::string& bind, double secon
   t.server.bind = bind;
   t.serve_s = seconds;
   t.mode = mode;
-  std::signal(SIGINT, on_stop_signal);
-  std::signal(SIGTERM, on_stop_signal);
   return t;
 }
 
@@ -257,6 +260,7 @@ int replay_command(const ReplayArgs& a) {
     std::cerr << "haptic-station replay: error: --p-scale must be > 0 and --d-scale >= 0\n";
     return kExitConfigError;
   }
+  if (a.view_port > 0) stop_on_signals();  // the served timeline ends and says what the page showed
   try {
     const ReplayResult r = a.view_port > 0 ? serve_timeline(a.log, o, timeline_options(a.view_port, a.view_bind, a.view_for, "replay"), g_stop)
                                            : replay_session(a.log, o);
@@ -287,8 +291,7 @@ int run_command(const RunArgs& a) {
     return kExitConfigError;
   }
   if (a.check) return check_station_config(file, ov, std::cout, std::cerr);
-  std::signal(SIGINT, on_stop_signal);
-  std::signal(SIGTERM, on_stop_signal);
+  stop_on_signals();
   try {
     return run_station(file, ov, g_stop);
   } catch (const std::exception& e) {  // the phases report their own failures; this is a bug's last resort
@@ -373,8 +376,7 @@ int sim_command(const SimArgs& a) {
     if (a.view_port > 0) {
       if (!a.record) throw std::invalid_argument("--view-port needs --record (the view replays the recorded session)");
       if (a.view_station < 1 || a.view_station > spec.users) throw std::invalid_argument("--view-station must be 1.." + std::to_string(spec.users));
-      std::signal(SIGINT, on_stop_signal);  // Ctrl-C / SIGTERM end the view and it says what the page showed
-      std::signal(SIGTERM, on_stop_signal);
+      stop_on_signals();  // the view ends and says what the page showed
       serve_timeline(a.out + "/station-" + std::to_string(a.view_station) + ".h5", {}, timeline_options(a.view_port, a.view_bind, a.view_for, "sim"), g_stop);
     }
     return 0;

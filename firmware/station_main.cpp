@@ -409,6 +409,39 @@ int merge_command(const std::string& dir) {
   }
 }
 
+// The `scenario` subcommand: prints a built-in scenario's users, links and mean delays as JSON, so
+// tools (haptic-lab's topology.from_scenario, run4.sh) take them from the one definition in
+// firmware/scenario.cpp instead of copying them. Not RT-safe.
+CLI::App* add_scenario_options(CLI::App& app, std::string& name) {
+  auto* sc = app.add_subcommand("scenario", "Print a built-in scenario's users, links (1-based) and mean one-way delays (ms) as JSON");
+  std::string names;
+  for (const auto& n : scenario_names()) names += (names.empty() ? "" : ", ") + n;
+  sc->add_option("NAME", name, "Scenario: " + names)->required();
+  sc->footer("Exit status: 0 printed; 2 unknown scenario or usage error.");
+  return sc;
+}
+
+// `haptic-station scenario NAME`: 0 printed, 2 unknown name. Not RT-safe.
+int scenario_command(const std::string& name) {
+  try {
+    const ScenarioSpec s = make_scenario(name);
+    nlohmann::json links = nlohmann::json::array(), delays = nlohmann::json::array();
+    for (const auto& l : s.topology) links.push_back({l.a + 1, l.b + 1});
+    for (int i = 0; i < s.delay_ms.rows(); ++i) {
+      nlohmann::json row = nlohmann::json::array();
+      for (int j = 0; j < s.delay_ms.cols(); ++j) row.push_back(s.delay_ms(i, j));
+      delays.push_back(row);
+    }
+    std::cout << nlohmann::json{{"name", s.name}, {"users", s.users}, {"topology", links}, {"delay_ms", delays},
+                                {"duration_s", s.duration_s}, {"release_s", s.script.release_s}}.dump()
+              << "\n";
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "haptic-station scenario: error: " << e.what() << "\n";
+    return kExitConfigError;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -418,7 +451,8 @@ int main(int argc, char** argv) {
       "  sim  run N stations in one process in simulated time over the paper's stochastic network\n"
       "  run  run one station in real time over real sockets (--config FILE.toml)\n"
       "  replay  re-run a station's core from its session log, bit-exactly (LOG.h5)\n"
-      "  merge  merge the outputs of N run processes into the simulator's summary.json, trace.csv, series.csv, snapshots.json"};
+      "  merge  merge the outputs of N run processes into the simulator's summary.json, trace.csv, series.csv, snapshots.json\n"
+      "  scenario  print a built-in scenario's users, links and delays as JSON"};
   app.require_subcommand(1);
 
   SimArgs sim_args;
@@ -430,6 +464,8 @@ int main(int argc, char** argv) {
   for (int i = 0; i < argc; ++i) sim_args.command_line += (i ? " " : "") + std::string(argv[i]);
   std::string merge_dir;
   CLI::App* merge = add_merge_options(app, merge_dir);
+  std::string scenario_name;
+  CLI::App* scenario = add_scenario_options(app, scenario_name);
 
   try {
     app.parse(argc, argv);
@@ -442,5 +478,6 @@ int main(int argc, char** argv) {
   if (sim->parsed()) return sim_command(sim_args);
   if (replay->parsed()) return replay_command(replay_args);
   if (merge->parsed()) return merge_command(merge_dir);
+  if (scenario->parsed()) return scenario_command(scenario_name);
   return 0;
 }

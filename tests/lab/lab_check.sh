@@ -3,6 +3,7 @@
 #   1. plan twice: two different run folders and session ids (never overwritten), station files
 #      and keys mode 0600, every peer on the loopback port planned for it; `plan --run-dir` over
 #      an earlier run and `start --kill` with a station out of range are refused (exit 2);
+#      topology.from_scenario takes a paper scenario's links from haptic-station scenario;
 #   2. the paper's four-PC lab file (192.168.10.0/24) plans, but `check` refuses it on a machine
 #      with no interface on that network (exit 3, the station names the peer's key), so nothing
 #      is sent out of this machine's default route;
@@ -101,6 +102,20 @@ set -e
 [ "$rc_dir" -eq 2 ] && grep -q "already holds a run" "$work/rerun.log" || { cat "$work/rerun.log"; fail "plan --run-dir over an earlier run exited $rc_dir"; }
 [ "$rc_kill" -eq 2 ] && grep -q "station I in 1..3" "$work/kill.log" || { cat "$work/kill.log"; fail "start --kill 4:1:2 on 3 stations exited $rc_kill"; }
 echo "ok: plan --run-dir refuses a folder that holds a run; start --kill names the bad station (exit 2)"
+
+# topology.from_scenario: the links come from the scenario's one definition (haptic-station scenario)
+write_lab "$work/worst.toml" 4 udp "" 4.0 1.0 2.0 1.0 1.5
+sed -i 's/^links = ""$/from_scenario = true/; s/^\[lab\]$/[lab]\nscenario = "paper-worst"/' "$work/worst.toml"
+w=$("$lab" plan "$work/worst.toml" --runs-dir "$work/runs" | tail -1)
+wl=$(python3 -c "import json;print(json.load(open('$w/plan.json'))['links'])")
+[ "$wl" = "1-2,2-4,3-4" ] || fail "topology.from_scenario for paper-worst planned links $wl, not the scenario's 1-2,2-4,3-4"
+sed -i 's/^users = 4$/users = 3/' "$work/worst.toml"
+set +e
+"$lab" plan "$work/worst.toml" --runs-dir "$work/runs" >"$work/worst3.log" 2>&1; rc_w=$?
+set -e
+[ "$rc_w" -eq 2 ] && grep -q "scenario paper-worst has 4 users, the lab has 3" "$work/worst3.log" || { cat "$work/worst3.log"; fail "from_scenario with 3 users exited $rc_w"; }
+rm -rf "$w"
+echo "ok: topology.from_scenario plans paper-worst's links $wl; a 3-user lab with that scenario is refused (exit 2)"
 
 c=$("$lab" plan "$src/tools/lab/examples/lab-4-pcs.toml" --runs-dir "$work/runs" | tail -1)
 set +e

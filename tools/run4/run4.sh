@@ -67,10 +67,6 @@ case "$transport" in
        command -v ip >/dev/null || { echo "run4.sh: --transport raw needs ip (iproute2)" >&2; exit 77; } ;;
   *) echo "run4.sh: --transport must be udp or raw" >&2; exit 2 ;;
 esac
-case "$scenario" in  # the scenario's topology
-  paper-worst) links="1-2,2-4,3-4" ;;
-  *) links="1-2,1-3,1-4" ;;
-esac
 [ -n "$out" ] || out="$(mktemp -d /tmp/run4.XXXXXX)"
 mkdir -p "$out"
 out="$(cd "$out" && pwd)"
@@ -95,7 +91,7 @@ trap 'rm -f "$lab_file"' EXIT
   echo "transport = \"$transport\""
   echo "impairment = \"$preset\"             # per directed link: mean from the scenario's delay matrix"
   echo "[topology]"
-  echo "links = \"$links\""
+  echo "from_scenario = true   # the scenario's links (haptic-station scenario $scenario)"
   echo "[rt]"
   echo "priority = $prio"
   echo "lock_memory = true"

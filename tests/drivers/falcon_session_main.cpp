@@ -12,21 +12,16 @@
 // Before the lab: `haptic-devices diag --kind falcon` against the same stand-in (exit 0, servo rate).
 // Usage: falcon_station_session BUILD_BIN_DIR WORK_DIR   (exit 0 ok, 1 failed)
 #include "tests/drivers/falcon_standin.hpp"
+#include "tests/support/file_text.hpp"
 
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
-#include <sstream>
 #include <string>
 
 namespace {
-std::string slurp(const std::string& path) {
-  std::ifstream f(path);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
+using haptic::test::file_text;
 
 bool contains(const std::string& text, const std::string& what, const char* where, int& fails) {
   if (text.find(what) != std::string::npos) return true;
@@ -51,6 +46,10 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::string bin = argv[1], work = argv[2];
+  // Unbuffered: ctest reads a pipe, and a crash (the stand-in runs threads under LD_PRELOAD) would
+  // otherwise lose everything printed so far; this test once failed under load with no output.
+  std::setvbuf(stdout, nullptr, _IONBF, 0);
+  std::cout << std::unitbuf;
   try {
     haptic::testing::FalconBed bed;
     if (std::system(("rm -rf '" + work + "' && mkdir -p '" + work + "'").c_str()) != 0) return 1;
@@ -58,7 +57,7 @@ int main(int argc, char** argv) {
     const std::string diag = "'" + bin + "/haptic-devices' diag --kind falcon --falcon-firmware '" + bed.firmware_path +
                              "' --max-stale-reads 250 --force-N 0.3 --push-s 0.3 > '" + work + "/diag.log' 2>&1";
     const int diag_rc = std::system(diag.c_str());
-    const std::string diag_out = slurp(work + "/diag.log");
+    const std::string diag_out = file_text(work + "/diag.log");
     std::cout << diag_out;
     int diag_fails = 0;
     if (diag_rc != 0) std::printf("FAIL: haptic-devices diag --kind falcon exited %d\n", diag_rc), ++diag_fails;
@@ -68,7 +67,7 @@ int main(int argc, char** argv) {
     const std::string cmd = "'" + bin + "/haptic-lab' run '" + work + "/lab.toml' --runs-dir '" + work + "/runs' --no-plots > '" + work +
                             "/lab.log' 2>&1";
     const int rc = std::system(cmd.c_str());
-    std::cout << slurp(work + "/lab.log");
+    std::cout << file_text(work + "/lab.log");
     int fails = diag_fails;
     if (rc != 0) {
       std::printf("FAIL: haptic-lab run exited %d\n", rc);
@@ -83,7 +82,7 @@ int main(int argc, char** argv) {
     pclose(p);
     std::string run_dir(dir);
     run_dir.erase(run_dir.find_last_not_of("\n") + 1);
-    const std::string st1 = slurp(run_dir + "station-1.json"), report = slurp(run_dir + "lab-report.json");
+    const std::string st1 = file_text(run_dir + "station-1.json"), report = file_text(run_dir + "lab-report.json");
     contains(st1, "\"device\": \"Novint Falcon via libusb\"", "station-1.json", fails);
     contains(st1, "\"simulated_user\": false", "station-1.json", fails);
     contains(st1, "\"device_fault\": \"none\"", "station-1.json", fails);

@@ -6,24 +6,18 @@
 
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <regex>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "platform/trace.hpp"
+#include "tests/support/file_text.hpp"
 
 // CppUTest last: its leak-detector macros redefine new.
 #include <CppUTest/TestHarness.h>
 
 namespace {
-std::string slurp(const std::string& path) {
-  std::ifstream f(path);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
+using haptic::test::file_text;
 // First integer value of "key": N in a JSON text (flat enough for these two documents).
 long long json_int(const std::string& text, const std::string& key) {
   std::smatch m;
@@ -62,20 +56,20 @@ TEST(TraceAnalysis, analysis_of_a_real_trace_matches_the_loops_own_counters) {
                                dir + "/loop-b.json & wait'";
   const std::string cmd = src + "/tools/trace/record.sh -o " + dir + "/trace -- sh -c " + stations + " > " + dir + "/record.log 2>&1";
   const int rc = std::system(cmd.c_str());
-  const std::string log = slurp(dir + "/record.log");
+  const std::string log = file_text(dir + "/record.log");
   if (WEXITSTATUS(rc) == 3) FAIL(("tracing impossible here, record.sh says:\n" + log).c_str());
   LONGS_EQUAL_TEXT(0, WEXITSTATUS(rc), log.c_str());
   const std::string analyze = "/usr/bin/python3 " + src + "/tools/trace/analyze.py " + dir + "/trace --procname haptic-jitter --json " +
                               dir + "/analysis.json --plots " + dir + "/plots > " + dir + "/analyze.log 2>&1";
   const int rc2 = std::system(analyze.c_str());
-  LONGS_EQUAL_TEXT(0, WEXITSTATUS(rc2), slurp(dir + "/analyze.log").c_str());
+  LONGS_EQUAL_TEXT(0, WEXITSTATUS(rc2), file_text(dir + "/analyze.log").c_str());
 
-  const std::string analysis = slurp(dir + "/analysis.json");
+  const std::string analysis = file_text(dir + "/analysis.json");
   LONGS_EQUAL_TEXT(0, json_int(analysis, "discarded_events"), "the tracer discarded events; the comparison would be meaningless");
   const auto blocks = station_blocks(analysis);
   LONGS_EQUAL(2, blocks.size());
   for (const char* name : {"loop-a.json", "loop-b.json"}) {
-    const std::string loop = slurp(dir + "/" + name);
+    const std::string loop = file_text(dir + "/" + name);
     const long long ticks = json_int(loop, "ticks");
     const long long overruns = json_int(loop, "overruns");
     CHECK(ticks == 1500 || ticks == 800);

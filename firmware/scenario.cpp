@@ -156,6 +156,8 @@ void ScenarioSpec::validate() const {
   if (!(edge_energy_bound_J >= 0 && edge_energy_bound_J <= 1e6)) bad("--edge-energy-bound must be in [0, 1e6] J (0 = off)");
   if (!(tx_deadband.position_deadband_m >= 0 && tx_deadband.position_deadband_m < 0.1)) bad("--tx-deadband-mm must be in [0, 100)");
   if (tx_deadband.max_interval_ticks < 1 || tx_deadband.max_interval_ticks > 1000) bad("--tx-max-interval must be in [1, 1000]");
+  if (tx_deadband.predictive && consensus_passivity != rt::ConsensusPassivity::kSetPositionModulation)
+    bad("--tx-predict needs --consensus-passivity pspm (eq. 18 does not cover extrapolated neighbour data)");
   if (!(timer_jitter_s >= 0 && timer_jitter_s < 0.5 * period_s)) bad("--timer-jitter-ms must be in [0, period/2) = [0, " + std::to_string(0.5e3 * period_s) + ") ms");
   if (!(step_jitter >= 0 && step_jitter <= 0.5)) bad("--step-jitter must be in [0, 0.5] (a fraction of the period)");
   if (!(clock_drift_ppm >= 0 && clock_drift_ppm <= 10000)) bad("--clock-drift-ppm must be in [0, 10000]");
@@ -402,6 +404,7 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
   c.rx_rule = spec.receive_rule;
   c.consensus_passivity = spec.consensus_passivity;
   c.pspm_reservoir0_J = spec.pspm_reservoir0_J;
+  c.predict_held_state = spec.tx_deadband.predictive;
   c.vp = spec.vp;
   c.contact_nodes = contact_nodes[static_cast<std::size_t>(i)];
   c.vp_initial_position_m = vp_start[static_cast<std::size_t>(i)];

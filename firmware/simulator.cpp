@@ -171,7 +171,7 @@ Simulation::Simulation(const BuiltScenario& built, const SimOptions& options)
     st.push_back(std::make_unique<rt::StationCore>(b.station_config(i)));
     users.emplace_back(b.spec.device, b.spec.hand, b.goal_script(i));
     users.back().reset(b.vp_start[static_cast<std::size_t>(i)]);
-    tx.emplace_back(b.spec.tx_deadband, dofs);
+    tx.emplace_back(b.spec.tx_deadband, dofs, T);
     copies.push_back(st.back()->x().data());
   }
   make_channels(*this);
@@ -249,7 +249,7 @@ void send_states(Simulation& s, double t) {
     if (!s.due[static_cast<std::size_t>(i)]) continue;
     const std::int64_t k = s.clk[static_cast<std::size_t>(i)].k;
     const auto& core = *s.st[static_cast<std::size_t>(i)];
-    if (!s.tx[static_cast<std::size_t>(i)].should_send(k, core.x_hat())) continue;
+    if (!s.tx[static_cast<std::size_t>(i)].should_send(k, core.x_hat(), core.v_hat())) continue;
     auto payload = std::make_shared<std::vector<double>>(static_cast<std::size_t>(2 * s.dofs));
     std::copy(core.x_hat(), core.x_hat() + s.dofs, payload->begin());
     std::copy(core.v_hat(), core.v_hat() + s.dofs, payload->begin() + s.dofs);

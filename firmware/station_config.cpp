@@ -28,7 +28,7 @@ void parse_station_section(View root, StationFile& f) {
   if (!st) bad("[station]", "present (with at least id = 1..users)");
   only_keys(st, "station", {"id", "scenario", "users", "topology", "delay_matrix", "pushes", "push_seed", "allow_routed_peers", "run_subdir", "nodes", "duration_s", "seed", "period_min_s", "period_max_s", "delay_correlation", "push_start_s", "push_end_s", "release_s",
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin", "consensus_passivity", "pspm_reservoir_J",
-                            "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "agreement_ticks", "damping_Ns_per_m", "io_priority",
+                            "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "tx_predict", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
                             "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "record_ring_s", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks", "edge_energy_bound_J"});
   StationSection& s = f.station;
@@ -70,6 +70,9 @@ void parse_station_section(View root, StationFile& f) {
   if (s.solver != "auto" && s.solver != "direct" && s.solver != "iterative") bad("station.solver", "\"auto\", \"direct\" or \"iterative\"");
   s.tx_deadband_mm = real(st["tx_deadband_mm"], "station.tx_deadband_mm", 0.0, 0.0, 99.999);
   s.tx_max_interval_ticks = static_cast<int>(integer(st["tx_max_interval_ticks"], "station.tx_max_interval_ticks", 1, 1, 1000));
+  s.tx_predict = boolean(st["tx_predict"], "station.tx_predict", false);
+  if (s.tx_predict && s.consensus_passivity != "pspm")
+    bad("station.tx_predict", "false unless station.consensus_passivity = \"pspm\" (eq. 18 does not cover extrapolated neighbour data)");
   s.agreement_ticks = static_cast<int>(integer(st["agreement_ticks"], "station.agreement_ticks", 2, 0, 1000));
   s.damping_Ns_per_m = real(st["damping_Ns_per_m"], "station.damping_Ns_per_m", -1, -1, 1e6, " (-1 = from the measured bound)");
   if (s.damping_Ns_per_m < 0 && s.damping_Ns_per_m != -1) bad("station.damping_Ns_per_m", "-1 or a number in [0, 1e6]");

@@ -52,6 +52,10 @@
 //                                    # last one sent (rt/tx_deadband), [0, 100); 0 = every tick
 //   tx_max_interval_ticks = 1        # with tx_deadband_mm: a state at least every this many ticks; the
 //                                    # index-delay bounds grow by this - 1 (eq. 18 damping follows), [1, 1000]
+//   tx_predict = false               # with consensus_passivity = "pspm": predictive deadband (rt/tx_deadband.hpp):
+//                                    # the band applies to the error against the last sent state extrapolated by
+//                                    # its velocity, and held neighbour states are extrapolated the same way
+//                                    # (same on all stations)
 //   agreement_ticks = 2              # eq. (18) uses Nbar_ij + Nbar_ji = 2 ceil(R_ij/2) + this: covers the peer's
 //                                    # guard ceil(R_ji/2) while the two ends' measured R differ by <= 2x this, [0, 1000]
 //   damping_Ns_per_m = -1            # >= 0: fixed B_i (experiments below eq. 18); -1: from the measurement
@@ -174,6 +178,7 @@ struct StationSection {
   std::string solver = "auto";
   double tx_deadband_mm = 0;
   int tx_max_interval_ticks = 1;
+  bool tx_predict = false;
   int agreement_ticks = 2;
   double damping_Ns_per_m = -1.0;
   int io_priority = 70;

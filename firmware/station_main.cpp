@@ -94,7 +94,7 @@ struct SimArgs {
   double tx_deadband_mm = 0, edge_energy_bound = -1;
   std::string scene;                          // --scene FILE
   double scene_unit_m = 1, density = 0, youngs = 0;
-  bool no_plots = false, quiet = false, record = false;
+  bool no_plots = false, quiet = false, record = false, tx_predict = false;
   double record_ring_s = 0;
   std::string command_line;
   int view_port = 0, view_station = 1;
@@ -174,6 +174,9 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
                   "Send a state only when some node moved more than this since the last one sent, in mm (default 0: every tick)");
   sim->add_option("--tx-max-interval", a.tx_interval,
                   "With --tx-deadband-mm: a state at least every this many ticks; Nbar_ij grows by this - 1 (default 1)");
+  sim->add_flag("--tx-predict", a.tx_predict,
+                "With --tx-deadband-mm and --consensus-passivity pspm: predictive deadband, the band applies to the error against the last "
+                "sent state extrapolated by its velocity, and receivers extrapolate a held state the same way (rt/tx_deadband.hpp)");
   sim->add_option("--edge-energy-bound", a.edge_energy_bound,
                   "Per-edge damage bound in J: an edge whose energy account (eq. 14 split per edge) exceeds it acts as a damper "
                   "until the account has fallen to half of it; 0 = off (default " + std::to_string(haptic::rt::kDefaultEdgeEnergyBoundJ) + ")");
@@ -337,6 +340,7 @@ int sim_command(const SimArgs& a) {
     if (a.edge_energy_bound != -1) spec.edge_energy_bound_J = a.edge_energy_bound;
     spec.tx_deadband.position_deadband_m = a.tx_deadband_mm * 1e-3;
     spec.tx_deadband.max_interval_ticks = a.tx_interval;
+    spec.tx_deadband.predictive = a.tx_predict;
     spec.trace_node = a.trace_node;
     spec.receive_rule = haptic::rt::parse_rx_rule(a.receive_rule, "--receive-rule");
     if (a.jitter != -1) spec.jitter_fraction = a.jitter;

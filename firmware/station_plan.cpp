@@ -43,7 +43,8 @@ using platform::clock_ns;
 std::string as_station_keys(std::string message) {
   static const std::pair<const char*, const char*> kKeys[] = {{"--topology", "station.topology"}, {"--nodes", "station.nodes"},
                                                               {"--duration", "station.duration_s"}, {"--release", "station.release_s"}, {"--delay-matrix", "station.delay_matrix"},
-                                                              {"--push-end", "station.push_end_s"}};
+                                                              {"--push-end", "station.push_end_s"},
+                                                              {"--tx-predict needs --consensus-passivity pspm", "station.tx_predict = true needs station.consensus_passivity = \"pspm\""}};
   for (const auto& [flag, key] : kKeys)
     for (auto at = message.find(flag); at != std::string::npos; at = message.find(flag, at)) message.replace(at, std::strlen(flag), key);
   return message;
@@ -249,6 +250,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.edge_energy_bound_J = s.edge_energy_bound_J;
   spec.tx_deadband.position_deadband_m = s.tx_deadband_mm * 1e-3;
   spec.tx_deadband.max_interval_ticks = s.tx_max_interval_ticks;
+  spec.tx_deadband.predictive = s.tx_predict;
   if (std::llabs(std::llround(spec.period_s * 1e9) - f.loop.period_ns) > 0)
     bad("loop.period_ns must equal the scenario's period " + std::to_string(std::llround(spec.period_s * 1e9)) + " ns (the paper's T = 2 ms)");
   if (s.id > spec.users) bad("station.id must be in [1, " + std::to_string(spec.users) + "] for scenario " + spec.name);

@@ -234,7 +234,7 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
     for (int n = 0; n < r.core->neighbor_count(); ++n)
       r.core->rx(n).set_max_ahead(static_cast<std::int64_t>(plan.net.endpoint.max_sequence_ahead_ticks));
     for (int R : r.bounds.round_trip_ticks) r.max_age_s.push_back((R + S.age_slack_ticks) * built.spec.period_s);
-    r.tx_deadband = rt::TxDeadband(built.spec.tx_deadband, built.scene.dofs);
+    r.tx_deadband = rt::TxDeadband(built.spec.tx_deadband, built.scene.dofs, built.spec.period_s);
     r.status = PhaseStatus::kOk;
   } catch (const std::exception& e) {
     r.status = PhaseStatus::kFailed;

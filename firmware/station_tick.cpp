@@ -197,7 +197,7 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   }
   {
     StageScope stage(Stage::tx);
-    if (!in.tx_deadband || in.tx_deadband->should_send(kr, in.core->x_hat()))
+    if (!in.tx_deadband || in.tx_deadband->should_send(kr, in.core->x_hat(), in.core->v_hat()))
       if (!in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), in.core->x_hat(), in.core->v_hat(),
                              (out.flags & rt::kDiverged) != 0))  // safe state: the flag, never the state
         ++cnt.push_failures;

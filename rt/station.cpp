@@ -42,6 +42,8 @@ void StationConfig::validate() const {
     bad("step_resolution_s", "coarse enough for at most " + std::to_string(kMaxStepLevels) + " steps between period_min_s and period_max_s");
   if (!(damping_Ns_per_m >= 0 && std::isfinite(damping_Ns_per_m))) bad("damping_Ns_per_m", ">= 0");
   if (!(pspm_reservoir0_J >= 0 && std::isfinite(pspm_reservoir0_J))) bad("pspm_reservoir0_J", "finite and >= 0");
+  if (predict_held_state && consensus_passivity != ConsensusPassivity::kSetPositionModulation)
+    bad("predict_held_state", "used only with consensus_passivity = pspm (eq. 18 does not cover extrapolated data)");
   if (static_cast<int>(neighbors.size()) > kMaxNeighbors) bad("neighbors", "at most " + std::to_string(kMaxNeighbors));
   for (const auto& n : neighbors) {
     if (!n.gains) bad("neighbors[].gains", "set");
@@ -122,6 +124,10 @@ StationCore::StationCore(const StationConfig& config)
     pspm_.resize(static_cast<std::size_t>(nn));
     for (auto& m : pspm_) m.init(dofs_, x_.data(), cfg_.pspm_reservoir0_J);
     pspm_scratch_ = Eigen::VectorXd::Zero(2 * dofs_);  // SetPositionModulator::update's d and P d
+    if (cfg_.predict_held_state) {
+      predicted_ = Eigen::VectorXd::Zero(dofs_);
+      held_since_.assign(static_cast<std::size_t>(nn), 0);
+    }
   }
   {
     std::vector<double> shares;
@@ -294,6 +300,17 @@ double StationCore::predict_and_count_residual() {
   return vv;
 }
 
+const double* StationCore::modulation_target(int j, std::int64_t k) {
+  const auto& view = views_[static_cast<std::size_t>(j)];
+  if (!cfg_.predict_held_state) return view.x_hat;
+  auto& since = held_since_[static_cast<std::size_t>(j)];
+  if (view.fresh) since = k;  // first tick this packet is used
+  const double h = static_cast<double>(k - since) * cfg_.period_s;
+  if (h <= 0) return view.x_hat;
+  for (int i = 0; i < dofs_; ++i) predicted_[i] = view.x_hat[i] + h * view.v_hat[i];
+  return predicted_.data();
+}
+
 void StationCore::warm_start_y0() {
   // y0_prev_ := 2 y0(k-1) - y0(k-2) (y0(k-1) until two solves exist), then swap: y0_ is the guess.
   double* g = y0_prev_.data();
@@ -366,7 +383,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
     views_[j] = rx_[j].begin_tick(k);
     if (!pspm_.empty()) {  // set-position modulation: passive for any delay, no bound, no drop
       auto& m = pspm_[static_cast<std::size_t>(j)];
-      if (views_[j].index_delay >= 0) m.update(views_[j].x_hat, x_.data(), cfg_.neighbors[j].gains->P, pspm_scratch_.data());
+      if (views_[j].index_delay >= 0) m.update(modulation_target(j, k), x_.data(), cfg_.neighbors[j].gains->P, pspm_scratch_.data());
       views_[j].x_hat = m.ybar();
       views_[j].fresh = false;  // D acts on the local velocity only
       active_[j] = 1;

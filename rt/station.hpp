@@ -89,6 +89,12 @@ struct StationConfig {
   // may be 0. kEq18Damping: the paper's law with B_i from eq. (18) and the bound above.
   ConsensusPassivity consensus_passivity = ConsensusPassivity::kEq18Damping;
   double pspm_reservoir0_J = 0.0;  // initial energy reservoir of each edge (>= 0)
+  // With kSetPositionModulation only: while a neighbour's packet is held (nothing newer arrived), the
+  // modulator's target is its position extrapolated with its own velocity, x_hat_j + h T v_hat_j,
+  // h = ticks since that packet was first used, T = period_s (the receiving half of the predictive
+  // transmission deadband, rt/tx_deadband.hpp). Passivity is unaffected: the modulation keeps eq.
+  // (14) whatever the target; eq. (18)'s proof does not cover extrapolated data (validate refuses).
+  bool predict_held_state = false;
   VirtualProxyParams vp{};
   std::vector<int> contact_nodes;     // the contact mesh C_i (node indices)
   StepSolverConfig solver{};          // the linear step's solver (auto: by scene size)
@@ -232,6 +238,9 @@ class StationCore {
   // The iterative solver's initial guess in y0_: 2 y0(k-1) - y0(k-2), the linear extrapolation of
   // the last two solutions of A y0 = b (y0(k-1) until two exist). RT-safe: one pass, no allocation.
   void warm_start_y0();
+  // pspm: the set-position target of edge j at tick k: the held packet's x_hat_j, extrapolated by its
+  // v_hat_j over the ticks it has been held when predict_held_state (views_[j] from begin_tick). RT-safe.
+  const double* modulation_target(int j, std::int64_t k);
   // Sums of gain group g (neighbours sharing cfg_.neighbors[g].gains): sx = sum_active (x - x_hat_j),
   // sv = sum_{active, fresh} v_hat_j, and (if d) d = x - x_d, in one pass. RT-safe.
   void sum_group(int g, double* sx, double* sv, double* d) const;
@@ -274,6 +283,8 @@ class StationCore {
   std::uint64_t safe_state_ticks_ = 0;
   std::vector<SetPositionModulator> pspm_;  // one per edge when consensus_passivity = pspm
   Eigen::VectorXd pspm_scratch_;
+  Eigen::VectorXd predicted_;               // predict_held_state: the extrapolated target (dofs)
+  std::vector<std::int64_t> held_since_;    // predict_held_state: tick each held packet was first used
   std::vector<unsigned char> edge_was_dropped_;
   std::vector<std::uint64_t> edge_drops_;
 

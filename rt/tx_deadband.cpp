@@ -12,17 +12,22 @@ void TxDeadbandConfig::validate() const {
     throw std::invalid_argument("tx_deadband.max_interval_ticks must be in [1, 1000]");
 }
 
-TxDeadband::TxDeadband(const TxDeadbandConfig& config, int dofs) : cfg_(config), last_x_(static_cast<std::size_t>(dofs), 0.0) {
+TxDeadband::TxDeadband(const TxDeadbandConfig& config, int dofs, double period_s)
+    : cfg_(config), period_s_(period_s), last_x_(static_cast<std::size_t>(dofs), 0.0), last_v_(static_cast<std::size_t>(dofs), 0.0) {
   cfg_.validate();
+  if (!(period_s > 0)) throw std::invalid_argument("TxDeadband: period_s must be > 0");
 }
 
-bool TxDeadband::should_send(std::int64_t k, const double* x_hat) {
+bool TxDeadband::should_send(std::int64_t k, const double* x_hat, const double* v_hat) {
+  const bool predictive = cfg_.predictive && v_hat;
   bool send = !cfg_.enabled() || !any_sent_ || k - last_k_ >= cfg_.max_interval_ticks;
   const std::size_t n = last_x_.size();
   if (!send) {
     const double band = cfg_.position_deadband_m;
+    // the receiver's value: the last sent x_hat, extrapolated by its velocity when predictive
+    const double h = predictive ? static_cast<double>(k - last_k_) * period_s_ : 0.0;
     for (std::size_t i = 0; i < n; ++i)
-      if (!(std::abs(x_hat[i] - last_x_[i]) <= band)) {  // also sends a non-finite state
+      if (!(std::abs(x_hat[i] - (last_x_[i] + h * last_v_[i])) <= band)) {  // also sends a non-finite state
         send = true;
         break;
       }
@@ -32,7 +37,10 @@ bool TxDeadband::should_send(std::int64_t k, const double* x_hat) {
     return false;
   }
   if (cfg_.enabled())
-    for (std::size_t i = 0; i < n; ++i) last_x_[i] = x_hat[i];
+    for (std::size_t i = 0; i < n; ++i) {
+      last_x_[i] = x_hat[i];
+      last_v_[i] = predictive ? v_hat[i] : 0.0;
+    }
   last_k_ = k;
   any_sent_ = true;
   ++sent_;

@@ -7,6 +7,14 @@
 // eq. (18) stays valid when the index-delay bound Nbar_ij includes max_interval_ticks - 1 on top
 // of the delay and loss allowance (the scenario and the station plan add it). A pure object,
 // used by the simulator and the real station alike.
+//
+// Predictive (first-order, as in the IEEE 1918.1.1 kinesthetic codecs): the reference a state is
+// compared with is not the last sent x_hat(s) but its extrapolation with the sent velocity,
+// x_hat(s) + (k - s) T v_hat(s), which is what a receiver with `StationConfig::predict_held_state`
+// uses while it holds that packet. Then a slow drift of the whole object (a hold) costs no packets
+// and leaves no held-value bias (the plain band's held value lags the drift by up to the band on
+// every node, coherently). Only with the set-position modulation (rt/README.md): eq. (18)'s proof
+// does not cover extrapolated neighbour data.
 #include <cstdint>
 #include <vector>
 
@@ -15,6 +23,7 @@ namespace haptic::rt {
 struct TxDeadbandConfig {
   double position_deadband_m = 0;  // 0: send every tick (the policy is off)
   int max_interval_ticks = 1;      // a state at least every this many ticks, [1, 1000]
+  bool predictive = false;         // compare with the last sent state extrapolated by its velocity
   bool enabled() const { return position_deadband_m > 0 && max_interval_ticks > 1; }
   // Ticks the policy can add to a receiver's index delay N_ij^k (add to Nbar_ij).
   int added_index_delay_ticks() const { return enabled() ? max_interval_ticks - 1 : 0; }
@@ -25,16 +34,19 @@ class TxDeadband {
  public:
   TxDeadband() = default;
   // Start-up: allocates the last-sent copy. The first call to should_send() always sends.
-  TxDeadband(const TxDeadbandConfig& config, int dofs);
-  // Tick k: true if the state x_hat (dofs values) must be sent now; then it becomes the last
-  // sent state. RT-safe: no allocation, O(dofs).
-  bool should_send(std::int64_t k, const double* x_hat);
+  // period_s: the nominal step T of the predictive reference (the receiver uses the same).
+  TxDeadband(const TxDeadbandConfig& config, int dofs, double period_s = 0.002);
+  // Tick k: true if the state (x_hat, v_hat: dofs values each) must be sent now; then it becomes
+  // the last sent state. v_hat is read only when the policy is predictive (may be null otherwise).
+  // RT-safe: no allocation, O(dofs).
+  bool should_send(std::int64_t k, const double* x_hat, const double* v_hat = nullptr);
   std::uint64_t sent() const { return sent_; }
   std::uint64_t skipped() const { return skipped_; }
 
  private:
   TxDeadbandConfig cfg_{};
-  std::vector<double> last_x_;
+  double period_s_ = 0.002;
+  std::vector<double> last_x_, last_v_;
   std::int64_t last_k_ = 0;
   bool any_sent_ = false;
   std::uint64_t sent_ = 0, skipped_ = 0;

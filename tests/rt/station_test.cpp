@@ -263,6 +263,40 @@ TEST(Station, bad_configuration_is_refused_with_the_key_named) {
   auto c6 = c;
   c6.neighbors[0].gains = nullptr;
   expect(c6, "gains");
+  auto c7 = c;  // extrapolated neighbour data are not covered by eq. (18)'s proof
+  c7.predict_held_state = true;
+  expect(c7, "predict_held_state");
+}
+
+TEST(Station, a_held_neighbour_state_is_extrapolated_with_its_velocity_under_set_position_modulation) {
+  // pspm with a reservoir large enough for every jump (alpha = 1): the set-position equals the
+  // modulation target. With predict_held_state the target of a held packet is x_hat_j + h T v_hat_j,
+  // h = ticks since it was first used; a new packet starts again at h = 0. Without it: x_hat_j.
+  const auto& w = PaperWorld::get();
+  const int dofs = w.scene.dofs;
+  for (bool predict : {false, true}) {
+    auto c = w.station(0, 2, {1}, 0.0, test::tetra_dirs()[0]);
+    c.vp_initial_position_m = Eigen::Vector3d(5, 5, 5);  // far away: no contact
+    c.consensus_passivity = ConsensusPassivity::kSetPositionModulation;
+    c.pspm_reservoir0_J = 1e3;
+    c.predict_held_state = predict;
+    StationCore s(c);
+    Eigen::VectorXd x = w.scene.x_d, v = Eigen::VectorXd::Zero(dofs);
+    for (int i = 0; i < dofs; ++i) {
+      x[i] += 1e-4 * std::sin(0.7 * i);
+      v[i] = 2e-3 * std::cos(0.3 * i);
+    }
+    for (int k = 0; k < 12; ++k) {
+      const int seq = k < 6 ? 0 : 6;  // packet 0 held for ticks 0..5, packet 6 from tick 6 on
+      if (k == 0 || k == 6) s.rx(0).offer(seq, 0, x.data(), v.data(), dofs);
+      s.tick(k, Eigen::Vector3d(5, 5, 5));
+      const double h = predict ? (k - seq) * c.period_s : 0.0;
+      const double* ybar = s.set_position_modulator(0)->ybar();
+      double err = 0;
+      for (int i = 0; i < dofs; ++i) err = std::max(err, std::abs(ybar[i] - (x[i] + h * v[i])));
+      CHECK_TRUE(err < 1e-12);
+    }
+  }
 }
 
 TEST(Station, eq18_damping_for_the_paper_star_is_round_trip_times_lambda_max_P) {
@@ -294,6 +328,7 @@ TEST(Station, tick_allocates_nothing_over_10000_ticks_of_four_users_with_contact
       nb.energy_release_J = 0.5e-4;
     }
     if (pspm) cfg.consensus_passivity = ConsensusPassivity::kSetPositionModulation;
+    cfg.predict_held_state = pspm;  // lost packets are held: their extrapolation runs in the tick too
     st.push_back(std::make_unique<StationCore>(cfg));
   }
   STRCMP_EQUAL(solver == StepSolverKind::kDirect ? "direct" : "iterative", st[0]->solver_name());

@@ -60,6 +60,42 @@ TEST(TxDeadband, a_move_beyond_the_band_is_sent_at_once_and_becomes_the_referenc
   CHECK_EQUAL(2u, d.skipped());
 }
 
+TEST(TxDeadband, a_predictive_band_holds_a_steady_drift_to_the_heartbeat_and_sends_at_once_when_the_velocity_changes) {
+  // A steady drift of 2 um per tick (1 mm/s): the plain 10 um band must send every ~5 ticks, the
+  // predictive one (reference: last sent x + (k - s) T v) only at its max interval, exactly as long
+  // as the velocity holds; a change of velocity shows up within the band's worth of ticks.
+  const double T = 0.002, v = 1e-3, band = 1e-5;
+  TxDeadbandConfig c;
+  c.position_deadband_m = band;
+  c.max_interval_ticks = 50;
+  TxDeadbandConfig plain = c;
+  c.predictive = true;
+  TxDeadband pred(c, 3, T), held(plain, 3, T);
+  std::vector<double> x(3, 0.02), vel = {0.0, v, 0.0};
+  int sent_pred = 0, sent_plain = 0;
+  std::int64_t last = -1;
+  for (int k = 0; k < 470; ++k) {
+    x[1] = 0.02 + k * T * v;
+    if (pred.should_send(k, x.data(), vel.data())) {
+      if (last >= 0) CHECK_EQUAL(50, k - last);  // the heartbeat only
+      last = k;
+      ++sent_pred;
+    }
+    sent_plain += held.should_send(k, x.data(), vel.data()) ? 1 : 0;
+  }
+  CHECK_EQUAL(10, sent_pred);
+  CHECK_TRUE(sent_plain >= 80);
+  // the velocity stops at tick 470 (last sent at 450 with v): the prediction runs 2 um per tick ahead
+  // of the still state, so the band is exceeded after 5 ticks, long before the heartbeat at 500
+  int first = -1;
+  for (int k = 470; k < 500 && first < 0; ++k) {
+    x[1] = 0.02 + 470 * T * v;
+    vel[1] = 0.0;
+    if (pred.should_send(k, x.data(), vel.data())) first = k;
+  }
+  CHECK_TRUE(first > 470 && first <= 470 + 6);
+}
+
 TEST(TxDeadband, bad_configuration_names_the_key) {
   TxDeadbandConfig c;
   c.max_interval_ticks = 0;

@@ -14,6 +14,7 @@
 
 #include "firmware/run_metrics.hpp"
 #include "firmware/run_summary.hpp"
+#include "firmware/station_tick.hpp"
 
 namespace haptic::firmware {
 
@@ -199,7 +200,44 @@ json merged_link(const std::vector<StationFiles>& st, int to, const json& rx, Li
   l["measured_loss_rate"] = rx.value("rx_loss_fraction_measured", json(nullptr));
   l["round_trip_bound_ticks"] = rx.value("round_trip_bound_ticks", json(nullptr));
   l["assumed_round_trip_ticks_at_receiver"] = rx.value("assumed_round_trip_ticks", json(nullptr));
+  l["packets_per_s"] = tx.value("packets_per_s", json(nullptr));  // the sender's datagrams and bytes to this peer
+  l["bytes_per_s"] = tx.value("bytes_per_s", json(nullptr));
   return l;
+}
+
+// States station s pushed at run ticks k with t0 <= k T < t1: the kTraceStateSent bits of its trace
+// (station_tick.hpp), as the simulator's sent_between counts them; null when the trace does not hold
+// every tick or predates the bit.
+json states_sent_between(const StationFiles& s, double T, double t0, double t1) {
+  if (!s.summary.value("trace_marks_state_sent", false) || s.summary.value("trace_every", 0) != 1) return nullptr;
+  std::uint64_t n = 0;
+  for (const auto& [k, row] : s.trace_row) {
+    const double t = static_cast<double>(k) * T;
+    if (t >= t0 - 1e-9 && t < t1 - 1e-9 && (static_cast<std::uint32_t>(s.trace.at(row, "flags")) & kTraceStateSent)) ++n;
+  }
+  return n;
+}
+
+// Per link, the states its sender pushed in the hold window and after consensus (every state goes
+// to every neighbour), and their totals in `packets`, like the simulator's summary.
+void add_windowed_sends(const std::vector<StationFiles>& st, json& j) {
+  const double T = st[0].summary["dt_s"].get<double>();
+  const double end = static_cast<double>(st[0].summary["ticks_run"].get<std::int64_t>() + 1) * T;
+  const auto& hw = j["hold_window_s"];
+  const double h0 = hw[0].get<double>(), h1 = hw[1].get<double>();
+  const bool settled = j["consensus_time_s"].is_number();
+  const double from = settled ? j["release_time_s"].get<double>() + j["consensus_time_s"].get<double>() : end;
+  json hold_total = 0, after_total = 0;
+  for (json& l : j["link_stats"]) {
+    const StationFiles& s = st[static_cast<std::size_t>(l["from"].get<int>() - 1)];
+    l["sent_in_hold_window"] = states_sent_between(s, T, h0, h1);
+    l["sent_after_consensus"] = states_sent_between(s, T, from, end);
+    for (auto [key, total] : {std::pair<const char*, json*>{"sent_in_hold_window", &hold_total}, {"sent_after_consensus", &after_total}})
+      *total = l[key].is_null() || total->is_null() ? json(nullptr) : json(total->get<std::uint64_t>() + l[key].get<std::uint64_t>());
+  }
+  j["packets"]["sent_in_hold_window"] = hold_total;
+  j["packets"]["sent_after_consensus"] = after_total;
+  j["packets"]["after_consensus_s"] = std::max(0.0, end - T - from);
 }
 
 // Eq. (18) at station i assumed Nbar_ij + Nbar_ji = its own measured round trip plus the agreement
@@ -328,6 +366,7 @@ json merge_run(const std::string& dir) {
   j["bounds_consistent_all_links"] = consistent;
   j["packets"] = packets_json(totals);
   j["link_stats"] = links;
+  add_windowed_sends(st, j);
   j["stations"] = station_rows(st);
   write_json_file(dir + "/summary.json", j);
   write_merged_snapshots(st, s0["dt_s"].get<double>(), dir);

@@ -201,8 +201,10 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
   const StationSection& S = plan.file.station;
   const BuiltScenario& built = *plan.built;
   try {
-    // the neighbours' transmission deadband may hold their states up to interval - 1 extra ticks
-    const int allowance = S.loss_allowance_ticks + built.spec.tx_deadband.added_index_delay_ticks();
+    // The transmission deadband (rt/tx_deadband) may hold a state up to interval - 1 extra ticks in
+    // EACH direction: each one-way guard ceil(R/2) needs interval - 1 more, so the round trip R (and
+    // eq. 18's sum Nbar_ij + Nbar_ji, as in the simulator's bounds) grows by twice that.
+    const int allowance = S.loss_allowance_ticks + 2 * built.spec.tx_deadband.added_index_delay_ticks();
     r.bounds = bounds_from_round_trips(built, plan.me, probe.rtt_bound_ticks, allowance, S.damping_margin, S.damping_Ns_per_m,
                                        S.agreement_ticks);
     if (built.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation) {

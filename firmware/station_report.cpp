@@ -51,6 +51,9 @@ void add_run_json(const StationOutcome& o, json& j) {
   j["rx_refused"] = {{"no_echo", c ? c->no_echo : 0}, {"age_over_bound", c ? c->age_over_bound : 0},
                      {"receive_link", c ? c->rx_refused : 0}};
   j["push_failures"] = (c ? c->push_failures : 0) + (o.probe ? o.probe->push_failures : 0);
+  // the trace's flags carry kTraceStateSent (station_tick.hpp) on every trace_every-th tick
+  j["trace_every"] = o.plan->file.station.trace_every;
+  j["trace_marks_state_sent"] = true;
   j["device_fault_ticks"] = c ? c->device_fault_ticks : 0;
   j["foreign_packets"] = c ? c->foreign_packets : 0;
   j["probe_packets_after_run"] = c ? c->probe_packets_after_run : 0;

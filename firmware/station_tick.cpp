@@ -195,17 +195,19 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
     platform::trace::device_write(0, static_cast<std::uint64_t>(kr));
     if (in.simulated) in.simulated->service(static_cast<double>(kr) * in.period_s, in.period_s);
   }
+  bool sent = false;
   {
     StageScope stage(Stage::tx);
-    if (!in.tx_deadband || in.tx_deadband->should_send(kr, in.core->x_hat(), in.core->v_hat()))
-      if (!in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), in.core->x_hat(), in.core->v_hat(),
-                             (out.flags & rt::kDiverged) != 0))  // safe state: the flag, never the state
-        ++cnt.push_failures;
+    if (!in.tx_deadband || in.tx_deadband->should_send(kr, in.core->x_hat(), in.core->v_hat())) {
+      sent = in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), in.core->x_hat(), in.core->v_hat(),
+                               (out.flags & rt::kDiverged) != 0);  // safe state: the flag, never the state
+      if (!sent) ++cnt.push_failures;
+    }
   }
   {
     StageScope stage(Stage::monitor);
     const double vmax = monitor(in, cnt, kr, out.flags, info);
-    record_trace(in, rec, kr, F, q, vmax, out.flags, info);
+    record_trace(in, rec, kr, F, q, vmax, out.flags | (sent ? kTraceStateSent : 0u), info);
     record_state(in, rec, kr);
   }
   record_telemetry(in, F, q, out.flags, info);

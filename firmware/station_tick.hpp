@@ -20,6 +20,11 @@
 
 namespace haptic::firmware {
 
+// Bit of station-<id>-trace.csv's `flags` (above the core's rt::TickFlags, trace only): this tick
+// pushed its state to the neighbours (the transmission policy, rt/tx_deadband, decided to send).
+// `haptic-station merge` counts them per window (link_stats sent_in_hold_window, sent_after_consensus).
+inline constexpr std::uint32_t kTraceStateSent = 1u << 16;
+
 // One row of station-<id>-trace.csv (flat, preallocated).
 struct TraceRec {
   std::int64_t k;

@@ -11,6 +11,7 @@
 #include "firmware/run_merge.hpp"
 #include "firmware/run_metrics.hpp"
 #include "firmware/run_summary.hpp"
+#include "firmware/station_tick.hpp"
 
 using namespace haptic::firmware;
 using nlohmann::json;
@@ -154,8 +155,12 @@ json station_json(int id, int users, double dt) {
   j["device"] = "simulated";
   j["wall_time_s"] = 1.0;
   j["passivity_condition_met"] = true;
+  j["trace_every"] = 1;
+  j["trace_marks_state_sent"] = true;
   j["links"] = json::array({{{"peer", 3 - id},
                              {"tx_packets_run", 10},
+                             {"packets_per_s", 100.0 * id},
+                             {"bytes_per_s", 1000.0 * id},
                              {"tx_impair_lost_run", 1},
                              {"tx_impair_duplicated_run", 0},
                              {"rx_packets_run", 9},
@@ -167,6 +172,7 @@ json station_json(int id, int users, double dt) {
 }
 
 // Two stations, ticks 0..9 traced, states every 2 ticks; copy 2's node 0 is `gap(k)` m off in x.
+// Station 1 sent its state (trace flag kTraceStateSent) at k = 0, 3, 6, 9, station 2 at every tick.
 std::string write_two_stations(const std::string& name, double (*gap)(std::int64_t)) {
   const std::string dir = (fs::temp_directory_path() / name).string();
   fs::remove_all(dir);
@@ -178,7 +184,7 @@ std::string write_two_stations(const std::string& name, double (*gap)(std::int64
     tr << "k,t_s,node_x_m,node_y_m,node_z_m,force_x_N,force_y_N,force_z_N,vp_x_m,vp_y_m,vp_z_m,device_x_m,device_y_m,device_z_m,"
           "port_energy_J,controller_energy_J,vo_energy_J,contact,flags,max_speed_m_per_s,wake_latency_ns\n";
     for (int k = 0; k < 10; ++k)
-      tr << k << "," << (k + 1) * 0.01 << ",0,0,0," << (id == 1 ? 1.0 : -1.0) << ",0,0,0,0,0,0,0,0," << -0.001 * k << ",0,0.5,1,0,0,0\n";
+      tr << k << "," << (k + 1) * 0.01 << ",0,0,0," << (id == 1 ? 1.0 : -1.0) << ",0,0,0,0,0,0,0,0," << -0.001 * k << ",0,0.5,1," << (id == 2 || k % 3 == 0 ? kTraceStateSent : 0u) << ",0,0\n";
     std::ofstream st(base + "-state.csv");
     st << "k,x0,x1,x2,x3,x4,x5\n";
     for (int k = 0; k < 10; k += 2) st << k << "," << (id == 2 ? gap(k) : 0.0) << ",0,0,1,0,0\n";
@@ -215,6 +221,17 @@ TEST(RunMerge, MergesStationFilesWithTheSimulatorsMetrics) {
   CHECK_EQUAL(2u, s["link_stats"].size());
   DOUBLES_EQUAL(0.1, s["link_stats"][0]["loss_rate"].get<double>(), 1e-12);
   CHECK_TRUE(s["bounds_consistent_all_links"].get<bool>());  // 3 + 3 <= 8
+  // Per link (to <- from): the sender's rates, and the states it sent in the hold window [0.02, 0.045)
+  // (k = 2..4) and after consensus (from 0.045 + 0.005 s: k = 5..9), from its trace's sent flags.
+  for (const auto& l : s["link_stats"]) {
+    const int from = l["from"].get<int>();
+    DOUBLES_EQUAL(100.0 * from, l["packets_per_s"].get<double>(), 0);
+    DOUBLES_EQUAL(1000.0 * from, l["bytes_per_s"].get<double>(), 0);
+    CHECK_EQUAL(from == 1 ? 1u : 3u, l["sent_in_hold_window"].get<unsigned>());
+    CHECK_EQUAL(from == 1 ? 2u : 5u, l["sent_after_consensus"].get<unsigned>());
+  }
+  CHECK_EQUAL(4u, s["packets"]["sent_in_hold_window"].get<unsigned>());
+  CHECK_EQUAL(7u, s["packets"]["sent_after_consensus"].get<unsigned>());
   CHECK_TRUE(s["passivity_condition_met"].get<bool>());
   CHECK_TRUE(fs::exists(dir + "/trace.csv") && fs::exists(dir + "/series.csv"));
   // The file contract: 20 trace rows + header, 5 series rows + header.

@@ -114,3 +114,32 @@ TEST(DeviceCoupling, StartUpChecksEq26AgainWithTheOpenedDevicesFiguresAndUsesIts
   DOUBLES_EQUAL(2.5, b.core->config().max_device_force_N, 0);  // one force limit: the device's
   DOUBLES_EQUAL(0.5, b.core->config().device_damping_Ns_per_m, 0);
 }
+
+TEST(DeviceCoupling, TheDeadbandsHoldIsInEachOneWayGuardSoAHeldStateStaysWithinItsBound) {
+  // A neighbour's state may be held up to tx_max_interval_ticks - 1 ticks on top of the one-way delay:
+  // with a measured round trip R the guard must be at least ceil(R/2) + interval - 1 (before: the
+  // interval was added to R once and halved, so 20-tick holds were over the guard and a leaf counted
+  // its only neighbour as absent).
+  test::StationText t;
+  t.id = 2;
+  t.peers = {1};
+  t.out_dir = "/tmp";
+  ProbeResult probe;
+  probe.status = PhaseStatus::kOk;
+  probe.rtt_bound_ticks = {4};
+  drivers::DeviceCapabilities caps = drivers::touch_default_capabilities();
+  caps.min_damping_Ns_per_m = 0.5;
+  t.station_extra = "loss_allowance_ticks = 0\n";
+  const PlanResult plain = plan_station(parse_station_file(t.text()), RunOverrides{}, read_clocks());
+  CHECK_TEXT(plain.status == PhaseStatus::kOk, plain.error.c_str());
+  const BuildResult b0 = build_station_core(*plain.plan, probe, caps);
+  CHECK_TEXT(b0.status == PhaseStatus::kOk, b0.message.c_str());
+  LONGS_EQUAL(2, b0.core->neighbor(0).index_delay_bound_ticks);  // ceil(4/2)
+  t.station_extra += "tx_deadband_mm = 0.001\ntx_max_interval_ticks = 20\n";
+  const PlanResult db = plan_station(parse_station_file(t.text()), RunOverrides{}, read_clocks());
+  CHECK_TEXT(db.status == PhaseStatus::kOk, db.error.c_str());
+  const BuildResult b1 = build_station_core(*db.plan, probe, caps);
+  CHECK_TEXT(b1.status == PhaseStatus::kOk, b1.message.c_str());
+  LONGS_EQUAL(2 + 19, b1.core->neighbor(0).index_delay_bound_ticks);
+  CHECK(b1.bounds.damping_min_Ns_per_m > b0.bounds.damping_min_Ns_per_m);  // eq. (18) pays for both directions' holds
+}

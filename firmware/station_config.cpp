@@ -28,7 +28,7 @@ void parse_station_section(View root, StationFile& f) {
   if (!st) bad("[station]", "present (with at least id = 1..users)");
   only_keys(st, "station", {"id", "scenario", "users", "topology", "delay_matrix", "pushes", "push_seed", "allow_routed_peers", "run_subdir", "nodes", "duration_s", "seed", "period_min_s", "period_max_s", "delay_correlation", "push_start_s", "push_end_s", "release_s",
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin", "consensus_passivity", "pspm_reservoir_J",
-                            "loss_allowance_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "tx_predict", "agreement_ticks", "damping_Ns_per_m", "io_priority",
+                            "loss_allowance_ticks", "loss_allowance_max_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "tx_predict", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
                             "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "record_ring_s", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks", "edge_energy_bound_J"});
   StationSection& s = f.station;
@@ -64,7 +64,8 @@ void parse_station_section(View root, StationFile& f) {
   s.consensus_passivity = text(st["consensus_passivity"], "station.consensus_passivity", "eq18");
   rt::parse_consensus_passivity(s.consensus_passivity, "station.consensus_passivity");  // named error at parse time
   s.pspm_reservoir_J = real(st["pspm_reservoir_J"], "station.pspm_reservoir_J", 0.001, 0, 1);
-  s.loss_allowance_ticks = static_cast<int>(integer(st["loss_allowance_ticks"], "station.loss_allowance_ticks", 1, 0, 1000));
+  s.loss_allowance_ticks = static_cast<int>(integer(st["loss_allowance_ticks"], "station.loss_allowance_ticks", -1, -1, 1000));
+  s.loss_allowance_max_ticks = static_cast<int>(integer(st["loss_allowance_max_ticks"], "station.loss_allowance_max_ticks", 40, 0, 1000));
   s.edge_energy_bound_J = real(st["edge_energy_bound_J"], "station.edge_energy_bound_J", rt::kDefaultEdgeEnergyBoundJ, 0.0, 1e6, " (0 = off)");
   s.solver = text(st["solver"], "station.solver", "auto");
   if (s.solver != "auto" && s.solver != "direct" && s.solver != "iterative") bad("station.solver", "\"auto\", \"direct\" or \"iterative\"");

@@ -42,7 +42,13 @@
 //                                    # per edge (rt/set_position_modulation.hpp): B_i = 0 unless damping_Ns_per_m,
 //                                    # no delay bound, eq. (14) by construction (same on all stations)
 //   pspm_reservoir_J = 0.001         # with "pspm": each edge's initial energy reservoir E0, J, [0, 1]
-//   loss_allowance_ticks = 1         # ticks added to the measured round-trip bound, [0, 1000]
+//   loss_allowance_ticks = -1        # ticks added to the measured round-trip bound R_ij = Nbar_ij + Nbar_ji (eq. 18),
+//                                    # [-1, 1000]; -1 = from the loss measured while probing: 2 L, L the scenario's
+//                                    # loss-model allowance (model::loss_allowance_from_measured_loss) for the loss
+//                                    # on the incoming direction (upper 97.5 % confidence bound); each end sends its
+//                                    # value with its frozen round-trip bound and both use the larger (station_probe.hpp)
+//   loss_allowance_max_ticks = 40    # a measured allowance above this refuses to couple (exit 3), naming the link
+//                                    # and its loss, [0, 1000]
 //   edge_energy_bound_J = 0.1        # per-edge damage bound: an edge whose energy account (eq. 14 split per edge)
 //                                    # exceeds it acts as a damper until the account fell to half of it
 //                                    # (net/README.md, "Bounded damage"), [0, 1e6]; 0 = off
@@ -173,7 +179,8 @@ struct StationSection {
   double damping_margin = 0.05;
   std::string consensus_passivity = "eq18";
   double pspm_reservoir_J = 0.001;
-  int loss_allowance_ticks = 1;
+  int loss_allowance_ticks = -1;      // -1: from the probe's measured loss
+  int loss_allowance_max_ticks = 40;
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
   std::string solver = "auto";
   double tx_deadband_mm = 0;

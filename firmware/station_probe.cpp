@@ -28,6 +28,7 @@ void take_neighbour_packets(const StationPlan& plan, net::Endpoint& ep, ProbeRes
   ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
     const int n = plan.peers.sender_to_nbr[sender];
     r.grid.add(n, seq, send_time_s, plan.built->spec.period_s);  // the neighbour's tick grid
+    r.loss_counter.add(n, seq);                                   // and which of its probes arrived
     if (n >= 0 && static_cast<std::int64_t>(seq) >= plan.times.run_k0 && r.running_session_from == 0) r.running_session_from = sender;
   });
 }
@@ -61,6 +62,7 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
         if (k >= probe_freeze_tick(t.probe_ticks) && !frozen) {  // the bounds freeze; the last third exchanges them
           frozen = true;
           r.all_bounds_at_freeze = ep.finish_probing();
+          fix_loss_allowances(plan, ep, r);  // travels with the frozen bounds
         }
         take_neighbour_packets(plan, ep, r);
         if (r.running_session_from != 0) return false;
@@ -101,9 +103,38 @@ std::string counted_causes(const net::EndpointStats& s) {
 
 std::int64_t probe_freeze_tick(std::int64_t probe_ticks) { return probe_ticks - probe_ticks / 3; }
 
+void fix_loss_allowances(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r) {
+  const StationSection& S = plan.file.station;
+  const BuiltScenario& b = *plan.built;
+  const auto& nbrs = plan.neighbours();
+  const net::EndpointStats st = ep.stats();
+  r.own_loss_allowance_ticks.resize(nbrs.size(), -1);
+  r.probe_loss.resize(nbrs.size());
+  for (std::size_t n = 0; n < nbrs.size(); ++n) {
+    const auto p = static_cast<std::size_t>(plan.peers.nbr_to_peer[n]);
+    const net::PeerStats& ps = st.peers[p];
+    if (r.own_loss_allowance_ticks[n] >= 0 || !ps.rtt_has_bound) continue;  // fixed once, with the bound
+    int own = S.loss_allowance_ticks;
+    if (own < 0) {  // measured: packets later than our round-trip bound count as lost
+      r.probe_loss[n] = r.loss_counter.loss(n, net::bound_ticks(ps.rtt_probe_bound_s, b.spec.period_s));
+      own = round_trip_loss_allowance(r.probe_loss[n], b.spec.duration_s / b.spec.period_s, 2 * static_cast<int>(b.spec.topology.size()));
+      if (own < 0) own = S.loss_allowance_max_ticks;  // nothing measured: the most we accept
+      if (own > S.loss_allowance_max_ticks && r.loss_allowance_error.empty())
+        r.loss_allowance_error = "the link from station " + std::to_string(nbrs[n] + 1) + " lost " + std::to_string(r.probe_loss[n].lost) + " of " +
+                                 std::to_string(r.probe_loss[n].expected) + " probe packets (or delivered them later than the round-trip bound): "
+                                 "its loss allowance of " + std::to_string(own) + " ticks exceeds station.loss_allowance_max_ticks = " +
+                                 std::to_string(S.loss_allowance_max_ticks) + " (fix the link, probe longer (station.probe_s), or raise the maximum)";
+      own = std::min(own, S.loss_allowance_max_ticks);
+    }
+    r.own_loss_allowance_ticks[n] = own;
+    ep.set_loss_allowance(p, own);
+  }
+}
+
 ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
   ProbeResult r;
   r.grid = NeighbourGrid(plan.neighbours().size());
+  r.loss_counter = ProbeLossCounter(plan.neighbours().size());
   send_probes(plan, ep, stop, r);
   if (stop.load(std::memory_order_acquire)) {
     r.status = PhaseStatus::kStopped;
@@ -123,11 +154,31 @@ ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const s
   }
   // A neighbour with too few round trips at the freeze gets its bound now, from all of probing (its
   // end then may not learn ours in time: the warning in collect_probe_result says so).
-  if (!r.all_bounds_at_freeze) r.all_bounds_at_freeze = ep.finish_probing();
+  if (!r.all_bounds_at_freeze) {
+    r.all_bounds_at_freeze = ep.finish_probing();
+    fix_loss_allowances(plan, ep, r);
+  }
   collect_probe_result(plan, ep, r.all_bounds_at_freeze, "station.probe_s = " + std::to_string(plan.file.station.probe_s) + " s", r);
   if (r.status == PhaseStatus::kOk) check_clock(plan, plan.times.epoch_ns, r);
   return r;
 }
+
+namespace {
+
+// Neighbour n's loss allowance both ends use: the larger of ours and the neighbour's (ours alone,
+// with a warning, when the neighbour's did not arrive). Not RT-safe.
+void agree_loss_allowance(const StationPlan& plan, std::size_t n, const net::PeerStats& ps, ProbeResult& r) {
+  r.own_loss_allowance_ticks.resize(plan.neighbours().size(), -1);
+  r.probe_loss.resize(plan.neighbours().size());
+  const int own = r.own_loss_allowance_ticks[n], peer = ps.peer_loss_allowance_ticks;
+  r.peer_loss_allowance_ticks.push_back(peer);
+  r.loss_allowance_ticks.push_back(std::max({own, peer, 0}));
+  if (own >= 0 && peer < 0 && ps.rtt_has_bound)
+    r.warnings.push_back("station " + std::to_string(plan.neighbours()[n] + 1) + "'s loss allowance did not arrive while probing: ours (" +
+                         std::to_string(own) + " ticks) alone is used");
+}
+
+}  // namespace
 
 void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, const std::string& after_what, ProbeResult& r) {
   r.stats_at_end = ep.stats();
@@ -143,6 +194,7 @@ void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, 
     if (ps.rtt_has_bound && r.peer_rtt_bound_ticks.back() < 0)
       r.warnings.push_back("station " + std::to_string(nbrs[n] + 1) + "'s round-trip bound did not arrive while probing: ours alone is used, "
                            "so the two ends may assume different bounds (station.agreement_ticks is the margin for that)");
+    agree_loss_allowance(plan, n, ps, r);
   }
   const std::string after = " after " + after_what;
   // A neighbour with another scene, period, gains or protocol: say which, before anything else
@@ -151,6 +203,9 @@ void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, 
   if (!mismatch.empty()) {
     r.status = PhaseStatus::kFailed;
     r.message = "refusing to couple: neighbour fingerprint differs (" + mismatch + ")";
+  } else if (!r.loss_allowance_error.empty()) {
+    r.status = PhaseStatus::kFailed;
+    r.message = "refusing to couple: " + r.loss_allowance_error;
   } else if (r.missing.size() == nbrs.size()) {
     r.status = PhaseStatus::kNoNeighbour;
     r.message = "no neighbour answered: no round trip from station(s) " + id_list(r.missing) + after +
@@ -201,12 +256,15 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
   const StationSection& S = plan.file.station;
   const BuiltScenario& built = *plan.built;
   try {
-    // The transmission deadband (rt/tx_deadband) may hold a state up to interval - 1 extra ticks in
-    // EACH direction: each one-way guard ceil(R/2) needs interval - 1 more, so the round trip R (and
+    // Each link's loss allowance (both ends agreed on it while probing), and the transmission
+    // deadband (rt/tx_deadband), which may hold a state up to interval - 1 extra ticks in EACH
+    // direction: each one-way guard ceil(R/2) needs interval - 1 more, so the round trip R (and
     // eq. 18's sum Nbar_ij + Nbar_ji, as in the simulator's bounds) grows by twice that.
-    const int allowance = S.loss_allowance_ticks + 2 * built.spec.tx_deadband.added_index_delay_ticks();
-    r.bounds = bounds_from_round_trips(built, plan.me, probe.rtt_bound_ticks, allowance, S.damping_margin, S.damping_Ns_per_m,
-                                       S.agreement_ticks);
+    if (probe.loss_allowance_ticks.size() != probe.rtt_bound_ticks.size()) throw std::invalid_argument("one loss allowance per neighbour needed");
+    std::vector<std::uint32_t> with_loss = probe.rtt_bound_ticks;
+    for (std::size_t n = 0; n < with_loss.size(); ++n) with_loss[n] += static_cast<std::uint32_t>(probe.loss_allowance_ticks[n]);
+    r.bounds = bounds_from_round_trips(built, plan.me, with_loss, 2 * built.spec.tx_deadband.added_index_delay_ticks(), S.damping_margin,
+                                       S.damping_Ns_per_m, S.agreement_ticks);
     if (built.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation) {
       // eq. (14) by the modulation (rt/set_position_modulation.hpp): B_i only if the file gives one
       r.bounds.damping_Ns_per_m = S.damping_Ns_per_m >= 0 ? S.damping_Ns_per_m : 0.0;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "firmware/device_coupling.hpp"
+#include "firmware/probe_loss.hpp"
 #include "firmware/station_neighbours.hpp"
 #include "firmware/station_phase.hpp"
 #include "firmware/station_plan.hpp"
@@ -30,6 +31,14 @@ struct ProbeResult {
   std::vector<std::uint32_t> rtt_bound_ticks;
   std::vector<std::int64_t> own_rtt_bound_ticks, peer_rtt_bound_ticks;
   bool all_bounds_at_freeze = false;            // every neighbour had a bound when probing froze
+  // Per neighbour, the loss allowance (ticks added to the round-trip bound, so to Nbar_ij + Nbar_ji):
+  // ours, fixed with our bound (station.loss_allowance_ticks, or -1 there: from the probe loss we
+  // measured on the incoming direction, probe_loss), the neighbour's (-1: did not arrive) and the
+  // one both ends use, the larger. loss_allowance_error: ours exceeded station.loss_allowance_max_ticks.
+  ProbeLossCounter loss_counter;
+  std::vector<ProbeLoss> probe_loss;
+  std::vector<int> own_loss_allowance_ticks, peer_loss_allowance_ticks, loss_allowance_ticks;
+  std::string loss_allowance_error;
   // A neighbour (station id) that already runs the session (a packet with sequence number >= our
   // run_k0) before or while we probe: we are a restarted station whose fresh epoch (a relative
   // station.start_delay_s) is not the session's; the caller rejoins instead (0: none).
@@ -60,13 +69,18 @@ std::int64_t probe_freeze_tick(std::int64_t probe_ticks);
 // bounds, missing neighbours, the fingerprint comparison and the status. `after` names how long
 // probing ran ("station.probe_s = 1.5 s"). Used by the probe and the rejoin phase.
 void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, const std::string& after, ProbeResult& r);
+// Fixes our loss allowance of every neighbour that has a frozen round-trip bound and none yet
+// (r.own_loss_allowance_ticks), from r.loss_counter, and hands it to the endpoint, which sends it
+// with the bound. Call right after ep.finish_probing(). An allowance above
+// station.loss_allowance_max_ticks is capped there and named in r.loss_allowance_error.
+void fix_loss_allowances(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r);
 // The clock check of r (grid and statistics) against the epoch `epoch_ns`: a warning, or with
 // station.clock_offset_refuse the status kFailed.
 void check_clock(const StationPlan& plan, std::int64_t epoch_ns, ProbeResult& r);
 
 // The per-neighbour bounds a station derives from its measured round trips.
 struct MeasuredBounds {
-  std::vector<int> round_trip_ticks;    // R_ij = measured bound (+ margin, net/) + loss allowance: Nbar_ij + Nbar_ji in eq. (18)
+  std::vector<int> round_trip_ticks;    // R_ij = measured bound (+ margin, net/) + loss allowance (+ deadband): Nbar_ij + Nbar_ji in eq. (18)
   std::vector<int> index_guard_ticks;   // Nbar_ij = ceil(R_ij / 2): the rt core drops data older than this
   std::vector<int> assumed_sum_ticks;   // Nbar_ij + Nbar_ji put into eq. (18): 2 Nbar_ij + agreement_ticks
                                         // (covers the peer's guard ceil(R_ji/2) while R_ji <= R_ij + 2 agreement_ticks)

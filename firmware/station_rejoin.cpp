@@ -27,6 +27,7 @@ void provisional_probes(const StationPlan& plan, net::Endpoint& ep, const std::a
   for (std::int64_t i = 0; i < ticks && !stop.load(std::memory_order_acquire); ++i) {
     ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
       r.probe.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, T);
+      r.probe.loss_counter.add(plan.peers.sender_to_nbr[sender], seq);
     });
     // Provisional sequence numbers stay below the session's run_k0: the neighbours' ticks ignore them.
     if (static_cast<std::int64_t>(r.provisional_pushes) < plan.times.run_k0 - 1 &&
@@ -63,6 +64,7 @@ bool learn_epoch(const StationPlan& plan, RejoinResult& r) {
 RejoinResult rejoin_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
   RejoinResult r;
   r.probe.grid = NeighbourGrid(plan.neighbours().size());
+  r.probe.loss_counter = ProbeLossCounter(plan.neighbours().size());
   provisional_probes(plan, ep, stop, r);
   if (stop.load(std::memory_order_acquire)) {
     r.probe.status = PhaseStatus::kStopped;
@@ -70,6 +72,9 @@ RejoinResult rejoin_probe(const StationPlan& plan, net::Endpoint& ep, const std:
     return r;
   }
   const bool all = ep.finish_probing();
+  // Our allowance from the loss of the running neighbours' packets; theirs arrives in their
+  // fingerprints (their cores were built before we came: they keep their own, agreement_ticks covers it).
+  fix_loss_allowances(plan, ep, r.probe);
   collect_probe_result(plan, ep, all, "station.rejoin_probe_s = " + std::to_string(plan.file.station.rejoin_probe_s) + " s", r.probe);
   if (r.probe.status != PhaseStatus::kOk) return r;
   if (!learn_epoch(plan, r)) {

@@ -1,6 +1,7 @@
 #include "firmware/station_report.hpp"
 
 #include "firmware/run_summary.hpp"
+#include "firmware/model/delay_model.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -31,6 +32,9 @@ json station_scenario_json(const StationPlan& p) {
   j["damping_model_Ns_per_m"] = b.damping[static_cast<std::size_t>(p.me)];
   j["damping_model_min_Ns_per_m"] = b.damping_min[static_cast<std::size_t>(p.me)];
   j["agreement_ticks"] = p.file.station.agreement_ticks;
+  // the station's loss allowance: fixed, or -1 = measured per link while probing (links[].loss_allowance_ticks)
+  j["loss_allowance_ticks"] = p.file.station.loss_allowance_ticks;
+  j["loss_allowance_max_ticks"] = p.file.station.loss_allowance_max_ticks;
   j["fingerprint"] = {{"protocol_version", p.fingerprint.protocol_version}, {"scene_nodes", p.fingerprint.scene_nodes},
                       {"period_ns", p.fingerprint.period_ns}, {"scene_hash", p.fingerprint.scene_hash}, {"gains_hash", p.fingerprint.gains_hash}};
   return j;
@@ -154,6 +158,15 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
   if (o.probe && n < o.probe->own_rtt_bound_ticks.size()) {  // each end's frozen probing bound; both use the larger
     l["round_trip_bound_ticks_own"] = o.probe->own_rtt_bound_ticks[n];
     l["round_trip_bound_ticks_peer"] = o.probe->peer_rtt_bound_ticks[n] >= 0 ? json(o.probe->peer_rtt_bound_ticks[n]) : json(nullptr);
+  }
+  if (o.probe && n < o.probe->loss_allowance_ticks.size()) {  // each end's loss allowance; both use the larger
+    const int own = o.probe->own_loss_allowance_ticks[n], peer = o.probe->peer_loss_allowance_ticks[n];
+    l["loss_allowance_ticks"] = o.probe->loss_allowance_ticks[n];
+    l["loss_allowance_ticks_own"] = own >= 0 ? json(own) : json(nullptr);
+    l["loss_allowance_ticks_peer"] = peer >= 0 ? json(peer) : json(nullptr);
+    const ProbeLoss& pl = o.probe->probe_loss[n];
+    l["probe_loss"] = json::object({{"lost", pl.lost}, {"expected", pl.expected}, {"longest_gap", pl.longest_gap},
+                                    {"upper_bound", pl.expected > 0 ? json(model::loss_upper_bound(pl.lost, pl.expected)) : json(nullptr)}});
   }
   l["model_index_delay_bound_ticks"] = p.built->nbar_ticks(p.me, p.neighbours()[n]);
   if (o.build && o.build->core) {

@@ -303,6 +303,10 @@ void Endpoint::begin_probing() { probe_command(kProbeBegin); }
 
 bool Endpoint::finish_probing() { return probe_command(kProbeFinish); }
 
+void Endpoint::set_loss_allowance(std::size_t peer_index, int ticks) {
+  peers_.at(peer_index)->own_loss_allowance.store(ticks, std::memory_order_release);
+}
+
 void Endpoint::publish_stats() {
   for (auto& pp : peers_) {
     PeerState& p = *pp;
@@ -464,7 +468,8 @@ void Endpoint::on_incarnation(PeerState& p, std::uint64_t incarnation) {
     p.previous_echo = {};
     p.stats.packets_received_incarnation = 0;
     p.offset_window_n = 0;
-    p.stats.peer_rtt_probe_bound_s = 0.0;  // its new probing fixes a new bound
+    p.stats.peer_rtt_probe_bound_s = 0.0;  // its new probing fixes a new bound (and allowance)
+    p.stats.peer_loss_allowance_ticks = -1;
   }
   p.has_incarnation = true;
   p.stats.incarnation = incarnation;
@@ -587,6 +592,7 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
       p.stats.has_fingerprint = true;
       p.stats.fingerprint = st.fingerprint;
       if (st.round_trip_bound_ns != 0) p.stats.peer_rtt_probe_bound_s = static_cast<double>(st.round_trip_bound_ns) * 1e-9;
+      if (st.loss_allowance_ticks >= 0) p.stats.peer_loss_allowance_ticks = st.loss_allowance_ticks;
       continue;
     }
     if (st.value_count != value_count_) {  // a peer with another scene: never hand it to the tick
@@ -643,7 +649,7 @@ void Endpoint::send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns) {
     const std::size_t len =
         encoder_.encode_fingerprint(p.link.station_id, seq, stamp_ns, fingerprint_, tx_buf_.data(), tx_buf_.size(),
                                     static_cast<std::uint64_t>(std::llround(p.rtt.probe_bound_s() * 1e9)),
-                                    pairwise_ ? &p.tx_traffic : nullptr);
+                                    pairwise_ ? &p.tx_traffic : nullptr, p.own_loss_allowance.load(std::memory_order_acquire));
     if (len) send_now(p.link.station_id, tx_buf_.data(), len, p);
   }
 }

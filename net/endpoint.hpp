@@ -144,6 +144,9 @@ struct PeerStats {
   // one the neighbour's probing fixed for the same link, from its fingerprint messages (0: none
   // received yet): the station uses the larger, so both ends assume the same bound.
   double rtt_probe_bound_s = 0.0, peer_rtt_probe_bound_s = 0.0;
+  // The neighbour's loss allowance for the link, from the same fingerprint messages (-1: none yet;
+  // set_loss_allowance() is ours).
+  int peer_loss_allowance_ticks = -1;
   // Incarnation of the neighbour (0 before its first packet) and how often it changed.
   std::uint64_t incarnation = 0, incarnation_changes = 0;
   // Up/down: up after its first packet, down after peer_silence_s without one.
@@ -295,6 +298,10 @@ class Endpoint {
   void begin_probing();
   // Ends probing on every neighbor with enough samples; true when all have a bound.
   bool finish_probing();
+  // Our loss allowance for the link to peers[peer_index] (ticks, >= 0), sent from now on with our
+  // frozen round-trip bound in the fingerprint messages (the neighbour's arrives in
+  // PeerStats::peer_loss_allowance_ticks). Thread-safe (an atomic the I/O thread reads). Not RT-safe.
+  void set_loss_allowance(std::size_t peer_index, int ticks);
   // Snapshot of the statistics; never blocks the I/O thread. Not RT-safe (allocates).
   EndpointStats stats() const;
   std::uint64_t incarnation() const { return incarnation_; }
@@ -372,6 +379,7 @@ class Endpoint {
     platform::SnapshotBox<PeerStats> box;
     std::atomic<std::uint64_t> bound_ns{0};
     std::atomic<std::uint64_t> bound_generation{0};
+    std::atomic<std::int32_t> own_loss_allowance{-1};  // set_loss_allowance(); sent in fingerprints
   };
   // Our own send records (I/O thread): sequence -> our send stamp, for round trips and the
   // age bound from the echo (a peer cannot make a round trip look shorter than it was).

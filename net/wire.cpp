@@ -221,7 +221,8 @@ void Encoder::put_single_fragment(std::uint8_t* out, std::size_t len) {
 
 std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
                                         const Fingerprint& f, std::uint8_t* out, std::size_t cap,
-                                        std::uint64_t round_trip_bound_ns, const SessionKey* key) const {
+                                        std::uint64_t round_trip_bound_ns, const SessionKey* key,
+                                        std::int32_t loss_allowance_ticks) const {
   const std::size_t size = kHeaderBytes + kFingerprintBytes + kMacBytes;
   if (cap < size) return 0;
   put_common(out, PayloadKind::fingerprint, 0, dest, seq, send_time_ns);
@@ -233,6 +234,8 @@ std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, s
   put<std::uint64_t>(p, 16, f.period_ns);
   put<std::uint64_t>(p, 24, f.gains_hash);
   put<std::uint64_t>(p, 32, round_trip_bound_ns);
+  put<std::uint32_t>(p, 40, loss_allowance_ticks < 0 ? 0u : static_cast<std::uint32_t>(loss_allowance_ticks) + 1u);
+  put<std::uint32_t>(p, 44, 0u);
   mac(out, kHeaderBytes + kFingerprintBytes, key ? *key : cfg_.key, out + kHeaderBytes + kFingerprintBytes);
   return size;
 }
@@ -502,6 +505,8 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
     out.fingerprint.period_ns = get<std::uint64_t>(p, 16);
     out.fingerprint.gains_hash = get<std::uint64_t>(p, 24);
     out.round_trip_bound_ns = get<std::uint64_t>(p, 32);
+    const std::uint32_t allowance = get<std::uint32_t>(p, 40);
+    out.loss_allowance_ticks = allowance == 0 || allowance > (1u << 30) ? -1 : static_cast<std::int32_t>(allowance - 1);
     ++accepted_datagrams_;
     return DecodeStatus::fingerprint;
   }

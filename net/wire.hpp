@@ -124,10 +124,12 @@ struct Fingerprint {
   std::uint64_t period_ns = 0;    // the tick period T
   std::uint64_t gains_hash = 0;   // fingerprint_hash of the coupling gains (P_ij, D_ij, ...)
 };
-// The fingerprint message's payload: the Fingerprint (32 bytes), then a u64 that is not part of
-// the fingerprint: the sender's round-trip bound to the destination as its probing fixed it, in
-// ns (0: not yet), so both ends of a link can agree on the larger (net/README.md).
-inline constexpr std::size_t kFingerprintBytes = 40;
+// The fingerprint message's payload: the Fingerprint (32 bytes), then what is not part of the
+// fingerprint but travels with it so both ends of a link agree on the larger of each (net/README.md):
+// a u64, the sender's round-trip bound to the destination as its probing fixed it, in ns (0: not
+// yet); a u32, the sender's loss allowance for the link in ticks + 1 (0: not yet; the station's
+// station.loss_allowance_ticks, firmware/station_probe.hpp); a u32 reserved (0).
+inline constexpr std::size_t kFingerprintBytes = 48;
 // 64-bit keyless BLAKE2b of bytes (for Fingerprint's hashes). Not RT-safe (start-up).
 std::uint64_t fingerprint_hash(const void* data, std::size_t bytes);
 // "" when equal, else which fields differ, e.g. "scene nodes: 33 here, 27 at the peer". Not RT-safe.
@@ -174,10 +176,12 @@ class Encoder {
                               std::size_t cap, const SessionKey* key = nullptr) const;
   // Writes one fingerprint datagram (kind 2) to `dest` into out[0..cap); its size or 0 when
   // cap is too small. RT-safe.
-  // round_trip_bound_ns: our probing's round-trip bound to `dest` (0: none yet).
+  // round_trip_bound_ns: our probing's round-trip bound to `dest` (0: none yet);
+  // loss_allowance_ticks: our loss allowance for the link (< 0: none yet).
   std::size_t encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
                                  const Fingerprint& f, std::uint8_t* out, std::size_t cap,
-                                 std::uint64_t round_trip_bound_ns = 0, const SessionKey* key = nullptr) const;
+                                 std::uint64_t round_trip_bound_ns = 0, const SessionKey* key = nullptr,
+                                 std::int32_t loss_allowance_ticks = -1) const;
   // One hello datagram (kind 3) to `dest`: our run nonce, the newest nonce we received from
   // dest (echo), whether we hold this run's traffic keys with it (agreed); MAC'd with `key`, the
   // pair's static key of direction us -> dest. Its size or 0 when cap is too small. RT-safe.
@@ -205,6 +209,7 @@ struct DecodedState {
   PayloadKind kind = PayloadKind::state;
   Fingerprint fingerprint{};      // kind == fingerprint (DecodeStatus::fingerprint)
   std::uint64_t round_trip_bound_ns = 0;  // kind == fingerprint: the sender's probing bound to us (0: none yet)
+  std::int32_t loss_allowance_ticks = -1; // kind == fingerprint: the sender's loss allowance for the link (-1: none yet)
   RunNonce hello_nonce{}, hello_echo{};   // kind == hello: the sender's run nonce, the newest of ours it received
   bool hello_agreed = false;              // kind == hello: kFlagHelloAgreed
   std::uint64_t seq = 0;

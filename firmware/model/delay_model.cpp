@@ -81,6 +81,21 @@ int loss_allowance_from_loss(double p, double ticks, int directed_links, double 
   return L;
 }
 
+double loss_upper_bound(long long lost, long long expected, double z) {
+  if (expected <= 0) bad("measured loss: no packet expected (the probe was too short)");
+  if (lost < 0 || lost > expected) bad("measured loss: lost must be in [0, expected]");
+  const double n = static_cast<double>(expected), p = static_cast<double>(lost) / n, z2 = z * z;
+  // Wilson score interval, upper end
+  const double centre = p + z2 / (2 * n), half = z * std::sqrt(p * (1 - p) / n + z2 / (4 * n * n));
+  return std::min(1.0, (centre + half) / (1 + z2 / n));
+}
+
+int loss_allowance_from_measured_loss(long long lost, long long expected, double ticks, int directed_links, double per_run) {
+  // p -> 1 (everything lost) is not [0, 1): the capped search of loss_allowance_from_loss answers 1000
+  const double p = std::min(loss_upper_bound(lost, expected), std::nextafter(1.0, 0.0));
+  return loss_allowance_from_loss(p, ticks, directed_links, per_run);
+}
+
 Eigen::MatrixXi index_delay_bounds_ticks(const Eigen::MatrixXd& mean_delay_ms, double jitter_fraction, double period_s,
                                          int loss_allowance_ticks) {
   check_square(mean_delay_ms, "delay matrix");

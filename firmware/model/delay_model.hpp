@@ -33,6 +33,16 @@ inline constexpr int kDefaultLossAllowanceTicks = 1;
 inline constexpr double kOverBoundChancePerRun = 0.01;
 int loss_allowance_from_loss(double loss_probability, double ticks, int directed_links, double per_run = kOverBoundChancePerRun);
 
+// The same allowance from a measured loss: `lost` of `expected` packets (a station's probing). The
+// loss probability put in is the upper end of the Wilson score interval at z = 1.96 (97.5 %
+// one-sided), so a short probe with no loss still gets an allowance (0 of 100 lost: p <= 0.037),
+// and the allowance falls as the probe grows. Throws std::invalid_argument when expected <= 0 or
+// lost is outside [0, expected].
+inline constexpr double kLossMeasurementZ = 1.96;
+double loss_upper_bound(long long lost, long long expected, double z = kLossMeasurementZ);
+int loss_allowance_from_measured_loss(long long lost, long long expected, double ticks, int directed_links,
+                                      double per_run = kOverBoundChancePerRun);
+
 // The paper's mean one-way delays (ms), Section V: [[0,4,4,4],[8,0,80,200],[4,100,0,200],[6,240,200,0]].
 Eigen::MatrixXd paper_delay_matrix_ms();
 

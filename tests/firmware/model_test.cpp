@@ -8,6 +8,7 @@
 
 #include "firmware/model/delay_model.hpp"
 #include "firmware/model/graph.hpp"
+#include "firmware/probe_loss.hpp"
 #include "firmware/scenario.hpp"
 #include "tests/support/error_of.hpp"
 
@@ -60,6 +61,48 @@ TEST(Model, loss_allowance_is_the_smallest_with_an_over_bound_chance_per_run_bel
     }
   CHECK_EQUAL(5, model::loss_allowance_from_loss(0.05, 10000, 6));
   CHECK_THROWS(std::invalid_argument, model::loss_allowance_from_loss(1.0, 10, 1));
+}
+
+TEST(Model, a_measured_loss_is_taken_at_the_upper_end_of_its_confidence_interval) {
+  // Wilson score interval at z = 1.96, hand-computed: 0 of 100 -> z^2 / (100 + z^2) = 0.03700;
+  // 5 of 100 -> 0.11175; the point estimate is inside and the bound falls towards it as the probe grows.
+  DOUBLES_EQUAL(3.8416 / 103.8416, model::loss_upper_bound(0, 100), 1e-12);
+  DOUBLES_EQUAL(0.111752, model::loss_upper_bound(5, 100), 1e-5);
+  CHECK(model::loss_upper_bound(50, 1000) < model::loss_upper_bound(5, 100));
+  CHECK(model::loss_upper_bound(50, 1000) > 0.05);
+  // the allowance is the loss model's at that probability: more loss or a shorter probe, more ticks
+  CHECK_EQUAL(model::loss_allowance_from_loss(model::loss_upper_bound(5, 100), 5000, 6), model::loss_allowance_from_measured_loss(5, 100, 5000, 6));
+  CHECK(model::loss_allowance_from_measured_loss(5, 100, 5000, 6) > model::loss_allowance_from_measured_loss(0, 100, 5000, 6));
+  CHECK(model::loss_allowance_from_measured_loss(0, 100, 5000, 6) > model::loss_allowance_from_measured_loss(0, 10000, 5000, 6));
+  CHECK_EQUAL(1000, model::loss_allowance_from_measured_loss(100, 100, 5000, 6));  // everything lost: the search's cap
+  CHECK_THROWS(std::invalid_argument, model::loss_upper_bound(0, 0));
+  CHECK_THROWS(std::invalid_argument, model::loss_upper_bound(3, 2));
+}
+
+TEST(Model, the_probe_loss_counts_packets_missing_or_later_than_the_bound_once_the_bound_has_passed) {
+  firmware::ProbeLossCounter c(2);
+  for (std::uint64_t s = 10; s < 110; ++s)
+    if (s % 10 != 3) c.add(0, s);  // every 10th lost
+  c.add(0, 20);                     // a duplicate counts once
+  c.add(-1, 50);                    // not a neighbour
+  const firmware::ProbeLoss all = c.loss(0, 0);
+  CHECK_EQUAL(100, all.expected);
+  CHECK_EQUAL(10, all.lost);
+  // the last 9 ticks may still be on their way: 10..100, of which 13, 23, .., 93 lost
+  const firmware::ProbeLoss settled = c.loss(0, 9);
+  CHECK_EQUAL(91, settled.expected);
+  CHECK_EQUAL(9, settled.lost);
+  CHECK_EQUAL(1, settled.longest_gap);
+  for (std::uint64_t s = 10; s < 2010; ++s)
+    if (s < 30 || s >= 42) c.add(1, s);  // a burst of 12 in 2000 (the i.i.d. model alone: L = 3)
+  CHECK_EQUAL(12, c.loss(1, 0).longest_gap);
+  CHECK_EQUAL(3, model::loss_allowance_from_measured_loss(12, 2000, 5000, 6));
+  CHECK_EQUAL(24, firmware::round_trip_loss_allowance(c.loss(1, 0), 5000, 6));  // the burst, not the i.i.d. model's L
+  firmware::ProbeLossCounter none(2);
+  CHECK_EQUAL(0, none.loss(1, 0).expected);  // nothing from neighbour 1: nothing measured
+  CHECK_EQUAL(-1, firmware::round_trip_loss_allowance(none.loss(1, 0), 5000, 6));
+  // twice the per-direction allowance of the loss model (each direction's Nbar gets it)
+  CHECK_EQUAL(2 * model::loss_allowance_from_measured_loss(10, 100, 5000, 6), firmware::round_trip_loss_allowance(all, 5000, 6));
 }
 
 TEST(Model, bounds_from_a_measured_round_trip_cover_the_peer_within_the_agreement_margin) {

@@ -201,6 +201,15 @@ TEST(Fingerprints, RoundTripAndFieldByFieldDifference) {
   CHECK(st.kind == PayloadKind::fingerprint);
   CHECK_EQUAL(std::string(""), fingerprint_difference(f, st.fingerprint));
   CHECK_EQUAL(21'500'000u, st.round_trip_bound_ns);  // carried, not part of the fingerprint
+  LONGS_EQUAL(-1, st.loss_allowance_ticks);           // none given: none carried
+  std::vector<std::uint8_t> e(200);
+  e.resize(enc.encode_fingerprint(0, 4, 45, f, e.data(), e.size(), 21'500'000, nullptr, 0));
+  CHECK(dec.decode(e.data(), e.size(), st) == DecodeStatus::fingerprint);
+  LONGS_EQUAL(0, st.loss_allowance_ticks);  // an allowance of 0 is not "none"
+  e.resize(200);
+  e.resize(enc.encode_fingerprint(0, 5, 46, f, e.data(), e.size(), 21'500'000, nullptr, 7));
+  CHECK(dec.decode(e.data(), e.size(), st) == DecodeStatus::fingerprint);
+  LONGS_EQUAL(7, st.loss_allowance_ticks);  // our loss allowance travels with the bound
   Fingerprint g = f;
   g.scene_nodes = 27;
   g.scene_hash = fingerprint_hash("scene-b", 7);

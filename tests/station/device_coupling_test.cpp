@@ -98,6 +98,7 @@ TEST(DeviceCoupling, StartUpChecksEq26AgainWithTheOpenedDevicesFiguresAndUsesIts
   ProbeResult probe;
   probe.status = PhaseStatus::kOk;
   probe.rtt_bound_ticks = {3};
+  probe.loss_allowance_ticks = {1};
   drivers::DeviceCapabilities caps = drivers::touch_default_capabilities();
   caps.max_force_N = 2.5;
   caps.min_damping_Ns_per_m = 0.0;  // the opened device publishes no b_d: refused at start-up
@@ -127,6 +128,7 @@ TEST(DeviceCoupling, TheDeadbandsHoldIsInEachOneWayGuardSoAHeldStateStaysWithinI
   ProbeResult probe;
   probe.status = PhaseStatus::kOk;
   probe.rtt_bound_ticks = {4};
+  probe.loss_allowance_ticks = {0};  // agreed while probing (station.loss_allowance_ticks = 0 below)
   drivers::DeviceCapabilities caps = drivers::touch_default_capabilities();
   caps.min_damping_Ns_per_m = 0.5;
   t.station_extra = "loss_allowance_ticks = 0\n";

@@ -44,6 +44,7 @@ FirstTicks first_ticks(const std::string& device_lines, const double device_m[3]
   ProbeResult probe;
   probe.status = PhaseStatus::kOk;
   probe.rtt_bound_ticks = {3};
+  probe.loss_allowance_ticks = {1};
   const drivers::DeviceCapabilities caps = drivers::touch_default_capabilities();
   BuildResult b = build_station_core(*pr.plan, probe, caps, place ? device_m : nullptr);
   CHECK_TEXT(b.status == PhaseStatus::kOk, b.message.c_str());
@@ -117,6 +118,7 @@ TEST(DeviceMapping, TheMapMovesTheDeviceIntoTheObjectFrameAndScalesEq26AndTheLim
   ProbeResult probe;
   probe.status = PhaseStatus::kOk;
   probe.rtt_bound_ticks = {3};
+  probe.loss_allowance_ticks = {1};
   // 30 mm outside user 2's face in the object frame, expressed in the device frame: (o - offset) / scale
   const Eigen::Vector3d target = pr.plan->built->vp_start[1] - 0.03 * pr.plan->built->push_direction[1];
   const double dev[3] = {(target.x() - 0.02) / 2.0, target.y() / 2.0, target.z() / 2.0};

@@ -179,7 +179,7 @@ TEST(StationPhases, BothEndsOfEveryLinkUseTheSameRoundTripBoundTheLargerOfTheTwo
     // larger of the two own bounds, so that is what is checked, whichever end it came from.
     const int hub_own = from_hub["round_trip_bound_ticks_own"].get<int>(), leaf_own = to_hub["round_trip_bound_ticks_own"].get<int>();
     if (hub_own != leaf_own) ++links_with_different_bounds;
-    CHECK_EQUAL(std::max(hub_own, leaf_own) + hub["loss_allowance_ticks"].get<int>(), from_hub["round_trip_bound_ticks"].get<int>());
+    CHECK_EQUAL(std::max(hub_own, leaf_own) + from_hub["loss_allowance_ticks"].get<int>(), from_hub["round_trip_bound_ticks"].get<int>());
     CHECK_EQUAL(from_hub["round_trip_bound_ticks_own"].get<int>(), to_hub["round_trip_bound_ticks_peer"].get<int>());
     CHECK_EQUAL(to_hub["round_trip_bound_ticks_own"].get<int>(), from_hub["round_trip_bound_ticks_peer"].get<int>());
     CHECK_EQUAL(from_hub["round_trip_bound_ticks"].get<int>(), to_hub["round_trip_bound_ticks"].get<int>());
@@ -187,6 +187,72 @@ TEST(StationPhases, BothEndsOfEveryLinkUseTheSameRoundTripBoundTheLargerOfTheTwo
   }
   CHECK(links_with_different_bounds > 0);  // the 12-tick margin: at least one link had two different bounds to choose from
   LONGS_EQUAL(kExitOk, codes[0]);
+  std::filesystem::remove_all(dir);
+}
+
+namespace {
+
+// The hub's link to leaf `leaf` in the hub's station JSON.
+json hub_link(const json& hub, int leaf) {
+  for (const auto& l : hub["links"])
+    if (l["peer"] == leaf) return l;
+  return json();
+}
+
+// Leaf 2 emulates the paper's link in its send path (5 % loss, 8 ms mean), so the hub measures loss
+// on the direction 2 -> 1 only; the other links are loopback.
+const std::vector<std::string> kLossyLeaf2 = {"", "[net.impairment]\npreset = \"paper\"\n", "", ""};
+std::string longer_probe() {
+  std::string s = kShort;
+  return s.replace(s.find("probe_s = 0.3"), 13, "probe_s = 0.6");
+}
+const std::string kLongerProbe = longer_probe();
+
+}  // namespace
+
+TEST(StationPhases, ALossyProbeRaisesTheLossAllowanceAndBothEndsOfTheLinkUseTheSame) {
+  // Each end fixes its loss allowance from the probe loss it measured on its incoming direction
+  // (station.loss_allowance_ticks = -1, the default) and sends it with its frozen round-trip bound;
+  // both use the larger. The hub measures the 5 % loss of leaf 2's packets: its allowance for that
+  // link is raised by it, and leaf 2 (whose incoming direction is not impaired) uses it too.
+  const std::string dir = test::fresh_dir("lossy");
+  const std::vector<int> codes = run_four(dir, 108, {kLongerProbe, kLongerProbe, kLongerProbe, kLongerProbe}, kLossyLeaf2);
+  const json hub = station_json(dir, 1);
+  LONGS_EQUAL(-1, hub["loss_allowance_ticks"].get<int>());  // measured, not configured
+  // The hub's allowance for leaf 2 is the model's for the loss it measured (2 x the per-direction L,
+  // run 500 ticks x 6 directed links), and above what the same probe without loss would give.
+  const json lossy = hub_link(hub, 2);
+  const ProbeLoss measured{lossy["probe_loss"]["lost"].get<long long>(), lossy["probe_loss"]["expected"].get<long long>(),
+                           lossy["probe_loss"]["longest_gap"].get<long long>()};
+  CHECK(measured.lost >= 3);  // 5 % of about 190
+  CHECK(measured.expected > 100);
+  LONGS_EQUAL(round_trip_loss_allowance(measured, 500, 6), lossy["loss_allowance_ticks_own"].get<int>());
+  CHECK(lossy["loss_allowance_ticks_own"].get<int>() > round_trip_loss_allowance(ProbeLoss{0, measured.expected, 0}, 500, 6));
+  for (int i = 2; i <= 4; ++i) {
+    LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
+    const json from_hub = hub_link(hub, i), to_hub = station_json(dir, i)["links"][0];
+    // both ends: the same allowance, the larger of the two, and each learned the other's
+    CHECK_EQUAL(from_hub["loss_allowance_ticks_own"].get<int>(), to_hub["loss_allowance_ticks_peer"].get<int>());
+    CHECK_EQUAL(to_hub["loss_allowance_ticks_own"].get<int>(), from_hub["loss_allowance_ticks_peer"].get<int>());
+    CHECK_EQUAL(std::max(from_hub["loss_allowance_ticks_own"].get<int>(), to_hub["loss_allowance_ticks_own"].get<int>()),
+                from_hub["loss_allowance_ticks"].get<int>());
+    CHECK_EQUAL(from_hub["loss_allowance_ticks"].get<int>(), to_hub["loss_allowance_ticks"].get<int>());
+    CHECK_EQUAL(from_hub["round_trip_bound_ticks"].get<int>(), to_hub["round_trip_bound_ticks"].get<int>());
+    CHECK_EQUAL(from_hub["index_delay_bound_ticks"].get<int>(), to_hub["index_delay_bound_ticks"].get<int>());
+  }
+  LONGS_EQUAL(kExitOk, codes[0]);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, AMeasuredLossAllowanceAboveTheConfiguredMaximumRefusesToCoupleNamingTheLinkAndTheKey) {
+  const std::string dir = test::fresh_dir("lossmax");
+  // 0 of about 190 lost needs 6 ticks, the 5 % of leaf 2's link 10 (measured: 11 of 190)
+  const std::string hub = kLongerProbe + "loss_allowance_max_ticks = 7\n";
+  const std::vector<int> codes = run_four(dir, 109, {hub, kLongerProbe, kLongerProbe, kLongerProbe}, kLossyLeaf2);
+  LONGS_EQUAL(kExitRunFailed, codes[0]);
+  const std::string error = station_json(dir, 1)["error"].get<std::string>();
+  STRCMP_CONTAINS("refusing to couple: the link from station 2 lost", error.c_str());
+  STRCMP_CONTAINS("exceeds station.loss_allowance_max_ticks = 7", error.c_str());
   std::filesystem::remove_all(dir);
 }
 

@@ -35,6 +35,7 @@ f.fp_scene = ProtoField.uint64("hapn.fp.scene_hash", "Fingerprint: scene hash", 
 f.fp_period = ProtoField.uint64("hapn.fp.period_ns", "Fingerprint: period (ns)")
 f.fp_gains = ProtoField.uint64("hapn.fp.gains_hash", "Fingerprint: gains hash", base.HEX)
 f.fp_rtt_bound = ProtoField.uint64("hapn.fp.round_trip_bound_ns", "Sender's probing round-trip bound to the destination (ns, 0 = none yet)")
+f.fp_allowance = ProtoField.uint32("hapn.fp.loss_allowance_plus1", "Sender's loss allowance for the link (ticks + 1, 0 = none yet)")
 f.payload = ProtoField.bytes("hapn.payload", "Payload slice (x_hat ++ v_hat)")
 f.first_value = ProtoField.double("hapn.first_value", "First value in slice")
 f.mac = ProtoField.bytes("hapn.mac", "MAC (keyed BLAKE2b-128)")
@@ -80,13 +81,14 @@ function hapn.dissector(tvb, pinfo, tree)
     return tvb:len()
   end
   local kind = tvb(5, 1):uint()
-  if kind == 2 and flen == 40 then
+  if kind == 2 and flen == 48 then
     t:add_le(f.fp_protocol, tvb(HDR, 4))
     t:add_le(f.fp_nodes, tvb(HDR + 4, 4))
     t:add_le(f.fp_scene, tvb(HDR + 8, 8))
     t:add_le(f.fp_period, tvb(HDR + 16, 8))
     t:add_le(f.fp_gains, tvb(HDR + 24, 8))
     t:add_le(f.fp_rtt_bound, tvb(HDR + 32, 8))
+    t:add_le(f.fp_allowance, tvb(HDR + 40, 4))
   elseif flen > 0 then
     t:add(f.payload, tvb(HDR, flen))
     if bit.band(tvb(6, 1):uint(), 1) == 1 then

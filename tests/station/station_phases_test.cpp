@@ -16,6 +16,7 @@
 #include "drivers/device_factory.hpp"
 #include "drivers/simulated_device.hpp"
 #include "firmware/station_run.hpp"
+#include "firmware/station_tick.hpp"
 #include "tests/station/station_files.hpp"
 
 using namespace haptic;
@@ -146,6 +147,45 @@ TEST(StationPhases, FourStationsUnderSetPositionModulationRunWithoutDampingAndRe
     LONGS_EQUAL(0, j["edge_drop_events"].get<int>());  // no delay bound: nothing dropped
     CHECK_EQUAL(static_cast<std::size_t>(i == 1 ? 3 : 1), j["pspm_edges"].size());
     for (const auto& e : j["pspm_edges"]) CHECK(number(e["edge_energy_peak_J"]) <= 0.002 + 1e-12);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, FourStationsWithThePredictiveDeadbandSendAStateAtLeastEveryIntervalAndOnFewerThanHalfTheTicks) {
+  // station.tx_predict under pspm, band 1 um, max interval 20 (rt/tx_deadband.hpp), through the real
+  // station's tick: each trace row marks whether the tick sent its state (kTraceStateSent); no gap
+  // between two sends is longer than the interval, and fewer than half the ticks send a state.
+  const std::string dir = test::fresh_dir("deadband");
+  const std::string db = std::string(kShort) +
+                         "consensus_passivity = \"pspm\"\ntx_deadband_mm = 0.001\ntx_max_interval_ticks = 20\ntx_predict = true\n"
+                         "loss_allowance_max_ticks = 1000\n";  // pspm needs no loss allowance: a loaded machine's late probes must not refuse
+  const std::vector<int> codes = run_four(dir, 110, {db, db, db, db});
+  for (int i = 1; i <= 4; ++i) {
+    LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
+    const json j = station_json(dir, i);
+    CHECK(j["trace_marks_state_sent"].get<bool>());
+    CHECK_TRUE(j["tx_deadband"]["position_m"].get<double>() > 0);
+    std::ifstream tr(dir + "/station-" + std::to_string(i) + "-trace.csv");
+    std::string line;
+    std::getline(tr, line);  // header: k,t_s,...,flags (column 18),...
+    long ticks = 0, sent = 0, last = -1, longest_gap = 0;
+    while (std::getline(tr, line)) {
+      std::vector<std::string> cols;
+      std::size_t at = 0;
+      for (std::size_t c; (c = line.find(',', at)) != std::string::npos; at = c + 1) cols.push_back(line.substr(at, c - at));
+      cols.push_back(line.substr(at));
+      const long k = std::stol(cols[0]);
+      const auto flags = static_cast<std::uint32_t>(std::stoul(cols[18]));
+      ++ticks;
+      if (flags & kTraceStateSent) {
+        if (last >= 0) longest_gap = std::max(longest_gap, k - last);
+        last = k;
+        ++sent;
+      }
+    }
+    CHECK_TEXT(ticks > 100, ("ticks traced: " + std::to_string(ticks)).c_str());
+    CHECK_TEXT(longest_gap > 0 && longest_gap <= 20, ("longest gap: " + std::to_string(longest_gap)).c_str());
+    CHECK_TEXT(2 * sent < ticks, ("sent " + std::to_string(sent) + " of " + std::to_string(ticks)).c_str());  // measured 26-29 %
   }
   std::filesystem::remove_all(dir);
 }

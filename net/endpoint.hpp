@@ -102,6 +102,12 @@ struct EndpointConfig {
   // tick (note_tick), an authentic datagram with a sequence beyond that tick + this is dropped
   // (future_sequence) before it touches any state.
   std::uint64_t max_sequence_ahead_ticks = 50;
+  // The session's common epoch (CLOCK_MONOTONIC ns of sequence 0), when the station was given one
+  // (station.start_at / --start-at), else -1. With it and tx_period_s, the ceiling holds from the
+  // start, before the first note_tick: (now - epoch) / period + max_sequence_ahead_ticks (never
+  // below max_sequence_ahead_ticks). Without it (a station that plans its own epoch and may have
+  // to discover a session already running) there is no ceiling until note_tick.
+  std::int64_t sequence_epoch_ns = -1;
   // Pairwise keys (net/keys.hpp; net.key_file): each directed pair has its own traffic key, from
   // the pair's key exchange (own_keys, PeerLink::public_key) and a fresh per-run nonce of each
   // end, agreed by hello messages (wire kind 3) from the first push on. Until a pair has agreed,
@@ -472,6 +478,7 @@ class Endpoint {
   std::int64_t silence_ns_;
   std::vector<SendRecord> send_records_;  // I/O thread only
   std::atomic<std::int64_t> own_tick_{-1};  // note_tick(); -1: not yet known (no sequence ceiling)
+  std::int64_t sequence_epoch_ns_ = -1;      // config sequence_epoch_ns: the ceiling before note_tick
   std::uint64_t max_sequence_ahead_;
   double rx_rate_per_s_, rx_burst_;
   RateBucket unknown_bucket_;              // datagrams from addresses no neighbour is configured at

@@ -37,4 +37,12 @@ bool PayloadEnvelope::contains(const double* x, const double* v, std::size_t val
   return inside(*this, values, [&](std::size_t i) { return i < values ? x[i] : v[i - values]; });
 }
 
+bool PayloadEnvelope::contains(const std::uint8_t* payload, std::size_t values, ValueEncoding encoding) const {
+  DecodedState st;
+  st.value_count = static_cast<std::uint32_t>(values);
+  st.encoding = encoding;
+  st.payload = payload;
+  return contains(st);
+}
+
 }  // namespace haptic::net

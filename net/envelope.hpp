@@ -1,7 +1,7 @@
 #pragma once
 // The physically possible states of a neighbour's payload (issue 11, net/README.md "Receive-path
 // sanity"): every node within max_offset_m of its rest position and no faster than
-// max_speed_m_per_s. Checked by the endpoint's I/O thread on every authentic state packet and by
+// max_speed_m_per_s. Checked by the decoder (DecodeLimits::envelope, before the sequence is marked) on every authentic state packet and by
 // the receive-path fuzz target. contains() is RT-safe (no allocation).
 #include <vector>
 
@@ -17,6 +17,8 @@ struct PayloadEnvelope {
   // x_hat, v_hat: `values` each (3n). true when every node is inside.
   bool contains(const DecodedState& st) const;
   bool contains(const double* x_hat, const double* v_hat, std::size_t values) const;
+  // The wire payload (x_hat then v_hat, `values` each, in `encoding`): what the decoder checks.
+  bool contains(const std::uint8_t* payload, std::size_t values, ValueEncoding encoding) const;
 };
 
 }  // namespace haptic::net

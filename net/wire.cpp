@@ -1,5 +1,7 @@
 #include "net/wire.hpp"
 
+#include "net/envelope.hpp"
+
 #include <sodium.h>
 
 #include <time.h>
@@ -543,8 +545,16 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
     out.payload = payload;
   };
 
+  // Authentic junk (non-finite, outside the envelope) is dropped before mark(): it never uses up a sequence.
+  auto junk = [&](const std::uint8_t* payload, std::size_t values, DropReason& reason) {
+    reason = DropReason::non_finite;
+    if (!payload_finite(payload, values, vb)) return true;
+    reason = DropReason::out_of_envelope;
+    return lim.envelope != nullptr && (h.flags & kFlagSafeState) == 0 &&
+           !lim.envelope->contains(payload, h.value_count, vb == 4 ? ValueEncoding::float32 : ValueEncoding::float64);
+  };
   if (h.frag_count == 1) {
-    if (!payload_finite(d + kHeaderBytes, h.frag_len / vb, vb)) return drop(DropReason::non_finite);
+    if (junk(d + kHeaderBytes, h.frag_len / vb, why)) return drop(why);
     mark(peer, h.seq);
     ++accepted_datagrams_;
     ++completed_;
@@ -591,7 +601,7 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
   if (slot->received < slot->frag_count) return DecodeStatus::fragment_stored;
 
   slot->used = false;
-  if (!payload_finite(slot->buffer, 2ull * h.value_count, vb)) return drop(DropReason::non_finite);
+  if (junk(slot->buffer, 2ull * h.value_count, why)) return drop(why);
   mark(peer, h.seq);
   // Report the header fields stored with the slot (from its first fragment) and its buffer.
   ++completed_;

@@ -230,9 +230,14 @@ struct DecodedState {
 // Limits the caller (the endpoint) applies to one datagram, from what only it knows.
 inline constexpr int kSourceUnchecked = -2;  // the transport cannot tell where it came from
 inline constexpr int kSourceUnknown = -1;    // from an address no neighbour is configured at
+struct PayloadEnvelope;  // net/envelope.hpp
 struct DecodeLimits {
   // Highest acceptable sequence number (our own tick + slack); larger: future_sequence.
   std::uint64_t max_sequence = ~std::uint64_t{0};
+  // The physically possible states (nullptr: unchecked). A complete state packet outside it (not a
+  // safe-state one) is dropped as out_of_envelope BEFORE its sequence enters the replay window, like a
+  // non-finite one: authentic junk never uses up the sequence number of the genuine packet.
+  const PayloadEnvelope* envelope = nullptr;
   // The station id configured at the datagram's source address, kSourceUnknown, or
   // kSourceUnchecked; a sender field that disagrees with a known source is wrong_source.
   int source_station = kSourceUnchecked;

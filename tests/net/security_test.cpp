@@ -107,6 +107,19 @@ Received genuine(Link& l, std::uint64_t from, std::uint64_t to) {
 
 std::uint64_t drops(const Endpoint& e, DropReason r) { return e.stats().drops[r]; }
 
+// Station 0's configuration with an envelope: rest positions = what fill_state(1, k) sends at k = 10
+// (returned in rest_x), offset bound 0.5 m, speed bound 2000 m/s.
+EndpointConfig envelope_config(std::vector<double>& rest_x) {
+  EndpointConfig ca = exchange_config(0, 1, kValues);
+  std::vector<double> rv(kValues);
+  rest_x.assign(kValues, 0.0);
+  fill_state(1, 10, rest_x, rv);
+  ca.envelope_rest_x = rest_x;
+  ca.envelope_max_offset_m = 0.5;
+  ca.envelope_max_speed_m_per_s = 2000.0;
+  return ca;
+}
+
 }  // namespace
 
 TEST_GROUP(Attack){};
@@ -190,14 +203,8 @@ TEST(Attack, NonFiniteStateIsNeverSentTheSafeStateFlagIsInstead) {
 }
 
 TEST(Attack, StatesOutsideThePhysicalEnvelopeAreDropped) {
-  EndpointConfig ca = exchange_config(0, 1, kValues);
-  // Rest positions = what fill_state(1, k) sends at k = 10, offset bound 0.5 m, speed bound 2000 m/s.
-  std::vector<double> rx(kValues), rv(kValues);
-  fill_state(1, 10, rx, rv);
-  ca.envelope_rest_x = rx;
-  ca.envelope_max_offset_m = 0.5;
-  ca.envelope_max_speed_m_per_s = 2000.0;
-  Link l(ca);
+  std::vector<double> rx;
+  Link l(envelope_config(rx));
   Received r = genuine(l, 10, 10);  // at rest: inside
   CHECK_EQUAL(1u, r.seqs.size());
   std::vector<double> x(rx), v(kValues, 0.0);
@@ -248,4 +255,52 @@ TEST(Attack, FloodFromAnUnknownAddressIsRateLimitedAndTheNeighbourGetsThrough) {
   CHECK_TEXT(static_cast<double>(s.drops[DropReason::garbled]) <= 100.0 + 1000.0 * elapsed + 1.0,
              ("garbled " + std::to_string(s.drops[DropReason::garbled]) + " in " + std::to_string(elapsed) + " s").c_str());
   CHECK_EQUAL(0u, s.peers[0].rate_limited);
+}
+
+TEST(Attack, AnAuthenticStateOutsideTheEnvelopeDoesNotUseUpItsSequence) {
+  std::vector<double> rx;
+  Link l(envelope_config(rx));
+  std::vector<double> x(rx), v(kValues, 0.0);
+  x[4] += 0.6;  // one node 0.6 m from rest, at the sequence the genuine packet will carry
+  l.b->push_state(11, monotonic_s(), x.data(), v.data());
+  CHECK_TRUE(wait_for([&] { return drops(*l.a, DropReason::out_of_envelope) == 1; }));
+  x = rx;  // the genuine packet of sequence 11 (and 12) afterwards: delivered
+  l.b->push_state(11, monotonic_s(), x.data(), v.data());
+  l.b->push_state(12, monotonic_s(), x.data(), v.data());
+  Received r;
+  CHECK_TRUE(wait_for([&] {
+    drain_into(*l.a, r);
+    return r.seqs.size() == 2;
+  }));
+  CHECK_EQUAL(11u, r.seqs[0]);
+  CHECK_EQUAL(0u, drops(*l.a, DropReason::replayed));
+  CHECK_EQUAL(1u, l.a->stats().drops.total());
+}
+
+TEST(Attack, WithACommonEpochTheSequenceCeilingHoldsBeforeTheFirstTick) {
+  // Without a common epoch (baseline, same test): before note_tick an authentic far-future sequence
+  // is accepted and every genuine packet after it is stale. With the session's epoch (start_at) the
+  // ceiling follows the clock from the start: (now - epoch) / T + 50 ticks.
+  for (const bool epoch : {false, true}) {
+    EndpointConfig ca = exchange_config(0, 1, kValues);
+    ca.tx_period_s = 0.002;
+    if (epoch) ca.sequence_epoch_ns = monotonic_ns();  // sequence 0 now; the ceiling is ~50 for 0.1 s
+    Link l(ca);
+    std::vector<double> x(kValues), v(kValues);
+    fill_state(1, 1'000'000, x, v);
+    l.b->push_state(1'000'000, monotonic_s(), x.data(), v.data());
+    const std::uint64_t frags = Encoder(exchange_wire(1)).fragment_count(kValues);
+    if (epoch) {
+      CHECK_TRUE(wait_for([&] { return drops(*l.a, DropReason::future_sequence) == frags; }));
+    } else {
+      Received r;
+      CHECK_TRUE(wait_for([&] {
+        drain_into(*l.a, r);
+        return r.seqs.size() == 1;
+      }));
+    }
+    const Received r = genuine(l, 1, 20);
+    CHECK_EQUAL(epoch ? 20u : 0u, r.seqs.size());
+    CHECK_EQUAL(0u, r.corrupt);
+  }
 }

@@ -85,6 +85,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const int src = (ctl >> 1) & 0x07;
     lim.source_station = src == 0 ? kSourceUnchecked : src == 1 ? kSourceUnknown : src <= 4 ? src - 1 : 7;
     lim.max_sequence = static_cast<std::uint64_t>(tick) + kAhead;
+    if (ctl & 0x80) lim.envelope = &env;  // the endpoint passes its envelope to the decoder
     DecodedState st;
     if (dec.decode(buf.data(), buf.size(), st, lim) != DecodeStatus::complete) continue;
     if (st.value_count == 0 || st.value_count > kValues || st.payload == nullptr) std::abort();
@@ -93,6 +94,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     st.copy_out(x.data(), v.data());
     for (std::uint32_t i = 0; i < st.value_count; ++i)
       if (!std::isfinite(x[i]) || !std::isfinite(v[i])) std::abort();
+    if (lim.envelope != nullptr && !st.safe_state && !env.contains(st)) std::abort();  // the decoder checked it
     if (st.value_count != kValues || st.safe_state || !env.contains(st)) continue;  // the endpoint's checks
     // The tick's age guard: our send of echo_seq was at echo_seq * T on our clock, now is tick * T.
     RxPacket p;

@@ -550,7 +550,9 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
     reason = DropReason::non_finite;
     if (!payload_finite(payload, values, vb)) return true;
     reason = DropReason::out_of_envelope;
-    return lim.envelope != nullptr && (h.flags & kFlagSafeState) == 0 &&
+    // Another scene size is the endpoint's to name (wrong_scene_size), not an envelope violation.
+    const bool same_scene = lim.envelope != nullptr && (lim.envelope->rest_x.empty() || lim.envelope->rest_x.size() == h.value_count);
+    return same_scene && (h.flags & kFlagSafeState) == 0 &&
            !lim.envelope->contains(payload, h.value_count, vb == 4 ? ValueEncoding::float32 : ValueEncoding::float64);
   };
   if (h.frag_count == 1) {

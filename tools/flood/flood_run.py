@@ -35,8 +35,9 @@ REPO = os.path.dirname(os.path.dirname(HERE))
 # and far narrower than what an attack that gets through does (a frozen link: no consensus; a
 # 50 mm forged shift; a safe state: exit 5).
 TOL = {
-    "consensus_time_s": ("abs", 0.010),            # 5 ticks of 2 ms (clean runs: <= 2 ms apart)
-    "consensus_time_10pct_s": ("abs", 0.020),
+    # Consensus times: 5 % (clean runs at load 1-5: 0 ms apart; flooded at load 9: up to +10 ms = 2.8 %).
+    "consensus_time_s": ("rel", 0.05),
+    "consensus_time_10pct_s": ("rel", 0.05),
     "hold_force_mean_N": ("rel", 0.01),            # 1 % of the mean hold force
     "hold_force_balance_ratio": ("abs", 0.01),     # |sum u| / mean |u_i|: a residual of ~2 %
     "deformation_hold_m": ("rel", 0.01),
@@ -186,7 +187,7 @@ def compare(clean, other):
             rows.append((k, a, b, "both null", a is None and b is None))
             continue
         lim = tol * abs(a) if kind == "rel" else tol
-        rows.append((k, a, b, ("%g %%" % (100 * tol)) if kind == "rel" else "%g" % tol, abs(b - a) <= lim))
+        rows.append((k, a, b, ("%g %%" % (100 * tol)) if kind == "rel" else "%g" % tol, abs(b - a) <= lim * (1 + 1e-9)))
     for sid, st in clean["stations"].items():
         for k in EXACT_STATION:
             rows.append(("station %s %s" % (sid, k), st[k], other["stations"][sid][k], "equal", st[k] == other["stations"][sid][k]))

@@ -1,5 +1,7 @@
 #include "firmware/scenario.hpp"
 
+#include <algorithm>
+
 #include "firmware/scene/mesh_io.hpp"
 #include "net/impairment.hpp"
 
@@ -154,6 +156,7 @@ void ScenarioSpec::validate() const {
   if (!(damping_margin >= 0 && damping_margin <= 10)) bad("damping margin must be in [0, 10]");
   if (loss_allowance_ticks < -1 || loss_allowance_ticks > 1000) bad("--loss-allowance must be in [0, 1000] ticks (-1: from the loss model)");
   if (!(edge_energy_bound_J >= 0 && edge_energy_bound_J <= 1e6)) bad("--edge-energy-bound must be in [0, 1e6] J (0 = off)");
+  if (!(edge_energy_leak_W >= 0 && edge_energy_leak_W <= 1)) bad("--edge-energy-leak-W must be in [0, 1] W (0 = the account only grows)");
   if (!(tx_deadband.position_deadband_m >= 0 && tx_deadband.position_deadband_m < 0.1)) bad("--tx-deadband-mm must be in [0, 100)");
   if (tx_deadband.max_interval_ticks < 1 || tx_deadband.max_interval_ticks > 1000) bad("--tx-max-interval must be in [1, 1000]");
   if (tx_deadband.predictive && consensus_passivity != rt::ConsensusPassivity::kSetPositionModulation)
@@ -399,6 +402,7 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
       nc.energy_bound_J = spec.edge_energy_bound_J;
       nc.energy_release_J = 0.5 * spec.edge_energy_bound_J;
     }
+    nc.energy_leak_W = spec.edge_energy_leak_W;
     c.neighbors.push_back(nc);
   }
   c.rx_rule = spec.receive_rule;
@@ -418,6 +422,7 @@ rt::GoalScript BuiltScenario::goal_script(int i) const {
   const Eigen::Vector3d in = push_direction[static_cast<std::size_t>(i)];
   const double depth = push_depth_m[static_cast<std::size_t>(i)];
   rt::GoalScript g(p0);
+  if (std::find(s.idle_users.begin(), s.idle_users.end(), i) != s.idle_users.end()) return g;  // holds still
   switch (s.kind) {
     case UserScriptSpec::Kind::kPushHoldRelease:
       g.add(s.push_start_s, p0);

@@ -34,6 +34,9 @@ struct UserScriptSpec {
   double perturb_duration_s = 0.2;
   std::uint64_t random_seed = 1;  // kRandom: every user's goal wanders through random keyframes
   double random_amplitude_m = 0.02;
+  // Users (0-based) whose hands hold still at their start point whatever the kind: stations that only
+  // receive (their copy moves only because the others push), e.g. for the per-edge energy account.
+  std::vector<int> idle_users;
   // Where the users push (build_scenario). kSpread: directions whose sum is zero by construction
   // (N = 4: the paper's tetrahedral pattern; other N: antipodal pairs, plus one planar triangle
   // when N is odd), all at push_depth_m. kAsymmetric: each direction tilted by up to
@@ -107,6 +110,7 @@ struct ScenarioSpec {
   // Per-edge damage bound (issue 11 item 5, rt/edge_energy.hpp): an edge whose energy account
   // exceeds this acts as the damper until the account has fallen to half of it. 0 = off.
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
+  double edge_energy_leak_W = rt::kDefaultEdgeEnergyLeakW;  // the accounts' leak (rt/edge_energy.hpp)
   // --consensus-passivity eq18|pspm (rt/set_position_modulation.hpp): with pspm, B_i defaults to 0
   // (eq. 14 holds by construction) and pspm_reservoir0_J is each edge's initial reservoir.
   rt::ConsensusPassivity consensus_passivity = rt::ConsensusPassivity::kEq18Damping;

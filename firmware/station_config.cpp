@@ -30,7 +30,7 @@ void parse_station_section(View root, StationFile& f) {
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin", "consensus_passivity", "pspm_reservoir_J",
                             "loss_allowance_ticks", "loss_allowance_max_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "tx_predict", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
-                            "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "record_ring_s", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks", "edge_energy_bound_J"});
+                            "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "record_ring_s", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks", "edge_energy_bound_J", "edge_energy_leak_W"});
   StationSection& s = f.station;
   if (!st["id"]) bad("station.id", "present: this station's user number, 1..users");
   s.id = static_cast<int>(integer(st["id"], "station.id", 1, 1, 64));
@@ -67,6 +67,7 @@ void parse_station_section(View root, StationFile& f) {
   s.loss_allowance_ticks = static_cast<int>(integer(st["loss_allowance_ticks"], "station.loss_allowance_ticks", -1, -1, 1000));
   s.loss_allowance_max_ticks = static_cast<int>(integer(st["loss_allowance_max_ticks"], "station.loss_allowance_max_ticks", 40, 0, 1000));
   s.edge_energy_bound_J = real(st["edge_energy_bound_J"], "station.edge_energy_bound_J", rt::kDefaultEdgeEnergyBoundJ, 0.0, 1e6, " (0 = off)");
+  s.edge_energy_leak_W = real(st["edge_energy_leak_W"], "station.edge_energy_leak_W", rt::kDefaultEdgeEnergyLeakW, 0.0, 1.0, " (0 = no leak)");
   s.solver = text(st["solver"], "station.solver", "auto");
   if (s.solver != "auto" && s.solver != "direct" && s.solver != "iterative") bad("station.solver", "\"auto\", \"direct\" or \"iterative\"");
   s.tx_deadband_mm = real(st["tx_deadband_mm"], "station.tx_deadband_mm", 0.0, 0.0, 99.999);

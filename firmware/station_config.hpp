@@ -52,6 +52,9 @@
 //   edge_energy_bound_J = 0.1        # per-edge damage bound: an edge whose energy account (eq. 14 split per edge)
 //                                    # exceeds it acts as a damper until the account fell to half of it
 //                                    # (net/README.md, "Bounded damage"), [0, 1e6]; 0 = off
+//   edge_energy_leak_W = 0.001       # energy that left the copy (to the user, the object's damping) is taken off
+//                                    # each edge's account up to this power, so a station that only receives does
+//                                    # not fill its accounts in a long session (rt/README.md), [0, 1]; 0 = no leak
 //   solver = "auto"                  # linear step: "auto" (direct LDL^T below 600 nodes, Jacobi-PCG above),
 //                                    # "direct" or "iterative" (rt/step_solver)
 //   tx_deadband_mm = 0               # > 0: send a state only when some node moved more than this since the
@@ -182,6 +185,7 @@ struct StationSection {
   int loss_allowance_ticks = -1;      // -1: from the probe's measured loss
   int loss_allowance_max_ticks = 40;
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
+  double edge_energy_leak_W = rt::kDefaultEdgeEnergyLeakW;
   std::string solver = "auto";
   double tx_deadband_mm = 0;
   int tx_max_interval_ticks = 1;

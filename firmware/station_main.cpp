@@ -91,7 +91,7 @@ struct SimArgs {
   double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1, push_end = -1, release = -1;
   std::uint64_t seed = 1;
   int nodes = -1, trace_every = 1, allowance = -1, trace_node = -1, tx_interval = 1;
-  double tx_deadband_mm = 0, edge_energy_bound = -1;
+  double tx_deadband_mm = 0, edge_energy_bound = -1, edge_energy_leak = -1;
   std::string scene;                          // --scene FILE
   double scene_unit_m = 1, density = 0, youngs = 0;
   bool no_plots = false, quiet = false, record = false, tx_predict = false;
@@ -180,6 +180,10 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   sim->add_option("--edge-energy-bound", a.edge_energy_bound,
                   "Per-edge damage bound in J: an edge whose energy account (eq. 14 split per edge) exceeds it acts as a damper "
                   "until the account has fallen to half of it; 0 = off (default " + std::to_string(haptic::rt::kDefaultEdgeEnergyBoundJ) + ")");
+  sim->add_option("--edge-energy-leak-W", a.edge_energy_leak,
+                  "Energy that left a station's copy (to its user, its object's damping) is taken off each edge's energy account up "
+                  "to this power, W, so a station that only receives does not fill its accounts; 0 = no leak (default " +
+                      std::to_string(haptic::rt::kDefaultEdgeEnergyLeakW) + ")");
   sim->add_option("--receive-rule", a.receive_rule,
                   "Which packet a tick uses: newest (by sequence number) or paper (the most recently received, Fig. 4; late data used) (default newest)");
   sim->add_option("--jitter", a.jitter, "Delay jitter: each delay in mean x [1 - this, 1 + this], in [0, 1] (default 0.5, the paper's)");
@@ -338,6 +342,7 @@ int sim_command(const SimArgs& a) {
     if (a.margin >= 0) spec.damping_margin = a.margin;
     if (a.allowance >= 0) spec.loss_allowance_ticks = a.allowance;
     if (a.edge_energy_bound != -1) spec.edge_energy_bound_J = a.edge_energy_bound;
+    if (a.edge_energy_leak != -1) spec.edge_energy_leak_W = a.edge_energy_leak;
     spec.tx_deadband.position_deadband_m = a.tx_deadband_mm * 1e-3;
     spec.tx_deadband.max_interval_ticks = a.tx_interval;
     spec.tx_deadband.predictive = a.tx_predict;

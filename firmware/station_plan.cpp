@@ -253,6 +253,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.pspm_reservoir0_J = s.pspm_reservoir_J;
   spec.loss_allowance_ticks = s.loss_allowance_ticks;
   spec.edge_energy_bound_J = s.edge_energy_bound_J;
+  spec.edge_energy_leak_W = s.edge_energy_leak_W;
   spec.tx_deadband.position_deadband_m = s.tx_deadband_mm * 1e-3;
   spec.tx_deadband.max_interval_ticks = s.tx_max_interval_ticks;
   spec.tx_deadband.predictive = s.tx_predict;

@@ -36,13 +36,31 @@ void EdgeEnergyAccount::record_tick(std::span<const double> coupling_J, double d
     coupling_[idx(j)] += c;
     damping_[idx(j)] += d;
     last_[idx(j)] = c + d;
-    peak_[idx(j)] = std::max(peak_[idx(j)], coupling_[idx(j)] + damping_[idx(j)]);
+    peak_[idx(j)] = std::max(peak_[idx(j)], edge_J(j));
+  }
+}
+
+void EdgeEnergyAccount::set_leak(std::span<const double> leak_W) {
+  if (!leak_W.empty() && static_cast<int>(leak_W.size()) != edges_)
+    throw std::invalid_argument("edge energy account: one leak power per edge needed");
+  for (int j = 0; j < edges_; ++j) {
+    const double w = leak_W.empty() ? 0.0 : leak_W[idx(j)];
+    if (!(w >= 0 && std::isfinite(w))) throw std::invalid_argument("edge energy account: the leak power must be finite and >= 0 W");
+    leak_W_[idx(j)] = w;
+  }
+}
+
+void EdgeEnergyAccount::credit_outflow(double outflow_J, double T) {
+  if (!(outflow_J > 0)) return;  // energy came in (or a NaN): nothing left the copy
+  for (int j = 0; j < edges_; ++j) {
+    const double c = std::min({leak_W_[idx(j)] * T, share_[idx(j)] * outflow_J, edge_J(j)});
+    if (c > 0) credited_[idx(j)] += c;
   }
 }
 
 double EdgeEnergyAccount::total_J() const {
   double t = unshared_;
-  for (int j = 0; j < edges_; ++j) t += edge_J(j);
+  for (int j = 0; j < edges_; ++j) t += coupling_[idx(j)] + damping_[idx(j)];
   return t;
 }
 

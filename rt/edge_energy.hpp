@@ -23,6 +23,9 @@ inline constexpr int kMaxEdgeAccounts = 16;
 // The default per-edge damage bound of the simulator and the station (station.edge_energy_bound_J,
 // sim --edge-energy-bound; 0 = off): net/README.md, "Bounded damage from an authenticated peer".
 inline constexpr double kDefaultEdgeEnergyBoundJ = 0.1;
+// The default leak of the accounts (station.edge_energy_leak_W, sim --edge-energy-leak-W): 1 mW, about
+// 8x the average inflow measured at a station that only receives (0.13 mW; rt/README.md).
+inline constexpr double kDefaultEdgeEnergyLeakW = 1e-3;
 
 class EdgeEnergyAccount {
  public:
@@ -34,21 +37,33 @@ class EdgeEnergyAccount {
   // for each edge (coupling_J.size() == edges()), damping_J = -T |v_hat_i|^2_{B_i} <= 0. RT-safe.
   void record_tick(std::span<const double> coupling_J, double damping_J);
 
+  // The leak (rt/README.md "The per-edge energy bound"): the power, W per edge (>= 0, finite; empty:
+  // none), up to which energy that demonstrably LEFT the copy is taken off the edge's account, so an
+  // honest station that only receives (energy from its neighbours, dissipated by its object and its
+  // user) does not fill its accounts over a long session. Start-up; throws std::invalid_argument.
+  void set_leak(std::span<const double> leak_W);
+  // One tick's outflow: energy that left the copy other than through the controller port (the
+  // contact port towards the user, the object's damping, the solver) = that tick's controller energy
+  // minus the copy's energy change. Each edge with a positive account is credited its share of a
+  // positive outflow, at most leak_W x T and never below 0. RT-safe.
+  void credit_outflow(double outflow_J, double T);
+
   int edges() const { return edges_; }
   double share(int j) const { return share_[idx(j)]; }
   double coupling_J(int j) const { return coupling_[idx(j)]; }        // cumulative own coupling term
   double damping_J(int j) const { return damping_[idx(j)]; }          // cumulative share of B_i's term (<= 0)
-  double edge_J(int j) const { return coupling_[idx(j)] + damping_[idx(j)]; }  // the account
+  double credited_J(int j) const { return credited_[idx(j)]; }      // cumulative outflow credit (>= 0)
+  double edge_J(int j) const { return coupling_[idx(j)] + damping_[idx(j)] - credited_[idx(j)]; }  // the account
   double last_tick_J(int j) const { return last_[idx(j)]; }           // the account's change in the last tick
   double peak_J(int j) const { return peak_[idx(j)]; }                // max over time of edge_J(j) (>= 0)
   double unshared_damping_J() const { return unshared_; }
-  double total_J() const;  // sum_j edge_J(j) + unshared_damping_J(): eq. (14)'s total
+  double total_J() const;  // sum_j (coupling_J(j) + damping_J(j)) + unshared_damping_J(): eq. (14)'s total
   std::uint64_t ticks() const { return ticks_; }
 
  private:
   static std::size_t idx(int j) { return static_cast<std::size_t>(j); }
   int edges_ = 0;
-  std::array<double, kMaxEdgeAccounts> share_{}, coupling_{}, damping_{}, last_{}, peak_{};
+  std::array<double, kMaxEdgeAccounts> share_{}, coupling_{}, damping_{}, last_{}, peak_{}, leak_W_{}, credited_{};
   double unshared_ = 0;
   std::uint64_t ticks_ = 0;
 };

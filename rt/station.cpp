@@ -51,6 +51,7 @@ void StationConfig::validate() const {
     if (n.index_delay_bound_ticks < 0) bad("neighbors[].index_delay_bound_ticks", ">= 0");
     if (!(n.damping_share >= 0 && std::isfinite(n.damping_share))) bad("neighbors[].damping_share", "finite and >= 0");
     if (!(n.energy_bound_J > 0)) bad("neighbors[].energy_bound_J", "> 0 (+inf: off)");
+    if (!(n.energy_leak_W >= 0 && std::isfinite(n.energy_leak_W))) bad("neighbors[].energy_leak_W", ">= 0 and finite");
     if (std::isfinite(n.energy_bound_J) && !(std::isfinite(n.energy_release_J) && n.energy_release_J < n.energy_bound_J))
       bad("neighbors[].energy_release_J", "finite and below energy_bound_J");
   }
@@ -133,12 +134,14 @@ StationCore::StationCore(const StationConfig& config)
     std::vector<double> shares;
     for (const auto& nb : cfg_.neighbors) shares.push_back(nb.damping_share);
     edge_energy_.init(nn, shares);
-    std::vector<double> bounds, releases;
+    std::vector<double> bounds, releases, leaks;
     for (const auto& nb : cfg_.neighbors) {
       bounds.push_back(nb.energy_bound_J);
       releases.push_back(nb.energy_release_J);
+      leaks.push_back(nb.energy_leak_W);
     }
     edge_gate_.init(nn, bounds, releases);
+    edge_energy_.set_leak(leaks);
   }
   y_ = cfg_.vp_initial_position_m;
   q_prev_ = y_;
@@ -517,6 +520,13 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
       if (!pspm_.empty()) pspm_[static_cast<std::size_t>(i2)].credit(dissipated_J);
     }
   }
+  // The previous tick's outflow: its controller energy minus the copy's energy change (E(k) is this
+  // tick's energy_.vo_J): what left through the contact port, the object's damping or the solver.
+  if (have_prev_energy_) edge_energy_.credit_outflow(prev_ctrl_J_ - (energy_.vo_J - prev_vo_J_), prev_T_);
+  prev_T_ = T_;
+  prev_ctrl_J_ = ctrl_J;
+  prev_vo_J_ = energy_.vo_J;
+  have_prev_energy_ = true;
   edge_energy_.record_tick(std::span<const double>(edge_tick_J_.data(), static_cast<std::size_t>(nn)), damping_J);
   energy_.controller_J += ctrl_J;
 

@@ -64,6 +64,9 @@ struct NeighborConfig {
   // latched until the account has fallen to energy_release_J. +inf: off.
   double energy_bound_J = EdgeEnergyGate::kOff;
   double energy_release_J = 0;
+  // The account's leak (EdgeEnergyAccount::set_leak): energy that left the copy is taken off this
+  // edge's account up to this power, W (0: the account only grows).
+  double energy_leak_W = 0;
 };
 
 struct StationConfig {
@@ -278,6 +281,8 @@ class StationCore {
   double normal_sign_ = 1.0;
   EnergyMonitor energy_{};
   EdgeEnergyAccount edge_energy_{};
+  double prev_ctrl_J_ = 0, prev_vo_J_ = 0, prev_T_ = 0;  // the last tick's controller energy and E at its start (the leak)
+  bool have_prev_energy_ = false;
   EdgeEnergyGate edge_gate_{};
   std::array<double, kMaxNeighbors> edge_tick_J_{};  // this tick's coupling energy per edge
   std::uint64_t safe_state_ticks_ = 0;

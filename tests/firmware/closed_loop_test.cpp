@@ -216,3 +216,29 @@ TEST(ClosedLoop, predictive_deadband_under_pspm_sends_80_percent_fewer_states_in
   const double settled_full = full.metrics.release_time_s + ct_full, settled_db = db.metrics.release_time_s + ct_db;
   CHECK_TRUE(sent_rate_between(db, settled_db, end + T, T) <= 0.2 * sent_rate_between(full, settled_full, end + T, T));
 }
+
+TEST(ClosedLoop, a_station_that_only_receives_does_not_fill_its_energy_account_with_the_leak) {
+  // User 2 (a leaf) never moves; the others move their hands randomly (30 mm) for 60 s. The energy
+  // its neighbour passes it leaves its copy (the object's damping, its user's hand), yet without a
+  // leak it stays on the account, which only grows (7.9 mJ after 60 s, 2.5 mJ after 15 s): a long
+  // session trips any bound (here 5 mJ). With the default leak (energy that left the copy is taken
+  // off, up to 1 mW) the account is what the copy still holds from that edge (at most 2.8 mJ here).
+  auto run = [](double leak_W) {
+    auto s = make_scenario("paper-best");
+    s.duration_s = 60.0;
+    s.script.kind = UserScriptSpec::Kind::kRandom;
+    s.script.random_amplitude_m = 0.03;
+    s.script.idle_users = {1};
+    s.edge_energy_bound_J = 0.005;
+    s.edge_energy_leak_W = leak_W;
+    const SimResult r = run_simulation(build_scenario(s), SimOptions{});
+    for (const auto& l : r.links)
+      if (l.to == 1) return l.edge_energy;
+    FAIL("no link into user 2");
+    return EdgeEnergySummary{};
+  };
+  const EdgeEnergySummary closed = run(0.0), leaky = run(haptic::rt::kDefaultEdgeEnergyLeakW);
+  CHECK_TEXT(closed.trips >= 1, std::to_string(closed.peak_J).c_str());
+  CHECK_EQUAL(0u, leaky.trips);
+  CHECK_TEXT(leaky.peak_J < 0.6 * 0.005, std::to_string(leaky.peak_J).c_str());
+}

@@ -34,7 +34,7 @@ struct AttackResult {
 };
 
 // V = station 0 (neighbours H = 1, A = 2), H = station 1 (neighbour V). ticks at T = 2 ms.
-AttackResult run_attack(Attack attack, double bound_J, int ticks) {
+AttackResult run_attack(Attack attack, double bound_J, int ticks, double leak_W = 0) {
   const auto& w = PaperWorld::get();
   const auto& dirs = test::tetra_dirs();
   auto cv = w.station(0, 3, {1, 2}, 30, dirs[0]);
@@ -44,6 +44,7 @@ AttackResult run_attack(Attack attack, double bound_J, int ticks) {
       for (auto& nb : c->neighbors) {
         nb.energy_bound_J = bound_J;
         nb.energy_release_J = 0.5 * bound_J;
+        nb.energy_leak_W = leak_W;
       }
   StationCore V(cv), H(ch);
   const int dofs = w.scene.dofs, kDelay = 2;
@@ -121,6 +122,16 @@ void check_bounded(Attack attack, double bound_J) {
   CHECK_TRUE(gated.gated_ticks > 100);
   CHECK_EQUAL(0u, gated.honest_gated_ticks);  // the honest edge is never touched
   CHECK_FALSE(gated.diverged);
+  // With the accounts' default leak (energy that left V's copy is taken off the account up to 1 mW):
+  // the account still holds at most bound + one tick, and the honest pair at most that plus the
+  // leak's power times the run's length (what the credit may have passed on to the users).
+  const double leak_W = kDefaultEdgeEnergyLeakW;
+  const AttackResult leaky = run_attack(attack, bound_J, ticks, leak_W);
+  CHECK_TRUE(leaky.attacker_peak_J <= bound_J + leaky.one_tick_J);
+  CHECK_TRUE(leaky.honest_excess_J <= bound_J + leaky.one_tick_J + leak_W * ticks * 0.002 + 1e-9);
+  CHECK_TRUE(leaky.trips >= 1);
+  CHECK_EQUAL(0u, leaky.honest_gated_ticks);
+  CHECK_FALSE(leaky.diverged);
 }
 
 }  // namespace
@@ -166,4 +177,23 @@ TEST(EdgeBound, a_slowly_drifting_authenticated_peer_injects_at_most_the_bound_p
 
 TEST(EdgeBound, a_peer_tuned_to_pump_energy_injects_at_most_the_bound_plus_one_tick) {
   check_bounded(Attack::kPump, 0.05);
+}
+
+TEST(EdgeBound, the_leak_credits_only_energy_that_left_the_copy_at_most_its_power_and_never_below_zero) {
+  EdgeEnergyAccount a;
+  a.init(2);  // equal shares
+  a.set_leak(std::vector<double>{1e-3, 0.0});
+  const double T = 0.002, in[2] = {0.01, 0.01};
+  a.record_tick(in, 0.0);  // both accounts at 0.01 J
+  a.credit_outflow(-0.5, T);  // energy came in: no credit
+  DOUBLES_EQUAL(0.01, a.edge_J(0), 0);
+  a.credit_outflow(1e-6, T);  // a small outflow: each edge its share (5e-7 J), edge 1 has no leak
+  DOUBLES_EQUAL(0.01 - 5e-7, a.edge_J(0), 1e-15);
+  DOUBLES_EQUAL(0.01, a.edge_J(1), 0);
+  a.credit_outflow(1.0, T);  // a large one: at most leak x T = 2e-6 J
+  DOUBLES_EQUAL(0.01 - 5e-7 - 2e-6, a.edge_J(0), 1e-15);
+  for (int k = 0; k < 10000; ++k) a.credit_outflow(1.0, T);  // never below zero
+  DOUBLES_EQUAL(0.0, a.edge_J(0), 1e-15);
+  DOUBLES_EQUAL(0.02, a.total_J(), 1e-15);  // eq. (14)'s total is the controller's energy, uncredited
+  CHECK_THROWS(std::invalid_argument, a.set_leak(std::vector<double>{-1.0, 0.0}));
 }

@@ -34,19 +34,23 @@ DeviceCoupling device_coupling(const StationFile& f, const ScenarioSpec& spec, c
   return c;
 }
 
-void check_device_coupling(const DeviceCoupling& c, double T) {
+void check_device_coupling(const DeviceCoupling& c, double t_min_s, double t_max_s) {
   if (!c.force_feedback) return;  // nothing goes out to the hand: eq. (26) concerns the device's port
   const double b_d = c.object_b_d_Ns_per_m();
+  const double T = t_max_s, ratio = t_max_s / t_min_s;  // the worst step the core will take
   try {
-    rt::check_eq26(c.gains, b_d, T);
+    rt::check_eq26(c.gains, b_d, T, ratio);
   } catch (const std::invalid_argument&) {  // violated: say it with the keys as the station file writes them
-    const double k_max = rt::max_K_vc_eq26(c.gains, b_d, T);
+    const double k_max = rt::max_K_vc_eq26(c.gains, b_d, T, ratio);
+    const std::string steps = t_min_s == t_max_s ? "T = " + number_text(T) + " s"
+                                                 : "T_k up to station.period_max_s = " + number_text(t_max_s) + " s, T_k/T_k-1 up to " +
+                                                       number_text(ratio) + " with station.period_min_s = " + number_text(t_min_s) + " s";
     const std::string scaled = c.map_scale == 1.0 ? "" : ", i.e. " + number_text(b_d) + " N s/m in the object frame with device.map_scale = " + number_text(c.map_scale);
     std::string m = "eq. (26) violated: device damping b_d = " + number_text(c.b_d_Ns_per_m) + " N s/m (" + c.b_d_source + scaled +
                     ") with K_vc = device.coupling_stiffness_N_per_m = " + number_text(c.gains.K_vc_N_per_m) +
                     " N/m, B_vc = device.coupling_damping_Ns_per_m = " + number_text(c.gains.B_vc_Ns_per_m) +
-                    " N s/m, b_v = device.proxy_damping_Ns_per_m = " + number_text(c.gains.b_v_Ns_per_m) + " N s/m, T = " + number_text(T) +
-                    " s (needs b_d >= B_vc (T_k/T_k-1 + 1) + K_vc T and b_v >= B_vc/2 (T_k/T_k-1 - 1) + K_vc T/2). ";
+                    " N s/m, b_v = device.proxy_damping_Ns_per_m = " + number_text(c.gains.b_v_Ns_per_m) + " N s/m, " + steps +
+                    " (needs b_d >= B_vc (T_k/T_k-1 + 1) + K_vc T_k and b_v >= B_vc/2 (T_k/T_k-1 - 1) + K_vc T_k/2). ";
     if (k_max > 0)
       m += "The largest K_vc that satisfies eq. (26) with these is device.coupling_stiffness_N_per_m = " + number_text(std::floor(k_max * 1000) / 1000) + " N/m";
     else

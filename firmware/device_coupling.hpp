@@ -35,10 +35,13 @@ struct DeviceCoupling {
 // device has force feedback but publishes no b_d (the Touch) and the file does not state one.
 DeviceCoupling device_coupling(const StationFile& file, const ScenarioSpec& spec, const drivers::DeviceCapabilities& caps);
 
-// Eq. (26) for this coupling at period T (rt::check_eq26). Throws std::invalid_argument naming the
-// keys as written in the station file, and proposing the largest device.coupling_stiffness_N_per_m
-// (K_vc) that satisfies it for the given b_d (rt::max_K_vc_eq26).
-void check_device_coupling(const DeviceCoupling& coupling, double period_s);
+// Eq. (26) for this coupling with the steps T_k the core will integrate with (rt::check_eq26 at its
+// worst: T_k = T^max, T_k/T_{k-1} = T^max/T^min; the core's StationConfig::validate checks the same
+// at start-up; T^min = T^max = the period for a fixed step). Throws std::invalid_argument naming the
+// keys as written in the station file (station.period_min_s/period_max_s when they decide it), and
+// proposing the largest device.coupling_stiffness_N_per_m (K_vc) that satisfies it for the given b_d
+// (rt::max_K_vc_eq26). Start-up only.
+void check_device_coupling(const DeviceCoupling& coupling, double t_min_s, double t_max_s);
 
 // The device -> object transform of this station ([device] map_* keys; clamp radius = the
 // device's workspace radius). Throws std::invalid_argument naming the key.

@@ -169,7 +169,9 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   p->device = device_selection(f, *p->built, p->me);
   if (const auto caps = drivers::published_capabilities(p->device)) {
     p->coupling = device_coupling(f, spec, *caps);
-    check_device_coupling(*p->coupling, spec.period_s);  // the same check runs at start-up on the opened device
+    // at the steps the core will take (station.period_min_s/max_s); the same check runs at start-up on the opened device
+    const auto me = static_cast<std::size_t>(p->me);
+    check_device_coupling(*p->coupling, p->built->t_min_s[me], p->built->t_max_s[me]);
     workspace_map_config(f, *caps);  // a bad map is a configuration error here too
   } else {
     p->warnings.push_back("device.kind = \"auto\": eq. (26) on the device's damping is checked at start-up, once the device is open "

@@ -276,7 +276,7 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
     sc.damping_Ns_per_m = r.bounds.damping_Ns_per_m;
     // the opened device's own capabilities + the [device] keys; eq. (26) again (the plan checked the published figures)
     r.coupling = device_coupling(plan.file, built.spec, device);
-    check_device_coupling(r.coupling, built.spec.period_s);
+    check_device_coupling(r.coupling, built.t_min_s[static_cast<std::size_t>(plan.me)], built.t_max_s[static_cast<std::size_t>(plan.me)]);
     sc.vp.coupling = r.coupling.gains;
     sc.device_damping_Ns_per_m = r.coupling.object_b_d_Ns_per_m();  // eq. (26) in the object frame: b_d / scale^2
     sc.device_force_feedback = r.coupling.force_feedback;

@@ -19,16 +19,19 @@ using namespace haptic::firmware;
 namespace {
 bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
 
-std::string station(const std::string& device_lines) {
+std::string station(const std::string& device_lines, const std::string& station_lines = "") {
   test::StationText s;
   s.id = 2;
   s.peers = {1};
   s.out_dir = "/tmp";
   s.device = device_lines;
+  s.station_extra = station_lines;
   return s.text();
 }
 
-PlanResult plan(const std::string& device_lines) { return plan_station(parse_station_file(station(device_lines)), RunOverrides{}, read_clocks()); }
+PlanResult plan(const std::string& device_lines, const std::string& station_lines = "") {
+  return plan_station(parse_station_file(station(device_lines, station_lines)), RunOverrides{}, read_clocks());
+}
 
 // The K_vc the error proposes, parsed from "device.coupling_stiffness_N_per_m = <v> N/m".
 double proposed_kvc(const std::string& error) {
@@ -47,6 +50,25 @@ TEST(DeviceCoupling, ATouchWithoutAStatedDampingIsRefusedNamingTheKeyNeverAssume
   CHECK_TEXT(contains(r.error, "device.damping_Ns_per_m") && contains(r.error, "never assumed 0"), r.error.c_str());
   std::ostringstream out, err;
   LONGS_EQUAL(kExitConfigError, check_station_config(parse_station_file(station("kind = \"touch\"\n")), RunOverrides{}, out, err));
+}
+
+TEST(DeviceCoupling, CheckConfigTakesEq26AtTheLongestStepAndTheLargestStepRatioTheStationWillUse) {
+  // b_d = 0.45 N s/m with K_vc = 200 N/m: at the nominal T = 2 ms it needs 0.4 (accepted), but with
+  // measured steps up to station.period_max_s = 2.4 ms it needs K_vc T^max = 0.48: refused by the
+  // plan (haptic-station check-config), not only when the core is built, and the proposal is 0.45 / 0.0024.
+  const std::string touch = "kind = \"touch\"\ndamping_Ns_per_m = 0.45\n";
+  const std::string steps = "period_min_s = 0.0016\nperiod_max_s = 0.0024\n";
+  CHECK(plan(touch).status == PhaseStatus::kOk);
+  const PlanResult r = plan(touch, steps);
+  CHECK(r.status == PhaseStatus::kConfigError);
+  CHECK_TEXT(contains(r.error, "eq. (26) violated") && contains(r.error, "station.period_max_s = 0.0024"), r.error.c_str());
+  DOUBLES_EQUAL(187.5, proposed_kvc(r.error), 1e-9);
+  CHECK(plan(touch + "coupling_stiffness_N_per_m = 187.5\n", steps).status == PhaseStatus::kOk);
+  // the ratio T^max/T^min enters with B_vc: b_d >= B_vc (1.5 + 1) + K_vc T^max
+  const PlanResult rb = plan(touch + "coupling_damping_Ns_per_m = 0.02\n", steps);
+  DOUBLES_EQUAL((0.45 - 0.02 * 2.5) / 0.0024, proposed_kvc(rb.error), 2e-3);
+  std::ostringstream out, err;
+  LONGS_EQUAL(kExitConfigError, check_station_config(parse_station_file(station(touch, steps)), RunOverrides{}, out, err));
 }
 
 TEST(DeviceCoupling, Eq26ViolationProposesTheLargestKvcAndThatValueIsAccepted) {

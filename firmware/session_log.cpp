@@ -116,6 +116,9 @@ void write_core_attrs(hid_t g, const rt::StationConfig& c) {
   h5::attr(g, "station_index", static_cast<std::int64_t>(c.station_id));
   h5::attr(g, "users", static_cast<std::int64_t>(c.users));
   h5::attr(g, "period_s", c.period_s);
+  h5::attr(g, "period_min_s", c.period_min_s);  // the step levels (version 2; the steps T_k are /ticks/step_s)
+  h5::attr(g, "period_max_s", c.period_max_s);
+  h5::attr(g, "step_resolution_s", c.step_resolution_s);
   h5::attr(g, "damping_Ns_per_m", c.damping_Ns_per_m);
   h5::attr(g, "device_damping_Ns_per_m", c.device_damping_Ns_per_m);
   h5::attr(g, "max_device_force_N", c.max_device_force_N);
@@ -140,6 +143,11 @@ void read_core_attrs(hid_t g, rt::StationConfig& c) {
   c.station_id = static_cast<int>(h5::attr_i64(g, "station_index"));
   c.users = static_cast<int>(h5::attr_i64(g, "users"));
   c.period_s = h5::attr_f64(g, "period_s");
+  if (h5::has_attr(g, "period_min_s")) {  // version 1: fixed steps
+    c.period_min_s = h5::attr_f64(g, "period_min_s");
+    c.period_max_s = h5::attr_f64(g, "period_max_s");
+    c.step_resolution_s = h5::attr_f64(g, "step_resolution_s");
+  }
   c.damping_Ns_per_m = h5::attr_f64(g, "damping_Ns_per_m");
   c.device_damping_Ns_per_m = h5::attr_f64(g, "device_damping_Ns_per_m");
   c.max_device_force_N = h5::attr_f64(g, "max_device_force_N");
@@ -175,9 +183,11 @@ std::uint64_t state_hash(const rt::StationCore& core, const rt::StationCore::Tic
   return XXH3_64bits_withSeed(tail, sizeof tail, h);
 }
 
-TickRecord make_tick_record(const rt::StationCore& core, std::int64_t kr, const rt::Vec3& q, const rt::StationCore::TickOutput& out) {
+TickRecord make_tick_record(const rt::StationCore& core, std::int64_t kr, const rt::Vec3& q, const rt::StationCore::TickOutput& out,
+                            double step_s) {
   TickRecord r;
   r.k = kr;
+  r.step_s = step_s;
   const auto& y = core.vp_position_m();
   for (int a = 0; a < 3; ++a) {
     r.q[a] = q[a];
@@ -237,9 +247,9 @@ void write_session_header(hid_t file, const SessionInfo& info, const rt::Station
 std::unique_ptr<CoreSetup> read_core_setup(hid_t file) {
   if (!h5::has_attr(file, "format") || h5::attr_str(file, "format") != "haptic-session")
     throw std::runtime_error("not a haptic session log (no format = \"haptic-session\" attribute)");
-  if (h5::attr_i64(file, "version") != kSessionLogVersion)
-    throw std::runtime_error("session log version " + std::to_string(h5::attr_i64(file, "version")) + ", this program reads " +
-                             std::to_string(kSessionLogVersion));
+  const std::int64_t version = h5::attr_i64(file, "version");
+  if (version < 1 || version > kSessionLogVersion)
+    throw std::runtime_error("session log version " + std::to_string(version) + ", this program reads 1 to " + std::to_string(kSessionLogVersion));
   auto s = std::make_unique<CoreSetup>();
   h5::Id g = h5::open_group(file, "core");
   read_core_attrs(g.get(), s->config);

@@ -17,7 +17,9 @@
 //   /initial_state   x, v of the core before its first tick (a rejoining station's adopted state)
 //   /ticks           one row per tick: k (run index), q (device sample used, 3), force (3), vp (3),
 //                    port_J, controller_J, vo_J, hash (uint64, state_hash), flags, contact,
-//                    wake_latency_ns, exec_ns, dropped (records this tick lost to a full ring)
+//                    wake_latency_ns, exec_ns, dropped (records this tick lost to a full ring),
+//                    step_s (the step T_k handed to the core: the station's measured wake-to-wake
+//                    period, the simulator's clock model; version 2, absent in version 1 = nominal)
 //   /packets         one row per packet offered to rx(n) before that tick: tick, neighbour
 //                    (index), seq (run index), send_time_s, x (dofs), v (dofs)
 //   A ring log (station.record_ring_s, sim --record-ring-s): /ticks and /packets are rings of
@@ -37,7 +39,7 @@
 
 namespace haptic::firmware {
 
-inline constexpr std::int64_t kSessionLogVersion = 1;
+inline constexpr std::int64_t kSessionLogVersion = 2;  // 2: /ticks/step_s (version 1 logs are read, steps nominal)
 
 // 64-bit hash (XXH3) of the core's state after a tick: x, v, VP position, the tick's device
 // force, the five energies and the flags. Two runs whose hashes agree at every tick computed the
@@ -54,9 +56,12 @@ struct TickRecord {
   std::int32_t wake_latency_ns = 0, exec_ns = 0;
   std::uint32_t dropped = 0;  // filled by the recorder
   std::uint8_t contact = 0;
+  double step_s = 0;          // T_k given to core.tick (0: the nominal step, tick(k, q))
 };
-// The row for the tick the core just ran at run index kr with device sample q. RT-safe.
-TickRecord make_tick_record(const rt::StationCore& core, std::int64_t kr, const rt::Vec3& q, const rt::StationCore::TickOutput& out);
+// The row for the tick the core just ran at run index kr with device sample q and step step_s
+// (as given to tick(); 0: tick(k, q), the nominal step). RT-safe.
+TickRecord make_tick_record(const rt::StationCore& core, std::int64_t kr, const rt::Vec3& q, const rt::StationCore::TickOutput& out,
+                            double step_s);
 
 // What the file says about where it came from.
 struct SessionInfo {

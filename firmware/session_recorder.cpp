@@ -20,7 +20,7 @@ std::size_t data_slots(int dofs) { return (2 * static_cast<std::size_t>(dofs) + 
 struct SessionRecorder::Writer {
   h5::Id file;
   h5::Id ticks_g, packets_g;
-  h5::Appendable k, q, force, vp, port, ctrl, vo, hash, flags, contact, wake, exec, dropped;
+  h5::Appendable k, q, force, vp, port, ctrl, vo, hash, flags, contact, wake, exec, dropped, step;
   h5::Appendable p_tick, p_nbr, p_seq, p_send, p_x, p_v;
   int dofs = 0;
   bool float32 = false;
@@ -58,6 +58,7 @@ struct SessionRecorder::Writer {
     wake = h5::Appendable(t, "wake_latency_ns", Type::kI32, 0, 4096, 0, rt);
     exec = h5::Appendable(t, "exec_ns", Type::kI32, 0, 4096, 0, rt);
     dropped = h5::Appendable(t, "dropped", Type::kU32, 0, 4096, 0, rt);
+    step = h5::Appendable(t, "step_s", Type::kF64, 0, 4096, 0, rt);
     const auto chunk = std::max<std::uint64_t>(1, (1u << 18) / (static_cast<std::uint64_t>(dofs) * (float32 ? 4 : 8)));
     // A ring overwrites its chunks in place; deflated chunks change size, so a ring is not deflated.
     const int deflate = rt ? 0 : cfg.deflate_level;
@@ -128,7 +129,7 @@ struct SessionRecorder::Writer {
     if (s.type == kTick) {
       TickRecord r;
       std::memcpy(&r, s.payload, sizeof r);
-      if (admit(r.k, 120, cfg.max_bytes, cfg.ring_ticks > 0)) tick_rows.push_back(r);
+      if (admit(r.k, 128, cfg.max_bytes, cfg.ring_ticks > 0)) tick_rows.push_back(r);
     } else if (s.type == kPacket || s.type == kInitial) {
       head = s;
       values.assign(2 * static_cast<std::size_t>(dofs), 0.0);
@@ -146,7 +147,7 @@ struct SessionRecorder::Writer {
     const auto nt = tick_rows.size();
     if (nt > 0) {
       std::vector<std::int64_t> kk(nt);
-      std::vector<double> q3(3 * nt), f3(3 * nt), y3(3 * nt), pj(nt), cj(nt), vj(nt);
+      std::vector<double> q3(3 * nt), f3(3 * nt), y3(3 * nt), pj(nt), cj(nt), vj(nt), sk(nt);
       std::vector<std::uint64_t> hh(nt);
       std::vector<std::uint32_t> fl(nt), dr(nt);
       std::vector<std::uint8_t> ct(nt);
@@ -160,13 +161,13 @@ struct SessionRecorder::Writer {
           y3[3 * i + a] = r.vp[a];
         }
         pj[i] = r.port_J, cj[i] = r.controller_J, vj[i] = r.vo_J, hh[i] = r.hash, fl[i] = r.flags, dr[i] = r.dropped;
-        ct[i] = r.contact, wl[i] = r.wake_latency_ns, ex[i] = r.exec_ns;
+        ct[i] = r.contact, wl[i] = r.wake_latency_ns, ex[i] = r.exec_ns, sk[i] = r.step_s;
       }
       k.append(Type::kI64, kk.data(), nt), q.append(Type::kF64, q3.data(), nt), force.append(Type::kF64, f3.data(), nt);
       vp.append(Type::kF64, y3.data(), nt), port.append(Type::kF64, pj.data(), nt), ctrl.append(Type::kF64, cj.data(), nt);
       vo.append(Type::kF64, vj.data(), nt), hash.append(Type::kU64, hh.data(), nt), flags.append(Type::kU32, fl.data(), nt);
       contact.append(Type::kU8, ct.data(), nt), wake.append(Type::kI32, wl.data(), nt), exec.append(Type::kI32, ex.data(), nt);
-      dropped.append(Type::kU32, dr.data(), nt);
+      dropped.append(Type::kU32, dr.data(), nt), step.append(Type::kF64, sk.data(), nt);
       st.ticks += nt;
       tick_rows.clear();
     }

@@ -33,9 +33,9 @@ inline std::uint64_t ring_packet_rows(std::uint64_t ring_ticks, int neighbours) 
   const std::uint64_t per_tick = static_cast<std::uint64_t>(neighbours < 1 ? 1 : neighbours);
   return ring_ticks * per_tick + (ring_ticks * per_tick + 3) / 4;
 }
-// Bytes of the two rings (tick rows 120 B; packet rows 32 B + 2 dofs values).
+// Bytes of the two rings (tick rows 128 B; packet rows 32 B + 2 dofs values).
 inline std::uint64_t ring_bytes(std::uint64_t ring_ticks, int neighbours, int dofs, bool float32) {
-  return ring_ticks * 120 + ring_packet_rows(ring_ticks, neighbours) * (32 + 2 * static_cast<std::uint64_t>(dofs) * (float32 ? 4 : 8));
+  return ring_ticks * 128 + ring_packet_rows(ring_ticks, neighbours) * (32 + 2 * static_cast<std::uint64_t>(dofs) * (float32 ? 4 : 8));
 }
 
 struct RecorderStats {

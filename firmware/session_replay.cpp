@@ -86,13 +86,15 @@ std::vector<TickRecord> read_tick_records(hid_t file) {
   h5::read_rows(g.get(), "contact", Type::kU8, contact.data(), 0, n);
   h5::read_rows(g.get(), "wake_latency_ns", Type::kI32, wake.data(), 0, n);
   h5::read_rows(g.get(), "exec_ns", Type::kI32, exec.data(), 0, n);
+  std::vector<double> step(n, 0.0);  // version 1 logs: nominal steps
+  if (h5::exists(g.get(), "step_s")) h5::read_rows(g.get(), "step_s", Type::kF64, step.data(), 0, n);
   std::vector<TickRecord> rows(n);
   for (std::size_t i = 0; i < n; ++i) {
     TickRecord& r = rows[i];
     r.k = k[i];
     for (int a = 0; a < 3; ++a) r.q[a] = q[3 * i + a], r.force[a] = f[3 * i + a], r.vp[a] = y[3 * i + a];
     r.port_J = port[i], r.controller_J = ctrl[i], r.vo_J = vo[i], r.hash = hash[i], r.flags = flags[i];
-    r.dropped = dropped[i], r.contact = contact[i], r.wake_latency_ns = wake[i], r.exec_ns = exec[i];
+    r.dropped = dropped[i], r.contact = contact[i], r.wake_latency_ns = wake[i], r.exec_ns = exec[i], r.step_s = step[i];
   }
   return rows;
 }
@@ -139,8 +141,9 @@ ReplayResult replay_session(const std::string& path, const ReplayOptions& opt, c
   h5::Id pg = h5::open_group(file.get(), "packets");
   PacketCursor pk(pg.get(), setup->scene.dofs);
   std::unique_ptr<FILE, int (*)(FILE*)> trace(open_trace(opt.trace_csv), [](FILE* f) { return f ? std::fclose(f) : 0; });
-  const double T = setup->config.period_s;
   const int dofs = setup->scene.dofs;
+  // the trace's time: the first tick's nominal start plus the steps the core took (T_k)
+  double t_s = ticks.empty() ? 0.0 : static_cast<double>(ticks.front().k) * setup->config.period_s;
   std::size_t p = 0;
   for (std::size_t i = 0; i < ticks.size(); ++i) {
     const TickRecord& r = ticks[i];
@@ -150,7 +153,10 @@ ReplayResult replay_session(const std::string& path, const ReplayOptions& opt, c
       if (n < 0 || n >= core.neighbor_count()) throw std::runtime_error("log: packet " + std::to_string(p) + " names neighbour " + std::to_string(n));
       core.rx(n).offer(pk.seq(p), pk.send_time(p), pk.x(p), pk.v(p), dofs);
     }
-    const auto out = core.tick(r.k, rt::Vec3(r.q[0], r.q[1], r.q[2]));
+    // the recorded step T_k, as the station or the simulator handed it to the core (0: the nominal one)
+    const rt::Vec3 q(r.q[0], r.q[1], r.q[2]);
+    const auto out = r.step_s > 0 ? core.tick(r.k, q, r.step_s) : core.tick(r.k, q);
+    t_s += core.last_step_s();
     const bool match = state_hash(core, out) == r.hash;
     ++res.ticks;
     if (match && res.first_mismatch < 0) ++res.matched;
@@ -160,7 +166,7 @@ ReplayResult replay_session(const std::string& path, const ReplayOptions& opt, c
       const auto& e = core.energy();
       const auto& y = core.vp_position_m();
       const auto& F = out.device_force_N;
-      std::fprintf(trace.get(), "%.4f,%lld,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%d\n", static_cast<double>(r.k + 1) * T,
+      std::fprintf(trace.get(), "%.4f,%lld,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%d\n", t_s,
                    static_cast<long long>(r.k), F[0], F[1], F[2], y[0], y[1], y[2], e.port_J, e.controller_J, e.vo_J, r.force[0], r.force[1],
                    r.force[2], match ? 1 : 0);
     }

@@ -161,8 +161,6 @@ Simulation::Simulation(const BuiltScenario& built, const SimOptions& options)
       metrics(metrics_windows(built.spec.script), built.spec.period_s),
       snap_times(options.snapshot_times_s) {
   if (opt.trace_every < 1) throw std::invalid_argument("--trace-every must be >= 1");
-  if (opt.record && b.spec.has_clock_model())
-    throw std::invalid_argument("--record does not store the steps T_k yet: not with --timer-jitter-ms, --step-jitter or --clock-drift-ppm");
   due.assign(static_cast<std::size_t>(N), 0);
   for (int i = 0; i < N; ++i)
     clk.emplace_back(T, b.clock_rate[static_cast<std::size_t>(i)], b.spec.step_jitter, b.spec.timer_jitter_s,
@@ -214,8 +212,9 @@ void tick_stations(Simulation& s, double t) {
     const std::int64_t k = ck.k;
     auto& core = *s.st[static_cast<std::size_t>(i)];
     const auto& q = s.users[static_cast<std::size_t>(i)].position_m();
-    const auto out = core.tick(k, q, ck.step());
-    if (!s.rec.empty()) s.rec[static_cast<std::size_t>(i)]->rt_tick(make_tick_record(core, k, q, out));
+    const double step_s = ck.step();
+    const auto out = core.tick(k, q, step_s);
+    if (!s.rec.empty()) s.rec[static_cast<std::size_t>(i)]->rt_tick(make_tick_record(core, k, q, out, step_s));
     s.forces[static_cast<std::size_t>(i)] = out.device_force_N;
     if ((out.flags & rt::kDiverged) && !s.diverged_at_s) {
       s.diverged_at_s = t;

@@ -178,9 +178,6 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
                           "(name the kind to have --check-config check it)");
   }
   p->ramp_in_ticks = ramp_in_ticks(f, spec.period_s);
-  if (f.record.enabled && (f.station.period_min_s > 0 || f.station.period_max_s > 0))
-    p->warnings.push_back("station.record with station.period_min_s/period_max_s: the session log does not store the measured steps T_k, "
-                          "so a replay of it is not bit-exact");
   p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
   p->net.endpoint.fingerprint = p->fingerprint;  // sent to every neighbour (net/)
   p->net.endpoint.io_priority = f.station.io_priority;  // the I/O thread's RtThread (SCHED_FIFO or 0)

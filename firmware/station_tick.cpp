@@ -212,7 +212,7 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   }
   record_telemetry(in, F, q, out.flags, info);
   if (in.recorder) {
-    TickRecord row = make_tick_record(*in.core, kr, q, out);
+    TickRecord row = make_tick_record(*in.core, kr, q, out, step_s);  // the T_k handed to the core, for replay
     row.wake_latency_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.wake_latency_ns, INT32_MAX));
     row.exec_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.prev_exec_ns, INT32_MAX));
     in.recorder->rt_tick(row);

@@ -175,6 +175,42 @@ TEST(RunTick, RecordingAllocatesNothingInTheTickAndTheLogReplaysBitExactly) {
   CHECK_TRUE(rr.bit_exact());
 }
 
+// With station.period_min_s/max_s the tick hands the core the measured wake-to-wake period; the
+// session log stores that T_k per tick (/ticks/step_s), and replay hands the same T_k to the core:
+// bit-exact, including the ticks the core clamped.
+TEST(RunTick, TheLogStoresEachTicksMeasuredStepAndReplaysBitExactlyWithIt) {
+  const int ticks = 120;
+  OneStationRig r(ticks, 0.0018, 0.0022);
+  const std::string path = "/tmp/haptic-run-tick-steps-" + std::to_string(getpid()) + ".h5";
+  firmware::RecorderConfig rc;
+  rc.path = path;
+  firmware::SessionInfo si;
+  si.packets_float32 = r.c1.endpoint.wire.encoding == net::ValueEncoding::float32;
+  firmware::SessionRecorder recorder(rc, si, r.core.config());
+  r.in.recorder = &recorder;
+  std::vector<double> want(ticks);
+  std::int64_t prev_us = 0;
+  for (std::int64_t k = 0; k < ticks; ++k) {
+    const std::int64_t wake_us = 1000 + 2000 * k + 37 * (k % 7);  // +37 us six ticks in seven, -222 us (clamped) in the seventh
+    r.info.wake_ns = wake_us * 1000;
+    want[static_cast<std::size_t>(k)] = k == 0 ? 0.002 : static_cast<double>(wake_us - prev_us) * 1e-6;
+    prev_us = wake_us;
+    r.step(k);
+  }
+  recorder.finish();
+  CHECK(r.core.step_clamped_ticks() > 10);
+  {
+    firmware::h5::Id f = firmware::h5::open_file_read(path);
+    const std::vector<firmware::TickRecord> rows = firmware::read_tick_records(f.get());
+    LONGS_EQUAL(ticks, rows.size());
+    for (int k = 0; k < ticks; ++k) DOUBLES_EQUAL(want[static_cast<std::size_t>(k)], rows[static_cast<std::size_t>(k)].step_s, 1e-12);
+  }
+  const firmware::ReplayResult rr = firmware::replay_session(path, {});
+  std::remove(path.c_str());
+  LONGS_EQUAL(ticks, rr.ticks);
+  CHECK_TEXT(rr.bit_exact(), rr.summary().c_str());
+}
+
 TEST(RunTick, TheJitterWorkloadIsTheRealStationTickAndAllocatesNothing) {
   tools::StationJitterWorkload w;
   LONGS_EQUAL(3, w.core().neighbor_count());

@@ -62,7 +62,7 @@ struct Rig {
     }
     const rt::Vec3 q = user.position_m();
     const auto out = core.tick(k, q);
-    if (rec) rec->rt_tick(firmware::make_tick_record(core, k, q, out));
+    if (rec) rec->rt_tick(firmware::make_tick_record(core, k, q, out, 0.0));  // tick(k, q): the nominal step
     if (view) view->on_tick(core, k, T, q, out.device_force_N, out.flags, 0, 0);
     user.advance(static_cast<double>(k) * T, T, out.device_force_N);
     ++k;

@@ -39,7 +39,7 @@ class StationJitterWorkload final : public JitterWorkload {
     }
     const rt::Vec3 q = user_.position_m();
     const auto out = core_.tick(q);
-    if (rec) recorder_->rt_tick(firmware::make_tick_record(core_, k, q, out));
+    if (rec) recorder_->rt_tick(firmware::make_tick_record(core_, k, q, out, 0.0));  // tick(q): the nominal step
     user_.advance(static_cast<double>(k) * T, T, out.device_force_N);
     flags_ |= out.flags;
   }

@@ -47,8 +47,8 @@
 //                                    # loss-model allowance (model::loss_allowance_from_measured_loss) for the loss
 //                                    # on the incoming direction (upper 97.5 % confidence bound); each end sends its
 //                                    # value with its frozen round-trip bound and both use the larger (station_probe.hpp)
-//   loss_allowance_max_ticks = 40    # a measured allowance above this refuses to couple (exit 3), naming the link
-//                                    # and its loss, [0, 1000]
+//   loss_allowance_max_ticks = 40    # a measured allowance above this is capped there, with a warning naming the
+//                                    # link and its loss (links[].loss_allowance_capped in station-<id>.json), [0, 1000]
 //   edge_energy_bound_J = 0.1        # per-edge damage bound: an edge whose energy account (eq. 14 split per edge)
 //                                    # exceeds it acts as a damper until the account fell to half of it
 //                                    # (net/README.md, "Bounded damage"), [0, 1e6]; 0 = off

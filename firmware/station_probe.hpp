@@ -34,11 +34,12 @@ struct ProbeResult {
   // Per neighbour, the loss allowance (ticks added to the round-trip bound, so to Nbar_ij + Nbar_ji):
   // ours, fixed with our bound (station.loss_allowance_ticks, or -1 there: from the probe loss we
   // measured on the incoming direction, probe_loss), the neighbour's (-1: did not arrive) and the
-  // one both ends use, the larger. loss_allowance_error: ours exceeded station.loss_allowance_max_ticks.
+  // one both ends use, the larger. loss_allowance_capped: ours exceeded station.loss_allowance_max_ticks
+  // and was capped there (a warning says so).
   ProbeLossCounter loss_counter;
   std::vector<ProbeLoss> probe_loss;
   std::vector<int> own_loss_allowance_ticks, peer_loss_allowance_ticks, loss_allowance_ticks;
-  std::string loss_allowance_error;
+  std::vector<bool> loss_allowance_capped;
   // A neighbour (station id) that already runs the session (a packet with sequence number >= our
   // run_k0) before or while we probe: we are a restarted station whose fresh epoch (a relative
   // station.start_delay_s) is not the session's; the caller rejoins instead (0: none).
@@ -72,7 +73,7 @@ void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, 
 // Fixes our loss allowance of every neighbour that has a frozen round-trip bound and none yet
 // (r.own_loss_allowance_ticks), from r.loss_counter, and hands it to the endpoint, which sends it
 // with the bound. Call right after ep.finish_probing(). An allowance above
-// station.loss_allowance_max_ticks is capped there and named in r.loss_allowance_error.
+// station.loss_allowance_max_ticks is capped there, with a warning naming the link, its loss and the key.
 void fix_loss_allowances(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r);
 // The clock check of r (grid and statistics) against the epoch `epoch_ns`: a warning, or with
 // station.clock_offset_refuse the status kFailed.

@@ -164,6 +164,7 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
     l["loss_allowance_ticks"] = o.probe->loss_allowance_ticks[n];
     l["loss_allowance_ticks_own"] = own >= 0 ? json(own) : json(nullptr);
     l["loss_allowance_ticks_peer"] = peer >= 0 ? json(peer) : json(nullptr);
+    l["loss_allowance_capped"] = n < o.probe->loss_allowance_capped.size() && o.probe->loss_allowance_capped[n];
     const ProbeLoss& pl = o.probe->probe_loss[n];
     l["probe_loss"] = json::object({{"lost", pl.lost}, {"expected", pl.expected}, {"longest_gap", pl.longest_gap},
                                     {"upper_bound", pl.expected > 0 ? json(model::loss_upper_bound(pl.lost, pl.expected)) : json(nullptr)}});

@@ -97,6 +97,17 @@ struct OneStationRig {
 };
 }  // namespace
 
+// A session recorder writing `path`, fed by the rig's tick from now on.
+std::unique_ptr<firmware::SessionRecorder> record_into(OneStationRig& r, const std::string& path) {
+  firmware::RecorderConfig rc;
+  rc.path = path;
+  firmware::SessionInfo si;
+  si.packets_float32 = r.c1.endpoint.wire.encoding == net::ValueEncoding::float32;
+  auto rec = std::make_unique<firmware::SessionRecorder>(rc, si, r.core.config());
+  r.in.recorder = rec.get();
+  return rec;
+}
+
 TEST_GROUP(RunTick){};
 
 TEST(RunTick, the_core_integrates_over_the_measured_wake_to_wake_period_clamped_to_the_bounds) {
@@ -151,12 +162,7 @@ TEST(RunTick, RecordingAllocatesNothingInTheTickAndTheLogReplaysBitExactly) {
   const int ticks = 300;
   OneStationRig r(ticks);
   const std::string path = "/tmp/haptic-run-tick-" + std::to_string(getpid()) + ".h5";
-  firmware::RecorderConfig rc;
-  rc.path = path;
-  firmware::SessionInfo si;
-  si.packets_float32 = r.c1.endpoint.wire.encoding == net::ValueEncoding::float32;
-  firmware::SessionRecorder recorder(rc, si, r.core.config());
-  r.in.recorder = &recorder;
+  const auto recorder = record_into(r, path);
   for (std::int64_t k = 0; k < 50; ++k) r.step(k);
   std::uint64_t allocations = 0;
   {
@@ -165,7 +171,7 @@ TEST(RunTick, RecordingAllocatesNothingInTheTickAndTheLogReplaysBitExactly) {
     allocations = counter.allocations();
   }
   LONGS_EQUAL(0, allocations);
-  const firmware::RecorderStats st = recorder.finish();
+  const firmware::RecorderStats st = recorder->finish();
   LONGS_EQUAL(ticks, st.ticks);
   LONGS_EQUAL(0, st.dropped_records);
   CHECK(st.packets > 100);
@@ -182,12 +188,7 @@ TEST(RunTick, TheLogStoresEachTicksMeasuredStepAndReplaysBitExactlyWithIt) {
   const int ticks = 120;
   OneStationRig r(ticks, 0.0018, 0.0022);
   const std::string path = "/tmp/haptic-run-tick-steps-" + std::to_string(getpid()) + ".h5";
-  firmware::RecorderConfig rc;
-  rc.path = path;
-  firmware::SessionInfo si;
-  si.packets_float32 = r.c1.endpoint.wire.encoding == net::ValueEncoding::float32;
-  firmware::SessionRecorder recorder(rc, si, r.core.config());
-  r.in.recorder = &recorder;
+  const auto recorder = record_into(r, path);
   std::vector<double> want(ticks);
   std::int64_t prev_us = 0;
   for (std::int64_t k = 0; k < ticks; ++k) {
@@ -197,7 +198,7 @@ TEST(RunTick, TheLogStoresEachTicksMeasuredStepAndReplaysBitExactlyWithIt) {
     prev_us = wake_us;
     r.step(k);
   }
-  recorder.finish();
+  recorder->finish();
   CHECK(r.core.step_clamped_ticks() > 10);
   {
     firmware::h5::Id f = firmware::h5::open_file_read(path);

@@ -52,6 +52,10 @@ struct Drive {
   double period_ticks = 40;   // sinusoid period
   double phase_rad = M_PI;    // station 1 relative to station 0 (pi: antiphase)
   double amplitude_m_per_s = 0.01;
+  // Varying steps: the hub integrates every tick over hub_step_s, the leaves over leaf_step_s (0: T);
+  // eq. (18) then takes T^max and T^min of the two. The leaves' amplitude is this times the hub's.
+  double hub_step_s = 0, leaf_step_s = 0, leaf_amplitude_ratio = 1.0;
+  const EdgeGains* gains = nullptr;  // instead of the paper's P_ij (with or without D_ij)
 };
 
 struct DriveResult {
@@ -72,8 +76,10 @@ struct Pspm {
 // hub) and n_out (to the leaf). B_i = factor x eq. (18) from rt::damping_min_eq18 (0 with pspm).
 DriveResult drive_star(double factor, int leaves, int n_in, int n_out, const Drive& d, int ticks, bool paper_d, const Pspm& pspm) {
   const auto& w = HeavyWorld::get();
-  const EdgeGains& g = paper_d ? w.gains_d5 : w.gains;
+  const EdgeGains& g = d.gains ? *d.gains : paper_d ? w.gains_d5 : w.gains;
   const double T = 0.002;
+  const double hub_T = d.hub_step_s > 0 ? d.hub_step_s : T, leaf_T = d.leaf_step_s > 0 ? d.leaf_step_s : T;
+  const double t_min = std::min({T, hub_T, leaf_T}), t_max = std::max({T, hub_T, leaf_T});
   const int N = leaves + 1, dofs = w.scene.dofs;
   std::vector<std::unique_ptr<StationCore>> st;
   for (int i = 0; i < N; ++i) {
@@ -82,16 +88,18 @@ DriveResult drive_star(double factor, int leaves, int n_in, int n_out, const Dri
     c.users = N;
     c.scene = &w.scene;
     std::vector<Eq18Neighbor> nb;
+    c.period_min_s = t_min;
+    c.period_max_s = t_max;
     if (i == 0) {
       for (int l = 1; l <= leaves; ++l) {
         c.neighbors.push_back({l, &g, n_in});
-        nb.push_back({static_cast<double>(n_in + n_out), T, &g});
+        nb.push_back({static_cast<double>(n_in + n_out), t_max, &g});
       }
     } else {
       c.neighbors.push_back({0, &g, n_out});
-      nb.push_back({static_cast<double>(n_in + n_out), T, &g});
+      nb.push_back({static_cast<double>(n_in + n_out), t_max, &g});
     }
-    c.damping_Ns_per_m = pspm.on ? 0.0 : factor * damping_min_eq18(T, nb);
+    c.damping_Ns_per_m = pspm.on ? 0.0 : factor * damping_min_eq18(t_min, nb);
     if (pspm.on) {
       c.consensus_passivity = ConsensusPassivity::kSetPositionModulation;
       c.pspm_reservoir0_J = pspm.reservoir0_J;
@@ -109,7 +117,8 @@ DriveResult drive_star(double factor, int leaves, int n_in, int n_out, const Dri
       auto& s = *st[static_cast<std::size_t>(i)];
       // prescribed velocity: the hub leads, every leaf lags by the drive's phase
       const double ph = i == 0 ? 0.0 : d.phase_rad;
-      const double a = k == 0 ? 0.0 : d.amplitude_m_per_s * std::sin(2 * M_PI * k / d.period_ticks + ph);
+      const double amp = d.amplitude_m_per_s * (i == 0 ? 1.0 : d.leaf_amplitude_ratio);
+      const double a = k == 0 ? 0.0 : amp * std::sin(2 * M_PI * k / d.period_ticks + ph);
       s.set_state(s.x(), a * w.top);
       for (int n = 0; n < s.neighbor_count(); ++n) {
         const int j = s.neighbor(n).peer_id;
@@ -121,12 +130,12 @@ DriveResult drive_star(double factor, int leaves, int n_in, int n_out, const Dri
     double total = 0;
     for (int i = 0; i < N; ++i) {
       auto& s = *st[static_cast<std::size_t>(i)];
-      const auto out = s.tick(Eigen::Vector3d(5, 5, 5));
+      const auto out = s.tick(k, Eigen::Vector3d(5, 5, 5), i == 0 ? hub_T : leaf_T);
       CHECK_FALSE(out.flags & kEdgeDropped);  // every packet exactly at its bound, never over (pspm: no bound at all)
       hx[i].emplace_back(Eigen::Map<const Eigen::VectorXd>(s.x_hat(), dofs));
       hv[i].emplace_back(Eigen::Map<const Eigen::VectorXd>(s.v_hat(), dofs));
       total += s.energy().controller_J;
-      r.dissipated_J += s.config().damping_Ns_per_m * hv[i].back().squaredNorm() * T;
+      r.dissipated_J += s.config().damping_Ns_per_m * hv[i].back().squaredNorm() * s.last_step_s();
       for (int n = 0; n < s.neighbor_count(); ++n) r.edge_peak_J = std::max(r.edge_peak_J, s.edge_energy().peak_J(n));
     }
     r.worst_J = std::max(r.worst_J, total);
@@ -201,6 +210,49 @@ TEST(Theorem1, below_eq18_the_same_velocities_generate_energy_so_the_test_can_fa
   CHECK_TRUE(worst_over_drives(0.9, 1, 3, 17) > 0.05);
   CHECK_TRUE(worst_over_drives(0.9, 3, 5, 5) > 0.05);
   CHECK_TRUE(worst_over_drives(0.5, 1, 10, 10) > 0.5);
+}
+
+// eq. (18)'s D_ij term, 1/2 (T_j^max / T_i^min - 1) D_ij: under varying steps the D-coupling alone
+// generates energy. Each station accounts its controller power over its own step, so with the hub at
+// T^max and the leaf at T^min and the leaf's velocity a = (T^max + T^min) / (2 T^min) times the hub's
+// (in phase, one-tick delay), the pair's controller energy per tick is D |v|^2 (T^max - T^min)^2 / (4 T^min)
+// > 0 without damping (the form T_i v_i^2 - (T_i + T_j) v_i v_j + T_j v_j^2 is indefinite when T_i != T_j).
+// P_ij is negligible here (1e-9 N/m), so eq. (18) without its D term asks for B_i ~ 0.
+namespace {
+struct DOnly {
+  EdgeGains gains = scalar_edge_gains(HeavyWorld::get().scene.nodes, 1e-9, 5.0);
+  static const DOnly& get() {
+    static const DOnly d;
+    return d;
+  }
+};
+
+double worst_d_only_J(double factor, double* dissipated_J) {
+  Drive d;
+  d.gains = &DOnly::get().gains;
+  d.hub_step_s = 0.0024;
+  d.leaf_step_s = 0.0016;
+  d.leaf_amplitude_ratio = (0.0024 + 0.0016) / (2 * 0.0016);
+  d.phase_rad = 0;
+  d.period_ticks = 200;
+  const DriveResult r = drive_star(factor, 1, 1, 1, d, 600, false, Pspm{});
+  *dissipated_J = r.dissipated_J;
+  return r.worst_J;
+}
+
+}  // namespace
+
+TEST(Theorem1, under_varying_steps_eq18s_D_term_is_needed_for_controller_passivity) {
+  // (measured: 0 J generated with the D term, 1.8e-4 J dissipated; 1.5e-5 J generated without it.
+  // Not tight: half the D term still suffices for this drive; dropping it does not.)
+  double diss_full = 0, diss_no_d = 0;
+  // eq. (18) with the D term: B_i = 1/2 (2.4 / 1.6 - 1) 5 = 1.25 N s/m (+ the negligible P term)
+  const double with_d = worst_d_only_J(1.0, &diss_full);
+  CHECK_TEXT(with_d <= 1e-9 * diss_full, ("eq. 18 with its D term: generated " + std::to_string(with_d) + " J").c_str());
+  // the same drive at B_i = 1e-7 x that, still above eq. (18) without its D term (the P term alone,
+  // 2.4e-12 N s/m): the controller ports generate energy
+  const double no_d = worst_d_only_J(1e-7, &diss_no_d);
+  CHECK_TEXT(no_d > 1e-6 && no_d > 1e3 * diss_no_d, ("without the D term: generated " + std::to_string(no_d) + " J").c_str());
 }
 
 // Passive set-position modulation (rt/set_position_modulation.hpp) with B_i = 0: the same adversarial

@@ -285,22 +285,128 @@ void StationCore::build_rhs() {
   }
 }
 
-double StationCore::predict_and_count_residual() {
-  const double* vh = v_hat_.data();
-  const double* r = resid_.data();
-  const double* x = x_.data();
-  double* xh = x_hat_.data();
-  double vv = 0, vr = 0;
-  for (int i = 0; i < dofs_; ++i) {
-    const double a = vh[i];
-    vv += a * a;
-    vr += a * r[i];
-    xh[i] = x[i] + (T_ / 2.0) * a;
+namespace {
+// The row-local part of steps 6 and 7 for NE edges (compile-time: accumulators in registers; -1:
+// ne at run time): one pass over the dofs. RT-safe.
+struct PostSolveRows {
+  const double* vh;     // v_hat
+  const double* r;      // the solve's residual
+  const double* Dv;     // D_0 v_hat
+  const double* Pv;     // P_0 v_hat
+  double* x;
+  double* v;
+  double* xh;           // x_hat (written)
+  const double* vj[kMaxNeighbors];
+  const double* xj[kMaxNeighbors];
+  double delta[kMaxNeighbors];
+  int ne = 0;
+  long dofs = 0;
+  double T = 0;
+};
+struct PostSolveOut {
+  double vv = 0, vr = 0, dvv = 0, vmax = 0, nonfinite = 0;
+  double e[kMaxNeighbors] = {};
+};
+template <int NE, bool Advance>
+[[gnu::noinline]] PostSolveOut post_solve_rows(const PostSolveRows& p) {
+  constexpr int kE = NE >= 0 ? NE : kMaxNeighbors;
+  const int ne = NE >= 0 ? NE : p.ne;
+  const double* __restrict vh = p.vh;
+  const double* __restrict r = p.r;
+  const double* __restrict Dv = p.Dv;
+  const double* __restrict Pv = p.Pv;
+  double* __restrict x = p.x;
+  double* __restrict v = p.v;
+  double* __restrict xh = p.xh;
+  const double half_T = p.T / 2.0, T = p.T;
+  double vv = 0, vr = 0, dvv = 0, vmax = 0, nonfinite = 0;  // nonfinite: 0 unless some x or v is inf/NaN
+  double e[kE > 0 ? kE : 1] = {};
+  const double* vj[kE > 0 ? kE : 1];
+  const double* xj[kE > 0 ? kE : 1];
+  double delta[kE > 0 ? kE : 1];
+  for (int n = 0; n < ne; ++n) {
+    vj[n] = p.vj[n];
+    xj[n] = p.xj[n];
+    delta[n] = p.delta[n];
   }
+  for (long k = 0; k < p.dofs; ++k) {
+    const double a = vh[k];
+    vv += a * a;
+    vr += a * r[k];
+    const double xk = x[k] + half_T * a;  // x_hat; the edge terms read x(k) before the advance
+    xh[k] = xk;
+    dvv += Dv[k] * a;
+    for (int n = 0; n < ne; ++n) e[n] += Dv[k] * (a - delta[n] * vj[n][k]) + Pv[k] * (xk - xj[n][k]);
+    if constexpr (Advance) {
+      x[k] += T * a;
+      v[k] = 2.0 * a - v[k];
+      vmax = std::max(vmax, std::abs(v[k]));
+      nonfinite += 0.0 * x[k] + 0.0 * v[k];
+    }
+  }
+  PostSolveOut out;
+  out.vv = vv;
+  out.vr = vr;
+  out.dvv = dvv;
+  out.vmax = vmax;
+  out.nonfinite = nonfinite;
+  for (int n = 0; n < ne; ++n) out.e[n] = e[n];
+  return out;
+}
+template <bool Advance>
+PostSolveOut post_solve_rows_by_edges(const PostSolveRows& p) {
+  switch (p.ne) {
+    case 0: return post_solve_rows<0, Advance>(p);
+    case 1: return post_solve_rows<1, Advance>(p);
+    case 2: return post_solve_rows<2, Advance>(p);
+    case 3: return post_solve_rows<3, Advance>(p);
+    case 4: return post_solve_rows<4, Advance>(p);
+    default: return post_solve_rows<-1, Advance>(p);
+  }
+}
+}  // namespace
+
+StationCore::PostSolveSums StationCore::post_solve_pass(bool advance) {
+  // Group 0's edges (the leader's gains): the data each edge's energy term reads.
+  const EdgeGains* g0 = neighbor_count() > 0 ? cfg_.neighbors[0].gains : nullptr;
+  PostSolveRows p;
+  int edge[kMaxNeighbors];
+  for (int j = 0; j < neighbor_count(); ++j) {
+    if (cfg_.neighbors[static_cast<std::size_t>(j)].gains != g0) continue;
+    const auto& view = views_[static_cast<std::size_t>(j)];
+    edge[p.ne] = j;
+    p.delta[p.ne] = (active_[static_cast<std::size_t>(j)] && view.fresh) ? 1.0 : 0.0;
+    p.vj[p.ne] = view.v_hat;
+    p.xj[p.ne] = active_[static_cast<std::size_t>(j)] ? view.x_hat : x_.data();  // over the bound: x_hat_j := x(k)
+    ++p.ne;
+  }
+  if (g0) {  // D_0 v_hat -> tmp_, P_0 v_hat -> tmp2_ in one pass
+    const double* u[2] = {v_hat_.data(), v_hat_.data()};
+    static constexpr double kD[2] = {1.0, 0.0}, kP[2] = {0.0, 1.0};
+    dp_op_.apply(u, kD, kP, tmp_.data(), tmp2_.data(), nullptr);
+  } else {
+    tmp_.setZero();
+    tmp2_.setZero();
+  }
+  p.vh = v_hat_.data();
+  p.r = resid_.data();
+  p.Dv = tmp_.data();
+  p.Pv = tmp2_.data();
+  p.x = x_.data();
+  p.v = v_.data();
+  p.xh = x_hat_.data();
+  p.dofs = dofs_;
+  p.T = T_;
+  const PostSolveOut o = advance ? post_solve_rows_by_edges<true>(p) : post_solve_rows_by_edges<false>(p);
   // The VO rows' residual r of an inexact solve acted as the extra force -r (A v_hat = b - r; the
   // Schur step solves the contact/VP part exactly on top, so r is y0's residual).
-  if (!step_->solver->exact()) energy_.solver_residual_J -= vr * T_;
-  return vv;
+  if (!step_->solver->exact()) energy_.solver_residual_J -= o.vr * T_;
+  for (int n = 0; n < p.ne; ++n) edge_tick_J_[static_cast<std::size_t>(edge[n])] = -o.e[n] * T_;
+  PostSolveSums out;
+  out.vv = o.vv;
+  out.dissipated_J = T_ * o.dvv;
+  out.vmax = o.nonfinite == 0.0 ? o.vmax : std::nan("");
+  return out;
 }
 
 const double* StationCore::modulation_target(int j, std::int64_t k) {
@@ -473,8 +579,15 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
     w_hat = bw / step_->a_w;
   }
 
-  // --- 6. predicted states, contact force, energies (13), (14) ---
-  const double vv = predict_and_count_residual();
+  // --- 6. predicted states, energies (13), (14) and (one gain group) step 7's state advance ---
+  // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)   (eq. 15),
+  // with x_hat_j := x(k), delta_ij = 0 for an over-bound edge. Split per edge (rt/edge_energy.hpp):
+  // D_ij, P_ij are symmetric, so v_hat^T D u = (D v_hat)^T u: one D v_hat and one P v_hat per gain
+  // set, then two dot products per edge, fused with x_hat and the advance in one pass
+  // (post_solve_pass). Further gain groups (rare) read x(k): then the advance is a pass of its own.
+  const bool one_group = group_leaders_.size() <= 1;
+  const PostSolveSums sums = post_solve_pass(one_group);
+  const double vv = sums.vv;
   const Vec3 y_hat = y_ + (T_ / 2.0) * w_hat;
   double port_power = 0;
   f_contact_vp_.setZero();
@@ -487,26 +600,21 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
     }
   }
   energy_.port_J += port_power * T_;
-  // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)   (eq. 15),
-  // with x_hat_j := x(k), delta_ij = 0 for an over-bound edge. Split per edge (rt/edge_energy.hpp):
-  // D_ij, P_ij are symmetric, so v_hat^T D u = (D v_hat)^T u: one D v_hat and one P v_hat per gain
-  // set, then two dot products per edge.
   const double damping_J = -cfg_.damping_Ns_per_m * vv * T_;
   double ctrl_J = damping_J;
   for (int j = 0; j < nn; ++j) {
-    if (!first_of_gain(j)) continue;
-    const EdgeGains* eg = cfg_.neighbors[j].gains;
-    if (j == 0) {  // D v_hat -> tmp_, P v_hat -> tmp2_ in one pass
-      const double* u[2] = {v_hat_.data(), v_hat_.data()};
-      static constexpr double kD[2] = {1.0, 0.0}, kP[2] = {0.0, 1.0};
-      dp_op_.apply(u, kD, kP, tmp_.data(), tmp2_.data(), nullptr);
-    } else {
-      tmp_.setZero();   // D v_hat
-      tmp2_.setZero();  // P v_hat
-      eg->D.multiply_add(1.0, v_hat_.data(), tmp_.data());
-      eg->P.multiply_add(1.0, v_hat_.data(), tmp2_.data());
-    }
+    if (cfg_.neighbors[j].gains != cfg_.neighbors[0].gains) continue;
+    ctrl_J += edge_tick_J_[static_cast<std::size_t>(j)];
     // pspm: T v_hat^T D v_hat, what each edge of this gain group dissipated (D on the local velocity)
+    if (!pspm_.empty()) pspm_[static_cast<std::size_t>(j)].credit(sums.dissipated_J);
+  }
+  for (int j = 1; j < nn; ++j) {  // further gain groups: D v_hat and P v_hat by matvecs
+    if (!first_of_gain(j) || cfg_.neighbors[j].gains == cfg_.neighbors[0].gains) continue;
+    const EdgeGains* eg = cfg_.neighbors[j].gains;
+    tmp_.setZero();   // D v_hat
+    tmp2_.setZero();  // P v_hat
+    eg->D.multiply_add(1.0, v_hat_.data(), tmp_.data());
+    eg->P.multiply_add(1.0, v_hat_.data(), tmp2_.data());
     const double dissipated_J = pspm_.empty() ? 0.0 : T_ * tmp_.dot(v_hat_);
     for (int i2 = j; i2 < nn; ++i2) {
       if (cfg_.neighbors[i2].gains != eg) continue;
@@ -531,7 +639,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
   energy_.controller_J += ctrl_J;
 
   // --- 7. advance the state (eq. 9, eq. 21) ---
-  const double vmax_seen = advance_state();
+  const double vmax_seen = one_group ? sums.vmax : advance_state();
   y_ += T_ * w_hat;
   w_vp_ = 2.0 * w_hat - w_vp_;
   w_hat_prev_ = w_hat;

@@ -247,8 +247,16 @@ class StationCore {
   // Sums of gain group g (neighbours sharing cfg_.neighbors[g].gains): sx = sum_active (x - x_hat_j),
   // sv = sum_{active, fresh} v_hat_j, and (if d) d = x - x_d, in one pass. RT-safe.
   void sum_group(int g, double* sx, double* sv, double* d) const;
-  // Step 6: x_hat = x + T/2 v_hat and the residual's energy; returns |v_hat|^2. RT-safe.
-  double predict_and_count_residual();
+  // Steps 6 and 7 of the first gain group: D_0 v_hat and P_0 v_hat in one operator pass, then ONE
+  // pass over the dofs for x_hat = x + T/2 v_hat, |v_hat|^2 and the residual's energy
+  // (solver_residual_J), each of the group's edges' coupling energy (edge_tick_J_) and (advance)
+  // x += T v_hat, v = 2 v_hat - v. RT-safe.
+  struct PostSolveSums {
+    double vv = 0;            // |v_hat|^2
+    double dissipated_J = 0;  // T v_hat^T D_0 v_hat
+    double vmax = 0;          // max |v| after the advance (NaN if x or v not finite; advance only)
+  };
+  PostSolveSums post_solve_pass(bool advance);
   // Step 7 for the VO: x += T v_hat, v = 2 v_hat - v; returns max |v| (NaN if x or v not finite). RT-safe.
   double advance_state();
 

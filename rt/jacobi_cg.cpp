@@ -81,7 +81,8 @@ void JacobiCg::multiply(const double* x, double* y, int width) const {
 }
 
 // Preconditioned CG (Saad, Alg. 9.1) run on W independent systems; one matrix pass per iteration
-// with the p.q products accumulated in it, z = D^{-1} r never stored (three vector passes).
+// with the p.q products accumulated in it, z = D^{-1} r never stored (three vector passes); the
+// initial residual is formed in the initial matvec's pass.
 template <int W>
 int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int max_iterations) {
   double* p = p_.data();
@@ -90,18 +91,25 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
   const int* rp = rowptr_.data();
   const int* ci = colidx_.data();
   const double* av = val_.data();
-  multiply_fixed<W>(x, q);
+  // r = b - A x, p = z = D^{-1} r and the products, in the initial matvec's pass (row-local).
   double bb = 0, rr = 0;
   double rz[W] = {};
-  for (int i = 0; i < n_; ++i)
+  for (int i = 0; i < n_; ++i) {
+    double acc[W] = {};
+    for (int e = rp[i]; e < rp[i + 1]; ++e) {
+      const double a = av[e];
+      const double* xj = x + static_cast<long>(ci[e]) * W;
+      for (int c = 0; c < W; ++c) acc[c] += a * xj[c];
+    }
     for (int c = 0; c < W; ++c) {
       const long k = static_cast<long>(i) * W + c;
-      r[k] = b[k] - q[k];
+      r[k] = b[k] - acc[c];
       p[k] = dinv[i] * r[k];
       bb += b[k] * b[k];
       rr += r[k] * r[k];
       rz[c] += r[k] * p[k];
     }
+  }
   const double threshold = tol * tol * bb;
   int it = 0;
   while (rr > threshold) {

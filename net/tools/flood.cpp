@@ -113,7 +113,7 @@ struct Shared {
   std::uint64_t sniffed = 0;
 };
 
-[[noreturn]] void usage(const char* why) {
+[[noreturn]] void usage(const char* why, int code = 2) {
   std::fprintf(stderr,
                "haptic-flood: %s\n"
                "usage: haptic-flood --station ID=PORT... --link I-J... --session N --duration S --max-datagrams N\n"
@@ -123,7 +123,7 @@ struct Shared {
                "classes: ",
                why);
   for (int c = 0; c < class_count; ++c) std::fprintf(stderr, "%s%s", kNames[c], c + 1 < class_count ? "," : "\n");
-  std::exit(2);
+  std::exit(code);
 }
 
 sockaddr_in loopback(std::uint16_t port) {
@@ -311,7 +311,7 @@ Options parse(int argc, char** argv) {
         if (c == class_count) usage(("unknown class " + name).c_str());
         o.classes[static_cast<std::size_t>(c)] = true;
       }
-    } else if (a == "-h" || a == "--help") usage("help");
+    } else if (a == "-h" || a == "--help") usage("the attacker of tools/flood/flood_run.py (see the comment at the top of net/tools/flood.cpp)", 0);
     else usage(("unknown option " + a).c_str());
   }
   if (o.stations.empty() || o.links.empty() || o.session == 0) usage("need --station, --link and --session");

@@ -263,6 +263,24 @@ bool check_bounds(json& links) {
   return all;
 }
 
+// The steps T_k a station integrated with, from its trace's step_s (null: an older trace without it):
+// smallest, mean, largest over the traced ticks, and, when every tick was traced, how far the
+// integrated time (the sum of T_k) ran from the tick grid (ticks x T) by the last one. The merged
+// metrics stay on the common tick grid (the stations' ticks are scheduled on it, so copies are
+// compared at the same wall time); this says how the variable-step integration kept pace with it.
+json steps_json(const StationFiles& f) {
+  if (!f.trace.column.count("step_s") || f.trace.rows.empty()) return nullptr;
+  double lo = INFINITY, hi = 0, sum = 0;
+  for (std::size_t r = 0; r < f.trace.rows.size(); ++r) {
+    const double t = f.trace.at(r, "step_s");
+    lo = std::min(lo, t), hi = std::max(hi, t), sum += t;
+  }
+  const auto n = static_cast<double>(f.trace.rows.size());
+  const bool every = f.summary.value("trace_every", 1) == 1;
+  const double T = f.summary["dt_s"].get<double>();
+  return {{"min_s", lo}, {"mean_s", sum / n}, {"max_s", hi}, {"integrated_minus_grid_s", every ? json(sum - n * T) : json(nullptr)}};
+}
+
 json station_rows(const std::vector<StationFiles>& st) {
   json rows = json::array();
   for (const auto& f : st) {
@@ -271,7 +289,8 @@ json station_rows(const std::vector<StationFiles>& st) {
                     {"missed_cycles", s["loop"]["missed_cycles"]}, {"edge_drop_events", s.value("edge_drop_events", json(0))},
                     {"fully_real_time", s["rt"]["fully_real_time"]}, {"rt_warnings", s["rt"]["warnings"]},
                     {"stopped_by_signal", s["stopped_by_signal"]}, {"device", s["device"]}, {"wall_time_s", s["wall_time_s"]},
-                    {"exit_code", s.value("exit_code", json(nullptr))}, {"conditions", s.value("conditions", json::array())}});
+                    {"exit_code", s.value("exit_code", json(nullptr))}, {"conditions", s.value("conditions", json::array())},
+                    {"steps", steps_json(f)}});
   }
   return rows;
 }

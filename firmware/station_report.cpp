@@ -206,12 +206,12 @@ void write_trace_csv(const std::string& path, const TickRecords& rec, double T) 
   std::FILE* tf = std::fopen(path.c_str(), "w");
   if (!tf) throw std::runtime_error("cannot write " + path);
   std::fprintf(tf, "k,t_s,node_x_m,node_y_m,node_z_m,force_x_N,force_y_N,force_z_N,vp_x_m,vp_y_m,vp_z_m,device_x_m,device_y_m,device_z_m,"
-                   "port_energy_J,controller_energy_J,vo_energy_J,contact,flags,max_speed_m_per_s,wake_latency_ns\n");
+                   "port_energy_J,controller_energy_J,vo_energy_J,contact,flags,max_speed_m_per_s,wake_latency_ns,step_s\n");
   for (std::size_t i = 0; i < rec.trace_n; ++i) {
     const TraceRec& r = rec.trace[i];
-    std::fprintf(tf, "%lld,%.4f,%.9g,%.9g,%.9g,%.7g,%.7g,%.7g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%d,%u,%.6g,%d\n", static_cast<long long>(r.k),
+    std::fprintf(tf, "%lld,%.4f,%.9g,%.9g,%.9g,%.7g,%.7g,%.7g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%d,%u,%.6g,%d,%.9g\n", static_cast<long long>(r.k),
                  static_cast<double>(r.k + 1) * T, r.node[0], r.node[1], r.node[2], r.force[0], r.force[1], r.force[2], r.vp[0], r.vp[1], r.vp[2],
-                 r.device[0], r.device[1], r.device[2], r.port_J, r.ctrl_J, r.vo_J, r.contact, r.flags, r.max_speed, r.wake_latency_ns);
+                 r.device[0], r.device[1], r.device[2], r.port_J, r.ctrl_J, r.vo_J, r.contact, r.flags, r.max_speed, r.wake_latency_ns, r.step_s);
   }
   std::fclose(tf);
 }

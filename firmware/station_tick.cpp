@@ -77,6 +77,7 @@ void record_trace(const TickInputs& in, TickRecords& rec, std::int64_t kr, const
   r.ctrl_J = e.controller_J;
   r.vo_J = e.vo_J;
   r.max_speed = vmax;
+  r.step_s = in.core->last_step_s();
   r.flags = flags;
   r.wake_latency_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.wake_latency_ns, INT32_MAX));
   r.contact = in.core->in_contact() ? 1 : 0;

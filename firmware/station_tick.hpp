@@ -30,6 +30,7 @@ struct TraceRec {
   std::int64_t k;
   double node[3], force[3], vp[3], device[3];
   double port_J, ctrl_J, vo_J, max_speed;
+  double step_s;  // T_k the core integrated this tick with (rt::StationCore::last_step_s)
   std::uint32_t flags;
   std::int32_t wake_latency_ns;
   std::uint8_t contact;

@@ -182,9 +182,12 @@ std::string write_two_stations(const std::string& name, double (*gap)(std::int64
     std::ofstream(base + ".json") << station_json(id, 2, 0.01).dump();
     std::ofstream tr(base + "-trace.csv");
     tr << "k,t_s,node_x_m,node_y_m,node_z_m,force_x_N,force_y_N,force_z_N,vp_x_m,vp_y_m,vp_z_m,device_x_m,device_y_m,device_z_m,"
-          "port_energy_J,controller_energy_J,vo_energy_J,contact,flags,max_speed_m_per_s,wake_latency_ns\n";
-    for (int k = 0; k < 10; ++k)
-      tr << k << "," << (k + 1) * 0.01 << ",0,0,0," << (id == 1 ? 1.0 : -1.0) << ",0,0,0,0,0,0,0,0," << -0.001 * k << ",0,0.5,1," << (id == 2 || k % 3 == 0 ? kTraceStateSent : 0u) << ",0,0\n";
+          "port_energy_J,controller_energy_J,vo_energy_J,contact,flags,max_speed_m_per_s,wake_latency_ns" << (id == 2 ? ",step_s\n" : "\n");
+    for (int k = 0; k < 10; ++k) {  // station 2 integrated with T_k = 9, 10, 11, 9, ... ms (station 1: a trace without step_s)
+      tr << k << "," << (k + 1) * 0.01 << ",0,0,0," << (id == 1 ? 1.0 : -1.0) << ",0,0,0,0,0,0,0,0," << -0.001 * k << ",0,0.5,1," << (id == 2 || k % 3 == 0 ? kTraceStateSent : 0u) << ",0,0";
+      if (id == 2) tr << "," << 0.01 + 0.001 * (k % 3 - 1);
+      tr << "\n";
+    }
     std::ofstream st(base + "-state.csv");
     st << "k,x0,x1,x2,x3,x4,x5\n";
     for (int k = 0; k < 10; k += 2) st << k << "," << (id == 2 ? gap(k) : 0.0) << ",0,0,1,0,0\n";
@@ -233,6 +236,13 @@ TEST(RunMerge, MergesStationFilesWithTheSimulatorsMetrics) {
   CHECK_EQUAL(4u, s["packets"]["sent_in_hold_window"].get<unsigned>());
   CHECK_EQUAL(7u, s["packets"]["sent_after_consensus"].get<unsigned>());
   CHECK_TRUE(s["passivity_condition_met"].get<bool>());
+  // the steps T_k each station integrated with, from its trace (station 1's trace has none)
+  CHECK_TRUE(s["stations"][0]["steps"].is_null());
+  const json& steps = s["stations"][1]["steps"];
+  DOUBLES_EQUAL(0.009, steps["min_s"].get<double>(), 1e-12);
+  DOUBLES_EQUAL(0.011, steps["max_s"].get<double>(), 1e-12);
+  DOUBLES_EQUAL(0.0099, steps["mean_s"].get<double>(), 1e-12);
+  DOUBLES_EQUAL(-0.001, steps["integrated_minus_grid_s"].get<double>(), 1e-12);  // four 9 ms, three 11 ms
   CHECK_TRUE(fs::exists(dir + "/trace.csv") && fs::exists(dir + "/series.csv"));
   // The file contract: 20 trace rows + header, 5 series rows + header.
   std::ifstream tr(dir + "/trace.csv"), se(dir + "/series.csv");

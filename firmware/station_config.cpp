@@ -65,7 +65,7 @@ void parse_station_section(View root, StationFile& f) {
   rt::parse_consensus_passivity(s.consensus_passivity, "station.consensus_passivity");  // named error at parse time
   s.pspm_reservoir_J = real(st["pspm_reservoir_J"], "station.pspm_reservoir_J", 0.001, 0, 1);
   s.loss_allowance_ticks = static_cast<int>(integer(st["loss_allowance_ticks"], "station.loss_allowance_ticks", -1, -1, 1000));
-  s.loss_allowance_max_ticks = static_cast<int>(integer(st["loss_allowance_max_ticks"], "station.loss_allowance_max_ticks", 40, 0, 1000));
+  s.loss_allowance_max_ticks = static_cast<int>(integer(st["loss_allowance_max_ticks"], "station.loss_allowance_max_ticks", 16, 0, 1000));
   s.edge_energy_bound_J = real(st["edge_energy_bound_J"], "station.edge_energy_bound_J", rt::kDefaultEdgeEnergyBoundJ, 0.0, 1e6, " (0 = off)");
   s.edge_energy_leak_W = real(st["edge_energy_leak_W"], "station.edge_energy_leak_W", rt::kDefaultEdgeEnergyLeakW, 0.0, 1.0, " (0 = no leak)");
   s.solver = text(st["solver"], "station.solver", "auto");

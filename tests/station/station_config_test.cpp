@@ -55,7 +55,7 @@ TEST(StationConfig, MinimalFileGetsTheDocumentedDefaults) {
   DOUBLES_EQUAL(0.5, f.station.setup_gap_s, 0);
   DOUBLES_EQUAL(0.05, f.station.damping_margin, 0);
   LONGS_EQUAL(-1, f.station.loss_allowance_ticks);  // from the probe's measured loss
-  LONGS_EQUAL(40, f.station.loss_allowance_max_ticks);
+  LONGS_EQUAL(16, f.station.loss_allowance_max_ticks);
   DOUBLES_EQUAL(0.1, f.station.edge_energy_bound_J, 0);
   LONGS_EQUAL(5, f.station.state_every);
   DOUBLES_EQUAL(-1, f.station.damping_Ns_per_m, 0);

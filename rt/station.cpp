@@ -42,6 +42,7 @@ void StationConfig::validate() const {
     bad("step_resolution_s", "coarse enough for at most " + std::to_string(kMaxStepLevels) + " steps between period_min_s and period_max_s");
   if (!(damping_Ns_per_m >= 0 && std::isfinite(damping_Ns_per_m))) bad("damping_Ns_per_m", ">= 0");
   if (!(pspm_reservoir0_J >= 0 && std::isfinite(pspm_reservoir0_J))) bad("pspm_reservoir0_J", "finite and >= 0");
+  if (!(predict_held_limit_m >= 0)) bad("predict_held_limit_m", ">= 0 (+inf: unlimited)");
   if (predict_held_state && consensus_passivity != ConsensusPassivity::kSetPositionModulation)
     bad("predict_held_state", "used only with consensus_passivity = pspm (eq. 18 does not cover extrapolated data)");
   if (static_cast<int>(neighbors.size()) > kMaxNeighbors) bad("neighbors", "at most " + std::to_string(kMaxNeighbors));
@@ -416,7 +417,8 @@ const double* StationCore::modulation_target(int j, std::int64_t k) {
   if (view.fresh) since = k;  // first tick this packet is used
   const double h = static_cast<double>(k - since) * cfg_.period_s;
   if (h <= 0) return view.x_hat;
-  for (int i = 0; i < dofs_; ++i) predicted_[i] = view.x_hat[i] + h * view.v_hat[i];
+  const double lim = cfg_.predict_held_limit_m;
+  for (int i = 0; i < dofs_; ++i) predicted_[i] = view.x_hat[i] + std::clamp(h * view.v_hat[i], -lim, lim);
   return predicted_.data();
 }
 

@@ -22,6 +22,7 @@
 #include <Eigen/LU>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -98,6 +99,9 @@ struct StationConfig {
   // transmission deadband, rt/tx_deadband.hpp). Passivity is unaffected: the modulation keeps eq.
   // (14) whatever the target; eq. (18)'s proof does not cover extrapolated data (validate refuses).
   bool predict_held_state = false;
+  // ... with each coordinate's extrapolation offset h T v_hat limited to this, m (the sender's
+  // TxDeadbandConfig::prediction_limit_m(); +inf: unlimited).
+  double predict_held_limit_m = std::numeric_limits<double>::infinity();
   VirtualProxyParams vp{};
   std::vector<int> contact_nodes;     // the contact mesh C_i (node indices)
   StepSolverConfig solver{};          // the linear step's solver (auto: by scene size)

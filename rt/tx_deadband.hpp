@@ -13,17 +13,25 @@
 // x_hat(s) + (k - s) T v_hat(s), which is what a receiver with `StationConfig::predict_held_state`
 // uses while it holds that packet. Then a slow drift of the whole object (a hold) costs no packets
 // and leaves no held-value bias (the plain band's held value lags the drift by up to the band on
-// every node, coherently). Only with the set-position modulation (rt/README.md): eq. (18)'s proof
-// does not cover extrapolated neighbour data.
+// every node, coherently). The extrapolation is limited to kPredictionBands bands per coordinate
+// (prediction_limit_m(), the same at both ends): it is there for slow drifts; a fast motion falls
+// back to the plain band (unlimited, extrapolating each node's velocity over a hold under jittered
+// long delays excited the copies: paper-worst's 10 % consensus took 14.6 s instead of 1.7 s). Only
+// with the set-position modulation (rt/README.md): eq. (18)'s proof does not cover extrapolated
+// neighbour data.
 #include <cstdint>
 #include <vector>
 
 namespace haptic::rt {
 
+inline constexpr double kPredictionBands = 4.0;
+
 struct TxDeadbandConfig {
   double position_deadband_m = 0;  // 0: send every tick (the policy is off)
   int max_interval_ticks = 1;      // a state at least every this many ticks, [1, 1000]
   bool predictive = false;         // compare with the last sent state extrapolated by its velocity
+  // The largest extrapolation offset per coordinate, m (both ends use it).
+  double prediction_limit_m() const { return kPredictionBands * position_deadband_m; }
   bool enabled() const { return position_deadband_m > 0 && max_interval_ticks > 1; }
   // Ticks the policy can add to a receiver's index delay N_ij^k (add to Nbar_ij).
   int added_index_delay_ticks() const { return enabled() ? max_interval_ticks - 1 : 0; }

@@ -297,6 +297,19 @@ TEST(Station, a_held_neighbour_state_is_extrapolated_with_its_velocity_under_set
       CHECK_TRUE(err < 1e-12);
     }
   }
+  // with a limit, each coordinate's extrapolation offset stops at it (the sender's 4 bands)
+  auto c = w.station(0, 2, {1}, 0.0, test::tetra_dirs()[0]);
+  c.vp_initial_position_m = Eigen::Vector3d(5, 5, 5);
+  c.consensus_passivity = ConsensusPassivity::kSetPositionModulation;
+  c.pspm_reservoir0_J = 1e3;
+  c.predict_held_state = true;
+  c.predict_held_limit_m = 1e-6;
+  StationCore s(c);
+  Eigen::VectorXd x = w.scene.x_d, v = Eigen::VectorXd::Constant(dofs, 2e-3);  // 4 um per tick
+  s.rx(0).offer(0, 0, x.data(), v.data(), dofs);
+  for (int k = 0; k < 4; ++k) s.tick(k, Eigen::Vector3d(5, 5, 5));
+  const double* ybar = s.set_position_modulator(0)->ybar();
+  for (int i = 0; i < dofs; ++i) DOUBLES_EQUAL(x[i] + 1e-6, ybar[i], 1e-12);
 }
 
 TEST(Station, eq18_damping_for_the_paper_star_is_round_trip_times_lambda_max_P) {

@@ -3,6 +3,7 @@
 // max_interval_ticks (what the index-delay bound Nbar_ij adds for it).
 #include <CppUTest/TestHarness.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <vector>
@@ -61,39 +62,62 @@ TEST(TxDeadband, a_move_beyond_the_band_is_sent_at_once_and_becomes_the_referenc
 }
 
 TEST(TxDeadband, a_predictive_band_holds_a_steady_drift_to_the_heartbeat_and_sends_at_once_when_the_velocity_changes) {
-  // A steady drift of 2 um per tick (1 mm/s): the plain 10 um band must send every ~5 ticks, the
-  // predictive one (reference: last sent x + (k - s) T v) only at its max interval, exactly as long
-  // as the velocity holds; a change of velocity shows up within the band's worth of ticks.
-  const double T = 0.002, v = 1e-3, band = 1e-5;
+  // A steady drift of 1 um per tick (0.5 mm/s): the plain 10 um band must send every ~10 ticks, the
+  // predictive one (reference: last sent x + (k - s) T v, at most 4 bands) only at its max interval
+  // of 20 (19 um of drift, within the limit), exactly as long as the velocity holds; a change of
+  // velocity shows up within the band's worth of ticks.
+  const double T = 0.002, v = 5e-4, band = 1e-5;
   TxDeadbandConfig c;
   c.position_deadband_m = band;
-  c.max_interval_ticks = 50;
+  c.max_interval_ticks = 20;
   TxDeadbandConfig plain = c;
   c.predictive = true;
+  DOUBLES_EQUAL(4e-5, c.prediction_limit_m(), 1e-18);
   TxDeadband pred(c, 3, T), held(plain, 3, T);
   std::vector<double> x(3, 0.02), vel = {0.0, v, 0.0};
   int sent_pred = 0, sent_plain = 0;
   std::int64_t last = -1;
-  for (int k = 0; k < 470; ++k) {
+  for (int k = 0; k < 462; ++k) {
     x[1] = 0.02 + k * T * v;
     if (pred.should_send(k, x.data(), vel.data())) {
-      if (last >= 0) CHECK_EQUAL(50, k - last);  // the heartbeat only
+      if (last >= 0) CHECK_EQUAL(20, k - last);  // the heartbeat only
       last = k;
       ++sent_pred;
     }
     sent_plain += held.should_send(k, x.data(), vel.data()) ? 1 : 0;
   }
-  CHECK_EQUAL(10, sent_pred);
-  CHECK_TRUE(sent_plain >= 80);
-  // the velocity stops at tick 470 (last sent at 450 with v): the prediction runs 2 um per tick ahead
-  // of the still state, so the band is exceeded after 5 ticks, long before the heartbeat at 500
+  CHECK_EQUAL(24, sent_pred);  // k = 0, 20, ..., 460
+  CHECK_TRUE(sent_plain >= 40);
+  // the velocity stops at tick 462 (last sent at 460 with v): the prediction runs 1 um per tick ahead
+  // of the still state, so the band is exceeded after 10 ticks, before the heartbeat at 480
   int first = -1;
-  for (int k = 470; k < 500 && first < 0; ++k) {
-    x[1] = 0.02 + 470 * T * v;
+  for (int k = 462; k < 480 && first < 0; ++k) {
+    x[1] = 0.02 + 462 * T * v;
     vel[1] = 0.0;
     if (pred.should_send(k, x.data(), vel.data())) first = k;
   }
-  CHECK_TRUE(first > 470 && first <= 470 + 6);
+  CHECK_TRUE(first > 462 && first <= 462 + 11);
+}
+
+TEST(TxDeadband, the_prediction_is_limited_to_four_bands_so_a_fast_motion_falls_back_to_the_plain_band) {
+  // 5 um per tick with a 1 um band: the extrapolation stops at 4 um, so a state that keeps moving is
+  // sent within 5 ticks of the last one (4 um of prediction + 1 um of band), never held to the heartbeat.
+  const double T = 0.002, v = 2.5e-3, band = 1e-6;
+  TxDeadbandConfig c;
+  c.position_deadband_m = band;
+  c.max_interval_ticks = 100;
+  c.predictive = true;
+  TxDeadband d(c, 3, T);
+  std::vector<double> x(3, 0.0), vel = {v, 0.0, 0.0};
+  std::int64_t last = -1, longest = 0;
+  for (int k = 0; k < 200; ++k) {
+    x[0] = k * T * v;
+    if (d.should_send(k, x.data(), vel.data())) {
+      if (last >= 0) longest = std::max<std::int64_t>(longest, k - last);
+      last = k;
+    }
+  }
+  CHECK_TRUE(longest >= 1 && longest <= 5);
 }
 
 TEST(TxDeadband, bad_configuration_names_the_key) {

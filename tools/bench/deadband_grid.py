@@ -13,6 +13,8 @@ Families (seed 1 for the grids, every seed of --seeds for the recommended point 
   eq18   full rate; plain deadband, band 0.005-0.05 mm x max interval 2-6 and 8 (Nbar_ij grows by interval - 1)
   pspm   full rate; full rate with receiver prediction only (a control); plain deadband 0.001 mm / 20 and
          0.01 mm / 8; predictive deadband (--tx-predict) band 0.001-0.01 mm x interval 10, 20, 100
+  pspm-worst  the same on paper-worst (long jittered delays), first seed: full rate, plain 0.001 mm / 20,
+         the recommended predictive point
 "Fewer" compares states per second in each window (hold window; from the run's own consensus time to
 the end), so runs with different consensus times are compared fairly.
 """
@@ -27,9 +29,9 @@ PSPM = ["--consensus-passivity", "pspm", "--pspm-reservoir-J", "0.001"]
 RECOMMENDED = ["--tx-deadband-mm", "0.001", "--tx-max-interval", "20", "--tx-predict"]
 
 
-def run(binary, args, tmp):
+def run(binary, args, tmp, scenario="paper-best"):
     out = os.path.join(tmp, "run")
-    cmd = [binary, "sim", "--scenario", "paper-best", "--out", out, "--no-plots", "--quiet"] + args
+    cmd = [binary, "sim", "--scenario", scenario, "--out", out, "--no-plots", "--quiet"] + args
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
     with open(os.path.join(out, "summary.json")) as f:
         s = json.load(f)
@@ -132,12 +134,20 @@ def main():
                     r = run(a.bin, fam_args + v + sa, tmp)
                     r.update(family=fam, seed=seed, variant=" ".join(v))
                     result["runs"].append(compare(base, r))
+        sa = ["--seed", str(seeds[0])]
+        base = run(a.bin, PSPM + sa, tmp, "paper-worst")
+        base.update(family="pspm-worst", seed=seeds[0], variant="full rate")
+        result["runs"].append(compare(base, base))
+        for v in (["--tx-deadband-mm", "0.001", "--tx-max-interval", "20"], RECOMMENDED):
+            r = run(a.bin, PSPM + v + sa, tmp, "paper-worst")
+            r.update(family="pspm-worst", seed=seeds[0], variant=" ".join(v))
+            result["runs"].append(compare(base, r))
     with open(a.out, "w") as f:
         json.dump(result, f, indent=1)
-    print("%-5s %-4s %-62s %8s %8s %8s %8s %8s %s" % ("fam", "seed", "variant", "ct_s", "dct", "d|Su|", "fewer_h", "fewer_a", "target"))
+    print("%-10s %-4s %-62s %8s %8s %8s %8s %8s %s" % ("fam", "seed", "variant", "ct_s", "dct", "d|Su|", "fewer_h", "fewer_a", "target"))
     for r in result["runs"]:
         v = r["vs_full_rate"]
-        print("%-5s %-4d %-62s %8.3f %+8.3f %+8.3f %8.3f %8.3f %s" % (r["family"], r["seed"], r["variant"], r["consensus_time_s"],
+        print("%-10s %-4d %-62s %8.3f %+8.3f %+8.3f %8.3f %8.3f %s" % (r["family"], r["seed"], r["variant"], r["consensus_time_s"],
               v["consensus_time"], v["hold_force_sum"], v["fewer_states_hold"], v["fewer_states_after_consensus"], r["meets_target"]))
     return 0
 

@@ -190,6 +190,24 @@ double sent_rate_between(const SimResult& r, double t0, double t1, double T) {
     for (std::int64_t k : l.sent_ticks) n += (k * T >= t0 - 1e-9 && k * T < t1 - 1e-9) ? 1 : 0;
   return static_cast<double>(n) / (t1 - t0);
 }
+
+// A scenario under the set-position modulation (E0 = 1 mJ, the station default) at full rate, and the
+// same run (same seed) with the predictive deadband: 1 um band, a state at least every 20 ticks.
+struct FullAndDeadband {
+  SimResult full, db;
+  double T;
+};
+FullAndDeadband pspm_full_and_predictive_deadband(const char* scenario) {
+  auto s = make_scenario(scenario);
+  s.consensus_passivity = haptic::rt::ConsensusPassivity::kSetPositionModulation;
+  s.pspm_reservoir0_J = 1e-3;
+  FullAndDeadband r{run_simulation(build_scenario(s), SimOptions{}), {}, s.period_s};
+  s.tx_deadband.position_deadband_m = 1e-6;
+  s.tx_deadband.max_interval_ticks = 20;
+  s.tx_deadband.predictive = true;
+  r.db = run_simulation(build_scenario(s), SimOptions{});
+  return r;
+}
 }  // namespace
 
 TEST(ClosedLoop, predictive_deadband_under_pspm_sends_80_percent_fewer_states_in_the_hold_and_after_consensus_within_5_percent_of_full_rate) {
@@ -197,15 +215,9 @@ TEST(ClosedLoop, predictive_deadband_under_pspm_sends_80_percent_fewer_states_in
   // the station default) at full rate against the same run (same seed) with the predictive deadband
   // (1 um band, a state at least every 20 ticks; rt/tx_deadband.hpp): at least 80 % fewer states in
   // the hold window and after consensus, consensus time (< 1 mm) and hold |sum u| within 5 %.
-  auto s = make_scenario("paper-best");
-  s.consensus_passivity = haptic::rt::ConsensusPassivity::kSetPositionModulation;
-  s.pspm_reservoir0_J = 1e-3;
-  const auto full = run_simulation(build_scenario(s), SimOptions{});
-  s.tx_deadband.position_deadband_m = 1e-6;
-  s.tx_deadband.max_interval_ticks = 20;
-  s.tx_deadband.predictive = true;
-  const auto db = run_simulation(build_scenario(s), SimOptions{});
-  const double T = s.period_s, end = full.metrics.simulated_s;
+  const auto runs = pspm_full_and_predictive_deadband("paper-best");
+  const SimResult &full = runs.full, &db = runs.db;
+  const double T = runs.T, end = full.metrics.simulated_s;
   CHECK_FALSE(full.metrics.diverged || db.metrics.diverged);
   CHECK_TRUE(full.metrics.consensus_time_s.has_value() && db.metrics.consensus_time_s.has_value());
   const double ct_full = *full.metrics.consensus_time_s, ct_db = *db.metrics.consensus_time_s;
@@ -247,17 +259,11 @@ TEST(ClosedLoop, predictive_deadband_under_pspm_on_paper_worst_keeps_the_10_perc
   // Long, jittered delays (80-240 ms +-50 %): the extrapolation limited to 4 bands (rt/tx_deadband.hpp)
   // keeps the predictive deadband from exciting the copies (unlimited: 10 % of the error at release
   // after 14.6 s instead of 1.7 s, 0.07 mm apart at the end), with 80 % fewer states or more.
-  auto s = make_scenario("paper-worst");
-  s.consensus_passivity = haptic::rt::ConsensusPassivity::kSetPositionModulation;
-  s.pspm_reservoir0_J = 1e-3;
-  const auto full = run_simulation(build_scenario(s), SimOptions{});
-  s.tx_deadband.position_deadband_m = 1e-6;
-  s.tx_deadband.max_interval_ticks = 20;
-  s.tx_deadband.predictive = true;
-  const auto db = run_simulation(build_scenario(s), SimOptions{});
+  const auto runs = pspm_full_and_predictive_deadband("paper-worst");
+  const SimResult &full = runs.full, &db = runs.db;
   CHECK_FALSE(full.metrics.diverged || db.metrics.diverged);
   CHECK_TRUE(full.metrics.consensus_time_10pct_s.has_value() && db.metrics.consensus_time_10pct_s.has_value());
   CHECK_TRUE(*db.metrics.consensus_time_10pct_s <= 1.1 * *full.metrics.consensus_time_10pct_s);
-  const double T = s.period_s, end = full.metrics.simulated_s;
+  const double T = runs.T, end = full.metrics.simulated_s;
   CHECK_TRUE(sent_rate_between(db, 0, end + T, T) <= 0.2 * sent_rate_between(full, 0, end + T, T));
 }

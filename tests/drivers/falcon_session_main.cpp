@@ -33,7 +33,7 @@ bool contains(const std::string& text, const std::string& what, const char* wher
 void write_lab(const std::string& path, const std::string& firmware) {
   std::ofstream(path) << "[lab]\nusers = 2\nscenario = \"paper-best\"\nduration_s = 2.0\npush_end_s = 0.8\nrelease_s = 1.2\n"
                          "probe_s = 1.0\nstart_delay_s = 0.5\ndefault_host = \"127.0.0.1\"\n[network]\ntransport = \"udp\"\n"
-                         "[topology]\nlinks = \"1-2\"\n[[stations]]\nid = 1\nhost = \"127.0.0.1\"\n"
+                         "[topology]\nlinks = \"1-2\"\n[station]\nloss_allowance_ticks = 1\n[[stations]]\nid = 1\nhost = \"127.0.0.1\"\n"
                          "device = { kind = \"falcon\", falcon_firmware_path = \""
                       << firmware << "\", damping_Ns_per_m = 5.0, falcon_homing_timeout_s = 10.0, max_stale_reads = 250 }\n"
                       << "[[stations]]\nid = 2\nhost = \"127.0.0.1\"\ndevice = \"simulated\"\n";

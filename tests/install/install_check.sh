@@ -58,6 +58,7 @@ start_delay_s = 1.5
 links = "1-2"
 [station]
 max_no_neighbour_fraction = 1.0   # this checks the install tree, not the host (a loaded VM stalls; CI saw exit 7 at 0.5)
+loss_allowance_ticks = 1          # likewise: skipped probe ticks on a loaded VM would raise the measured allowance (and B_i)
 EOF
 steps=$(cat <<EOF
 set -e

@@ -47,6 +47,7 @@ impairment = "none"
 links = "$4"
 [station]
 max_no_neighbour_fraction = 0.5   # this test checks the lab tool, not the host: a loaded VM stalls for 0.5 s
+loss_allowance_ticks = 1          # likewise: a loaded VM's skipped probe ticks would raise the measured allowance (and B_i)
 EOT
 }
 run_folder() {  # the run folder (the only one with a lab-report.json; names sort by time, then by random session)

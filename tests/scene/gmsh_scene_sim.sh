@@ -42,6 +42,7 @@ file = "ball.msh"
 unit_m = 0.001
 [station]
 max_no_neighbour_fraction = 0.5   # a loaded VM stalls for 0.5 s: this checks the scene, not the host
+loss_allowance_ticks = 1          # likewise: skipped probe ticks on a loaded VM would raise the measured allowance (and B_i)
 EOT
   "$(dirname "$station")/haptic-lab" run lab.toml --runs-dir runs --no-plots > lab.log 2>&1 || { cat lab.log; echo "FAILED: haptic-lab run"; exit 1; }
   /usr/bin/python3 - runs <<'PY'

@@ -41,6 +41,7 @@ transport = "udp"
 links = "1-2"
 [station]
 max_no_neighbour_fraction = 0.5   # this checks the device path, not the host: a loaded VM stalls for 0.5 s
+loss_allowance_ticks = 1          # likewise: a loaded VM's skipped probe ticks would raise the measured allowance (and B_i)
 [[stations]]
 id = 1
 host = "127.0.0.1"

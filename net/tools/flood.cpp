@@ -260,60 +260,61 @@ struct Options {
   std::map<std::uint16_t, PublicKey> public_keys;
 };
 
-Options parse(int argc, char** argv) {
-  Options o;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) usage((a + " needs a value").c_str());
-      return argv[++i];
-    };
-    auto id_eq = [&](const std::string& v, std::string& rest) {
-      const auto eq = v.find('=');
-      if (eq == std::string::npos) usage((a + " needs ID=VALUE, got " + v).c_str());
-      rest = v.substr(eq + 1);
-      return static_cast<std::uint16_t>(std::stoul(v.substr(0, eq)));
-    };
-    std::string rest;
-    if (a == "--station") {
-      const std::uint16_t id = id_eq(next(), rest);
-      o.stations.push_back({id, static_cast<std::uint16_t>(std::stoul(rest))});
-    } else if (a == "--link") {
-      const std::string v = next();
-      const auto dash = v.find('-');
-      if (dash == std::string::npos) usage("--link needs I-J");
-      const auto x = static_cast<std::uint16_t>(std::stoul(v.substr(0, dash))), y = static_cast<std::uint16_t>(std::stoul(v.substr(dash + 1)));
-      o.links.push_back({x, y});
-      o.links.push_back({y, x});
-    } else if (a == "--session") o.session = static_cast<std::uint32_t>(std::stoul(next()));
-    else if (a == "--duration") o.duration_s = std::stod(next());
-    else if (a == "--max-datagrams") o.max_datagrams = std::stoull(next());
-    else if (a == "--rate") o.rate = std::stod(next());
-    else if (a == "--spoof-rate-per-link") o.spoof_rate_per_link = std::stod(next());
-    else if (a == "--start-after") o.start_after_s = std::stod(next());
-    else if (a == "--sniff") o.sniff = true;
-    else if (a == "--replay") o.replay_file = next();
-    else if (a == "--record") o.record_file = next();
-    else if (a == "--json") o.json_file = next();
-    else if (a == "--stolen-key") {
-      o.stolen_id = id_eq(next(), o.stolen_file);
-    } else if (a == "--public-key") {
-      const std::uint16_t id = id_eq(next(), rest);
-      o.public_keys[id] = public_key_from_hex(rest, "--public-key");
-    } else if (a == "--classes") {
-      o.classes_given = true;
-      std::string v = next() + ",";
-      for (std::size_t p = 0, q; (q = v.find(',', p)) != std::string::npos; p = q + 1) {
-        const std::string name = v.substr(p, q - p);
-        if (name.empty()) continue;
-        int c = 0;
-        while (c < class_count && name != kNames[c]) ++c;
-        if (c == class_count) usage(("unknown class " + name).c_str());
-        o.classes[static_cast<std::size_t>(c)] = true;
-      }
-    } else if (a == "-h" || a == "--help") usage("the attacker of tools/flood/flood_run.py (see the comment at the top of net/tools/flood.cpp)", 0);
-    else usage(("unknown option " + a).c_str());
-  }
+// One option (and its value) at argv[i]; advances i past the value. Not RT-safe.
+void parse_one(Options& o, const std::string& a, int argc, char** argv, int& i) {
+  auto next = [&]() -> std::string {
+    if (i + 1 >= argc) usage((a + " needs a value").c_str());
+    return argv[++i];
+  };
+  auto id_eq = [&](const std::string& v, std::string& rest) {
+    const auto eq = v.find('=');
+    if (eq == std::string::npos) usage((a + " needs ID=VALUE, got " + v).c_str());
+    rest = v.substr(eq + 1);
+    return static_cast<std::uint16_t>(std::stoul(v.substr(0, eq)));
+  };
+  std::string rest;
+  if (a == "--station") {
+    const std::uint16_t id = id_eq(next(), rest);
+    o.stations.push_back({id, static_cast<std::uint16_t>(std::stoul(rest))});
+  } else if (a == "--link") {
+    const std::string v = next();
+    const auto dash = v.find('-');
+    if (dash == std::string::npos) usage("--link needs I-J");
+    const auto x = static_cast<std::uint16_t>(std::stoul(v.substr(0, dash))), y = static_cast<std::uint16_t>(std::stoul(v.substr(dash + 1)));
+    o.links.push_back({x, y});
+    o.links.push_back({y, x});
+  } else if (a == "--session") o.session = static_cast<std::uint32_t>(std::stoul(next()));
+  else if (a == "--duration") o.duration_s = std::stod(next());
+  else if (a == "--max-datagrams") o.max_datagrams = std::stoull(next());
+  else if (a == "--rate") o.rate = std::stod(next());
+  else if (a == "--spoof-rate-per-link") o.spoof_rate_per_link = std::stod(next());
+  else if (a == "--start-after") o.start_after_s = std::stod(next());
+  else if (a == "--sniff") o.sniff = true;
+  else if (a == "--replay") o.replay_file = next();
+  else if (a == "--record") o.record_file = next();
+  else if (a == "--json") o.json_file = next();
+  else if (a == "--stolen-key") {
+    o.stolen_id = id_eq(next(), o.stolen_file);
+  } else if (a == "--public-key") {
+    const std::uint16_t id = id_eq(next(), rest);
+    o.public_keys[id] = public_key_from_hex(rest, "--public-key");
+  } else if (a == "--classes") {
+    o.classes_given = true;
+    std::string v = next() + ",";
+    for (std::size_t p = 0, q; (q = v.find(',', p)) != std::string::npos; p = q + 1) {
+      const std::string name = v.substr(p, q - p);
+      if (name.empty()) continue;
+      int c = 0;
+      while (c < class_count && name != kNames[c]) ++c;
+      if (c == class_count) usage(("unknown class " + name).c_str());
+      o.classes[static_cast<std::size_t>(c)] = true;
+    }
+  } else if (a == "-h" || a == "--help") usage("the attacker of tools/flood/flood_run.py (see the comment at the top of net/tools/flood.cpp)", 0);
+  else usage(("unknown option " + a).c_str());
+}
+
+// The checks after all options were read; fills in the default classes. Not RT-safe.
+Options finish(Options o) {
   if (o.stations.empty() || o.links.empty() || o.session == 0) usage("need --station, --link and --session");
   if (!(o.duration_s > 0 && o.duration_s <= 600)) usage("--duration must be in (0, 600] s");
   if (o.record_file.empty() && (o.max_datagrams == 0 || o.max_datagrams > 1'000'000'000))
@@ -330,6 +331,21 @@ Options parse(int argc, char** argv) {
     }
   }
   return o;
+}
+
+Options parse(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    try {
+      parse_one(o, a, argc, argv, i);
+    } catch (const std::logic_error& e) {  // std::stoul / std::stod (invalid_argument, out_of_range), a bad key
+      const std::string what = e.what();
+      usage((a + " " + (i < argc ? argv[i] : "") + ": " +
+             (what.rfind("sto", 0) == 0 ? std::string("not a valid number (or out of range)") : what)).c_str());
+    }
+  }
+  return finish(o);
 }
 
 // The report: stdout, and `path` when given.

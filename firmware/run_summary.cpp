@@ -14,6 +14,12 @@ json opt(const std::optional<double>& v) { return v ? json(*v) : json(nullptr); 
 
 }  // namespace
 
+json topology_json(const model::Graph& g) {
+  json topo = json::array();
+  for (const auto& l : g) topo.push_back({l.a + 1, l.b + 1});
+  return topo;
+}
+
 json scenario_json(const BuiltScenario& b) {
   const ScenarioSpec& s = b.spec;
   json j;
@@ -22,9 +28,7 @@ json scenario_json(const BuiltScenario& b) {
   j["dt_s"] = s.period_s;
   j["duration_s"] = s.duration_s;
   j["seed"] = s.seed;
-  json topo = json::array();
-  for (const auto& l : s.topology) topo.push_back({l.a + 1, l.b + 1});
-  j["topology"] = topo;
+  j["topology"] = topology_json(s.topology);
   j["scene_nodes"] = b.scene.nodes;
   j["scene_edges"] = b.scene.mesh.edges.size();
   j["scene_tetrahedra"] = b.scene.mesh.tets.size();

@@ -24,6 +24,8 @@ namespace haptic::firmware {
 // the same metrics from the stations' records), the traced node's rest position
 // (trace_node_rest_m: the figures plot displacement from it) and the snapshot times.
 nlohmann::json scenario_json(const BuiltScenario& b);
+// A graph's links as [[a, b], ...] with users numbered from 1 (scenario_json's "topology").
+nlohmann::json topology_json(const model::Graph& g);
 // The keys scenario_json() writes (the merge copies them from station-<id>.json).
 const std::vector<std::string>& scenario_json_keys();
 // The metrics windows as scenario_json() wrote them ("metrics_windows"); throws

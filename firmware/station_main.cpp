@@ -434,14 +434,13 @@ CLI::App* add_scenario_options(CLI::App& app, std::string& name) {
 int scenario_command(const std::string& name) {
   try {
     const ScenarioSpec s = make_scenario(name);
-    nlohmann::json links = nlohmann::json::array(), delays = nlohmann::json::array();
-    for (const auto& l : s.topology) links.push_back({l.a + 1, l.b + 1});
+    nlohmann::json delays = nlohmann::json::array();
     for (int i = 0; i < s.delay_ms.rows(); ++i) {
       nlohmann::json row = nlohmann::json::array();
       for (int j = 0; j < s.delay_ms.cols(); ++j) row.push_back(s.delay_ms(i, j));
       delays.push_back(row);
     }
-    std::cout << nlohmann::json{{"name", s.name}, {"users", s.users}, {"topology", links}, {"delay_ms", delays},
+    std::cout << nlohmann::json{{"name", s.name}, {"users", s.users}, {"topology", topology_json(s.topology)}, {"delay_ms", delays},
                                 {"duration_s", s.duration_s}, {"release_s", s.script.release_s}}.dump()
               << "\n";
     return 0;

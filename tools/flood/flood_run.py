@@ -69,7 +69,7 @@ def lab_text(a):
         "duration_s = %g" % a.duration, "push_end_s = %g" % a.push_end, "release_s = %g" % a.release,
         "seed = %d" % a.seed, "probe_s = %g" % a.probe, "start_delay_s = %g" % a.start_delay,
         "[network]", 'transport = "udp"', 'impairment = "paper"',
-        "[topology]", 'links = "1-2,1-3,1-4"',
+        "[topology]", "from_scenario = true",
         "[rt]", "priority = 80", "lock_memory = true",
         "[station]", "state_every = 5"] + (["damping_Ns_per_m = %g" % a.damping] if a.damping > 0 else []) + [
         "[net]", "tx_spin = true", "io_cpu = 0", ""])

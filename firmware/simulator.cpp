@@ -459,12 +459,11 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["damping_Ns_per_m"] = b.damping;
   j["damping_min_Ns_per_m"] = b.damping_min;
   j["round_trip_half_sum_ms"] = b.round_trip_sum_ms;
-  j["passivity_condition_met"] = b.passivity_condition_met;
+  j["passivity_condition_met"] = b.passivity_condition_met;  // eq. (18) (eq18), by construction (pspm)
   j["period_min_s"] = b.t_min_s;  // T_i^min, T_i^max of eq. (18) and (26) (the clock model's bounds)
   j["period_max_s"] = b.t_max_s;
   j["clock"] = {{"timer_jitter_ms", 1e3 * b.spec.timer_jitter_s}, {"step_jitter", b.spec.step_jitter}, {"clock_drift_ppm", b.spec.clock_drift_ppm}};
   j["steps_clamped"] = r.steps_clamped;
-  j["passivity_condition_met"] = b.passivity_condition_met;  // eq. (18) (eq18), by construction (pspm)
   j["consensus_passivity"] = rt::consensus_passivity_name(b.spec.consensus_passivity);
   if (b.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation) j["pspm_reservoir0_J"] = b.spec.pspm_reservoir0_J;
   j["push_pattern"] = b.spec.script.push_pattern == UserScriptSpec::PushPattern::kAsymmetric ? "asymmetric" : "spread";

@@ -253,9 +253,8 @@ bool Endpoint::push_state(std::uint64_t seq, double send_time_s, const double* x
 }
 
 std::uint32_t Endpoint::rtt_bound_ticks(std::size_t i, double period_s) const {
-  if (i >= peers_.size() || !(period_s > 0.0)) return 0;
-  const double b = static_cast<double>(peers_[i]->bound_ns.load(std::memory_order_acquire)) * 1e-9;
-  return static_cast<std::uint32_t>(std::ceil(b / period_s - 1e-9));
+  if (i >= peers_.size()) return 0;
+  return bound_ticks(static_cast<double>(peers_[i]->bound_ns.load(std::memory_order_acquire)) * 1e-9, period_s);
 }
 
 std::uint64_t Endpoint::rtt_bound_generation(std::size_t i) const {

@@ -610,8 +610,8 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
     // pspm: T v_hat^T D v_hat, what each edge of this gain group dissipated (D on the local velocity)
     if (!pspm_.empty()) pspm_[static_cast<std::size_t>(j)].credit(sums.dissipated_J);
   }
-  for (int j = 1; j < nn; ++j) {  // further gain groups: D v_hat and P v_hat by matvecs
-    if (!first_of_gain(j) || cfg_.neighbors[j].gains == cfg_.neighbors[0].gains) continue;
+  for (std::size_t gi = 1; gi < group_leaders_.size(); ++gi) {  // further gain groups: D v_hat and P v_hat by matvecs
+    const int j = group_leaders_[gi];
     const EdgeGains* eg = cfg_.neighbors[j].gains;
     tmp_.setZero();   // D v_hat
     tmp2_.setZero();  // P v_hat

@@ -86,7 +86,7 @@ struct SimArgs {
   double pspm_reservoir_J = 0.0;
   double timer_jitter_ms = 0, step_jitter = 0, clock_drift_ppm = 0;  // station clocks (variable steps T_k)
   double jitter = -1, delay_correlation = 0, node_mass_kg = -1;     // delay model and object (stability maps)
-  int users = 0;
+  std::optional<int> users;  // unset: the scenario's (or --topology-file's) user count
   std::uint64_t push_seed = 1;
   double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1, push_end = -1, release = -1;
   std::uint64_t seed = 1;
@@ -312,10 +312,10 @@ int sim_command(const SimArgs& a) {
   try {
     ScenarioSpec spec = make_scenario(a.scenario);
     if (!a.topology_file.empty()) apply_topology_file(spec, a.topology_file, "--topology-file");
-    if (a.users != 0) {
-      if (!a.topology_file.empty() && a.users != spec.users)
-        throw std::invalid_argument("--users " + std::to_string(a.users) + " differs from the " + std::to_string(spec.users) + " users of --topology-file");
-      set_user_count(spec, a.users, "--users");
+    if (a.users) {
+      if (!a.topology_file.empty() && *a.users != spec.users)
+        throw std::invalid_argument("--users " + std::to_string(*a.users) + " differs from the " + std::to_string(spec.users) + " users of --topology-file");
+      set_user_count(spec, *a.users, "--users");
     }
     spec.script.push_pattern = parse_push_pattern(a.pushes, "--pushes");
     spec.script.push_seed = a.push_seed;

@@ -18,7 +18,11 @@ void GrowthDetector::add(double t_s, double value) {
 
 void GrowthDetector::close_window(double end_s) {
   window_start_s_ = end_s;
-  if (!any_in_window_) return;
+  if (!any_in_window_) {  // a window without samples (the caller skipped a stretch) breaks a run
+    run_ = 0;
+    have_prev_ = false;
+    return;
+  }
   any_in_window_ = false;
   const double m = window_max_;
   if (have_prev_ && m >= c_.factor * prev_max_ && prev_max_ > (run_ == 0 ? c_.base : 0.0)) {

@@ -5,7 +5,9 @@
 // or an energy) over consecutive windows of window_s and reports growth when `windows`
 // consecutive window maxima each exceed the previous one by at least `factor`, the first of them
 // above `base` and the last above `floor` (so numerical noise and a push's ramp do not count). Used by
-// the run metrics (firmware/run_metrics), so the simulator and the merge decide alike.
+// the run metrics (firmware/run_metrics), so the simulator and the merge decide alike; they skip
+// the scripted push (its cosine ramp rises like t^2 at first, 4x, 2.3x, 1.6x per window, which
+// these criteria would call growth: 16 users did). A window without samples breaks a run.
 // Not RT-safe (off the tick); allocation-free after construction.
 #include <optional>
 

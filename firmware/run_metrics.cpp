@@ -11,6 +11,7 @@ MetricsWindows metrics_windows(const UserScriptSpec& sc) {
   switch (sc.kind) {
     case UserScriptSpec::Kind::kPushHoldRelease:
       w.release_s = sc.release_s;
+      w.push_end_s = sc.push_end_s;
       w.hold_start_s = sc.push_end_s + 0.5 * (sc.release_s - sc.push_end_s);
       w.hold_end_s = sc.release_s;
       break;
@@ -63,7 +64,7 @@ void RunMetrics::add_copies(std::int64_t k, const CopiesSample& s) {
   last_k_ = k;
   last_err_ = err;
   max_err_ = std::max(max_err_, err);
-  growth_.add(t_next, err);
+  if (!(t_next > w_.push_start_s && t_next <= w_.push_end_s)) growth_.add(t_next, err);  // not during the scripted push
   if (t_next > w_.release_s) {
     if (!after_release_ && err_at_release_)
       for (std::size_t f = 0; f < 2; ++f) rel_[f].level_m = kConsensusFractions[f] * *err_at_release_;

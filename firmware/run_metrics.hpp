@@ -19,6 +19,10 @@ struct MetricsWindows {
   double release_s = 0;                     // consensus is timed from here
   double hold_start_s = 0, hold_end_s = 0;  // the hold window [start, end) (empty when equal)
   double push_start_s = 0;                  // the deformation rise time counts from here
+  // The scripted push [push_start_s, push_end_s): the hands' goals move into the object, so the
+  // copies' consensus error rises with the input (a cosine ramp grows like t^2 at first: 4x, 2.3x,
+  // 1.6x per 0.5 s window); the growth detector does not look at it (empty when push_end_s <= push_start_s).
+  double push_end_s = 0;
   double consensus_threshold_m = 1e-3;      // the absolute consensus threshold
 };
 MetricsWindows metrics_windows(const UserScriptSpec& script);

@@ -44,6 +44,7 @@ json scenario_json(const BuiltScenario& b) {
   const MetricsWindows w = metrics_windows(s.script);
   j["metrics_windows"] = {{"release_s", w.release_s},         {"hold_start_s", w.hold_start_s},
                           {"hold_end_s", w.hold_end_s},       {"push_start_s", w.push_start_s},
+                          {"push_end_s", w.push_end_s},
                           {"consensus_threshold_m", w.consensus_threshold_m}};
   return j;
 }
@@ -64,6 +65,7 @@ MetricsWindows metrics_windows_from_json(const json& scenario) {
   w.hold_start_s = m.at("hold_start_s").get<double>();
   w.hold_end_s = m.at("hold_end_s").get<double>();
   w.push_start_s = m.at("push_start_s").get<double>();
+  w.push_end_s = m.value("push_end_s", 0.0);  // absent in older station files: no push window
   w.consensus_threshold_m = m.at("consensus_threshold_m").get<double>();
   return w;
 }

@@ -218,6 +218,10 @@ void write_session_header(hid_t file, const SessionInfo& info, const rt::Station
   h5::attr(file, "config_text", info.config_text);
   h5::attr(file, "fingerprint", info.fingerprint);
   h5::attr(file, "packet_values", std::string(info.packets_float32 ? "float32" : "float64"));
+  if (info.damping_min_Ns_per_m >= 0) {
+    h5::attr(file, "damping_min_Ns_per_m", info.damping_min_Ns_per_m);
+    h5::attr(file, "passivity_condition_met", static_cast<std::int64_t>(info.passivity_condition_met ? 1 : 0));
+  }
   h5::Id g = h5::create_group(file, "core");
   write_core_attrs(g.get(), c);
   std::vector<std::int64_t> contact(c.contact_nodes.begin(), c.contact_nodes.end()), peer, bound, gain_of;

@@ -7,6 +7,7 @@
 //   /                attrs format = "haptic-session", version, source ("station" | "sim"),
 //                    station_id (1-based), users, nodes, dofs, period_s, config_text (station
 //                    file or sim command line), fingerprint, packet_values ("float32" | "float64"),
+//                    damping_min_Ns_per_m and passivity_condition_met (eq. 18; the view's status),
 //                    and at close: ticks, packets, dropped_records, dropped_ticks, truncated_at_tick,
 //                    lossy_packet_values, bytes_limit, ring_ticks (0: the whole run), first_tick (the
 //                    oldest tick row; > 0 only for a ring that wrapped), packets_complete_from_tick
@@ -70,6 +71,8 @@ struct SessionInfo {
   std::string config_text;         // the station file, or the sim command line
   std::string fingerprint;         // the scene fingerprint, human-readable
   bool packets_float32 = false;    // the wire carries float32 values
+  double damping_min_Ns_per_m = -1;  // eq. (18)'s minimum B_i for this station (-1: not known)
+  bool passivity_condition_met = false;  // B_i >= that minimum (eq. 18)
 };
 
 // The core's configuration with the scene and gains it points to, owned (read back from a log,

@@ -2,9 +2,12 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
+
+#include <nlohmann/json.hpp>
 
 namespace haptic::firmware {
 
@@ -68,6 +71,38 @@ FILE* open_trace(const std::string& path) {
   return f;
 }
 
+// One line per tick for stepping through (--from/--to): what the core did and whether it matched.
+void print_step(std::FILE* out, const rt::StationCore& core, const TickRecord& r, const rt::StationCore::TickOutput& o, double t_s, std::uint64_t hash) {
+  const auto& e = core.energy();
+  const auto& y = core.vp_position_m();
+  std::fprintf(out, "tick %lld t=%.4f s q=(%.6g %.6g %.6g) m F=(%.6g %.6g %.6g) N vp=(%.6g %.6g %.6g) m port=%.6g controller=%.6g vo=%.6g J "
+                    "flags=0x%x contact=%d hash=%016llx recorded=%016llx %s\n",
+               static_cast<long long>(r.k), t_s, r.q[0], r.q[1], r.q[2], o.device_force_N[0], o.device_force_N[1], o.device_force_N[2], y[0], y[1], y[2],
+               e.port_J, e.controller_J, e.vo_J, o.flags, core.in_contact() ? 1 : 0, static_cast<unsigned long long>(hash),
+               static_cast<unsigned long long>(r.hash), hash == r.hash ? "match" : "DIFFERS");
+}
+
+// The core's state after tick k as JSON (--state-json): x, v (m, m/s), VP, energies, each link's newest sequence.
+void write_state_json(const std::string& path, const rt::StationCore& core, std::int64_t k, double t_s) {
+  nlohmann::json links = nlohmann::json::array();
+  for (int j = 0; j < core.neighbor_count(); ++j)
+    links.push_back({{"peer", core.neighbor(j).peer_id + 1}, {"newest_sequence", core.rx(j).newest_sequence()},
+                     {"index_delay", k - core.rx(j).newest_sequence()}, {"bound", core.neighbor(j).index_delay_bound_ticks}});
+  const auto& e = core.energy();
+  const auto& y = core.vp_position_m();
+  const nlohmann::json j = {{"tick", k},
+                            {"t_s", t_s},
+                            {"x_m", std::vector<double>(core.x().data(), core.x().data() + core.x().size())},
+                            {"v_m_per_s", std::vector<double>(core.v().data(), core.v().data() + core.v().size())},
+                            {"vp_m", {y[0], y[1], y[2]}},
+                            {"in_contact", core.in_contact()},
+                            {"energy_J", {{"port", e.port_J}, {"controller", e.controller_J}, {"vo", e.vo_J}}},
+                            {"links", links}};
+  std::ofstream f(path);
+  f << j.dump(1) << "\n";
+  if (!f) throw std::runtime_error("cannot write " + path);
+}
+
 }  // namespace
 
 std::vector<TickRecord> read_tick_records(hid_t file) {
@@ -111,7 +146,8 @@ std::string ReplayResult::summary() const {
   } else {
     os << ", " << matched << " matched";
   }
-  if (inputs_end >= 0) os << "; the log's inputs are incomplete from tick " << inputs_end << " (dropped or truncated): replayed up to there";
+  if (stopped_at_to) os << " (stopped at tick " << last_tick << ", --to)";
+  if (!inputs_complete()) os << "; the log's inputs are incomplete from tick " << inputs_end << " (dropped or truncated): replayed up to there";
   return os.str();
 }
 
@@ -148,6 +184,10 @@ ReplayResult replay_session(const std::string& path, const ReplayOptions& opt, c
   for (std::size_t i = 0; i < ticks.size(); ++i) {
     const TickRecord& r = ticks[i];
     if (res.inputs_end >= 0 && r.k >= res.inputs_end) break;
+    if (opt.to_tick >= 0 && r.k > opt.to_tick) {
+      res.stopped_at_to = true;
+      break;
+    }
     for (; p < pk.size() && pk.tick(p) <= r.k; ++p) {
       const int n = pk.neighbour(p);
       if (n < 0 || n >= core.neighbor_count()) throw std::runtime_error("log: packet " + std::to_string(p) + " names neighbour " + std::to_string(n));
@@ -157,8 +197,11 @@ ReplayResult replay_session(const std::string& path, const ReplayOptions& opt, c
     const rt::Vec3 q(r.q[0], r.q[1], r.q[2]);
     const auto out = r.step_s > 0 ? core.tick(r.k, q, r.step_s) : core.tick(r.k, q);
     t_s += core.last_step_s();
-    const bool match = state_hash(core, out) == r.hash;
+    const std::uint64_t hash = state_hash(core, out);
+    const bool match = hash == r.hash;
     ++res.ticks;
+    res.last_tick = r.k;
+    if (opt.from_tick >= 0 && r.k >= opt.from_tick) print_step(stdout, core, r, out, t_s, hash);
     if (match && res.first_mismatch < 0) ++res.matched;
     if (!match && res.first_mismatch < 0) res.first_mismatch = r.k;
     for (int a = 0; a < 3; ++a) res.max_force_difference_N = std::max(res.max_force_difference_N, std::abs(out.device_force_N[a] - r.force[a]));
@@ -172,6 +215,8 @@ ReplayResult replay_session(const std::string& path, const ReplayOptions& opt, c
     }
     if (observer) observer(core, r, static_cast<std::int64_t>(i));
   }
+  if (opt.to_tick >= 0 && res.last_tick == opt.to_tick) res.stopped_at_to = true;
+  if (!opt.state_json.empty() && res.ticks > 0) write_state_json(opt.state_json, core, res.last_tick, t_s);
   return res;
 }
 

@@ -20,6 +20,9 @@ struct ReplayOptions {
   double p_scale = 1.0;          // P_ij := p_scale P_ij
   double d_scale = 1.0;          // D_ij := d_scale D_ij
   std::string trace_csv;         // "": none; else per-tick rows (t, force, VP, energies, recorded force, match)
+  std::int64_t from_tick = -1;   // >= 0: print every tick from this run index on (stepping through)
+  std::int64_t to_tick = -1;     // >= 0: stop after this run index (and print up to it)
+  std::string state_json;        // "": none; else the core's full state after the last tick replayed (x, v, VP, links)
   bool gains_changed() const { return damping_Ns_per_m >= 0 || p_scale != 1.0 || d_scale != 1.0; }
 };
 
@@ -28,11 +31,15 @@ struct ReplayResult {
   std::int64_t matched = 0;           // ticks whose state hash equals the recorded one
   std::int64_t first_mismatch = -1;   // run index k of the first tick that differs (-1: none)
   std::int64_t inputs_end = -1;       // run index of the first tick with inputs lost (dropped records, truncation), -1: complete
+  std::int64_t last_tick = -1;        // run index of the last tick replayed
+  bool stopped_at_to = false;         // the replay ended at options.to_tick
   bool gains_changed = false;
   double max_force_difference_N = 0;  // |F_replay - F_recorded| max over the ticks
   int station_id = 0;
   std::string source;
   bool bit_exact() const { return !gains_changed && first_mismatch < 0 && ticks > 0 && matched == ticks; }
+  // The inputs were complete for every tick replayed (a replay stopped by --to before a loss is complete).
+  bool inputs_complete() const { return inputs_end < 0 || inputs_end > last_tick; }
   std::string summary() const;       // one line for people
 };
 

@@ -13,6 +13,7 @@
 #include "firmware/link_impairment.hpp"
 #include "firmware/run_summary.hpp"
 #include "firmware/session_recorder.hpp"
+#include "firmware/station_plan.hpp"
 #include "net/impairment.hpp"
 #include "net/wire.hpp"
 #include "rt/tx_deadband.hpp"
@@ -91,7 +92,9 @@ std::vector<std::unique_ptr<SessionRecorder>> open_sim_recorders(const BuiltScen
     info.source = "sim";
     info.station_id = static_cast<int>(i) + 1;
     info.config_text = opt.command_line;
-    info.fingerprint = "scene nodes " + std::to_string(b.scene.nodes) + ", scenario " + b.spec.name;
+    info.fingerprint = fingerprint_text(scene_fingerprint(b, std::llround(b.spec.period_s * 1e9))) + ", scenario " + b.spec.name;
+    info.damping_min_Ns_per_m = i < b.damping_min.size() ? b.damping_min[i] : -1;
+    info.passivity_condition_met = b.passivity_condition_met;
     rec.push_back(std::make_unique<SessionRecorder>(rc, info, st[i]->config()));
     rec.back()->rt_initial_state(st[i]->x().data(), st[i]->v().data());
   }

@@ -3,6 +3,8 @@
 #include "platform/toml_config.hpp"
 #include "rt/set_position_modulation.hpp"
 
+#include <arpa/inet.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -231,7 +233,9 @@ void parse_record_view_keys(View st, StationFile& f) {
   f.record.ring_s = real(st["record_ring_s"], "station.record_ring_s", 0.0, 0.0, 86400.0);
   f.view.port = static_cast<int>(integer(st["view_port"], "station.view_port", 0, 0, 65535));
   f.view.bind = text(st["view_bind"], "station.view_bind", "127.0.0.1");
-  if (f.view.bind.empty()) bad("station.view_bind", "an interface address, e.g. \"127.0.0.1\" (the default) or \"0.0.0.0\"");
+  in_addr bind_addr{};
+  if (inet_pton(AF_INET, f.view.bind.c_str(), &bind_addr) != 1)
+    bad("station.view_bind", "an IPv4 address of this machine, e.g. \"127.0.0.1\" (the default) or \"0.0.0.0\"");
   f.view.rate_hz = real(st["view_rate_hz"], "station.view_rate_hz", 30.0, 1.0, 60.0);
 }
 

@@ -103,8 +103,9 @@ struct SimArgs {
 };
 
 struct ReplayArgs {
-  std::string log, trace;
+  std::string log, trace, state_json;
   double damping = -1, p_scale = 1, d_scale = 1;
+  std::int64_t from = -1, to = -1;
   int view_port = 0;
   std::string view_bind = "127.0.0.1";
   double view_for = 0;
@@ -237,13 +238,19 @@ CLI::App* add_run_options(CLI::App& app, RunArgs& a) {
 CLI::App* add_replay_options(CLI::App& app, ReplayArgs& a) {
   auto* rp = app.add_subcommand("replay", "Re-run a station's core from its session log (sim --record, [record] enabled) and compare every tick's state hash");
   rp->add_option("log", a.log, "Session log (station-<id>.h5)")->required()->check(CLI::ExistingFile);
-  rp->add_option("--damping", a.damping, "Re-run with this B_i in N s/m instead of the recorded one (no bit-exact comparison)");
+  rp->add_option("--damping", a.damping, "Re-run with this B_i in N s/m instead of the recorded one (no bit-exact comparison)")
+      ->check(CLI::Range(0.0, 1e6));
   rp->add_option("--p-scale", a.p_scale, "Re-run with P_ij scaled by this factor (default 1)");
   rp->add_option("--d-scale", a.d_scale, "Re-run with D_ij scaled by this factor (default 1)");
+  rp->add_option("--from", a.from, "Step through: print one line per tick from this run index on (device sample, force, VP, energies, flags, "
+                                   "replayed and recorded state hash)")->check(CLI::NonNegativeNumber);
+  rp->add_option("--to", a.to, "Stop after this run index (the comparison and --trace end there; with --from, the last tick printed)")
+      ->check(CLI::NonNegativeNumber);
+  rp->add_option("--state-json", a.state_json, "Write the core's full state after the last tick replayed (--to) to this JSON file: x, v, VP, energies, links");
   add_view_options(rp, a.view_port, a.view_bind, a.view_for);
   rp->add_option("--trace", a.trace, "Write the replayed ticks to this CSV (force, VP, energies, the recorded force, hash match)");
   rp->footer("Exit status: 0 bit-exact at every tick (or, with changed gains, re-run done); 3 a tick's state differs from the recording, "
-             "or the log's inputs are incomplete (dropped records, size bound), or it is a ring log that wrapped; 2 not a session log or bad options.");
+             "or the log's inputs are incomplete (dropped records, size bound) before the last tick replayed, or it is a ring log that wrapped; 2 not a session log or bad options.");
   return rp;
 }
 
@@ -263,8 +270,15 @@ int replay_command(const ReplayArgs& a) {
   o.p_scale = a.p_scale;
   o.d_scale = a.d_scale;
   o.trace_csv = a.trace;
+  o.from_tick = a.from;
+  o.to_tick = a.to;
+  o.state_json = a.state_json;
   if (!(o.p_scale > 0) || !(o.d_scale >= 0)) {
     std::cerr << "haptic-station replay: error: --p-scale must be > 0 and --d-scale >= 0\n";
+    return kExitConfigError;
+  }
+  if (a.from >= 0 && a.to >= 0 && a.to < a.from) {
+    std::cerr << "haptic-station replay: error: --to " << a.to << " is before --from " << a.from << "\n";
     return kExitConfigError;
   }
   if (a.view_port > 0) stop_on_signals();  // the served timeline ends and says what the page showed
@@ -273,7 +287,7 @@ int replay_command(const ReplayArgs& a) {
                                            : replay_session(a.log, o);
     std::cout << r.summary() << "\n";
     if (r.gains_changed) return r.ticks > 0 ? 0 : kExitRunFailed;
-    return r.bit_exact() && r.inputs_end < 0 ? 0 : kExitRunFailed;
+    return r.bit_exact() && r.inputs_complete() ? 0 : kExitRunFailed;
   } catch (const NotReplayable& e) {
     std::cerr << "haptic-station replay: " << a.log << ": cannot replay " << e.what() << "\n";
     return kExitRunFailed;

@@ -271,6 +271,11 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   return spec;
 }
 
+std::string fingerprint_text(const SceneFingerprint& f) {
+  return "protocol " + std::to_string(f.protocol_version) + ", nodes " + std::to_string(f.scene_nodes) + ", period_ns " + std::to_string(f.period_ns) +
+         ", scene hash " + std::to_string(f.scene_hash) + ", gains hash " + std::to_string(f.gains_hash);
+}
+
 SceneFingerprint scene_fingerprint(const BuiltScenario& b, std::int64_t period_ns) {
   SceneFingerprint fp;
   fp.protocol_version = net::kWireVersion;

@@ -36,6 +36,8 @@ ScenarioSpec station_scenario_spec(const StationFile& file, const RunOverrides& 
 // fingerprints run the same scene, period, gains and wire protocol.
 using SceneFingerprint = net::Fingerprint;
 SceneFingerprint scene_fingerprint(const BuiltScenario& built, std::int64_t period_ns);
+// The fingerprint in words, for session logs (station and simulator alike). Not RT-safe.
+std::string fingerprint_text(const SceneFingerprint& f);
 
 // Both clocks read once, so that the plan is a pure function of its inputs.
 struct ClockReading {

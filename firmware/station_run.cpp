@@ -142,7 +142,8 @@ TickInputs tick_inputs(const StationPlan& plan, StationResources& res, rt::Stati
 
 // The session log of this station (record.enabled): header and core configuration written here,
 // before the RT thread exists. Not RT-safe.
-std::unique_ptr<SessionRecorder> open_recorder(const StationPlan& plan, const rt::StationCore& core) {
+std::unique_ptr<SessionRecorder> open_recorder(const StationPlan& plan, const BuildResult& build) {
+  const rt::StationCore& core = *build.core;
   RecorderConfig rc;
   rc.path = plan.base_path + ".h5";
   rc.max_bytes = static_cast<std::uint64_t>(plan.file.record.max_mb * 1024 * 1024);
@@ -152,9 +153,9 @@ std::unique_ptr<SessionRecorder> open_recorder(const StationPlan& plan, const rt
   info.source = "station";
   info.station_id = plan.station_id;
   info.config_text = plan.file.text;
-  const auto& f = plan.fingerprint;
-  info.fingerprint = "protocol " + std::to_string(f.protocol_version) + ", nodes " + std::to_string(f.scene_nodes) + ", period_ns " +
-                     std::to_string(f.period_ns) + ", scene hash " + std::to_string(f.scene_hash) + ", gains hash " + std::to_string(f.gains_hash);
+  info.fingerprint = fingerprint_text(plan.fingerprint);
+  info.damping_min_Ns_per_m = build.bounds.damping_min_Ns_per_m;
+  info.passivity_condition_met = build.passivity_condition_met;
   info.packets_float32 = plan.net.endpoint.wire.encoding == net::ValueEncoding::float32;
   return std::make_unique<SessionRecorder>(rc, info, core.config());
 }
@@ -210,7 +211,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
   pr.records.reserve(plan.trace_capacity, plan.state_capacity, plan.built->scene.dofs);
   if (plan.file.record.enabled) {
     try {
-      res.recorder = open_recorder(plan, *pr.build.core);
+      res.recorder = open_recorder(plan, pr.build);
       log.say("recording the session to " + res.recorder->path());
     } catch (const std::exception& e) {
       pr.fail(PhaseStatus::kFailed, std::string("session log: ") + e.what());

@@ -1,5 +1,6 @@
 #include "firmware/view_server.hpp"
 
+#include <arpa/inet.h>
 #include <libwebsockets.h>
 
 #include <chrono>
@@ -128,6 +129,14 @@ void mount(lws_http_mount& m, const char* point, const std::string& origin, cons
   m.mountpoint_len = static_cast<unsigned char>(std::strlen(point));
 }
 
+// An IPv4 address in dotted form: the only kind of station.view_bind / --view-bind we accept
+// (libwebsockets would also take an interface name and, when it does not exist, keep retrying
+// in the background instead of failing).
+bool is_ipv4_address(const std::string& s) {
+  in_addr a{};
+  return inet_pton(AF_INET, s.c_str(), &a) == 1;
+}
+
 void require_file(const std::string& path, const std::string& hint) {
   if (!std::filesystem::exists(path)) throw std::runtime_error("live view: " + path + " not found (" + hint + ")");
 }
@@ -138,6 +147,8 @@ ViewServer::ViewServer(const ViewServerConfig& config, ViewCallbacks callbacks) 
   Impl& m = *impl_;
   m.cfg = config;
   m.cb = std::move(callbacks);
+  if (!is_ipv4_address(m.cfg.bind))
+    throw std::runtime_error("live view: " + m.cfg.bind + " is not an IPv4 address of this machine (station.view_bind / --view-bind, e.g. 127.0.0.1 or 0.0.0.0)");
   if (m.cfg.assets_dir.empty()) m.cfg.assets_dir = platform::tools_dir() + "/view";
   require_file(m.cfg.assets_dir + "/index.html", "the page: tools/view, installed under share/haptic/tools/view; HAPTIC_TOOLS_DIR overrides");
   require_file(m.cfg.three_dir + "/three.min.js", "apt-get install libjs-three");
@@ -155,9 +166,9 @@ ViewServer::ViewServer(const ViewServerConfig& config, ViewCallbacks callbacks) 
   info.protocols = m.protocols;
   info.mounts = &m.m_root;
   info.user = &m;
-  info.options = LWS_SERVER_OPTION_DISABLE_IPV6;
+  info.options = LWS_SERVER_OPTION_DISABLE_IPV6 | LWS_SERVER_OPTION_FAIL_UPON_UNABLE_TO_BIND;
   m.ctx = lws_create_context(&info);
-  if (!m.ctx) throw std::runtime_error("live view: cannot listen on " + m.cfg.bind + ":" + std::to_string(m.cfg.port) + " (port in use? station.view_port / station.view_bind)");
+  if (!m.ctx) throw std::runtime_error("live view: cannot listen on " + m.cfg.bind + ":" + std::to_string(m.cfg.port) + " (port in use, or not an address of this machine? station.view_port / station.view_bind, --view-port / --view-bind)");
   m.service = std::thread([&m] {
     while (!m.stop.load(std::memory_order_acquire))
       if (lws_service(m.ctx, 0) < 0) {  // e.g. interrupted: count it, go on (bounded by the stop flag)

@@ -36,6 +36,25 @@ struct Player {
   }
 };
 
+// The plots' values of every kept frame (sent once in the scene message, so the page plots the
+// whole recording and moves a cursor: a paused or sought timeline still shows the curves).
+// Row: t, force x/y/z, port, controller, VO energies, consensus error (mm), tick time and
+// wake-up latency (us), then index delay and bound per link.
+nlohmann::json history_row(const nlohmann::json& f) {
+  nlohmann::json row = {f["t"], f["force"][0], f["force"][1], f["force"][2], f["port_J"], f["controller_J"], f["vo_J"],
+                        f["consensus_error_m"].get<double>() * 1e3, f["exec_max_us"], f["wake_max_us"]};
+  for (const auto& l : f["links"]) row.push_back(l["index_delay"]), row.push_back(l["bound"]);
+  return row;
+}
+
+// Eq. (18)'s minimum B_i and whether it is met, as the station or the simulator recorded them.
+void add_passivity(nlohmann::json& scene, const std::string& log) {
+  h5::Id file = h5::open_file_read(log);
+  if (!h5::has_attr(file.get(), "damping_min_Ns_per_m")) return;  // logs written before session 7
+  scene["damping_min_Ns_per_m"] = h5::attr_f64(file.get(), "damping_min_Ns_per_m");
+  scene["passivity_condition_met"] = h5::attr_i64(file.get(), "passivity_condition_met") != 0;
+}
+
 }  // namespace
 
 ReplayResult serve_timeline(const std::string& log, const ReplayOptions& replay, const TimelineOptions& opt, const std::atomic<bool>& stop) {
@@ -55,13 +74,17 @@ ReplayResult serve_timeline(const std::string& log, const ReplayOptions& replay,
     if (pub->take(frame)) kept.push_back(view_frame_json(frame));
   });
   const std::size_t stride = kept.size() / 4000 + 1;
+  nlohmann::json history = nlohmann::json::array();
   for (std::size_t i = 0; i < kept.size(); i += stride) {
     kept[i]["index"] = player->frames.size();
+    history.push_back(history_row(kept[i]));
     player->frames.push_back(kept[i].dump());
   }
   if (player->frames.empty()) throw std::runtime_error("live view: the log has no ticks to show");
   auto sc = nlohmann::json::parse(scene);
   sc["timeline_frames"] = player->frames.size();
+  sc["history"] = std::move(history);
+  add_passivity(sc, log);
   sc["replay"] = r.summary();
   const std::string scene_text = sc.dump();
   ViewCallbacks cb;
@@ -70,7 +93,7 @@ ReplayResult serve_timeline(const std::string& log, const ReplayOptions& replay,
   cb.on_message = [player](const std::string& m) { player->command(m); };
   ViewServer server(opt.server, cb);
   std::cerr << "haptic-station: live view of " << log << " at " << server.url() << " (" << player->frames.size() << " frames"
-            << (opt.serve_s > 0 ? ", for " + std::to_string(opt.serve_s) + " s" : ", until interrupted") << ")\n";
+            << (opt.serve_s > 0 ? ", for " + std::to_string(std::lround(opt.serve_s)) + " s" : ", until interrupted") << ")\n";
   const auto t0 = std::chrono::steady_clock::now();
   while (!stop.load(std::memory_order_acquire) &&
          (opt.serve_s <= 0 || std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < opt.serve_s))

@@ -47,6 +47,8 @@ import sys, h5py, numpy as np
 with h5py.File(sys.argv[1], "r+") as f:
     assert f.attrs["format"] == "haptic-session", f.attrs["format"]
     assert f["ticks/hash"].shape == (1000,), f["ticks/hash"].shape
+    f.visit(lambda name: print("  h5py:", name, getattr(f[name], "shape", "(group)")) if name.count("/") < 1 or name.startswith(("ticks/", "packets/")) else None)
+    assert "scene hash" in f.attrs["fingerprint"] and f.attrs["damping_min_Ns_per_m"] > 0, dict(f.attrs)
     x = f["packets/x"]
     row = 200
     v = x[row, 7]
@@ -61,6 +63,32 @@ else echo "ok perturbed: $(cat "$out/perturbed.log")"; fi
 if [ $rc -ne 0 ] || ! grep -Eq "changed gains; max \|F - F_recorded\| = [0-9.e-]+ N" "$out/regain.log" || grep -q "= 0 N" "$out/regain.log"; then
   echo "FAILED: re-run with other gains (exit $rc):"; cat "$out/regain.log"; fail=1
 else echo "ok re-run: $(cat "$out/regain.log")"; fi
+# Stepping through: --from/--to print each tick (the replayed and the recorded hash) and stop at --to;
+# --state-json writes the core's state there. The printed hashes are the log's rows for those ticks
+# and the state's VP is the full replay's (--trace) at the same tick.
+"$bin" replay "$out/sim/station-1.h5" --trace "$out/full.csv" > /dev/null 2>&1
+"$bin" replay "$out/sim/station-1.h5" --from 600 --to 602 --state-json "$out/state-602.json" > "$out/step.log" 2>&1; rc=$?
+/usr/bin/python3 - "$out/sim/station-1.h5" "$out/step.log" "$out/state-602.json" "$out/full.csv" $rc <<'PY' || fail=1
+import csv, json, re, sys, h5py
+log, step, state, full, rc = sys.argv[1], open(sys.argv[2]).read(), json.load(open(sys.argv[3])), sys.argv[4], int(sys.argv[5])
+lines = [l for l in step.splitlines() if l.startswith("tick ")]
+with h5py.File(log, "r") as f:
+    hashes = f["ticks/hash"][600:603]
+    dofs = int(f.attrs["dofs"])
+ok = rc == 0 and "603 ticks, bit-exact at every tick" in step and "stopped at tick 602" in step and len(lines) == 3
+for i, l in enumerate(lines):
+    m = re.match(r"tick (\d+) .* hash=([0-9a-f]{16}) recorded=([0-9a-f]{16}) match$", l)
+    ok = ok and m is not None and int(m.group(1)) == 600 + i and int(m.group(3), 16) == int(hashes[i]) and m.group(2) == m.group(3)
+row = [r for r in csv.DictReader(open(full)) if r["k"] == "602"][0]
+ok = ok and state["tick"] == 602 and len(state["x_m"]) == dofs and len(state["links"]) == 3
+ok = ok and all(abs(state["vp_m"][a] - float(row["vp_%s_m" % "xyz"[a]])) <= 1e-8 * max(1.0, abs(state["vp_m"][a])) for a in range(3))
+print(("ok" if ok else "FAILED") + " stepping: exit %d, %d tick lines, state at tick %s (%d values)" % (rc, len(lines), state.get("tick"), len(state.get("x_m", []))))
+if not ok: print(step); sys.exit(1)
+PY
+"$bin" replay "$out/perturbed.h5" --from 60 --to 80 > "$out/step-perturbed.log" 2>&1
+grep -q "DIFFERS" "$out/step-perturbed.log" || { echo "FAILED: stepping through the perturbed log shows no tick that DIFFERS"; fail=1; }
+"$bin" replay "$out/sim/station-1.h5" --from 10 --to 5 > /dev/null 2>&1; rc=$?
+[ $rc -eq 2 ] || { echo "FAILED: --to before --from must exit 2 (exit $rc)"; fail=1; }
 "$bin" replay "$out/sim.log" > "$out/bad.log" 2>&1; rc=$?
 if [ $rc -ne 2 ]; then echo "FAILED: a non-log must exit 2 (exit $rc)"; cat "$out/bad.log"; fail=1; else echo "ok not a log: $(head -1 "$out/bad.log")"; fi
 exit $fail

@@ -181,3 +181,10 @@ TEST(StationConfig, AgreementTickCoversAPeerWhoseRoundTripIsTwoTicksLonger) {
   // without the agreement tick station 1's eq. (18) would assume less than is enforced
   CHECK(enforced > bounds_from_round_trips(b, 0, {13, 5, 5}, 1, 0.05, -1, 0).assumed_sum_ticks[0]);
 }
+
+TEST(StationConfig, AViewBindThatIsNotAnIPv4AddressIsRejectedNamingTheKey) {
+  // an interface name: libwebsockets would take it and, when it does not exist, retry silently
+  CHECK(contains(error_of("[station]\nid = 1\nview_port = 46001\nview_bind = \"eth0\"\n" + kNet), "station.view_bind must be an IPv4 address"));
+  CHECK(contains(error_of("[station]\nid = 1\nview_port = 46001\nview_bind = \"\"\n" + kNet), "station.view_bind"));
+  STRCMP_EQUAL("0.0.0.0", parse_station_file("[station]\nid = 1\nview_port = 46001\nview_bind = \"0.0.0.0\"\n" + kNet).view.bind.c_str());
+}

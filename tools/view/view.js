@@ -5,6 +5,18 @@ const WINDOW_S = 20;
 let scene = null, mesh = null, copies = [], vpMark = null, devMark = null, coupling = null, contactPts = null;
 let seekTo = null;  // a seek this page asked for: frames sent before the server applied it are stale and not shown
 let statusSent = 0, renderer, camera, world, geom, charts = {}, linkState = {}, framesSeen = 0, lastSeq = 0, missed = 0;
+let arrivals = [], opened = performance.now();  // arrival times (ms) of the frames of the last 2 s: the frame rate this page receives
+let lastPlotsDrawn = 0, lastStatusDrawn = 0;
+let cursorT = null;  // a recording: the plots hold the whole run, a vertical line marks the frame shown
+
+// Draws the timeline's cursor (a recording's current time) on every plot.
+const cursorPlugin = {id: "cursor", afterDatasetsDraw(c) {
+  if (cursorT === null) return;
+  const x = c.scales.x.getPixelForValue(cursorT), a = c.chartArea;
+  if (x < a.left || x > a.right) return;
+  c.ctx.save(); c.ctx.strokeStyle = "#000"; c.ctx.lineWidth = 1.5;
+  c.ctx.beginPath(); c.ctx.moveTo(x, a.top); c.ctx.lineTo(x, a.bottom); c.ctx.stroke(); c.ctx.restore();
+}};
 
 function setup3d(s) {
   const canvas = document.getElementById("view3d");
@@ -46,7 +58,7 @@ function setup3d(s) {
 
 function chart(id, title, names, ylabel) {
   const ds = names.map((n, i) => ({label: n, data: [], borderColor: COLORS[i % COLORS.length], borderWidth: 1.2, pointRadius: 0}));
-  return new Chart(document.getElementById(id), {type: "line", data: {datasets: ds},
+  return new Chart(document.getElementById(id), {type: "line", data: {datasets: ds}, plugins: [cursorPlugin],
     options: {animation: false, responsive: true, maintainAspectRatio: false, parsing: false,
       plugins: {title: {display: true, text: title}, legend: {labels: {boxWidth: 10, font: {size: 10}}}},
       scales: {x: {type: "linear", title: {display: true, text: "t (s)"}}, y: {title: {display: true, text: ylabel}}}}});
@@ -69,9 +81,27 @@ function push(c, i, t, y) {
   while (d.length && d[0].x < t - WINDOW_S) d.shift();
 }
 
+// A recording's plots: every kept frame's values at once (scene.history rows, view_timeline.cpp).
+function fillHistory(s) {
+  s.history.forEach(r => {
+    const t = r[0];
+    for (let a = 0; a < 3; ++a) charts.force.data.datasets[a].data.push({x: t, y: r[1 + a]});
+    for (let e = 0; e < 3; ++e) charts.energy.data.datasets[e].data.push({x: t, y: r[4 + e]});
+    charts.cons.data.datasets[0].data.push({x: t, y: r[7]});
+    charts.tick.data.datasets[0].data.push({x: t, y: r[8]}); charts.tick.data.datasets[1].data.push({x: t, y: r[9]});
+    for (let j = 0; 10 + 2 * j + 1 < r.length; ++j) {
+      charts.links.data.datasets[2 * j].data.push({x: t, y: r[10 + 2 * j]}); charts.links.data.datasets[2 * j + 1].data.push({x: t, y: r[11 + 2 * j]});
+    }
+  });
+  const t0 = s.history[0][0], t1 = s.history[s.history.length - 1][0];
+  Object.values(charts).forEach(c => { c.options.scales.x.min = t0; c.options.scales.x.max = t1; });
+  charts.delay.options.plugins.title.text = "per-link one-way delay / loss (live station only: not in the log)";
+}
+
 function onScene(s) {
   scene = s;
   setup3d(s); setupCharts(s);
+  if (s.history && s.history.length) fillHistory(s);
   if (s.mode === "replay" || s.mode === "sim") {
     document.getElementById("timeline").style.display = "block";
     const seek = document.getElementById("seek");
@@ -80,7 +110,8 @@ function onScene(s) {
     seek.oninput = () => seekFrame(Number(seek.value));
     const play = document.getElementById("play");
     const q = new URLSearchParams(location.search);  // ?seek=N&pause=1: open the timeline at frame N (paused)
-    if (q.has("pause")) { ws.send(JSON.stringify({play: false})); play.textContent = "play"; }
+    // the timeline is the server's, shared by its browsers: a page opened without ?pause plays it
+    if (q.has("pause")) { ws.send(JSON.stringify({play: false})); play.textContent = "play"; } else ws.send(JSON.stringify({play: true}));
     if (q.has("seek")) seekFrame(Number(q.get("seek")));
     play.onclick = () => { const p = play.textContent === "play"; ws.send(JSON.stringify({play: p})); play.textContent = p ? "pause" : "play"; };
   }
@@ -100,6 +131,10 @@ function onFrame(f) {
 
 // Every frame's values go into the plots (cheap); drawing happens once per animation frame.
 function addPoints(f) {
+  const now = performance.now();
+  arrivals.push(now);
+  while (arrivals.length && arrivals[0] < now - 2000) arrivals.shift();
+  if (scene.history) { cursorT = f.t; framesSeen++; lastSeq = f.seq; return; }  // a recording: the curves are all there
   if (lastSeq && f.seq > lastSeq + 1 && scene.mode === "station") missed += f.seq - lastSeq - 1;
   if (f.seq < lastSeq) Object.values(charts).forEach(c => c.data.datasets.forEach(d => d.data = []));  // timeline jumped back
   lastSeq = f.seq; framesSeen++;
@@ -132,8 +167,11 @@ function draw(f) {
   const la = coupling.geometry.attributes.position;
   la.array.set([f.vp[0] * 1e3, f.vp[1] * 1e3, f.vp[2] * 1e3, f.device[0] * 1e3, f.device[1] * 1e3, f.device[2] * 1e3]); la.needsUpdate = true;
   renderer.render(world, camera);
-  Object.values(charts).forEach(c => c.update("none"));
-  status(f);
+  // the 3D view follows every frame; the six plots and the status text are redrawn at most 10
+  // and 4 times a second (redrawing them per frame kept a software-rendered page below 20 frames/s)
+  const now = performance.now();
+  if (now - lastPlotsDrawn >= 100) { lastPlotsDrawn = now; Object.values(charts).forEach(c => c.update("none")); }
+  if (now - lastStatusDrawn >= 250) { lastStatusDrawn = now; status(f); }
 }
 
 function status(f) {
@@ -152,7 +190,8 @@ function status(f) {
     return "neighbour " + l.peer + ": " + (up ? "up" : "DOWN") + " since " + st.since.toFixed(2) + " s (N = " + l.index_delay + ", Nbar = " + l.bound + ")";
   });
   lines.push("neighbours:\n  " + nb.join("\n  "));
-  lines.push("frames: " + framesSeen + " received, " + missed + " missed here" + (f.frames_dropped !== undefined ? ", " + f.frames_dropped + " replaced in the station's mailbox" : "") +
+  const rate = arrivals.length / Math.min(2, Math.max(0.001, (performance.now() - opened) / 1000));  // frames per second
+  lines.push("frames: " + framesSeen + " received (" + rate.toFixed(1) + "/s over the last 2 s), " + missed + " missed here" + (f.frames_dropped !== undefined ? ", " + f.frames_dropped + " replaced in the station's mailbox" : "") +
     (f.server_dropped !== undefined ? ", " + f.server_dropped + " not sent (browser busy)" : ""));
   if (scene.mode !== "station") document.getElementById("tl").textContent = "frame " + f.index + " / " + scene.timeline_frames;
   if (f.index !== undefined) document.getElementById("seek").value = f.index;
@@ -162,4 +201,5 @@ function status(f) {
 
 const ws = new WebSocket("ws://" + location.host + "/", "haptic-view");
 ws.onmessage = ev => { const m = JSON.parse(ev.data); if (m.type === "scene") onScene(m); else if (m.type === "frame") onFrame(m); };
+ws.onopen = () => { opened = performance.now(); };
 ws.onclose = () => { document.getElementById("status").textContent += "\n(connection closed)"; };

@@ -55,29 +55,42 @@ TEST(NUsers, asymmetric_pushes_do_not_cancel_so_balance_is_not_built_in) {
 }
 
 // Eq. (19) and (20) with 6 users on the default tree, asymmetric pushes: the copies agree after
-// release, and while the hands hold, |sum u_i| falls well below the imbalance of the intended
-// pushes (the floating ball moves until the users' forces balance).
-TEST(NUsers, six_users_reach_consensus_and_balance_asymmetric_pushes) {
+// release, and once the object has stopped drifting the users' forces balance: eq. (20) holds when
+// every v_i -> 0. While the floating object drifts to where the hands' springs balance, eq. (18)'s
+// B_i on every node (and the delayed P coupling) drag it, so |sum u_i| = drag x drift speed decays
+// with a time constant drag / (hands' stiffness), here ~5.5 s (tools/study/hold_balance.py): the
+// hold is 30 s, as the paper's users held "after the steady state is attained" (its Fig. 9 for
+// 20 s). Doubling B_i leaves a clearly larger imbalance at the same time: the residual is that drag.
+TEST(NUsers, six_users_reach_consensus_and_balance_asymmetric_pushes_once_the_object_stops) {
   ScenarioSpec s = with_users(6, UserScriptSpec::PushPattern::kAsymmetric);
-  s.delay_ms = Eigen::MatrixXd::Constant(6, 6, 2.0);  // short delays: eq. (18) damping, the ball's drag, stays small
-  s.loss_allowance_ticks = 1;  // (the loss model's 5 ticks more than doubles B_i: the drag leaves 0.28 imbalance)
+  s.delay_ms = Eigen::MatrixXd::Constant(6, 6, 2.0);
+  s.loss_allowance_ticks = 1;
   s.script.push_end_s = 1.5;
-  s.script.release_s = 16.0;
-  s.duration_s = 18.0;
+  s.script.release_s = 31.5;  // hold window (run metrics): its second half, 16.5-31.5 s
+  s.duration_s = 33.0;
   const BuiltScenario b = build_scenario(s);
   CHECK_TRUE(b.passivity_condition_met);
   CHECK_TRUE(b.push_imbalance_ratio > 0.5);
   const SimResult r = run_simulation(b, SimOptions{});
   const RunMetricsResult& m = r.metrics;
   CHECK_FALSE(m.diverged);
+  CHECK_FALSE(m.unstable);
   CHECK_TRUE(m.consensus_time_s.has_value());
   CHECK_TRUE(*m.consensus_time_s < 1.0);
   CHECK_TRUE(m.port_energy_min_J.has_value() && *m.port_energy_min_J >= -r.passivity_bound_J - 1e-12);
   CHECK_TRUE(m.hold_force_mean_N.has_value() && m.hold_force_sum_N.has_value());
   CHECK_TRUE(*m.hold_force_mean_N > 0.5);  // the users do push
   const double balance = *m.hold_force_sum_N / *m.hold_force_mean_N;
-  if (!(balance < 0.25 * b.push_imbalance_ratio))
+  if (!(balance < 0.05))  // measured 0.018 against the intended pushes' 0.86
     FAIL(("hold |sum u| / mean |u_i| = " + std::to_string(balance) + " against intended imbalance " + std::to_string(b.push_imbalance_ratio)).c_str());
+  // The same run with twice eq. (18)'s damping: the drift is slower, the imbalance larger.
+  ScenarioSpec s2 = s;
+  s2.damping_Ns_per_m = std::vector<double>(b.damping.begin(), b.damping.end());
+  for (double& d : *s2.damping_Ns_per_m) d *= 2.0;
+  const SimResult r2 = run_simulation(build_scenario(s2), SimOptions{});
+  const double balance2 = *r2.metrics.hold_force_sum_N / *r2.metrics.hold_force_mean_N;
+  if (!(balance2 > 2.0 * balance))
+    FAIL(("twice B_i: hold balance " + std::to_string(balance2) + " is not clearly above " + std::to_string(balance)).c_str());
 }
 
 TEST(NUsers, topology_file_of_the_optimizer_sets_users_delays_and_best_graph) {

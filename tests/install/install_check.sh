@@ -6,12 +6,12 @@
 #   2. cmake --install BUILD --prefix <tmp>/prefix: every program the README and the deploy guide
 #      name is installed (haptic-station, -topology, -study, -jitter, -devices, haptic-lab, the
 #      figure, merge, report and trace scripts); no installed file names the source or build tree;
-#   3. with the source tree HIDDEN (a private mount namespace with an empty tmpfs over SOURCE_DIR,
-#      which holds the build tree too; needs root and unshare, else said plainly and only step 2's
-#      path check stands): haptic-devices lists devices, a short `sim` draws its PNG figures with the
-#      installed plot script, and haptic-lab runs a two-station loopback lab (plan, check, start,
-#      collect with the installed merge and figures; every station exits 0) (skipped, exit 77, when
-#      /usr/bin/python3 cannot import matplotlib).
+#   3. with the source AND build trees HIDDEN (a private mount namespace with empty tmpfs mounts over
+#      SOURCE_DIR and BUILD_DIR: as if they had been moved away; root, or an unprivileged user
+#      namespace, else SKIP 77): haptic-devices lists devices, a short `sim --users 5` draws its PNG
+#      figures with the installed plot script, and haptic-lab runs a three-station loopback lab with
+#      the optimizer's topology (plan, check, start, collect with the installed merge and figures; every
+#      station exits 0) (skipped, exit 77, when /usr/bin/python3 cannot import matplotlib).
 # Usage: install_check.sh BUILD_DIR SOURCE_DIR
 set -euo pipefail
 build="$1"
@@ -46,16 +46,19 @@ if ! /usr/bin/python3 -c 'import matplotlib, numpy' 2>/dev/null; then
   echo "SKIPPED: /usr/bin/python3 cannot import matplotlib/numpy (apt-get install python3-matplotlib): figures not checked"
   exit 77
 fi
-cat >"$work/two.toml" <<EOF
+cat >"$work/lab.toml" <<EOF
 [lab]
-users = 2
+users = 3
+pushes = "asymmetric"
 duration_s = 2.0
 push_end_s = 1.0
 release_s = 1.5
 probe_s = 1.0
 start_delay_s = 1.5
 [topology]
-links = "1-2"
+optimize = true                   # haptic-topology (eq. 27) from the install tree
+[network]
+synthetic_delays_seed = 1
 [station]
 max_no_neighbour_fraction = 1.0   # this checks the install tree, not the host (a loaded VM stalls; CI saw exit 7 at 0.5)
 loss_allowance_ticks = 1          # likewise: skipped probe ticks on a loaded VM would raise the measured allowance (and B_i)
@@ -69,16 +72,23 @@ env -u HAPTIC_TOOLS_DIR PATH=/usr/bin:/bin "$prefix/bin/haptic-station" sim --sc
     --push-end 1 --release 2 --trace-every 10 --quiet --out "$work/run" > sim.log 2>&1 || { cat sim.log; echo "sim failed"; exit 1; }
 if grep -q "no figures\|figure script failed" sim.log; then cat sim.log; echo "no figures"; exit 1; fi
 ls "$work/run"/*.png > /dev/null
-env -u HAPTIC_TOOLS_DIR -u HAPTIC_BIN_DIR PATH=/usr/bin:/bin "$prefix/bin/haptic-lab" run "$work/two.toml" --runs-dir "$work/runs" > lab.log 2>&1 || { cat lab.log; echo "haptic-lab run failed"; exit 1; }
+env -u HAPTIC_TOOLS_DIR -u HAPTIC_BIN_DIR PATH=/usr/bin:/bin "$prefix/bin/haptic-lab" run "$work/lab.toml" --runs-dir "$work/runs" > lab.log 2>&1 || { cat lab.log; echo "haptic-lab run failed"; exit 1; }
 ls "$work"/runs/*/lab-report.json "$work"/runs/*/summary.json > /dev/null || { cat lab.log; echo "no lab-report.json/summary.json"; exit 1; }
 ls "$work"/runs/*/*.png > /dev/null 2>&1 || { cat lab.log; echo "haptic-lab collect drew no figures"; exit 1; }
 EOF
 )
-if [ "$(id -u)" -eq 0 ] && unshare -m true 2>/dev/null; then
-  HIDDEN=1 unshare -m bash -c "mount -t tmpfs none '$src' && $steps" || fail "from the install tree with the source tree hidden (see above)"
-  echo "ok: with $src hidden (private mount namespace): haptic-devices ran, sim drew $(ls "$work/run"/*.png | wc -l) figures, haptic-lab ran a 2-station lab with figures"
+# Hide the source tree AND the build tree (it may live outside the source): empty tmpfs mounts in a
+# private mount namespace, as if both had been moved away. As root: unshare -m; otherwise an
+# unprivileged user namespace (unshare -rm) if the kernel allows it; else a visible SKIP, because
+# running "from the install tree" with the source still in place would not check the property.
+bld="$(cd "$build" && pwd)"
+hide="mount -t tmpfs none '$bld' && mount -t tmpfs none '$src'"   # the build tree first: it may be inside the source
+if [ "$(id -u)" -eq 0 ] && unshare -m true 2>/dev/null; then ns="unshare -m"
+elif unshare -rm true 2>/dev/null; then ns="unshare -rm"
 else
-  echo "NOTE: not root or no unshare: the source tree is not hidden; running from $work with PATH=/usr/bin:/bin instead"
-  bash -c "$steps" || fail "from the install tree (see above)"
-  echo "ok: haptic-devices ran, sim drew figures, haptic-lab ran a 2-station lab with figures"
+  echo "SKIPPED: cannot hide the source tree (not root and no unprivileged user namespaces): the install tree was not run without it"
+  exit 77
 fi
+HIDDEN=1 $ns bash -c "$hide || { echo 'cannot mount over the trees'; exit 1; }; [ ! -e '$bld/CMakeCache.txt' ] || { echo 'build tree still visible'; exit 1; }; $steps" ||
+  fail "from the install tree with the source and build trees hidden (see above)"
+echo "ok: with $src and $bld hidden ($ns): haptic-devices ran, sim drew $(ls "$work/run"/*.png | wc -l) figures, haptic-lab ran a 3-station lab with figures"

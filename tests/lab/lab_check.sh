@@ -111,12 +111,14 @@ w=$("$lab" plan "$work/worst.toml" --runs-dir "$work/runs" | tail -1)
 wl=$(python3 -c "import json;print(json.load(open('$w/plan.json'))['links'])")
 [ "$wl" = "1-2,2-4,3-4" ] || fail "topology.from_scenario for paper-worst planned links $wl, not the scenario's 1-2,2-4,3-4"
 sed -i 's/^users = 4$/users = 3/' "$work/worst.toml"
+runs_before=$(ls "$work/runs" | wc -l)
 set +e
 "$lab" plan "$work/worst.toml" --runs-dir "$work/runs" >"$work/worst3.log" 2>&1; rc_w=$?
 set -e
 [ "$rc_w" -eq 2 ] && grep -q "scenario paper-worst has 4 users, the lab has 3" "$work/worst3.log" || { cat "$work/worst3.log"; fail "from_scenario with 3 users exited $rc_w"; }
+[ "$(ls "$work/runs" | wc -l)" -eq "$runs_before" ] || fail "the refused plan left a half-written run folder in $work/runs"
 rm -rf "$w"
-echo "ok: topology.from_scenario plans paper-worst's links $wl; a 3-user lab with that scenario is refused (exit 2)"
+echo "ok: topology.from_scenario plans paper-worst's links $wl; a 3-user lab with that scenario is refused (exit 2) and leaves no run folder"
 
 c=$("$lab" plan "$src/tools/lab/examples/lab-4-pcs.toml" --runs-dir "$work/runs" | tail -1)
 set +e

@@ -133,6 +133,15 @@ else
     { cat "$work/check-4pcs.log"; fail "the refusal does not name the peer"; }
   echo "ok: the four-PC lab file is refused here (no interface on 192.168.10.0/24), exit 3"
 fi
+# remote stations: start prints the per-PC steps (and sends nothing); each PC gets its station file
+# AND its key, and the outputs come back from the station's <UTC>-s<session> folder
+"$lab" start "$c" >"$work/start-4pcs.log" 2>&1 || { cat "$work/start-4pcs.log"; fail "start of the four-PC lab (printing) failed"; }
+n=$(basename "$c")
+grep -q "scp -p $c/keys/station-4.key 192.168.10.14:$n/keys/" "$work/start-4pcs.log" &&
+  grep -q "\[192.168.10.12\] cd $n && haptic-station run --config station-2.toml --start-at" "$work/start-4pcs.log" &&
+  grep -q "scp -p '192.168.10.13:$n/\*-s${n##*-s}/station-3\*' $c/" "$work/start-4pcs.log" ||
+  { cat "$work/start-4pcs.log"; fail "the printed per-PC steps do not copy each station's key or fetch its outputs"; }
+echo "ok: the four-PC lab's printed steps give each PC its station file and key and fetch its outputs"
 
 "$lab" run "$work/three.toml" --runs-dir "$work/runs" --no-plots >"$work/run.log" 2>&1 || { cat "$work/run.log"; fail "haptic-lab run failed"; }
 d=$(run_folder) || { cat "$work/run.log"; fail "no run folder with lab-report.json"; }

@@ -141,6 +141,7 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
         rz_new[c] += r[k] * r[k] * dinv[i];
         rr += r[k] * r[k];
       }
+    if (rr <= threshold) break;  // converged: the next direction is not needed
     double beta[W];
     for (int c = 0; c < W; ++c) {
       beta[c] = rz[c] > 0 ? rz_new[c] / rz[c] : 0.0;

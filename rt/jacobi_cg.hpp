@@ -24,6 +24,7 @@ class JacobiCg {
   double condition_bound() const { return kappa_scaled_; }  // Gershgorin bound after Jacobi scaling
   int iteration_cap() const { return cap_; }
   long stored_doubles() const;
+  const double* inverse_diagonal() const { return dinv_.data(); }  // 1 / A_ii, size()
   // x (guess in, solution out), residual := b - A x. Stops when sum_c |r_c|^2 <= tol^2 |b|^2 or
   // after max_iterations. Returns the iterations done (max_iterations + 1 if not converged).
   // RT-safe: no allocation, at most max_iterations + 1 matrix passes.

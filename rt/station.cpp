@@ -116,6 +116,9 @@ StationCore::StationCore(const StationConfig& config)
   resid_ = Eigen::VectorXd::Zero(dofs_);
   y0_ = Eigen::VectorXd::Zero(dofs_);
   y0_prev_ = Eigen::VectorXd::Zero(dofs_);
+  rhs_prev_ = Eigen::VectorXd::Zero(dofs_);
+  rhs_prev2_ = Eigen::VectorXd::Zero(dofs_);
+  resid_prev_ = Eigen::VectorXd::Zero(dofs_);
   rx_.resize(static_cast<std::size_t>(nn));
   for (auto& r : rx_) r.init(dofs_, x_.data(), v_.data(), -1, cfg_.rx_rule);
   views_.resize(static_cast<std::size_t>(nn));
@@ -422,14 +425,69 @@ const double* StationCore::modulation_target(int j, std::int64_t k) {
   return predicted_.data();
 }
 
+void StationCore::contact_correction(const double* y0, double c) {
+  // v_hat = y0 + sum_a Z_a coef_a, coef_a = c (X_vp - X_a) per column, the terms added in the order
+  // a = 0, 1, ... as the column passes of the direct path do.
+  constexpr int kU = 3 * kMaxContactNodes;
+  const int m = m_units_, w = w_;
+  double coef[kU][3];
+  const double* za[kU];
+  for (int a = 0; a < m; ++a) {
+    za[a] = step_->Z.col(a).data();
+    for (int col = 0; col < w; ++col) coef[a][col] = c * (X_(m + unit_vp_[a], col) - X_(a, col));
+  }
+  double* vh = v_hat_.data();
+  if (w == 3 && m == 3) {  // the common case (three contact nodes, isotropic): coefficients in registers
+    const double* z0 = za[0];
+    const double* z1 = za[1];
+    const double* z2 = za[2];
+    for (int r = 0; r < nf_; ++r)
+      for (int col = 0; col < 3; ++col) {
+        const long k = static_cast<long>(r) * 3 + col;
+        vh[k] = ((y0[k] + z0[r] * coef[0][col]) + z1[r] * coef[1][col]) + z2[r] * coef[2][col];
+      }
+    return;
+  }
+  for (int r = 0; r < nf_; ++r)
+    for (int col = 0; col < w; ++col) {
+      const long k = static_cast<long>(r) * w + col;
+      double s = y0[k];
+      for (int a = 0; a < m; ++a) s += za[a][r] * coef[a][col];
+      vh[k] = s;
+    }
+}
+
 void StationCore::warm_start_y0() {
-  // y0_prev_ := 2 y0(k-1) - y0(k-2) (y0(k-1) until two solves exist), then swap: y0_ is the guess.
+  // y0_prev_ := 2 y0(k-1) - y0(k-2) (y0(k-1) until two solves exist) [+ the Jacobi step], then swap:
+  // y0_ is the guess.
   double* g = y0_prev_.data();
   const double* y = y0_.data();
-  if (y0_solves_ >= 2)
+  const double* dinv = step_->solver->inverse_diagonal();
+  const bool two = y0_solves_ >= 2;
+  const bool jacobi = dinv != nullptr && y0_solves_ >= 1 && y0_level_[0] == step_ && (!two || y0_level_[1] == step_);
+  if (jacobi) {
+    // A g from A y0(j) = b(j) - r(j) (the solves of ticks k-1, k-2 with this A).
+    const double* b = rhs_.data();
+    const double* b1 = rhs_prev_.data();
+    const double* r1 = resid_.data();
+    const double* b2 = rhs_prev2_.data();
+    const double* r2 = resid_prev_.data();
+    const int w = w_;
+    for (int i = 0; i < nf_; ++i) {
+      const double di = dinv[i];
+      for (int c = 0; c < w; ++c) {
+        const long k = static_cast<long>(i) * w + c;
+        if (two)
+          g[k] = 2.0 * y[k] - g[k] + di * (b[k] - 2.0 * (b1[k] - r1[k]) + (b2[k] - r2[k]));
+        else
+          g[k] = y[k] + di * (b[k] - (b1[k] - r1[k]));
+      }
+    }
+  } else if (two) {
     for (int i = 0; i < dofs_; ++i) g[i] = 2.0 * y[i] - g[i];
-  else
+  } else {
     for (int i = 0; i < dofs_; ++i) g[i] = y[i];
+  }
   y0_.swap(y0_prev_);  // swaps the buffers: no allocation
   if (y0_solves_ < 2) ++y0_solves_;
 }
@@ -554,8 +612,13 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
       rep = step_->solver->solve(rhs_.data(), v_hat_.data(), resid_.data(), w_);
     } else {
       warm_start_y0();
+      resid_prev_.swap(resid_);  // r(k-1) kept; the solve writes r(k) (swaps: no allocation)
       rep = step_->solver->solve(rhs_.data(), y0_.data(), resid_.data(), w_);
-      v_hat_ = y0_;  // same size: a copy, no allocation
+      if (!in_contact_) v_hat_ = y0_;  // same size: a copy, no allocation (in contact: below)
+      rhs_prev2_.swap(rhs_prev_);  // b(k-1), b(k) kept; rhs_ is rebuilt next tick
+      rhs_prev_.swap(rhs_);
+      y0_level_[1] = y0_level_[0];
+      y0_level_[0] = step_;
     }
     solver_last_iterations_ = rep.iterations;
     if (!rep.converged) ++solver_unconverged_ticks_;
@@ -563,18 +626,23 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
   Vec3 w_hat;
   if (in_contact_) {
     const int m = m_units_;
+    const double* y0 = step_->solver->exact() ? v_hat_.data() : y0_.data();  // A^{-1} b
     for (int a = 0; a < m; ++a)
-      for (int col = 0; col < w_; ++col) R_(a, col) = v_hat_[unit_row_[a] * w_ + col];
+      for (int col = 0; col < w_; ++col) R_(a, col) = y0[unit_row_[a] * w_ + col];
     for (int e = 0; e < vp_units_; ++e)
       for (int col = 0; col < w_; ++col) R_(m + e, col) = (w_ == 3) ? bw[col] : bw[e];
     X_.noalias() = step_->lu.solve(R_);
-    for (int a = 0; a < m; ++a) {
-      const double* za = step_->Z.col(a).data();
-      for (int col = 0; col < w_; ++col) {
-        const double coef = c * (X_(m + unit_vp_[a], col) - X_(a, col));
-        if (coef == 0.0) continue;
-        for (int r = 0; r < nf_; ++r) v_hat_[r * w_ + col] += za[r] * coef;
+    if (step_->solver->exact()) {
+      for (int a = 0; a < m; ++a) {
+        const double* za = step_->Z.col(a).data();
+        for (int col = 0; col < w_; ++col) {
+          const double coef = c * (X_(m + unit_vp_[a], col) - X_(a, col));
+          if (coef == 0.0) continue;
+          for (int r = 0; r < nf_; ++r) v_hat_[r * w_ + col] += za[r] * coef;
+        }
       }
+    } else {
+      contact_correction(y0_.data(), c);  // v_hat = y0 + Z coef in one pass (large scenes)
     }
     for (int d = 0; d < 3; ++d) w_hat[d] = (w_ == 3) ? X_(m, d) : X_(m + d, 0);
   } else {

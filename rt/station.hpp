@@ -242,9 +242,16 @@ class StationCore {
   // Step 4 without contact: b and energy_.vo_J in one fused pass for the first gain group (+ two
   // matvecs per further group). RT-safe.
   void build_rhs();
-  // The iterative solver's initial guess in y0_: 2 y0(k-1) - y0(k-2), the linear extrapolation of
-  // the last two solutions of A y0 = b (y0(k-1) until two exist). RT-safe: one pass, no allocation.
+  // The iterative solver's initial guess in y0_: g = 2 y0(k-1) - y0(k-2), the linear extrapolation
+  // of the last two solutions of A y0 = b (y0(k-1) until two exist), then, when both were solved
+  // with this tick's A and the solver keeps A's diagonal D, one Jacobi step g += D^{-1}(b - A g)
+  // with A g = 2 (b(k-1) - r(k-1)) - (b(k-2) - r(k-2)) from the kept right-hand sides and
+  // residuals (no matvec). RT-safe: one pass, no allocation.
   void warm_start_y0();
+  // Iterative solver in contact: v_hat = y0 + Z coef from the Schur solution X_ (Z = A^{-1} U of
+  // this tick's step) in one pass over the rows, instead of the copy and one column pass per unit
+  // and column. RT-safe.
+  void contact_correction(const double* y0, double c);
   // pspm: the set-position target of edge j at tick k: the held packet's x_hat_j, extrapolated by its
   // v_hat_j over the ticks it has been held when predict_held_state (views_[j] from begin_tick). RT-safe.
   const double* modulation_target(int j, std::int64_t k);
@@ -316,6 +323,10 @@ class StationCore {
   // the iterative solver's warm start is their linear extrapolation (rt/README.md).
   Eigen::VectorXd y0_, y0_prev_;
   int y0_solves_ = 0;
+  // ... and for the Jacobi step: b(k-1), b(k-2) (rhs_ is b(k)), r(k-2) (resid_ is r(k-1) until the
+  // solve), the step level each of y0(k-1), y0(k-2) was solved with. Rotated by swaps.
+  Eigen::VectorXd rhs_prev_, rhs_prev2_, resid_prev_;
+  const StepLevel* y0_level_[2] = {nullptr, nullptr};
   std::vector<RxLink::TickView> views_;
   std::vector<unsigned char> active_;
 

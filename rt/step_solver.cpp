@@ -47,6 +47,7 @@ class IterativeStepSolver final : public StepSolver {
   bool exact() const override { return false; }
   const char* name() const override { return "iterative"; }
   long stored_doubles() const override { return cg_.stored_doubles(); }
+  const double* inverse_diagonal() const override { return cg_.inverse_diagonal(); }
   const JacobiCg& cg() const { return cg_; }
 
  private:

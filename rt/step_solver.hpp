@@ -32,6 +32,10 @@ class StepSolver {
   virtual bool exact() const = 0;
   virtual const char* name() const = 0;
   virtual long stored_doubles() const = 0;  // size of the solver's data (memory reports)
+  // The inverse of A's diagonal (one value per factor row, shared by the `width` columns) if the
+  // solver keeps it (Jacobi-preconditioned CG), else nullptr: the station's warm start uses it for
+  // a Jacobi step on its extrapolated guess (rt/README.md, "Solver by size").
+  virtual const double* inverse_diagonal() const { return nullptr; }
 };
 
 enum class StepSolverKind { kAuto, kDirect, kIterative };
@@ -46,7 +50,7 @@ struct StepSolverConfig {
   // 275 nodes, PCG at 1021).
   int iterative_from_rows = 600;
   // ||b - A x||_2 <= tol ||b||_2 for the iterative solver. 1e-8 (rt/README.md, "Solver by size"):
-  // the chart tools/bench/results/rt_tick_tolerance.png puts the residual's energy at <= 4e-13 of
+  // the chart tools/bench/results/rt_tick_tolerance.png puts the residual's energy at <= 1e-9 of
   // the controller port's per tick at 1021-9915 nodes (counted in the energy monitor in any case),
   // one CG iteration per tick fewer than 1e-10.
   double relative_tolerance = 1e-8;

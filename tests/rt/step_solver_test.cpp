@@ -134,13 +134,15 @@ TEST(SolverEnergy, eq12_balance_is_exact_with_a_loose_iterative_solve_when_its_r
 
 TEST_GROUP(WarmStart){};
 
-// The iterative solve starts from the linear extrapolation 2 y0(k-1) - y0(k-2) of the last two
-// solutions of A y0 = b (before the contact correction). On a 1021-node ball pushed into contact
-// while three neighbours send their state every tick, the CG needs 4.12 iterations per tick to
-// 1e-10 over ticks 100-399; starting from the last v_hat (the guess before, which carries the
-// contact correction) it needed 4.91. The check sits between the two. Iteration counts are
-// deterministic (no timing).
-TEST(WarmStart, extrapolated_guess_needs_fewer_cg_iterations_than_the_last_v_hat_on_a_1021_node_ball) {
+// The iterative solve starts from the linear extrapolation g = 2 y0(k-1) - y0(k-2) of the last two
+// solutions of A y0 = b (before the contact correction), improved by one Jacobi step
+// g += D^{-1}(b - A g) whose A g comes from the kept b(k-1) - r(k-1) and b(k-2) - r(k-2) (no
+// matvec). On a 1021-node ball pushed into contact while three neighbours send their state every
+// tick, the CG needs 3.12 iterations per tick to 1e-10 over ticks 100-399; from the extrapolation
+// alone it needed 4.12, from the last v_hat (the guess before, which carries the contact
+// correction) 4.91. The check sits between 3.12 and 4.12. Iteration counts are deterministic (no
+// timing).
+TEST(WarmStart, extrapolated_guess_with_a_jacobi_step_needs_a_cg_iteration_less_than_extrapolation_alone_on_a_1021_node_ball) {
   Scene scene = build_scene(make_lattice_ball(1000, 0.05), SceneParams{});
   const EdgeGains gains = paper_edge_gains(scene);
   StationConfig cfg;
@@ -167,5 +169,5 @@ TEST(WarmStart, extrapolated_guess_needs_fewer_cg_iterations_than_the_last_v_hat
   CHECK_EQUAL(0, static_cast<int>(st.solver_unconverged_ticks()));
   const double mean = static_cast<double>(iterations) / 300.0;
   printf("\n  warm start: %.2f CG iterations per tick (1021 nodes, 1e-10)\n", mean);
-  CHECK_TRUE(mean <= 4.5);
+  CHECK_TRUE(mean <= 3.6);
 }

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -265,6 +266,12 @@ StationFile parse_station_file(std::string_view toml_text) {
 std::string StationFile::peer_key(std::size_t index, const std::string& field) const {
   const std::string f = field == "id" && index < peer_id_keys.size() ? peer_id_keys[index] : field;
   return net_section + ".peers[" + std::to_string(index) + "]." + f;
+}
+
+std::string StationFile::relative_to_file(const std::string& value) const {
+  if (value.empty() || value[0] == '/' || path.empty()) return value;
+  const std::string dir = std::filesystem::path(path).parent_path().string();
+  return dir.empty() ? value : dir + "/" + value;
 }
 
 StationFile load_station_file(const std::string& path) {

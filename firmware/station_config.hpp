@@ -105,10 +105,12 @@
 //   kind = "auto"                    # "auto" (first Touch, else Falcon, else SpaceMouse) | "touch" | "falcon" | "spacemouse" | "simulated".
 //                                    # A device that cannot be started is an error (exit 9), never a silent simulated
 //                                    # user; "simulated" (the scenario's scripted user) is a warning and in the summary
-//   hd_library_path = ""             # the vendor's OpenHaptics libHD.so; "" = $HAPTIC_HD_LIBRARY, else "libHD.so"
+//   hd_library_path = ""             # the vendor's OpenHaptics libHD.so; "" = $HAPTIC_HD_LIBRARY, else "libHD.so"; a bare
+//                                    # name goes to the loader's search path, a path with '/' is relative to this file's folder
 //   hd_device_name = ""              # OpenHaptics device configuration name; "" = the default device
 //   hidraw_path = ""                 # SpaceMouse hidraw node; "" = the first SpaceMouse found
-//   falcon_firmware_path = ""        # Novint Falcon: the firmware file loaded at every start (not shipped); required
+//   falcon_firmware_path = ""        # Novint Falcon: the firmware file loaded at every start (not shipped); required;
+//                                    # relative to this file's folder. A missing file (or library) is a --check-config warning
 //   falcon_index = 0                 # which Falcon on USB (0 = the first 0403:cb48), [0, 15]
 //   falcon_homing_timeout_s = 30     # the user homes the grip (all the way out, straight in) within this, (0, 600]
 //   max_force_N = 1e9                # extra output clamp below the device's own limit, > 0
@@ -272,6 +274,9 @@ struct StationFile {
   std::vector<std::string> peer_id_keys;
   // Key of peer `index`'s field `field` as written in the file, e.g. "net.peers[2].address".
   std::string peer_key(std::size_t index, const std::string& field) const;
+  // A file named by a key of this file: relative to this file's folder (as net.key_file and
+  // scene.file), absolute or from text (path "") as written.
+  std::string relative_to_file(const std::string& value) const;
 };
 
 // Parses and validates everything except the [net] section's values (net/ does those, with the

@@ -81,10 +81,12 @@ drivers::DeviceSelection device_selection(const StationFile& f, const BuiltScena
   sel.safety.max_stale_reads = static_cast<std::uint32_t>(f.device.max_stale_reads);
   sel.safety.max_reads_before_first_sample = static_cast<std::uint32_t>(f.device.max_reads_before_first_sample);
   sel.safety.workspace_margin = f.device.workspace_margin;
-  sel.touch.hd_library_path = f.device.hd_library_path;
+  // a bare library name ("libHD.so") is for the dynamic loader's search; a path is the file's
+  const bool lib_is_path = f.device.hd_library_path.find('/') != std::string::npos;
+  sel.touch.hd_library_path = lib_is_path ? f.relative_to_file(f.device.hd_library_path) : f.device.hd_library_path;
   sel.touch.device_name = f.device.hd_device_name;
   sel.spacemouse.hidraw_path = f.device.hidraw_path;
-  sel.falcon.firmware_path = f.device.falcon_firmware_path;
+  sel.falcon.firmware_path = f.relative_to_file(f.device.falcon_firmware_path);
   sel.falcon.index = f.device.falcon_index;
   sel.falcon.homing_timeout_s = f.device.falcon_homing_timeout_s;
   sel.simulated.device = built.spec.device;
@@ -133,6 +135,21 @@ void plan_release_warning(StationPlan& p) {
                        number_text(spec.script.release_s) + " s: the release metrics will be null and the exit code " + std::to_string(kExitBeforeRelease));
 }
 
+// A device file named in [device] that is not there: the device will not start (exit 9 at start-up,
+// never a simulated user); --check-config says so first, with the path as resolved.
+void plan_device_file_warnings(StationPlan& p) {
+  const DeviceSection& d = p.file.device;
+  auto missing = [&](const std::string& key, const std::string& value, const std::string& resolved, const char* what) {
+    std::error_code ec;
+    if (value.empty() || std::filesystem::exists(resolved, ec)) return;
+    p.warnings.push_back("device." + key + " = \"" + value + "\": no such file" + (resolved != value ? " (" + resolved + ", relative to the station file's folder)" : std::string()) +
+                         ": " + what + " will not start (exit " + std::to_string(kExitDeviceMissing) + ")");
+  };
+  if (d.kind == "falcon") missing("falcon_firmware_path", d.falcon_firmware_path, p.device.falcon.firmware_path, "the Falcon");
+  if ((d.kind == "touch" || d.kind == "auto") && d.hd_library_path.find('/') != std::string::npos)
+    missing("hd_library_path", d.hd_library_path, p.device.touch.hd_library_path, "a Touch");
+}
+
 // Every check and translation of the plan phase; throws std::invalid_argument naming the key.
 std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides& o, const ClockReading& now) {
   auto p = std::make_unique<StationPlan>();
@@ -177,6 +194,7 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
     p->warnings.push_back("device.kind = \"auto\": eq. (26) on the device's damping is checked at start-up, once the device is open "
                           "(name the kind to have --check-config check it)");
   }
+  plan_device_file_warnings(*p);
   p->ramp_in_ticks = ramp_in_ticks(f, spec.period_s);
   p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
   p->net.endpoint.fingerprint = p->fingerprint;  // sent to every neighbour (net/)
@@ -227,8 +245,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   }
   spec.scene_nodes = s.nodes;
   if (!f.scene.file.empty()) {
-    const std::filesystem::path file(f.scene.file);
-    spec.scene_file.path = file.is_relative() && !f.path.empty() ? (std::filesystem::path(f.path).parent_path() / file).string() : f.scene.file;
+    spec.scene_file.path = f.relative_to_file(f.scene.file);
     spec.scene_file.from_station_file = true;
     spec.scene_file.unit_m = f.scene.unit_m;
     spec.scene_file.density_kg_per_m3 = f.scene.density_kg_per_m3;

@@ -4,6 +4,8 @@
 // and its message proposes the largest K_vc that satisfies it.
 #include <CppUTest/TestHarness.h>
 
+#include <filesystem>
+#include <fstream>
 #include <sstream>
 #include <string>
 
@@ -105,6 +107,34 @@ TEST(DeviceCoupling, GainsAndTheForceLimitComeFromTheDeviceAndTheFile) {
   const PlanResult sim = plan("kind = \"simulated\"\n");
   DOUBLES_EQUAL(sim.plan->built->spec.device.damping_Ns_per_m, sim.plan->coupling->b_d_Ns_per_m, 0);
   CHECK(contains(sim.plan->coupling->b_d_source, "simulated"));
+}
+
+// The unit runs in /var/lib/haptic/station-N: a device file named in the station file is found next
+// to that file (as net.key_file), and a missing one is a --check-config warning naming the key.
+TEST(DeviceCoupling, DeviceFilesAreRelativeToTheStationFileAndAMissingOneIsAWarningNamingTheKey) {
+  const std::string dir = "/tmp/haptic-device-files-test";
+  std::filesystem::create_directories(dir + "/vendor");
+  StationFile f = parse_station_file(station("kind = \"falcon\"\ndamping_Ns_per_m = 1\nfalcon_firmware_path = \"fw/falcon.bin\"\n"));
+  f.path = dir + "/station-2.toml";
+  PlanResult r = plan_station(f, RunOverrides{}, read_clocks());
+  CHECK_TEXT(r.status == PhaseStatus::kOk, r.error.c_str());
+  STRCMP_EQUAL((dir + "/fw/falcon.bin").c_str(), r.plan->device.falcon.firmware_path.c_str());
+  bool warned = false;
+  for (const std::string& w : r.plan->warnings) warned = warned || (contains(w, "device.falcon_firmware_path = \"fw/falcon.bin\"") && contains(w, "no such file"));
+  CHECK_TEXT(warned, "no warning for the missing firmware file");
+  std::filesystem::create_directories(dir + "/fw");
+  std::ofstream(dir + "/fw/falcon.bin") << "x";
+  r = plan_station(f, RunOverrides{}, read_clocks());
+  for (const std::string& w : r.plan->warnings) CHECK_FALSE_TEXT(contains(w, "falcon_firmware_path"), w.c_str());
+  // a library path with '/' is the file's; a bare name is for the loader's search path
+  f = parse_station_file(station("kind = \"touch\"\ndamping_Ns_per_m = 1\nhd_library_path = \"vendor/libHD.so\"\n"));
+  f.path = dir + "/station-2.toml";
+  r = plan_station(f, RunOverrides{}, read_clocks());
+  STRCMP_EQUAL((dir + "/vendor/libHD.so").c_str(), r.plan->device.touch.hd_library_path.c_str());
+  f = parse_station_file(station("kind = \"touch\"\ndamping_Ns_per_m = 1\nhd_library_path = \"libHD.so\"\n"));
+  f.path = dir + "/station-2.toml";
+  STRCMP_EQUAL("libHD.so", plan_station(f, RunOverrides{}, read_clocks()).plan->device.touch.hd_library_path.c_str());
+  std::filesystem::remove_all(dir);
 }
 
 TEST(DeviceCoupling, APositionInputDeviceHasNoForceFeedbackAndEq26DoesNotApply) {

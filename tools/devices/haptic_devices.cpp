@@ -115,7 +115,10 @@ void report_vendor_config() {
   std::error_code ec;
   const bool have = std::filesystem::exists(dir + "/Default Device.config", ec);
   std::printf("\nTouch vendor configuration (%s): %s\n", gtdd != nullptr && *gtdd ? "$GTDD_HOME/config" : "no GTDD_HOME: ~/.3dsystems/config",
-              (dir + (have ? ": Default Device.config found" : ": no Default Device.config (run the vendor's Touch_Setup as the station's user)")).c_str());
+              (dir + (have ? ": Default Device.config found" : ": no Default Device.config (run the vendor's Touch_Setup with the station's GTDD_HOME)")).c_str());
+  if (gtdd == nullptr || !*gtdd)
+    std::printf("  note: the installed haptic-station@.service runs as user 'haptic' (no home) with GTDD_HOME=/usr/share/3DSystems;\n"
+                "  check that one with: GTDD_HOME=/usr/share/3DSystems haptic-devices (firmware/deploy/README.md, step 5)\n");
   if (std::getenv("SUDO_USER") != nullptr && (gtdd == nullptr || !*gtdd))
     std::printf("  WARNING: running under sudo without GTDD_HOME: the vendor tools read and write their configuration under\n"
                 "  %s, which the station's user does not see. Set GTDD_HOME to one shared directory (e.g. /usr/share/3DSystems,\n"

@@ -43,13 +43,46 @@ bool try_haptic(std::unique_ptr<Dev> dev, const char* name, How how, OpenedDevic
   return true;
 }
 
+// This station's USB device of `kind` (see the header: usb_serial, else the index-th, else the only
+// one); nullptr when none is plugged in. Throws DeviceMissing when usb_serial matches none of them
+// or two are plugged in without usb_serial.
+const UsbDeviceInfo* pick_usb(const std::vector<UsbDeviceInfo>& usb, DeviceKind kind, const DeviceSelection& sel, const std::string& what,
+                              int index, const std::string& report) {
+  std::vector<const UsbDeviceInfo*> mine;
+  std::string serials;
+  for (const UsbDeviceInfo& d : usb)
+    if (d.kind == kind) {
+      mine.push_back(&d);
+      serials += (serials.empty() ? "\"" : ", \"") + d.serial + "\"";
+    }
+  if (!sel.usb_serial.empty()) {
+    for (const UsbDeviceInfo* d : mine)
+      if (d->serial == sel.usb_serial) return d;
+    if (sel.kind == "auto") return nullptr;  // open_device refuses when no kind has it
+    throw DeviceMissing("device.usb_serial = \"" + sel.usb_serial + "\": no " + what + " with that serial is plugged in (found: " +
+                        (serials.empty() ? std::string("none") : serials) + "):\n" + report + kMissingHint);
+  }
+  if (index < 0 && mine.size() > 1)
+    throw DeviceMissing(std::to_string(mine.size()) + " " + what + " devices are plugged in (serials " + serials +
+                        "): say which is this station's with device.usb_serial" +
+                        (kind == DeviceKind::kPhantomTouch ? " (and device.hd_device_name, its vendor configuration name)" : "") + ":\n" + report +
+                        kMissingHint);
+  const std::size_t i = index < 0 ? 0 : static_cast<std::size_t>(index);
+  return i < mine.size() ? mine[i] : nullptr;
+}
+
 bool try_touch(const DeviceSelection& sel, OpenedDevice& out, const UsbDeviceInfo* usb) {
   return try_haptic(std::make_unique<PhantomDevice>(sel.touch, sel.safety), "touch",
                     [](const PhantomDevice& d) { return "through " + d.library_path(); }, out, usb);
 }
 
 bool try_falcon(const DeviceSelection& sel, OpenedDevice& out, const UsbDeviceInfo* usb) {
-  return try_haptic(std::make_unique<FalconDevice>(sel.falcon, sel.safety), "falcon",
+  FalconConfig c = sel.falcon;
+  if (usb != nullptr) {  // open exactly the device that is watched for unplug
+    c.usb_bus = usb->bus;
+    c.usb_address = usb->address;
+  }
+  return try_haptic(std::make_unique<FalconDevice>(c, sel.safety), "falcon",
                     [](const FalconDevice&) { return std::string("(firmware loaded, homed; servo through libusb)"); }, out, usb);
 }
 
@@ -104,12 +137,11 @@ OpenedDevice open_device(const DeviceSelection& sel) {
     out.report += std::string("usb: ") + e.what() + " (unplug detection unavailable)\n";
     out.monitor.reset();
   }
-  const UsbDeviceInfo* touch_usb = nullptr;
-  const UsbDeviceInfo* falcon_usb = nullptr;
-  for (const UsbDeviceInfo& d : usb) {
-    if (d.kind == DeviceKind::kPhantomTouch && touch_usb == nullptr) touch_usb = &d;
-    if (d.kind == DeviceKind::kFalcon && falcon_usb == nullptr) falcon_usb = &d;
-  }
+  const UsbDeviceInfo* touch_usb = k == "touch" || k == "auto" ? pick_usb(usb, DeviceKind::kPhantomTouch, sel, "Touch", -1, out.report) : nullptr;
+  const UsbDeviceInfo* falcon_usb =
+      k == "falcon" || k == "auto" ? pick_usb(usb, DeviceKind::kFalcon, sel, "Falcon", sel.falcon.index, out.report) : nullptr;
+  if (k == "auto" && !sel.usb_serial.empty() && touch_usb == nullptr && falcon_usb == nullptr)
+    throw DeviceMissing("device.usb_serial = \"" + sel.usb_serial + "\": no Touch or Falcon with that serial is plugged in:\n" + out.report + kMissingHint);
   bool ok = false;
   if (k == "touch" || (k == "auto" && touch_usb != nullptr)) ok = try_touch(sel, out, touch_usb);
   if (!ok && k == "touch") throw DeviceMissing("device.kind = \"touch\": no Touch could be started:\n" + out.report + kMissingHint);

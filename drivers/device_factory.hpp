@@ -9,8 +9,14 @@
 //                         "auto" takes a Falcon found on USB when no Touch started
 //   kind = "simulated"  : SimulatedDevice (owner-stepped: the station must call service()); a
 //                         simulated user is only ever what the configuration asked for
-// A started Touch or SpaceMouse that has a USB identity is watched by a UsbMonitor (hotplug or
+// A started Touch, Falcon or SpaceMouse that has a USB identity is watched by a UsbMonitor (hotplug or
 // re-enumeration), so unplugging it puts the device in the safe state.
+// Two devices on one PC: usb_serial (device.usb_serial) names this station's device by the serial
+// `haptic-devices` lists; the Falcon opened and the device watched for unplug are then that one.
+// Two Touches (or Falcons) plugged in without usb_serial are refused (DeviceMissing naming the key
+// and the serials found): the unplug watch must never be on the neighbour's device. A Touch's servo
+// goes through the HD library, which picks the device by its vendor configuration name
+// (device.hd_device_name, Touch_Setup): name the same device in both keys.
 #include "drivers/device.hpp"
 #include "drivers/falcon_device.hpp"
 #include "drivers/phantom_device.hpp"
@@ -34,6 +40,7 @@ struct DeviceSelection {
   SimulatedDeviceConfig simulated{};
   SafetyLimits safety{};
   UsbMonitorConfig usb{};
+  std::string usb_serial;  // device.usb_serial: "" = the only device of the kind (the falcon_index-th Falcon)
 };
 
 struct OpenedDevice {

@@ -65,13 +65,18 @@ void FalconDevice::open_usb() {
   for (ssize_t i = 0; i < n; ++i) {
     libusb_device_descriptor d{};
     if (libusb_get_device_descriptor(list[i], &d) != 0 || d.idVendor != kVendorId || d.idProduct != kProductId) continue;
-    if (seen++ == config_.index) found = list[i];
+    const bool at = config_.usb_bus >= 0 ? libusb_get_bus_number(list[i]) == config_.usb_bus && libusb_get_device_address(list[i]) == config_.usb_address
+                                          : seen == config_.index;
+    ++seen;
+    if (at) found = list[i];
   }
   if (found != nullptr) rc = libusb_open(found, &handle_);
   libusb_free_device_list(list, 1);
   if (found == nullptr)
-    throw std::runtime_error("falcon: no Novint Falcon (USB 0403:cb48) number " + std::to_string(config_.index) + " found (" +
-                             std::to_string(seen) + " on the bus; device.falcon_index counts from 0)");
+    throw std::runtime_error(config_.usb_bus >= 0 ? "falcon: the chosen Falcon (bus " + std::to_string(config_.usb_bus) + " address " +
+                                                        std::to_string(config_.usb_address) + ") is gone from the bus"
+                                                  : "falcon: no Novint Falcon (USB 0403:cb48) number " + std::to_string(config_.index) + " found (" +
+                                                        std::to_string(seen) + " on the bus; device.falcon_index counts from 0)");
   if (rc != 0)
     throw std::runtime_error("falcon: cannot open the Falcon's USB node: " + usb_error(rc) +
                              (rc == LIBUSB_ERROR_ACCESS ? "; see `haptic-devices` for the udev rule" : ""));

@@ -31,6 +31,7 @@ namespace haptic::drivers {
 struct FalconConfig {
   std::string firmware_path;       // device.falcon_firmware_path: required
   int index = 0;                   // device.falcon_index: which Falcon (0 = first on the bus)
+  int usb_bus = -1, usb_address = -1;  // when >= 0: exactly this USB device (open_device's choice, watched for unplug)
   double homing_timeout_s = 30.0;  // device.falcon_homing_timeout_s
   bool own_thread = true;          // false: the owner calls service() (tests, benchmarks)
   double servo_rate_hz = 1000.0;   // own thread's exchange rate

@@ -77,6 +77,7 @@ void PhantomDevice::start() {
 
   lib_->hdEnable(hd::kForceOutput);
   calibrated_ = false;
+  calibrated_seen_.store(false, std::memory_order_release);
   sequence_ = 0;
   servo_enabled_.store(true, std::memory_order_release);
   arm();  // before the scheduler runs, so servo faults (calibration) latch
@@ -102,6 +103,7 @@ hd::HDCallbackCode PhantomDevice::servo_frame() {
     const hd::HDenum cal = lib_->hdCheckCalibration();
     if (cal == hd::kCalibrationOk) {
       calibrated_ = true;
+      calibrated_seen_.store(true, std::memory_order_release);
     } else {
       raise_fault(DeviceFault::kCalibrationNeeded, static_cast<std::int32_t>(cal));
     }

@@ -37,6 +37,9 @@ class PhantomDevice final : public HapticDevice {
 
   const std::string& library_path() const { return library_path_; }
   std::uint64_t servo_frames() const { return frames_.load(std::memory_order_relaxed); }
+  // RT-safe. hdCheckCalibration said HD_CALIBRATION_OK in a servo frame (until then no sample is
+  // published; any other answer is the kCalibrationNeeded fault, its detail the HD code).
+  bool calibrated() const { return calibrated_seen_.load(std::memory_order_acquire); }
 
  private:
   static hd::HDCallbackCode servo_trampoline(void* self);
@@ -51,6 +54,7 @@ class PhantomDevice final : public HapticDevice {
   bool scheduler_started_ = false;
   std::atomic<bool> servo_enabled_{false};
   bool calibrated_ = false;  // servo-thread only
+  std::atomic<bool> calibrated_seen_{false};  // calibrated_, for other threads
   std::uint64_t sequence_ = 0;  // servo-thread only
   std::atomic<std::uint64_t> frames_{0};
 };

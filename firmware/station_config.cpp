@@ -115,7 +115,7 @@ void parse_scene_section(View root, StationFile& f) {
 
 void parse_device_section(View root, StationFile& f) {
   const View dv = root["device"];
-  only_keys(dv, "device", {"kind", "hd_library_path", "hd_device_name", "hidraw_path", "falcon_firmware_path", "falcon_index",
+  only_keys(dv, "device", {"kind", "hd_library_path", "hd_device_name", "hidraw_path", "usb_serial", "falcon_firmware_path", "falcon_index",
                           "falcon_homing_timeout_s", "max_force_N", "max_power_W", "max_speed_m_per_s", "max_stale_reads",
                           "max_reads_before_first_sample", "workspace_margin", "sim_max_force_N", "damping_Ns_per_m", "coupling_stiffness_N_per_m",
                           "coupling_damping_Ns_per_m", "proxy_damping_Ns_per_m", "map_offset_m", "map_rotation_deg", "map_scale",
@@ -127,6 +127,7 @@ void parse_device_section(View root, StationFile& f) {
   d.hd_library_path = text(dv["hd_library_path"], "device.hd_library_path", "");
   d.hd_device_name = text(dv["hd_device_name"], "device.hd_device_name", "");
   d.hidraw_path = text(dv["hidraw_path"], "device.hidraw_path", "");
+  d.usb_serial = text(dv["usb_serial"], "device.usb_serial", "");
   d.falcon_firmware_path = text(dv["falcon_firmware_path"], "device.falcon_firmware_path", "");
   d.falcon_index = static_cast<int>(integer(dv["falcon_index"], "device.falcon_index", 0, 0, 15));
   d.falcon_homing_timeout_s = real(dv["falcon_homing_timeout_s"], "device.falcon_homing_timeout_s", 30.0, 1e-3, 600);

@@ -109,6 +109,9 @@
 //                                    # name goes to the loader's search path, a path with '/' is relative to this file's folder
 //   hd_device_name = ""              # OpenHaptics device configuration name; "" = the default device
 //   hidraw_path = ""                 # SpaceMouse hidraw node; "" = the first SpaceMouse found
+//   usb_serial = ""                  # two devices of one kind on this PC: this station's, by the serial `haptic-devices`
+//                                    # lists (the Falcon opened and the device watched for unplug); "" = the only one
+//                                    # (two Touches without it are refused); a Touch also needs hd_device_name
 //   falcon_firmware_path = ""        # Novint Falcon: the firmware file loaded at every start (not shipped); required;
 //                                    # relative to this file's folder. A missing file (or library) is a --check-config warning
 //   falcon_index = 0                 # which Falcon on USB (0 = the first 0403:cb48), [0, 15]
@@ -218,6 +221,7 @@ struct DeviceSection {
   std::string hd_library_path;
   std::string hd_device_name;
   std::string hidraw_path;
+  std::string usb_serial;
   std::string falcon_firmware_path;
   int falcon_index = 0;
   double falcon_homing_timeout_s = 30.0;

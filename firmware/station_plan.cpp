@@ -86,6 +86,7 @@ drivers::DeviceSelection device_selection(const StationFile& f, const BuiltScena
   sel.touch.hd_library_path = lib_is_path ? f.relative_to_file(f.device.hd_library_path) : f.device.hd_library_path;
   sel.touch.device_name = f.device.hd_device_name;
   sel.spacemouse.hidraw_path = f.device.hidraw_path;
+  sel.usb_serial = f.device.usb_serial;
   sel.falcon.firmware_path = f.relative_to_file(f.device.falcon_firmware_path);
   sel.falcon.index = f.device.falcon_index;
   sel.falcon.homing_timeout_s = f.device.falcon_homing_timeout_s;

@@ -195,6 +195,32 @@ TEST(FalconUmockdev, AutoPicksAPluggedFalconWhoseOwnThreadServes) {
   CHECK(falcon->servo_frames() > 0);
 }
 
+// device.usb_serial: the Falcon with that serial is the one opened (by its bus and address) and
+// watched for unplug; a serial no Falcon has is refused naming the key and the serials found.
+TEST(FalconUmockdev, TheUsbSerialChoosesTheFalconOpenedAndWatchedAndAnUnknownOneIsRefused) {
+  FalconBed bed;
+  DeviceSelection sel;
+  sel.kind = "falcon";
+  sel.falcon = bed.config();
+  sel.usb_serial = "FALCON-OTHER";
+  try {
+    open_device(sel);
+    FAIL("an unknown device.usb_serial was accepted");
+  } catch (const DeviceMissing& e) {
+    const std::string what = e.what();
+    CHECK_TEXT(what.find("device.usb_serial = \"FALCON-OTHER\": no Falcon with that serial") != std::string::npos &&
+                   what.find("found: \"FALCON-STANDIN-1\"") != std::string::npos,
+               what.c_str());
+  }
+  sel.usb_serial = "FALCON-STANDIN-1";
+  sel.falcon.index = 3;  // the serial decides, not the index
+  OpenedDevice opened = open_device(sel);
+  CHECK_TEXT(opened.report.find("falcon: unplug detection on 0403:cb48") != std::string::npos &&
+                 opened.report.find("addr 009, serial \"FALCON-STANDIN-1\"") != std::string::npos,
+             opened.report.c_str());
+  CHECK(dynamic_cast<FalconDevice*>(opened.device.get()) != nullptr);
+}
+
 TEST(FalconUmockdev, KindFalconWithoutOneIsDeviceMissingSayingWhy) {
   FalconBed bed(false);
   DeviceSelection sel;

@@ -21,7 +21,7 @@ check() {  # check NAME EXPECTED_RC OUTPUT RC REGEX...
 
 # 1. b_d from two force levels: plant b = 5 N s/m, c = 0.05 N. F/v at one level would say 5.71.
 out=$(FAKEHD_AUTO=1 FAKEHD_PLANT=0.05,5,0.05 "$tool" diag $dev --force-N 0.2 0.4 --axis x 2>&1); rc=$?
-check bd 0 "$out" $rc 'test force 0.2 N along x: mean \|speed\|' 'servo rate: [0-9]+ Hz \([0-9]+ servo frames' 'b_d = \(F2 - F1\) / \(v2 - v1\) = '
+check bd 0 "$out" $rc 'calibration: OK \(hdCheckCalibration = HD_CALIBRATION_OK\)' 'test force 0.2 N along x: mean \|speed\|' 'servo rate: [0-9]+ Hz \([0-9]+ servo frames' 'b_d = \(F2 - F1\) / \(v2 - v1\) = '
 bd=$(printf '%s\n' "$out" | sed -n 's/^b_d = (F2 - F1) \/ (v2 - v1) = \([0-9.e+-]*\) N s\/m.*/\1/p')
 if ! awk -v b="$bd" 'BEGIN { exit !(b > 4.75 && b < 5.25) }'; then echo "FAIL bd: b_d '$bd' not within 5% of the plant's 5 N s/m"; fail=1; fi
 # the servo rate is the fake's own 1 kHz loop, not the tool's 500 Hz tick
@@ -35,6 +35,10 @@ check one_level 0 "$out" $rc 'force 0.3 N along y' 'force -0.3 N along y' 'test 
 # 3. a push that runs away (b = 0.1 N s/m: 10 m/s terminal speed) trips the device's speed check: exit 5, fault named
 out=$(FAKEHD_AUTO=1 FAKEHD_PLANT=0.05,0.1,0 "$tool" diag $dev --force-N 1 --max-travel-mm 200 2>&1); rc=$?
 check fault 5 "$out" $rc 'device fault: out-of-range sample'
+
+# 3b. calibration status: a Touch whose calibration needs an update is refused (exit 5) saying what to do
+out=$(FAKEHD_AUTO=1 FAKEHD_CALIBRATION=0x5001 "$tool" diag $dev --force-N 0.2 2>&1); rc=$?
+check calibration 5 "$out" $rc 'device fault: calibration needed' 'calibration: NOT OK \(hdCheckCalibration = 0x5001, HD_CALIBRATION_NEEDS_UPDATE: put the stylus in its inkwell'
 
 # 4. map: held still at (12, -5, 30) mm, object centre (0.1, 0, 0) m, rotation z 90 deg, scale 2:
 #    offset = centre - 2 Rz(90) p = (0.1 - 0.010, -0.024, -0.060)

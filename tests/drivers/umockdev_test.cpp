@@ -192,6 +192,61 @@ TEST(UmockdevUsb, AutoSelectionPicksThePluggedTouchAndWatchesItForUnplug) {
   CHECK(eventually([&] { return d.device->fault() == DeviceFault::kUnplugged; }));
 }
 
+// Two devices on one PC: device.usb_serial says which one is this station's; it is the one watched
+// for unplug (unplugging the neighbour's device leaves this one running). Without usb_serial two
+// Touches are refused naming the key and both serials; an unknown serial is refused naming it.
+TEST(UmockdevUsb, TwoTouchesOnOnePcTheUsbSerialChoosesWhichIsWatchedAndWithoutItTheStartIsRefused) {
+  FakeHd fake;
+  DeviceSelection sel;
+  sel.kind = "touch";
+  sel.touch.hd_library_path = HAPTIC_FAKE_HD_PATH;
+  {
+  Testbed bed;
+  bed.add("touch_usb.umockdev");
+  bed.add("touch_usb_second.umockdev");
+  try {
+    (void)open_device(sel);
+    FAIL("two Touches without device.usb_serial were accepted");
+  } catch (const DeviceMissing& e) {
+    const std::string m = e.what();
+    CHECK_TEXT(m.find("device.usb_serial") != std::string::npos && m.find("serials ") != std::string::npos &&
+                   m.find("\"TOUCH-0001\"") < m.find("usb: found") && m.find("\"TOUCH-0002\"") < m.find("usb: found"),
+               m.c_str());
+  }
+  sel.usb_serial = "TOUCH-9999";
+  try {
+    (void)open_device(sel);
+    FAIL("an unknown device.usb_serial was accepted");
+  } catch (const DeviceMissing& e) {
+    CHECK_TEXT(std::string(e.what()).find("device.usb_serial = \"TOUCH-9999\"") != std::string::npos, e.what());
+  }
+  }
+  // each of the two in turn (whatever order the bus lists them in)
+  const char* const paths[2] = {kTouchSyspath, "/sys/devices/pci0000:00/0000:00:14.0/usb1/1-8"};
+  const char* const serials[2] = {"TOUCH-0001", "TOUCH-0002"};
+  for (int mine = 0; mine < 2; ++mine) {
+    Testbed two;
+    two.add("touch_usb.umockdev");
+    two.add("touch_usb_second.umockdev");
+    sel.usb_serial = serials[mine];
+    OpenedDevice d = open_device(sel);
+    CHECK_TEXT(d.report.find(std::string("touch: unplug detection on 2988:0302 3D Systems Touch, USB model (2988:0302; cdc_acm, /dev/ttyACM*) (bus 001 addr ") +
+                             (mine == 0 ? "005" : "010") + ", serial \"" + serials[mine] + "\")") != std::string::npos,
+               d.report.c_str());
+    // the neighbour's Touch goes: this station keeps its device
+    umockdev_testbed_uevent(two.tb, paths[1 - mine], "remove");
+    umockdev_testbed_remove_device(two.tb, paths[1 - mine]);
+    CHECK_TEXT(eventually([&] { return d.monitor->removals() >= 1; }), "the monitor never saw the neighbour's Touch leave");
+    CHECK_TEXT(d.device->fault() == DeviceFault::kNone, fault_name(d.device->fault()));
+    // this station's Touch goes: safe state
+    umockdev_testbed_uevent(two.tb, paths[mine], "remove");
+    umockdev_testbed_remove_device(two.tb, paths[mine]);
+    CHECK(eventually([&] { return d.device->fault() == DeviceFault::kUnplugged; }));
+    DeviceSample s{};
+    CHECK_FALSE(d.device->read_newest(s));
+  }
+}
+
 TEST(UmockdevUsb, HotplugReportsAnArrival) {
   Testbed bed;
   UsbMonitor monitor;

@@ -45,7 +45,24 @@ std::uint64_t frames_of(const drivers::HapticDevice& dev) {
 int report_fault(const drivers::HapticDevice& dev, std::ostream& out) {
   out << "device fault: " << drivers::fault_name(dev.fault()) << " (detail " << dev.fault_detail()
       << "): the device is in its safe state (zero force)\n";
+  if (dev.fault() == drivers::DeviceFault::kCalibrationNeeded) {
+    char code[16];
+    std::snprintf(code, sizeof code, "0x%04x", static_cast<unsigned>(dev.fault_detail()));
+    out << "calibration: NOT OK (hdCheckCalibration = " << code
+        << (dev.fault_detail() == 0x5001   ? ", HD_CALIBRATION_NEEDS_UPDATE: put the stylus in its inkwell (or run the vendor's Touch_Diagnostic), then try again"
+            : dev.fault_detail() == 0x5002 ? ", HD_CALIBRATION_NEEDS_MANUAL_INPUT: calibrate with the vendor's Touch_Diagnostic, then try again"
+                                           : ": calibrate with the vendor's tools, then try again")
+        << "); a station with this device stays in its safe state (exit 5, device_fault \"calibration needed\")\n";
+  }
   return kExitDeviceFault;
+}
+
+// Calibration status (Touch: hdCheckCalibration in the servo loop; a Falcon is homed at start).
+void report_calibration(const drivers::HapticDevice& dev, std::ostream& out) {
+  if (const auto* p = dynamic_cast<const drivers::PhantomDevice*>(&dev))
+    out << "calibration: " << (p->calibrated() ? "OK (hdCheckCalibration = HD_CALIBRATION_OK)" : "not confirmed yet (no servo frame)") << "\n";
+  else if (dynamic_cast<const drivers::FalconDevice*>(&dev) != nullptr)
+    out << "calibration: homed at start (all three axes reported homed)\n";
 }
 
 std::string mm3(const double p[3]) {
@@ -129,6 +146,7 @@ int run_diagnostics(drivers::HapticDevice& dev, const DiagOptions& o, std::ostre
   double next_print = 0.0;
   const std::uint64_t frames0 = frames_of(dev), samples0 = dev.counters().samples_read;
   if (run_phase(dev, o, {0.0, o.settle_s, false}, pacer, next_print, out).faulted) return report_fault(dev, out);
+  report_calibration(dev, out);
   std::vector<double> speeds;
   for (const double F : o.forces_N) {
     double sum = 0.0;

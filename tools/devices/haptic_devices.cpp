@@ -218,6 +218,7 @@ struct SessionDevice {
   std::string hd_path;
   std::uint32_t max_stale_reads = 5;
   std::string falcon_firmware;
+  std::string usb_serial, hd_device;
   const char* command = "";  // "diag" or "map", for messages
 };
 
@@ -229,6 +230,10 @@ void add_device_options(CLI::App* cmd, SessionDevice& d) {
   cmd->add_option("--hd-library", d.hd_path, "OpenHaptics HD library for a Touch (as device.hd_library_path; "
                                              "default: $HAPTIC_HD_LIBRARY, else libHD.so)");
   cmd->add_option("--falcon-firmware", d.falcon_firmware, "Novint Falcon firmware file (as device.falcon_firmware_path)");
+  cmd->add_option("--usb-serial", d.usb_serial, "two devices of one kind on this PC: the one with this serial, as listed by "
+                                                "`haptic-devices` (as device.usb_serial)");
+  cmd->add_option("--hd-device", d.hd_device, "a Touch's vendor configuration name (as device.hd_device_name; default: the "
+                                              "default device)");
   cmd->add_option("--max-stale-reads", d.max_stale_reads, "ticks without a new sample before the stale-sample fault "
                                                           "(as device.max_stale_reads)")
       ->check(CLI::Range(1, 100000))
@@ -241,6 +246,8 @@ std::optional<OpenedDevice> open_for_session(const SessionDevice& d) {
   sel.kind = d.kind;
   sel.touch.hd_library_path = d.hd_path;
   sel.falcon.firmware_path = d.falcon_firmware;
+  sel.usb_serial = d.usb_serial;
+  sel.touch.device_name = d.hd_device;
   sel.safety.max_stale_reads = d.max_stale_reads;
   try {
     OpenedDevice opened = open_device(sel);

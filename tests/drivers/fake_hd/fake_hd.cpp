@@ -12,6 +12,7 @@
 //   FAKEHD_PLANT="m,b,c"           after every frame the stylus moves as a mass m (kg) with viscous
 //                                  damping b (N s/m) and Coulomb friction c (N) under the frame's force
 //   FAKEHD_CIRCLE_MM="r"           the stylus circles (radius r mm, 1 turn per second): never still
+//   FAKEHD_CALIBRATION=0x5001      what hdCheckCalibration returns (default HD_CALIBRATION_OK, 0x5000)
 //   FAKEHD_FORCE_LOG=path          every frame's force and position are written to path (CSV) at
 //                                  hdDisableDevice, so a test can see what a station sent
 // The plant is a test model with known b (so a b_d measurement can be checked), not a Touch model.
@@ -95,6 +96,7 @@ void read_environment(State& s) {
     std::sscanf(p, "%lf,%lf,%lf", &s.position_mm[0], &s.position_mm[1], &s.position_mm[2]);
   if (const char* p = std::getenv("FAKEHD_PLANT")) std::sscanf(p, "%lf,%lf,%lf", &s.plant_mass, &s.plant_b, &s.plant_coulomb);
   if (const char* c = std::getenv("FAKEHD_CIRCLE_MM")) s.circle_mm = std::atof(c);
+  if (const char* c = std::getenv("FAKEHD_CALIBRATION")) s.calibration = static_cast<HDenum>(std::strtoul(c, nullptr, 0));
   if (const char* f = std::getenv("FAKEHD_FORCE_LOG")) {
     s.force_log = f;
     s.log.reserve(200000);

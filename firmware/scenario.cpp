@@ -138,7 +138,9 @@ void ScenarioSpec::validate() const {
       if (!(delay_ms(i, j) >= 0 && delay_ms(i, j) <= 10000)) bad("--delay-matrix entries must be in [0, 10000] ms");
   model::validate_graph(topology, users, "--topology");
   if (damping_Ns_per_m) {
-    if (static_cast<int>(damping_Ns_per_m->size()) != users) bad("--damping needs one value per user");
+    if (static_cast<int>(damping_Ns_per_m->size()) != users)
+      bad("--damping needs one value per user: " + std::to_string(damping_Ns_per_m->size()) + " B_i for " + std::to_string(users) +
+          " users (given by --damping, or fixed by the scenario " + name + ": then give --damping with " + std::to_string(users) + " values)");
     for (double b : *damping_Ns_per_m)
       if (!(b >= 0)) bad("--damping values must be >= 0 N s/m");
   }

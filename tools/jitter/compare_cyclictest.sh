@@ -17,7 +17,7 @@ set -euo pipefail
 cpu=1; prio=80; intervals="1000 2000"; duration=30; blocks=6; outdir=""
 here="$(cd "$(dirname "$0")" && pwd)"
 jitter=""
-for cand in "$here/../../build/bin/haptic-jitter" "$(command -v haptic-jitter 2>/dev/null || true)"; do
+for cand in "$here/../../build/bin/haptic-jitter" "$here/../../../../bin/haptic-jitter" "$(command -v haptic-jitter 2>/dev/null || true)"; do  # source tree, install tree (P/share/haptic/tools/jitter), PATH
   [ -n "$cand" ] && [ -x "$cand" ] && { jitter="$cand"; break; }
 done
 while getopts "c:p:i:D:b:j:o:h" opt; do

@@ -11,7 +11,8 @@
 #      namespace, else SKIP 77): haptic-devices lists devices, a short `sim --users 5` draws its PNG
 #      figures with the installed plot script, and haptic-lab runs a three-station loopback lab with
 #      the optimizer's topology (plan, check, start, collect with the installed merge and figures; every
-#      station exits 0) (skipped, exit 77, when /usr/bin/python3 cannot import matplotlib).
+#      station exits 0), and the deploy guide's compare_cyclictest.sh finds the installed haptic-jitter
+#      (1 s, when cyclictest is installed) (skipped, exit 77, when /usr/bin/python3 cannot import matplotlib).
 # Usage: install_check.sh BUILD_DIR SOURCE_DIR
 set -euo pipefail
 build="$1"
@@ -75,6 +76,11 @@ ls "$work/run"/*.png > /dev/null
 env -u HAPTIC_TOOLS_DIR -u HAPTIC_BIN_DIR PATH=/usr/bin:/bin "$prefix/bin/haptic-lab" run "$work/lab.toml" --runs-dir "$work/runs" > lab.log 2>&1 || { cat lab.log; echo "haptic-lab run failed"; exit 1; }
 ls "$work"/runs/*/lab-report.json "$work"/runs/*/summary.json > /dev/null || { cat lab.log; echo "no lab-report.json/summary.json"; exit 1; }
 ls "$work"/runs/*/*.png > /dev/null 2>&1 || { cat lab.log; echo "haptic-lab collect drew no figures"; exit 1; }
+if command -v cyclictest > /dev/null; then  # the deploy guide's jitter comparison finds the installed haptic-jitter (P/bin not on PATH)
+  env -u HAPTIC_BIN_DIR PATH=/usr/bin:/bin "$prefix/share/haptic/tools/jitter/compare_cyclictest.sh" -D 1 -i 1000 -b 1 -o "$work/jitter" > jitter.log 2>&1 ||
+    { cat jitter.log; echo "compare_cyclictest.sh failed from the install tree"; exit 1; }
+  [ -f "$work/jitter/comparison.json" ] || { cat jitter.log; echo "compare_cyclictest.sh wrote no comparison.json"; exit 1; }
+fi
 EOF
 )
 # Hide the source tree AND the build tree (it may live outside the source): empty tmpfs mounts in a

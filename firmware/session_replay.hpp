@@ -38,8 +38,8 @@ struct ReplayResult {
   int station_id = 0;
   std::string source;
   bool bit_exact() const { return !gains_changed && first_mismatch < 0 && ticks > 0 && matched == ticks; }
-  // The inputs were complete for every tick replayed (a replay stopped by --to before a loss is complete).
-  bool inputs_complete() const { return inputs_end < 0 || inputs_end > last_tick; }
+  // The log holds every input of the run, or the replay stopped (--to) before the first one lost.
+  bool inputs_complete() const { return inputs_end < 0 || (stopped_at_to && inputs_end > last_tick); }
   std::string summary() const;       // one line for people
 };
 

@@ -86,7 +86,8 @@ std::vector<std::unique_ptr<SessionRecorder>> open_sim_recorders(const BuiltScen
     RecorderConfig rc;
     rc.path = opt.out_dir + "/station-" + std::to_string(i + 1) + ".h5";
     rc.lossless = true;
-    rc.max_bytes = ~0ull;
+    rc.deflate_level = opt.record_deflate;
+    rc.max_bytes = opt.record_max_mb > 0 ? static_cast<std::uint64_t>(opt.record_max_mb * 1024 * 1024) : ~0ull;
     rc.ring_ticks = static_cast<std::uint64_t>(std::llround(opt.record_ring_s / b.spec.period_s));
     SessionInfo info;
     info.source = "sim";

@@ -51,6 +51,8 @@ struct SimOptions {
   std::vector<double> snapshot_times_s;  // node positions of every copy at these times
   bool record = false;        // session logs out_dir/station-<i>.h5 (firmware/session_log.hpp), lossless
   double record_ring_s = 0;   // > 0: each log keeps only the last this many seconds (a bounded ring)
+  double record_max_mb = 0;   // > 0: each log stops growing at this many MB of rows (station.record_max_mb; 0: unbounded)
+  int record_deflate = 0;     // HDF5 shuffle + deflate level of the logs' packet values (0: none; station.record_deflate)
   std::string command_line;   // stored in each log as its config_text
 };
 

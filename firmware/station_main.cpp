@@ -96,6 +96,8 @@ struct SimArgs {
   double scene_unit_m = 1, density = 0, youngs = 0;
   bool no_plots = false, quiet = false, record = false, tx_predict = false;
   double record_ring_s = 0;
+  int record_deflate = 0;
+  double record_max_mb = 0;
   std::string command_line;
   int view_port = 0, view_station = 1;
   std::string view_bind = "127.0.0.1";
@@ -212,6 +214,12 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   add_view_options(sim, a.view_port, a.view_bind, a.view_for);
   sim->add_option("--view-station", a.view_station, "Station (1-based) the view shows (default 1; needs --record)");
   sim->add_flag("--record", a.record, "Write each station's session log OUT/station-<i>.h5 (HDF5; `haptic-station replay` re-runs it bit-exactly)");
+  sim->add_option("--record-deflate", a.record_deflate, "With --record: HDF5 shuffle + deflate of the packet values at this level (1-9; 0 none, the "
+                                                        "default; as station.record_deflate; lossless, the replay stays bit-exact)")
+      ->check(CLI::Range(0, 9));
+  sim->add_option("--record-max-mb", a.record_max_mb, "With --record: each log stops growing at this many MB of rows and says at which tick "
+                                                      "(truncated_at_tick; replay re-runs up to there); as station.record_max_mb (default 0: unbounded)")
+      ->check(CLI::Range(0.0, 1e6));
   sim->add_option("--record-ring-s", a.record_ring_s, "With --record: keep only the last S seconds in each log (a ring of bounded size; for inspection, not replay)")
       ->check(CLI::Range(0.0, 86400.0));
   sim->add_flag("--quiet", a.quiet, "No progress lines");
@@ -380,6 +388,8 @@ int sim_command(const SimArgs& a) {
     opt.progress = !a.quiet;
     opt.record = a.record;
     opt.record_ring_s = a.record_ring_s;
+    opt.record_deflate = a.record_deflate;
+    opt.record_max_mb = a.record_max_mb;
     opt.command_line = a.command_line;
     opt.snapshot_times_s = snapshot_times_s(spec);
     if (!a.quiet) {

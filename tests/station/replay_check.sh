@@ -40,6 +40,27 @@ PY
 if [ $rc -ne 3 ] || ! grep -q "state hash differs first at tick 600" "$out/steps-perturbed.log"; then
   echo "FAILED: a log with one step changed must differ at that tick (exit $rc):"; cat "$out/steps-perturbed.log"; fail=1
 else echo "ok step perturbed: $(cat "$out/steps-perturbed.log")"; fi
+# A compressed log (shuffle + deflate, --record-deflate / station.record_deflate) is lossless: bit-exact too.
+"$bin" sim --scenario paper-best --out "$out/deflate" --duration 2 --push-end 1 --release 1.5 --record --record-deflate 1 --no-plots --quiet \
+  > "$out/deflate.log" 2>&1 || { echo "FAILED: sim --record --record-deflate 1"; cat "$out/deflate.log"; exit 1; }
+"$bin" replay "$out/deflate/station-1.h5" > "$out/deflate-replay.log" 2>&1; rc=$?
+/usr/bin/python3 -c 'import sys, h5py; x = h5py.File(sys.argv[1], "r")["packets/x"]; sys.exit(0 if x.compression == "gzip" and x.shuffle else 1)' "$out/deflate/station-1.h5" \
+  && [ $rc -eq 0 ] && grep -q "1000 ticks, bit-exact at every tick" "$out/deflate-replay.log" \
+  && echo "ok deflated log ($(stat -c %s "$out/deflate/station-1.h5") B vs $(stat -c %s "$out/sim/station-1.h5") B): $(cat "$out/deflate-replay.log")" \
+  || { echo "FAILED: the shuffled + deflated log (exit $rc):"; cat "$out/deflate-replay.log"; fail=1; }
+# The size bound (--record-max-mb, as station.record_max_mb): the log stops at a tick and says so; replay
+# re-runs up to there, says the inputs are incomplete and exits 3; with --to before that tick it is whole.
+"$bin" sim --scenario paper-best --out "$out/bounded" --duration 2 --push-end 1 --release 1.5 --record --record-max-mb 1 --no-plots --quiet \
+  > "$out/bounded.log" 2>&1 || { echo "FAILED: sim --record --record-max-mb 1"; cat "$out/bounded.log"; exit 1; }
+cut_at=$(/usr/bin/python3 -c 'import sys, h5py; print(int(h5py.File(sys.argv[1], "r").attrs["truncated_at_tick"]))' "$out/bounded/station-1.h5")
+"$bin" replay "$out/bounded/station-1.h5" > "$out/bounded-replay.log" 2>&1; rc=$?
+"$bin" replay "$out/bounded/station-1.h5" --to $(( cut_at - 1 )) > "$out/bounded-to.log" 2>&1; rc_to=$?
+if [ "$cut_at" -gt 0 ] && [ "$cut_at" -lt 1000 ] && [ $rc -eq 3 ] && grep -q "incomplete from tick $cut_at" "$out/bounded-replay.log" \
+   && [ $rc_to -eq 0 ] && grep -q "$cut_at ticks, bit-exact at every tick" "$out/bounded-to.log"; then
+  echo "ok size bound: truncated at tick $cut_at, $(stat -c %s "$out/bounded/station-1.h5") B; $(cat "$out/bounded-replay.log") (exit 3); --to: exit 0"
+else
+  echo "FAILED: the size-bounded log (truncated_at_tick ${cut_at:-?}; exit $rc, --to exit $rc_to):"; cat "$out/bounded-replay.log" "$out/bounded-to.log"; fail=1
+fi
 # h5py reads it; flip the lowest mantissa bit of one received packet value in a copy.
 cp "$out/sim/station-1.h5" "$out/perturbed.h5"
 /usr/bin/python3 - "$out/perturbed.h5" <<'PY' || { echo "FAILED: h5py"; exit 1; }

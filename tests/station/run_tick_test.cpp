@@ -181,6 +181,38 @@ TEST(RunTick, RecordingAllocatesNothingInTheTickAndTheLogReplaysBitExactly) {
   CHECK_TRUE(rr.bit_exact());
 }
 
+// The live view's hand-off in the tick (station.view_port: a fixed-size frame filled in place in a
+// latest-value mailbox every `every` ticks) allocates nothing, and the reader gets frames of this
+// copy with the neighbour's link; a reader that does not keep up only misses frames (seq gaps).
+TEST(RunTick, TheLiveViewHandOffAllocatesNothingInTheTickAndTheReaderGetsFrames) {
+  const int ticks = 300;
+  OneStationRig r(ticks);
+  auto view = std::make_unique<firmware::ViewPublisher>(2);  // a frame every second tick: more often than a station's ~17
+  r.in.view = view.get();
+  for (std::int64_t k = 0; k < 50; ++k) r.step(k);
+  auto frame = std::make_unique<firmware::ViewFrame>();
+  std::uint64_t allocations = 0, frames = 0, first_seq = 0, last_seq = 0;
+  {
+    test::AllocationCounter counter;
+    for (std::int64_t k = 50; k < ticks; ++k) {
+      r.step(k);
+      if (k % 10 == 0 && view->take(*frame)) {  // the reader takes one frame in five: it misses the rest
+        ++frames;
+        if (first_seq == 0) first_seq = frame->seq;
+        last_seq = frame->seq;
+      }
+    }
+    allocations = counter.allocations();
+  }
+  LONGS_EQUAL(0, allocations);
+  CHECK(frames >= 20);
+  CHECK(last_seq - first_seq > 2 * (frames - 1));  // frames the reader did not take were replaced, not queued
+  LONGS_EQUAL(r.core.neighbor_count(), frame->neighbours);
+  LONGS_EQUAL(r.core.config().scene->nodes, frame->nodes);
+  CHECK(frame->k >= ticks - 12);
+  DOUBLES_EQUAL(r.core.x()[0], frame->x[0], 1e-6);  // this copy as of the newest published frame (x settles slowly)
+}
+
 // With station.period_min_s/max_s the tick hands the core the measured wake-to-wake period; the
 // session log stores that T_k per tick (/ticks/step_s), and replay hands the same T_k to the core:
 // bit-exact, including the ticks the core clamped.

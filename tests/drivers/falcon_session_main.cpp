@@ -11,6 +11,9 @@
 // (device.max_stale_reads; default 5): an artefact of the emulation, not of the driver.
 // Before the lab: `haptic-devices diag --kind falcon` against the same stand-in (exit 0, servo rate).
 // Usage: falcon_station_session BUILD_BIN_DIR WORK_DIR   (exit 0 ok, 1 failed)
+//        falcon_station_session --run 'COMMAND' WORK_DIR: instead of diag and the two-station lab, runs
+//        COMMAND (sh -c, with $FALCON_FIRMWARE = the stand-in's firmware file) under the same stand-in, then
+//        checks the Falcon side the same way (tests/station/documented_lab_check.sh: the shipped lab files).
 #include "tests/drivers/falcon_standin.hpp"
 #include "tests/support/file_text.hpp"
 
@@ -38,14 +41,30 @@ void write_lab(const std::string& path, const std::string& firmware) {
                       << firmware << "\", damping_Ns_per_m = 5.0, falcon_homing_timeout_s = 10.0, max_stale_reads = 250 }\n"
                       << "[[stations]]\nid = 2\nhost = \"127.0.0.1\"\ndevice = \"simulated\"\n";
 }
+// What the stand-in Falcon saw: firmware byte for byte, homing, servo packets with motor commands,
+// and a last packet commanding zero (stop is safe). Prints one summary line; returns the failures.
+int falcon_side_fails(haptic::testing::FalconBed& bed) {
+  int fails = 0;
+  std::lock_guard<std::mutex> l(bed.dev.mu);
+  if (bed.dev.firmware != bed.firmware) std::printf("FAIL: the firmware did not arrive byte for byte\n"), ++fails;
+  if (bed.dev.homing_packets < bed.dev.homing_packets_needed) std::printf("FAIL: no homing\n"), ++fails;
+  if (bed.dev.plain_packets < 200) std::printf("FAIL: only %d servo packets after homing\n", bed.dev.plain_packets), ++fails;
+  if (bed.dev.max_abs_motor == 0) std::printf("FAIL: the station never commanded a motor\n"), ++fails;
+  if (bed.dev.last_motor[0] != 0 || bed.dev.last_motor[1] != 0 || bed.dev.last_motor[2] != 0)
+    std::printf("FAIL: the last packet commands %d %d %d, not zero\n", bed.dev.last_motor[0], bed.dev.last_motor[1], bed.dev.last_motor[2]), ++fails;
+  std::printf("falcon session: %d homing packets, %d servo packets, largest |motor command| %d, firmware %zu bytes; %s\n",
+              bed.dev.homing_packets, bed.dev.plain_packets, bed.dev.max_abs_motor, bed.dev.firmware.size(), fails ? "FAILED" : "ok");
+  return fails;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 3) {
-    std::fprintf(stderr, "usage: falcon_station_session BUILD_BIN_DIR WORK_DIR\n");
+  const bool run_mode = argc == 4 && std::string(argv[1]) == "--run";
+  if (argc != 3 && !run_mode) {
+    std::fprintf(stderr, "usage: falcon_station_session BUILD_BIN_DIR WORK_DIR | --run COMMAND WORK_DIR\n");
     return 2;
   }
-  const std::string bin = argv[1], work = argv[2];
+  const std::string bin = run_mode ? "" : argv[1], work = run_mode ? argv[3] : argv[2];
   // Unbuffered: ctest reads a pipe, and a crash (the stand-in runs threads under LD_PRELOAD) would
   // otherwise lose everything printed so far; this test once failed under load with no output.
   std::setvbuf(stdout, nullptr, _IONBF, 0);
@@ -53,6 +72,13 @@ int main(int argc, char** argv) {
   try {
     haptic::testing::FalconBed bed;
     if (std::system(("rm -rf '" + work + "' && mkdir -p '" + work + "'").c_str()) != 0) return 1;
+    if (run_mode) {
+      setenv("FALCON_FIRMWARE", bed.firmware_path.c_str(), 1);
+      const int rc = std::system(argv[2]);
+      int fails = rc != 0 ? 1 : 0;
+      if (rc != 0) std::printf("FAIL: the command exited %d\n", rc);
+      return fails + falcon_side_fails(bed) ? 1 : 0;
+    }
     // Diagnostics mode first (the deploy guide's check before a session): exit 0, servo rate measured.
     const std::string diag = "'" + bin + "/haptic-devices' diag --kind falcon --falcon-firmware '" + bed.firmware_path +
                              "' --max-stale-reads 250 --force-N 0.3 --push-s 0.3 > '" + work + "/diag.log' 2>&1";
@@ -88,15 +114,7 @@ int main(int argc, char** argv) {
     contains(st1, "\"device_fault\": \"none\"", "station-1.json", fails);
     contains(st1, "\"kind\": \"falcon\"", "station-1.json", fails);
     contains(report, "\"exit_code\": 0", "lab-report.json", fails);
-    std::lock_guard<std::mutex> l(bed.dev.mu);
-    if (bed.dev.firmware != bed.firmware) std::printf("FAIL: the firmware did not arrive byte for byte\n"), ++fails;
-    if (bed.dev.homing_packets < bed.dev.homing_packets_needed) std::printf("FAIL: no homing\n"), ++fails;
-    if (bed.dev.plain_packets < 200) std::printf("FAIL: only %d servo packets after homing\n", bed.dev.plain_packets), ++fails;
-    if (bed.dev.max_abs_motor == 0) std::printf("FAIL: the station never commanded a motor\n"), ++fails;
-    if (bed.dev.last_motor[0] != 0 || bed.dev.last_motor[1] != 0 || bed.dev.last_motor[2] != 0)
-      std::printf("FAIL: the last packet commands %d %d %d, not zero\n", bed.dev.last_motor[0], bed.dev.last_motor[1], bed.dev.last_motor[2]), ++fails;
-    std::printf("falcon session: %d homing packets, %d servo packets, largest |motor command| %d, firmware %zu bytes; %s\n",
-                bed.dev.homing_packets, bed.dev.plain_packets, bed.dev.max_abs_motor, bed.dev.firmware.size(), fails ? "FAILED" : "ok");
+    fails += falcon_side_fails(bed);
     return fails ? 1 : 0;
   } catch (const std::exception& e) {
     std::printf("FAIL: %s\n", e.what());

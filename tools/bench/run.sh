@@ -13,10 +13,11 @@ fi
 for b in bench_platform bench_net bench_drivers_latency; do
   if [ -x "$B/bin/$b" ]; then
     # bench_drivers_latency's FalconUmockdev row needs the umockdev preload (else it is a visible skip)
-    pre=""
+    pre=""; name=$b
     if [ "$b" = bench_drivers_latency ] && /sbin/ldconfig -p 2>/dev/null | grep -q libumockdev-preload.so.0; then pre="libumockdev-preload.so.0"; fi
+    [ "$b" = bench_drivers_latency ] && name=drivers_latency  # the file drivers/README.md cites
     LD_PRELOAD="$pre" "$B/bin/$b" --benchmark_repetitions=3 --benchmark_report_aggregates_only=true \
-      --benchmark_out="$OUT/$b.json" --benchmark_out_format=json
+      --benchmark_out="$OUT/$name.json" --benchmark_out_format=json
   fi
 done
 /usr/bin/python3 tools/bench/summarize.py "$OUT"

@@ -2,7 +2,8 @@
 # Headless Chromium loads the live web view (issue 16 item 1) and checks it: the 3D canvas is not
 # blank, the mesh and the plots change between two screenshots, the status the page shows (it
 # reports it back over its WebSocket; the server logs it) names the neighbours.
-#   view_check.sh replay BIN OUT : a recorded simulated run served with its timeline (~20 s)
+#   view_check.sh replay BIN OUT : a recorded simulated run with its timeline: the first screenshot from
+#                                  `sim --record --view-port`, the second from `replay LOG --view-port` (~25 s)
 #   view_check.sh station BIN OUT: station 1 of a four-process UDP run while it runs (~20 s; run it
 #                                  under /tmp/haptic-multiproc.lock)
 # Exit 77 (CTest: skipped) when Debian's chromium is not installed.
@@ -53,21 +54,29 @@ fi
 wait_port "$port" 30 || { echo "FAILED: the view never listened on 127.0.0.1:$port"; cat "$out"/*.log; exit 1; }
 url="http://127.0.0.1:$port/"
 if [ "$mode" = replay ]; then  # the timeline opened at two frames: pushing (t ~ 1.4 s) and after the release (t ~ 4.8 s)
-  shot a "${url}?seek=40&pause=1"; shot b "${url}?seek=140&pause=1"
+  shot a "${url}?seek=40&pause=1&exaggerate=10"
+  kill -TERM "${pids[0]}" 2>/dev/null; wait "${pids[0]}"; pids=()  # the sim's view ends: the same log through `replay`
+  [ -s "$out/sim/station-1.h5" ] || { echo "FAILED: the sim wrote no station-1.h5"; cat "$out/sim.log"; exit 1; }
+  port=$(( port + 1 )); url="http://127.0.0.1:$port/"
+  "$bin" replay "$out/sim/station-1.h5" --view-port "$port" --view-for 80 > "$out/replay.log" 2>&1 &
+  pids+=($!)
+  wait_port "$port" 30 || { echo "FAILED: replay's view never listened on 127.0.0.1:$port"; cat "$out/replay.log"; exit 1; }
+  shot b "${url}?seek=140&pause=1&exaggerate=10"
 else
-  shot a "$url"; shot b "$url"
+  shot a "${url}?exaggerate=10"; shot b "${url}?exaggerate=10"  # deformation drawn x10: the mesh's change is not a few pixels
 fi
 for f in a.png b.png; do [ -s "$out/$f" ] || { echo "FAILED: chromium wrote no $f"; grep -v dbus "$out"/chrome-*.log | tail -5; exit 1; }; done
 if [ "$mode" = station ]; then  # end the 40 s run now: SIGTERM to the four stations we started (by PID)
   for p in $(cat "$out/run4/station-pids.txt" 2>/dev/null); do kill -TERM "$p" 2>/dev/null; done
-else  # the sim serves its timeline until SIGTERM (or --view-for): stop it now, it reports what the page showed
+else  # replay serves its timeline until SIGTERM (or --view-for): stop it now, it reports what the page showed
   kill -TERM "${pids[0]}" 2>/dev/null
 fi
 wait "${pids[0]}"; pids=()  # the view stops (sim: --view-for; station: end of the run) and says what the page showed
 if [ "$mode" = replay ]; then
-  sed -n 's/.*last status a browser showed: //p' "$out/sim.log" > "$out/status.txt"
-  # The second page asked for frame 140 (t ~ 4.8 s): what it showed is that frame, not the paused frame the first
-  # page left the server at (a stale frame drawn before the seek took effect).
+  grep -q "bit-exact at every tick" "$out/replay.log" || { echo "FAILED: replay with --view-port was not bit-exact"; cat "$out/replay.log"; exit 1; }
+  sed -n 's/.*last status a browser showed: //p' "$out/replay.log" > "$out/status.txt"
+  # The second page asked for frame 140 (t ~ 4.8 s): what it showed is that frame, not one of the frames the
+  # server played before the seek took effect (a stale frame).
   t_b=$(sed -n 's/.* · t = \([0-9.]*\) s · .*/\1/p' "$out/status.txt")
   /usr/bin/python3 -c 'import sys; sys.exit(0 if sys.argv[1] and float(sys.argv[1]) > 4.0 else 1)' "$t_b" ||
     { echo "FAILED: the page opened at frame 140 (t ~ 4.8 s) showed t = ${t_b:-?} s"; cat "$out/status.txt"; exit 1; }

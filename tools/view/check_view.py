@@ -19,17 +19,31 @@ plots = (slice(515, 890), slice(10, 1390))  # the six plots under the canvas and
 nonwhite = min(float(np.mean(np.any(x[canvas] < 0.95, axis=2))) for x in (a, b))
 if nonwhite < 0.03:
     fail.append("3D canvas blank: %.2f %% non-white pixels" % (100 * nonwhite))
-changed_mesh = int(np.sum(np.any(np.abs(a[canvas] - b[canvas]) > 0.02, axis=2)))
+changed_canvas = int(np.sum(np.any(np.abs(a[canvas] - b[canvas]) > 0.02, axis=2)))
+
+
+def grey(x):  # this copy's shading and edges: grey, not white; the markers and the neighbours' copies are coloured
+    return (x.max(axis=2) - x.min(axis=2) < 0.04) & (x.max(axis=2) < 0.93)
+
+
+# the mesh itself moved: pixels grey in both screenshots that changed (the proxy, device and the
+# neighbours' copies moving over a frozen mesh change coloured pixels, not these)
+changed_mesh = int(np.sum(grey(a[canvas]) & grey(b[canvas]) & np.any(np.abs(a[canvas] - b[canvas]) > 0.02, axis=2)))
 changed_plots = int(np.sum(np.any(np.abs(a[plots] - b[plots]) > 0.02, axis=2)))
-if changed_mesh < 30:
-    fail.append("mesh did not change between the screenshots (%d pixels)" % changed_mesh)
-if changed_plots < 30:
+if changed_mesh < 100:
+    fail.append("mesh did not change between the screenshots (%d grey pixels of this copy changed, %d canvas pixels)" % (changed_mesh, changed_canvas))
+# curves drawn: coloured pixels of the plots in the later screenshot (the legends' boxes alone are ~800;
+# six plots with their curves ~6000)
+curves = int(np.sum((b[plots].max(axis=2) - b[plots].min(axis=2)) > 0.3))
+if curves < 2500:
+    fail.append("the plots hold no curves (%d coloured pixels)" % curves)
+if changed_plots < 100:
     fail.append("plots did not change between the screenshots (%d pixels)" % changed_plots)
 for n in neighbours:
     if not re.search(r"neighbour %s: (up|DOWN) since" % n, status):
         fail.append("status does not show neighbour %s: %r" % (n, status[:300]))
-print("view check: canvas %.1f %% non-white, %d mesh pixels and %d plot pixels changed; status: %s" % (
-    100 * nonwhite, changed_mesh, changed_plots, " | ".join(status.splitlines()[:6])))
+print("view check: canvas %.1f %% non-white, %d mesh pixels (%d canvas pixels) and %d plot pixels changed (%d coloured); status: %s" % (
+    100 * nonwhite, changed_mesh, changed_canvas, changed_plots, curves, " | ".join(status.splitlines()[:6])))
 if fail:
     print("FAILED: " + "; ".join(fail))
     sys.exit(1)

@@ -7,6 +7,10 @@ let seekTo = null;  // a seek this page asked for: frames sent before the server
 let statusSent = 0, renderer, camera, world, geom, charts = {}, linkState = {}, framesSeen = 0, lastSeq = 0, missed = 0;
 let arrivals = [], opened = performance.now();  // arrival times (ms) of the frames of the last 2 s: the frame rate this page receives
 let lastPlotsDrawn = 0, lastStatusDrawn = 0;
+// ?exaggerate=E draws every copy's deformation (its displacement from rest) E times (display only; default 1)
+const EXAGGERATE = Math.max(1, Number(new URLSearchParams(location.search).get("exaggerate")) || 1);
+let restMm = null;
+const shown = (um, i) => restMm[i] + EXAGGERATE * (um * 1e-3 - restMm[i]);  // mm
 let cursorT = null;  // a recording: the plots hold the whole run, a vertical line marks the frame shown
 
 // Draws the timeline's cursor (a recording's current time) on every plot.
@@ -28,13 +32,16 @@ function setup3d(s) {
   const n = s.nodes, rest = new Float32Array(3 * n);
   let c = [0, 0, 0];
   for (let i = 0; i < 3 * n; ++i) { rest[i] = s.rest_um[i] * 1e-3; c[i % 3] += rest[i] / n; }  // mm
+  restMm = rest;
+  if (EXAGGERATE !== 1) document.getElementById("legend").textContent += " · deformation shown x" + EXAGGERATE;
   geom = new THREE.BufferGeometry();
   geom.setAttribute("position", new THREE.BufferAttribute(rest.slice(), 3));
   geom.setIndex(s.triangles);
   geom.computeVertexNormals();
   mesh = new THREE.Mesh(geom, new THREE.MeshPhongMaterial({color: 0xb0b0b0, side: THREE.DoubleSide, flatShading: true}));
   world.add(mesh);
-  world.add(new THREE.LineSegments(new THREE.WireframeGeometry(geom), new THREE.LineBasicMaterial({color: 0x555555})));
+  // the edges share the mesh's geometry, so they deform with it (a WireframeGeometry would copy the rest shape)
+  world.add(new THREE.Mesh(geom, new THREE.MeshBasicMaterial({color: 0x555555, wireframe: true})));
   s.neighbours.forEach((p, j) => {
     const g = new THREE.BufferGeometry();
     g.setAttribute("position", new THREE.BufferAttribute(rest.slice(), 3));
@@ -151,16 +158,16 @@ function addPoints(f) {
 
 function draw(f) {
   const pos = geom.attributes.position;
-  for (let i = 0; i < f.x_um.length; ++i) pos.array[i] = f.x_um[i] * 1e-3;
+  for (let i = 0; i < f.x_um.length; ++i) pos.array[i] = shown(f.x_um[i], i);
   pos.needsUpdate = true; geom.computeVertexNormals();
   copies.forEach((w, j) => {
     if (j >= f.copies_um.length) { w.visible = false; return; }
     const a = w.geometry.attributes.position;
-    for (let i = 0; i < f.copies_um[j].length; ++i) a.array[i] = f.copies_um[j][i] * 1e-3;
+    for (let i = 0; i < f.copies_um[j].length; ++i) a.array[i] = shown(f.copies_um[j][i], i);
     a.needsUpdate = true; w.visible = true;
   });
   const ca = contactPts.geometry.attributes.position;
-  scene.contact.forEach((p, i) => { for (let d = 0; d < 3; ++d) ca.array[3 * i + d] = f.x_um[3 * p + d] * 1e-3; });
+  scene.contact.forEach((p, i) => { for (let d = 0; d < 3; ++d) ca.array[3 * i + d] = shown(f.x_um[3 * p + d], 3 * p + d); });
   ca.needsUpdate = true;
   vpMark.position.set(f.vp[0] * 1e3, f.vp[1] * 1e3, f.vp[2] * 1e3);
   devMark.position.set(f.device[0] * 1e3, f.device[1] * 1e3, f.device[2] * 1e3);

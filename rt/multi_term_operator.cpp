@@ -1,5 +1,6 @@
 #include "rt/multi_term_operator.hpp"
 
+#include <cmath>
 #include <map>
 #include <string>
 #include <stdexcept>
@@ -39,11 +40,28 @@ MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& te
   for (int t = 0; t < terms_; ++t)
     if (has_off[static_cast<std::size_t>(t)]) off_term_.push_back(t);
   off_terms_ = static_cast<int>(off_term_.size());
+  // Shared values: every slot's off-diagonal values a multiple of slot 0's (to 1e-14 per entry).
+  ratio_.assign(static_cast<std::size_t>(off_terms_), 1.0);
+  shared_ = off_terms_ > 1;
+  for (int s = 1; s < off_terms_ && shared_; ++s) {
+    const auto ts = static_cast<std::size_t>(off_term_[static_cast<std::size_t>(s)]);
+    const auto t0 = static_cast<std::size_t>(off_term_[0]);
+    double ratio = 0;
+    for (const auto& row : row_entries)
+      for (const auto& [c, v] : row)
+        if (ratio == 0 && v[t0] != 0.0) ratio = v[ts] / v[t0];
+    for (const auto& row : row_entries)
+      for (const auto& [c, v] : row)
+        if (!(std::abs(v[ts] - ratio * v[t0]) <= 1e-14 * std::abs(v[ts]))) shared_ = false;
+    ratio_[static_cast<std::size_t>(s)] = ratio;
+  }
+  if (!shared_) ratio_.assign(static_cast<std::size_t>(off_terms_), 1.0);
+  const int stored_slots = shared_ ? 1 : off_terms_;
   rowptr_.assign(static_cast<std::size_t>(rows_) + 1, 0);
   for (int r = 0; r < rows_; ++r) {
     for (const auto& [c, v] : row_entries[static_cast<std::size_t>(r)]) {
       col_.push_back(c);
-      for (int s = 0; s < off_terms_; ++s) off_.push_back(v[static_cast<std::size_t>(off_term_[static_cast<std::size_t>(s)])]);
+      for (int s = 0; s < stored_slots; ++s) off_.push_back(v[static_cast<std::size_t>(off_term_[static_cast<std::size_t>(s)])]);
     }
     rowptr_[static_cast<std::size_t>(r) + 1] = static_cast<int>(col_.size());
   }
@@ -54,11 +72,11 @@ long MultiTermOperator::stored_doubles() const {
 }
 
 // TT, S: number of terms and of off-diagonal slots known at compile time (the common cases), or
-// -1 (run-time counts).
-template <int W, int TT, int S>
-static void apply_kernel(int rows, int terms_rt, int off_terms_rt, const int* off_term, const double* diag, const int* rowptr,
-                         const int* col, const double* off, const double* const* u, const double* to_y, const double* to_h,
-                         double* y, double* h, double* quad) {
+// -1 (run-time counts). Shared: one stored value per entry, slot s scaled by ratio[s].
+template <int W, int TT, int S, bool Shared>
+static void apply_kernel(int rows, int terms_rt, int off_terms_rt, const int* off_term, const double* ratio, const double* diag,
+                         const int* rowptr, const int* col, const double* off, const double* const* u, const double* to_y,
+                         const double* to_h, double* y, double* h, double* quad) {
   constexpr int kT = MultiTermOperator::kMaxTerms;
   const int off_terms = S >= 0 ? S : off_terms_rt;
   const int terms = TT >= 0 ? TT : terms_rt;
@@ -81,15 +99,15 @@ static void apply_kernel(int rows, int terms_rt, int off_terms_rt, const int* of
     }
     for (int e = rowptr[i]; e < rowptr[i + 1]; ++e) {
       const long j = static_cast<long>(col[e]) * W;
-      const double* ov = off + static_cast<long>(e) * off_terms;
+      const double* ov = off + static_cast<long>(e) * (Shared ? 1 : off_terms);
       for (int s = 0; s < off_terms; ++s) {
-        const double a = ov[s];
+        const double a = Shared ? ov[0] : ov[s];
         const double* uj = us[s] + j;
         for (int c = 0; c < W; ++c) oacc[s][c] += a * uj[c];
       }
     }
     for (int s = 0; s < off_terms; ++s)
-      for (int c = 0; c < W; ++c) acc[off_term[s]][c] += oacc[s][c];
+      for (int c = 0; c < W; ++c) acc[off_term[s]][c] += Shared ? ratio[s] * oacc[s][c] : oacc[s][c];
     for (int c = 0; c < W; ++c) {
       double sy = 0, sh = 0;
       for (int t = 0; t < terms; ++t) {
@@ -113,17 +131,24 @@ void MultiTermOperator::apply_w(const double* const* u, const double* to_y, cons
   static constexpr double kZeros[kMaxTerms] = {};
   if (!to_h) to_h = kZeros;
   const auto args = [&](auto kernel) {
-    kernel(rows_, terms_, off_terms_, off_term_.data(), diag_.data(), rowptr_.data(), col_.data(), off_.data(), u, to_y, to_h, y,
-           h, quad);
+    kernel(rows_, terms_, off_terms_, off_term_.data(), ratio_.data(), diag_.data(), rowptr_.data(), col_.data(), off_.data(), u,
+           to_y, to_h, y, h, quad);
   };
   const int key = 10 * terms_ + off_terms_;
+  if (shared_) {
+    switch (key) {
+      case 42: args(apply_kernel<W, 4, 2, true>); break;
+      default: args(apply_kernel<W, -1, -1, true>); break;
+    }
+    return;
+  }
   switch (key) {
-    case 10: args(apply_kernel<W, 1, 0>); break;
-    case 11: args(apply_kernel<W, 1, 1>); break;
-    case 21: args(apply_kernel<W, 2, 1>); break;
-    case 41: args(apply_kernel<W, 4, 1>); break;
-    case 42: args(apply_kernel<W, 4, 2>); break;
-    default: args(apply_kernel<W, -1, -1>); break;
+    case 10: args(apply_kernel<W, 1, 0, false>); break;
+    case 11: args(apply_kernel<W, 1, 1, false>); break;
+    case 21: args(apply_kernel<W, 2, 1, false>); break;
+    case 41: args(apply_kernel<W, 4, 1, false>); break;
+    case 42: args(apply_kernel<W, 4, 2, false>); break;
+    default: args(apply_kernel<W, -1, -1, false>); break;
   }
 }
 

@@ -9,6 +9,11 @@
 // the paper) costs only its diagonal. Compared with one multiply_add per matrix this reads the
 // pattern and writes y once instead of T times. Isotropic terms (S (x) I3) work on node rows with
 // three interleaved columns; if any term is not isotropic every term is expanded to 3n x 3n.
+// When the off-diagonal values of every term are multiples of the first's (the paper's P =
+// p[I/2 + K_int/(2 lambda_max)] and K = K_int + k_g I: both off-diagonals are multiples of K_int's),
+// only the first term's values are stored and term s applies ratio_s x those (relative difference
+// to its own values at most 1e-14 per entry, checked at construction): one value stream per pass
+// instead of one per term (shared_values()).
 #include <vector>
 
 #include "rt/spatial_matrix.hpp"
@@ -25,6 +30,7 @@ class MultiTermOperator {
   int terms() const { return terms_; }
   int width() const { return width_; }  // 3: node rows with three columns; 1: dof rows
   long stored_doubles() const;
+  bool shared_values() const { return shared_; }
 
   // One pass: u[t] is term t's input (3n interleaved); y and h (each if not null; written, not
   // accumulated) receive the weighted sums; quad (if not null, terms() values, written) receives
@@ -38,6 +44,8 @@ class MultiTermOperator {
   template <int W>
   void apply_w(const double* const* u, const double* to_y, const double* to_h, double* y, double* h, double* quad) const;
   int rows_ = 0, width_ = 3, terms_ = 0, off_terms_ = 0;
+  bool shared_ = false;         // off_ holds slot 0's values only; slot s scales them by ratio_[s]
+  std::vector<double> ratio_;   // per slot (1 for slot 0)
   std::vector<int> off_term_;   // slot s -> term index (terms that have off-diagonal entries)
   std::vector<double> diag_;    // rows x terms
   std::vector<int> rowptr_, col_;

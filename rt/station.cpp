@@ -193,9 +193,56 @@ void StationCore::build_level(StepLevel& level, double T, bool iso) {
   }
   const SpatialMatrix A = combine(terms);
   level.solver = make_step_solver(cfg_.solver, iso ? SparseColMajor(A.S) : SparseColMajor(A.as_full()), w_);
+  if (iso && !level.solver->exact() && group_leaders_.size() == 1) p_from_a(level, A.S);
   const auto& g = cfg_.vp.coupling;
   level.a_w = 2.0 * cfg_.vp.mass_kg / T + g.b_v_Ns_per_m + g.B_vc_Ns_per_m + g.K_vc_N_per_m * T / 2.0;
   prepare_contact_solve(level);
+}
+
+void StationCore::p_from_a(StepLevel& level, const SparseRowMajor& A) {
+  // Start-up. P_0 v_hat = alpha v_hat + rho A v_hat needs P_0's off-diagonal entries to be rho x A's
+  // on A's pattern (to 1e-14 each; the paper's P = p[I/2 + K_int/(2 lambda_max)] and A's
+  // off-diagonal T/(2N) K_int + sum_j T/2 P_j are both multiples of K_int's) and D_0 diagonal.
+  const EdgeGains* g0 = cfg_.neighbors[0].gains;
+  const SparseRowMajor& P = g0->P.S;
+  const SparseRowMajor& D = g0->D.S;
+  std::vector<double> pdiag(static_cast<std::size_t>(n_), 0.0), adiag(static_cast<std::size_t>(n_), 0.0);
+  std::vector<double> ddiag(static_cast<std::size_t>(n_), 0.0);
+  double rho = 0;
+  for (int pass = 0; pass < 2; ++pass)  // pass 0: rho from the first entry; pass 1: check every entry
+    for (int i = 0; i < n_; ++i) {
+      for (SparseRowMajor::InnerIterator it(D, i); it; ++it) {
+        if (it.col() != i && it.value() != 0.0) return;  // D_0 not diagonal
+        if (pass == 1) ddiag[static_cast<std::size_t>(i)] += it.value();
+      }
+      SparseRowMajor::InnerIterator ia(A, i), ip(P, i);
+      for (; ia; ++ia) {
+        double pv = 0;
+        while (ip && ip.col() < ia.col()) {
+          if (ip.value() != 0.0) return;  // an entry of P_0 outside A's pattern
+          ++ip;
+        }
+        if (ip && ip.col() == ia.col()) {
+          pv = ip.value();
+          ++ip;
+        }
+        if (ia.col() == i) {
+          pdiag[static_cast<std::size_t>(i)] = pv;
+          adiag[static_cast<std::size_t>(i)] = ia.value();
+        } else if (pass == 0) {
+          if (rho == 0 && ia.value() != 0.0) rho = pv / ia.value();
+        } else if (!(std::abs(pv - rho * ia.value()) <= 1e-14 * std::abs(pv))) {
+          return;
+        }
+      }
+      for (; ip; ++ip)
+        if (ip.value() != 0.0) return;
+    }
+  level.rho = rho;
+  level.alpha.resize(static_cast<std::size_t>(n_));
+  for (int i = 0; i < n_; ++i)
+    level.alpha[static_cast<std::size_t>(i)] = pdiag[static_cast<std::size_t>(i)] - rho * adiag[static_cast<std::size_t>(i)];
+  d0_diag_ = ddiag;
 }
 
 bool StationCore::first_of_gain(int j) const {
@@ -297,6 +344,12 @@ struct PostSolveRows {
   const double* r;      // the solve's residual
   const double* Dv;     // D_0 v_hat
   const double* Pv;     // P_0 v_hat
+  // FromA (Dv, Pv unused): D_0 v_hat = dd v_hat, P_0 v_hat = alpha v_hat + rho (b - r), per node
+  // (b: this tick's b with the contact coefficients added on the contact rows: A v_hat = b - r).
+  const double* b = nullptr;
+  const double* alpha = nullptr;
+  const double* dd = nullptr;
+  double rho = 0;
   double* x;
   double* v;
   double* xh;           // x_hat (written)
@@ -311,7 +364,7 @@ struct PostSolveOut {
   double vv = 0, vr = 0, dvv = 0, vmax = 0, nonfinite = 0;
   double e[kMaxNeighbors] = {};
 };
-template <int NE, bool Advance>
+template <int NE, bool Advance, bool FromA>
 [[gnu::noinline]] PostSolveOut post_solve_rows(const PostSolveRows& p) {
   constexpr int kE = NE >= 0 ? NE : kMaxNeighbors;
   const int ne = NE >= 0 ? NE : p.ne;
@@ -333,14 +386,27 @@ template <int NE, bool Advance>
     xj[n] = p.xj[n];
     delta[n] = p.delta[n];
   }
+  const double* __restrict b = p.b;
+  const double* __restrict alpha = p.alpha;
+  const double* __restrict dd = p.dd;
+  const double rho = p.rho;
   for (long k = 0; k < p.dofs; ++k) {
     const double a = vh[k];
     vv += a * a;
     vr += a * r[k];
     const double xk = x[k] + half_T * a;  // x_hat; the edge terms read x(k) before the advance
     xh[k] = xk;
-    dvv += Dv[k] * a;
-    for (int n = 0; n < ne; ++n) e[n] += Dv[k] * (a - delta[n] * vj[n][k]) + Pv[k] * (xk - xj[n][k]);
+    double dv, pv;
+    if constexpr (FromA) {
+      const long node = k / 3;
+      dv = dd[node] * a;
+      pv = alpha[node] * a + rho * (b[k] - r[k]);
+    } else {
+      dv = Dv[k];
+      pv = Pv[k];
+    }
+    dvv += dv * a;
+    for (int n = 0; n < ne; ++n) e[n] += dv * (a - delta[n] * vj[n][k]) + pv * (xk - xj[n][k]);
     if constexpr (Advance) {
       x[k] += T * a;
       v[k] = 2.0 * a - v[k];
@@ -357,15 +423,15 @@ template <int NE, bool Advance>
   for (int n = 0; n < ne; ++n) out.e[n] = e[n];
   return out;
 }
-template <bool Advance>
+template <bool Advance, bool FromA>
 PostSolveOut post_solve_rows_by_edges(const PostSolveRows& p) {
   switch (p.ne) {
-    case 0: return post_solve_rows<0, Advance>(p);
-    case 1: return post_solve_rows<1, Advance>(p);
-    case 2: return post_solve_rows<2, Advance>(p);
-    case 3: return post_solve_rows<3, Advance>(p);
-    case 4: return post_solve_rows<4, Advance>(p);
-    default: return post_solve_rows<-1, Advance>(p);
+    case 0: return post_solve_rows<0, Advance, FromA>(p);
+    case 1: return post_solve_rows<1, Advance, FromA>(p);
+    case 2: return post_solve_rows<2, Advance, FromA>(p);
+    case 3: return post_solve_rows<3, Advance, FromA>(p);
+    case 4: return post_solve_rows<4, Advance, FromA>(p);
+    default: return post_solve_rows<-1, Advance, FromA>(p);
   }
 }
 }  // namespace
@@ -384,7 +450,24 @@ StationCore::PostSolveSums StationCore::post_solve_pass(bool advance) {
     p.xj[p.ne] = active_[static_cast<std::size_t>(j)] ? view.x_hat : x_.data();  // over the bound: x_hat_j := x(k)
     ++p.ne;
   }
-  if (g0) {  // D_0 v_hat -> tmp_, P_0 v_hat -> tmp2_ in one pass
+  const bool from_a = g0 && !step_->alpha.empty();
+  // b with the contact coefficients on the contact rows (A v_hat = b - r + U coef), restored below.
+  double saved_b[3 * kMaxContactNodes][3];
+  double* b = rhs_prev_.data();  // b(k) (rotated after the solve)
+  const bool add_coef = from_a && contact_coef_set_;
+  if (add_coef)
+    for (int a = 0; a < m_units_; ++a)
+      for (int col = 0; col < 3; ++col) {
+        const long k = 3L * unit_row_[static_cast<std::size_t>(a)] + col;
+        saved_b[a][col] = b[k];
+        b[k] += contact_coef_[a][col];
+      }
+  if (from_a) {
+    p.b = b;
+    p.alpha = step_->alpha.data();
+    p.dd = d0_diag_.data();
+    p.rho = step_->rho;
+  } else if (g0) {  // D_0 v_hat -> tmp_, P_0 v_hat -> tmp2_ in one pass
     const double* u[2] = {v_hat_.data(), v_hat_.data()};
     static constexpr double kD[2] = {1.0, 0.0}, kP[2] = {0.0, 1.0};
     dp_op_.apply(u, kD, kP, tmp_.data(), tmp2_.data(), nullptr);
@@ -401,7 +484,11 @@ StationCore::PostSolveSums StationCore::post_solve_pass(bool advance) {
   p.xh = x_hat_.data();
   p.dofs = dofs_;
   p.T = T_;
-  const PostSolveOut o = advance ? post_solve_rows_by_edges<true>(p) : post_solve_rows_by_edges<false>(p);
+  const PostSolveOut o = from_a ? (advance ? post_solve_rows_by_edges<true, true>(p) : post_solve_rows_by_edges<false, true>(p))
+                                : (advance ? post_solve_rows_by_edges<true, false>(p) : post_solve_rows_by_edges<false, false>(p));
+  if (add_coef)
+    for (int a = 0; a < m_units_; ++a)
+      for (int col = 0; col < 3; ++col) b[3L * unit_row_[static_cast<std::size_t>(a)] + col] = saved_b[a][col];
   // The VO rows' residual r of an inexact solve acted as the extra force -r (A v_hat = b - r; the
   // Schur step solves the contact/VP part exactly on top, so r is y0's residual).
   if (!step_->solver->exact()) energy_.solver_residual_J -= o.vr * T_;
@@ -434,8 +521,9 @@ void StationCore::contact_correction(const double* y0, double c) {
   const double* za[kU];
   for (int a = 0; a < m; ++a) {
     za[a] = step_->Z.col(a).data();
-    for (int col = 0; col < w; ++col) coef[a][col] = c * (X_(m + unit_vp_[a], col) - X_(a, col));
+    for (int col = 0; col < w; ++col) coef[a][col] = contact_coef_[a][col] = c * (X_(m + unit_vp_[a], col) - X_(a, col));
   }
+  contact_coef_set_ = true;
   double* vh = v_hat_.data();
   if (w == 3 && m == 3) {  // the common case (three contact nodes, isotropic): coefficients in registers
     const double* z0 = za[0];
@@ -624,6 +712,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
     if (!rep.converged) ++solver_unconverged_ticks_;
   }
   Vec3 w_hat;
+  contact_coef_set_ = false;
   if (in_contact_) {
     const int m = m_units_;
     const double* y0 = step_->solver->exact() ? v_hat_.data() : y0_.data();  // A^{-1} b

@@ -234,9 +234,15 @@ class StationCore {
     Eigen::MatrixXd Z;  // nf x m: A^{-1} e_unit
     Eigen::PartialPivLU<Small> lu;
     double a_w = 0;     // VP diagonal without contact
+    // P_0 v_hat without a matvec (iterative solver, one gain group, P_0's off-diagonal rho x A's,
+    // D_0 diagonal): P_0 v_hat = alpha v_hat + rho A v_hat with alpha_i = (P_0)_ii - rho A_ii and
+    // A v_hat = b - r + U coef (Z = A^{-1} U). Empty alpha: the [D, P] operator pass.
+    double rho = 0;
+    std::vector<double> alpha;  // per node
   };
   void build_level(StepLevel& level, double T, bool iso);  // start-up: A(T)'s solver, contact data
   void prepare_contact_solve(StepLevel& level);  // start-up: Z, G and its LU
+  void p_from_a(StepLevel& level, const SparseRowMajor& A);  // start-up: StepLevel::rho, alpha if they apply
   void engage_contact();
   bool first_of_gain(int j) const;  // first neighbour using this gain object
   // Step 4 without contact: b and energy_.vo_J in one fused pass for the first gain group (+ two
@@ -335,6 +341,11 @@ class StationCore {
   std::vector<int> unit_row_;     // factor row of contact unit a
   std::vector<int> unit_vp_;      // VP unit that contact unit a couples to
   SmallRhs R_, X_;
+  // This tick's contact coefficients (v_hat = y0 + Z coef, iterative path) and D_0's diagonal (per
+  // node) for P_0 v_hat from A (StepLevel::alpha).
+  double contact_coef_[3 * kMaxContactNodes][3] = {};
+  bool contact_coef_set_ = false;
+  std::vector<double> d0_diag_;
 };
 
 }  // namespace haptic::rt

@@ -152,6 +152,15 @@ void check_surface(const RawSurface& s) {
                        std::to_string(ts.size()) + " triangles (a closed surface needs exactly 2)");
   for (std::size_t i = 0; i < used.size(); ++i)
     if (!used[i]) throw MeshError(s.file + ":0: vertex " + std::to_string(i + 1) + ": unreferenced vertex (in no triangle)");
+  // Two vertices at one point: closed shells that touch (TetGen would weld them into a non-manifold
+  // edge or vertex and the error would name its output's elements), or a surface not welded.
+  std::map<std::array<double, 3>, std::size_t> at;
+  for (std::size_t i = 0; i < s.nodes.size(); ++i) {
+    const auto [it, fresh] = at.emplace(std::array<double, 3>{s.nodes[i].x(), s.nodes[i].y(), s.nodes[i].z()}, i);
+    if (!fresh)
+      throw MeshError(s.file + ":0: vertex " + std::to_string(i + 1) + ": at the same point as vertex " + std::to_string(it->second + 1) +
+                      ": the surface touches itself there (two shells, or vertices not welded); one closed manifold surface is needed");
+  }
 }
 
 }  // namespace haptic::scene

@@ -165,6 +165,22 @@ TEST(BadMeshes, a_non_manifold_surface_file_is_refused_before_tetgen) {
   STRCMP_CONTAINS("on 1 triangles (a closed surface needs exactly 2)", e.c_str());
 }
 
+TEST(BadMeshes, two_closed_shells_touching_at_a_corner_are_named_in_the_users_file) {
+  // two unit cubes, each closed and manifold, the second's vertex 1 on the first's vertex 7 (1, 1, 1):
+  // refused before TetGen, with the file's own vertex numbers (not TetGen's output elements)
+  test::BoxMesh b = test::kuhn_box(1, 1.0);
+  std::string text = test::obj(b);
+  const std::size_t nv = b.nodes.size();
+  for (const auto& x : b.nodes) text += "v " + std::to_string(x.x() + 1) + " " + std::to_string(x.y() + 1) + " " + std::to_string(x.z() + 1) + "\n";
+  for (const auto& f : b.surface)
+    text += "f " + std::to_string(f[0] + 1 + nv) + " " + std::to_string(f[1] + 1 + nv) + " " + std::to_string(f[2] + 1 + nv) + "\n";
+  test::write_text(dir + "/touching.obj", text);
+  const std::string e = error_of([&] { scene::read_scene_mesh(dir + "/touching.obj"); });
+  STRCMP_CONTAINS("touching.obj:0: vertex ", e.c_str());
+  STRCMP_CONTAINS("at the same point as vertex", e.c_str());
+  STRCMP_CONTAINS("the surface touches itself there", e.c_str());
+}
+
 TEST(BadMeshes, huge_files_and_counts_are_refused_before_reading_them) {
   scene::MeshLimits small;
   small.max_file_bytes = 200;

@@ -72,6 +72,33 @@ void check_nodes_used_and_connected(const RawTetMesh& raw) {
                                                   std::to_string(raw.tet_id[0]) + ")");
 }
 
+// Every boundary node's boundary triangles form one fan (joined through edges at the node); two fans
+// mean two parts of the surface touch at that node only (e.g. two balls meshed touching at a point),
+// which the edge and face checks do not see.
+void check_boundary_vertices(const RawTetMesh& raw, const std::map<std::array<int, 3>, std::vector<std::size_t>>& faces) {
+  std::map<int, std::vector<std::pair<std::array<int, 3>, std::size_t>>> around;  // node -> its boundary faces (with their tet)
+  for (const auto& [k, ts] : faces)
+    if (ts.size() == 1)
+      for (int v : k) around[v].push_back({k, ts[0]});
+  for (const auto& [v, fs] : around) {
+    std::vector<int> parent(fs.size());
+    for (std::size_t i = 0; i < fs.size(); ++i) parent[i] = static_cast<int>(i);
+    std::map<int, std::size_t> by_other;  // the other end of an edge at v -> a face on that edge
+    for (std::size_t i = 0; i < fs.size(); ++i)
+      for (int w : fs[i].first) {
+        if (w == v) continue;
+        const auto [it, fresh] = by_other.emplace(w, i);
+        if (!fresh) parent[static_cast<std::size_t>(find_root(parent, static_cast<int>(i)))] = find_root(parent, static_cast<int>(it->second));
+      }
+    for (std::size_t i = 1; i < fs.size(); ++i)
+      if (find_root(parent, static_cast<int>(i)) != find_root(parent, 0))
+        fail(raw.element_file, raw.tet_line[fs[i].second],
+             "element " + std::to_string(raw.tet_id[fs[i].second]) + ": non-manifold surface at node " + std::to_string(raw.node_id[static_cast<std::size_t>(v)]) +
+                 ": the boundary touches itself there (its boundary triangles form separate fans, e.g. elements " +
+                 std::to_string(raw.tet_id[fs[0].second]) + " and " + std::to_string(raw.tet_id[fs[i].second]) + ")");
+  }
+}
+
 // Faces on more than two tetrahedra; boundary edges not on exactly two boundary faces.
 void check_manifold(const RawTetMesh& raw) {
   std::map<std::array<int, 3>, std::vector<std::size_t>> faces;
@@ -98,6 +125,7 @@ void check_manifold(const RawTetMesh& raw) {
                                                       std::to_string(raw.node_id[static_cast<std::size_t>(e[0])]) + " and " +
                                                       std::to_string(raw.node_id[static_cast<std::size_t>(e[1])]) + " is on " + std::to_string(ts.size()) +
                                                       " boundary triangles (2 expected)");
+  check_boundary_vertices(raw, faces);
 }
 
 }  // namespace

@@ -120,19 +120,19 @@ TEST(BadMeshes, an_unreferenced_node_is_named_with_its_line) {
   STRCMP_CONTAINS("bad.msh:14: node 9: unreferenced node", read_error(box).c_str());
 }
 
-TEST(BadMeshes, a_non_manifold_mesh_is_refused) {
-  // A second box touching the first along one edge only: that edge is on 4 boundary triangles.
+namespace {
+// `box` and a copy shifted by `shift`, the copy's nodes that coincide with the first box's merged into them.
+test::BoxMesh two_boxes_touching(const test::BoxMesh& box, const Eigen::Vector3d& shift) {
   test::BoxMesh two = box;
   const int n0 = static_cast<int>(two.nodes.size());
-  for (const auto& p : box.nodes) two.nodes.push_back(p + Eigen::Vector3d(1, 1, 0));
+  for (const auto& p : box.nodes) two.nodes.push_back(p + shift);
   for (auto t : box.tets) {
     for (int& v : t) v += n0;
     two.tets.push_back(t);
   }
-  // Merge the shared edge's nodes (x = 1, y = 1) of the second box into the first box's.
   for (auto& t : two.tets)
     for (int& v : t)
-      if (v >= n0 && two.nodes[v].x() == 1 && two.nodes[v].y() == 1)
+      if (v >= n0)
         for (int w = 0; w < n0; ++w)
           if ((two.nodes[w] - two.nodes[v]).norm() < 1e-12) v = w;
   std::vector<int> used(two.nodes.size(), 0);
@@ -149,10 +149,26 @@ TEST(BadMeshes, a_non_manifold_mesh_is_refused) {
     for (int& v : t) v = map[v];
     compact.tets.push_back(t);
   }
+  return compact;
+}
+}  // namespace
+
+TEST(BadMeshes, a_non_manifold_mesh_is_refused) {
+  // A second box touching the first along one edge only: that edge is on 4 boundary triangles.
+  const test::BoxMesh compact = two_boxes_touching(box, Eigen::Vector3d(1, 1, 0));
   STRCMP_CONTAINS("non-manifold surface: the boundary edge between nodes", read_error(compact).c_str());
   // A face shared by three tetrahedra.
   box.tets.push_back(box.tets[0]);
   STRCMP_CONTAINS("element 8: non-manifold mesh: a face is shared by 3 tetrahedra", read_error(box).c_str());
+}
+
+TEST(BadMeshes, two_pieces_touching_at_one_node_are_refused) {
+  // A second box touching the first at the corner (1, 1, 1) only: every edge and face is fine, but the
+  // boundary touches itself at that node (two fans of boundary triangles around it).
+  const std::string e = read_error(two_boxes_touching(box, Eigen::Vector3d(1, 1, 1)));
+  STRCMP_CONTAINS("bad.msh:", e.c_str());
+  STRCMP_CONTAINS("non-manifold surface at node ", e.c_str());
+  STRCMP_CONTAINS("the boundary touches itself there", e.c_str());
 }
 
 TEST(BadMeshes, a_non_manifold_surface_file_is_refused_before_tetgen) {

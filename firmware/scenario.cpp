@@ -99,7 +99,7 @@ int step_clock_allowance_ticks(const ScenarioSpec& s) {
 
 std::vector<std::string> scenario_names() { return {"paper-best", "paper-worst", "paper-unstable"}; }
 
-ScenarioSpec make_scenario(const std::string& name) {
+ScenarioSpec make_scenario(const std::string& name, const std::string& key) {
   ScenarioSpec s;
   s.name = name;
   s.delay_ms = model::paper_delay_matrix_ms();
@@ -123,7 +123,7 @@ ScenarioSpec make_scenario(const std::string& name) {
   } else {
     std::string list;
     for (const auto& n : scenario_names()) list += (list.empty() ? "" : ", ") + n;
-    bad("unknown scenario '" + name + "' (valid: " + list + ")");
+    bad((key.empty() ? std::string() : key + " = \"" + name + "\": ") + "unknown scenario '" + name + "' (valid: " + list + ")");
   }
   return s;
 }
@@ -408,6 +408,7 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
     c.neighbors.push_back(nc);
   }
   c.rx_rule = spec.receive_rule;
+  c.divergence_speed_m_per_s = spec.divergence_speed_m_per_s;
   c.consensus_passivity = spec.consensus_passivity;
   c.pspm_reservoir0_J = spec.pspm_reservoir0_J;
   c.predict_held_state = spec.tx_deadband.predictive;

@@ -111,6 +111,7 @@ struct ScenarioSpec {
   // exceeds this acts as the damper until the account has fallen to half of it. 0 = off.
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
   double edge_energy_leak_W = rt::kDefaultEdgeEnergyLeakW;  // the accounts' leak (rt/edge_energy.hpp)
+  double divergence_speed_m_per_s = 50;  // a node faster than this: diverged, safe state (rt::StationConfig)
   // --consensus-passivity eq18|pspm (rt/set_position_modulation.hpp): with pspm, B_i defaults to 0
   // (eq. 14 holds by construction) and pspm_reservoir0_J is each edge's initial reservoir.
   rt::ConsensusPassivity consensus_passivity = rt::ConsensusPassivity::kEq18Damping;
@@ -124,7 +125,8 @@ struct ScenarioSpec {
 // Names of the built-in scenarios, and the spec for one (throws std::invalid_argument listing
 // the valid names when unknown).
 std::vector<std::string> scenario_names();
-ScenarioSpec make_scenario(const std::string& name);
+// key: the option or configuration key that named it, for the error ("": none).
+ScenarioSpec make_scenario(const std::string& name, const std::string& key = "");
 
 // N users (2..64) for a scenario made for 4: the delay matrix becomes uniform at
 // default_mean_delay_ms and the topology the tree of degree <= 4 user k -> user (k - 2) / 3 + 1

@@ -33,7 +33,8 @@ void parse_station_section(View root, StationFile& f) {
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin", "consensus_passivity", "pspm_reservoir_J",
                             "loss_allowance_ticks", "loss_allowance_max_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "tx_predict", "agreement_ticks", "damping_Ns_per_m", "io_priority",
                             "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
-                            "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "record_ring_s", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks", "edge_energy_bound_J", "edge_energy_leak_W"});
+                            "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "record_ring_s", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks", "edge_energy_bound_J", "edge_energy_leak_W",
+                            "divergence_speed_m_per_s"});
   StationSection& s = f.station;
   if (!st["id"]) bad("station.id", "present: this station's user number, 1..users");
   s.id = static_cast<int>(integer(st["id"], "station.id", 1, 1, 64));
@@ -85,6 +86,7 @@ void parse_station_section(View root, StationFile& f) {
   s.out_dir = text(st["out_dir"], "station.out_dir", ".");
   if (s.out_dir.empty()) bad("station.out_dir", "a non-empty directory path");
   s.max_no_neighbour_fraction = real(st["max_no_neighbour_fraction"], "station.max_no_neighbour_fraction", 0.1, 0.0, 1.0);
+  s.divergence_speed_m_per_s = real(st["divergence_speed_m_per_s"], "station.divergence_speed_m_per_s", 50.0, 1e-6, 1e3);
   s.trace_every = static_cast<int>(integer(st["trace_every"], "station.trace_every", 1, 1, 100000));
   s.state_every = static_cast<int>(integer(st["state_every"], "station.state_every", 5, 1, 100000));
   s.clock_offset_max_ms = real(st["clock_offset_max_ms"], "station.clock_offset_max_ms", 20.0, 0.0, 1e6);
@@ -270,9 +272,7 @@ std::string StationFile::peer_key(std::size_t index, const std::string& field) c
 }
 
 std::string StationFile::relative_to_file(const std::string& value) const {
-  if (value.empty() || value[0] == '/' || path.empty()) return value;
-  const std::string dir = std::filesystem::path(path).parent_path().string();
-  return dir.empty() ? value : dir + "/" + value;
+  return platform::config::path_beside(value, path);
 }
 
 StationFile load_station_file(const std::string& path) {

@@ -71,6 +71,8 @@
 //   io_priority = 70                 # SCHED_FIFO priority of the endpoint's I/O thread (inherited at its start),
 //                                    # 0 = leave it SCHED_OTHER; [0, 98]; falls back with a warning without privileges
 //   out_dir = "."                    # per-station outputs station-<id>.json, -trace.csv, -state.csv
+//   divergence_speed_m_per_s = 50    # a node of the copy faster than this: diverged, the core's safe state (zero
+//                                    # force) and exit 4; also the envelope's speed bound on neighbours' packets, [1e-6, 1e3]
 //   max_no_neighbour_fraction = 0.1 # the run fails (exit 7) when more than this share of its ticks had no
 //                                    # neighbour within its bound (all edges dropped), [0, 1]
 //   trace_every = 1                  # every k-th tick into station-<id>-trace.csv, [1, 100000]
@@ -200,6 +202,7 @@ struct StationSection {
   int io_priority = 70;
   std::string out_dir = ".";
   double max_no_neighbour_fraction = 0.1;
+  double divergence_speed_m_per_s = 50;
   int trace_every = 1;
   int state_every = 5;
   double clock_offset_max_ms = 20.0;

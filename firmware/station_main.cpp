@@ -329,57 +329,63 @@ int run_command(const RunArgs& a) {
   }
 }
 
+// `sim`'s options -> the scenario they describe; throws std::invalid_argument naming the option. Not RT-safe.
+ScenarioSpec sim_scenario_spec(const SimArgs& a) {
+  ScenarioSpec spec = make_scenario(a.scenario, "--scenario");
+  if (!a.topology_file.empty()) apply_topology_file(spec, a.topology_file, "--topology-file");
+  if (a.users) {
+    if (!a.topology_file.empty() && *a.users != spec.users)
+      throw std::invalid_argument("--users " + std::to_string(*a.users) + " differs from the " + std::to_string(spec.users) + " users of --topology-file");
+    set_user_count(spec, *a.users, "--users");
+  }
+  spec.script.push_pattern = parse_push_pattern(a.pushes, "--pushes");
+  spec.script.push_seed = a.push_seed;
+  if (!a.delay_matrix.empty()) spec.delay_ms = haptic::model::parse_delay_matrix(a.delay_matrix, "--delay-matrix", spec.users);
+  if (!a.topology.empty()) spec.topology = haptic::model::parse_graph_1based(a.topology, spec.users, "--topology");
+  if (!a.damping.empty()) spec.damping_Ns_per_m = parse_list(a.damping, "--damping");
+  if (a.push_end >= 0) spec.script.push_end_s = a.push_end;
+  if (a.release >= 0) spec.script.release_s = a.release;
+  if (a.duration >= 0) {
+    if (spec.script.kind == UserScriptSpec::Kind::kPushHoldRelease && a.duration <= spec.script.release_s)
+      std::cerr << "haptic-station: note: --duration " << a.duration << " s ends before the release at " << spec.script.release_s << " s\n";
+    spec.duration_s = a.duration;
+  }
+  spec.seed = a.seed;
+  if (a.loss >= 0) spec.loss_probability = a.loss;
+  if (a.dup >= 0) spec.duplicate_probability = a.dup;
+  if (a.nodes > 0) spec.scene_nodes = a.nodes;
+  spec.scene_file.path = a.scene;
+  spec.scene_file.unit_m = a.scene_unit_m;
+  spec.scene_file.density_kg_per_m3 = a.density;
+  spec.scene_file.youngs_modulus_Pa = a.youngs;
+  if (a.p_gain >= 0) spec.p_gain_N_per_m = a.p_gain;
+  if (a.d_gain >= 0) spec.d_gain_Ns_per_m = a.d_gain;
+  if (a.margin >= 0) spec.damping_margin = a.margin;
+  if (a.allowance >= 0) spec.loss_allowance_ticks = a.allowance;
+  if (a.edge_energy_bound != -1) spec.edge_energy_bound_J = a.edge_energy_bound;
+  if (a.edge_energy_leak != -1) spec.edge_energy_leak_W = a.edge_energy_leak;
+  spec.tx_deadband.position_deadband_m = a.tx_deadband_mm * 1e-3;
+  spec.tx_deadband.max_interval_ticks = a.tx_interval;
+  spec.tx_deadband.predictive = a.tx_predict;
+  spec.trace_node = a.trace_node;
+  spec.receive_rule = haptic::rt::parse_rx_rule(a.receive_rule, "--receive-rule");
+  if (a.jitter != -1) spec.jitter_fraction = a.jitter;
+  spec.delay_correlation = a.delay_correlation;
+  if (a.node_mass_kg != -1) spec.scene.node_mass_kg = a.node_mass_kg;
+  spec.timer_jitter_s = a.timer_jitter_ms * 1e-3;
+  spec.step_jitter = a.step_jitter;
+  spec.clock_drift_ppm = a.clock_drift_ppm;
+  spec.consensus_passivity = haptic::rt::parse_consensus_passivity(a.consensus_passivity, "--consensus-passivity");
+  if (!(a.pspm_reservoir_J >= 0 && std::isfinite(a.pspm_reservoir_J)))
+    throw std::invalid_argument("--pspm-reservoir-J = " + std::to_string(a.pspm_reservoir_J) + " must be finite and >= 0");
+  spec.pspm_reservoir0_J = a.pspm_reservoir_J;
+  return spec;
+}
+
 // `haptic-station sim`: returns 0, or 2 on a bad option. Not RT-safe.
 int sim_command(const SimArgs& a) {
   try {
-    ScenarioSpec spec = make_scenario(a.scenario);
-    if (!a.topology_file.empty()) apply_topology_file(spec, a.topology_file, "--topology-file");
-    if (a.users) {
-      if (!a.topology_file.empty() && *a.users != spec.users)
-        throw std::invalid_argument("--users " + std::to_string(*a.users) + " differs from the " + std::to_string(spec.users) + " users of --topology-file");
-      set_user_count(spec, *a.users, "--users");
-    }
-    spec.script.push_pattern = parse_push_pattern(a.pushes, "--pushes");
-    spec.script.push_seed = a.push_seed;
-    if (!a.delay_matrix.empty()) spec.delay_ms = haptic::model::parse_delay_matrix(a.delay_matrix, "--delay-matrix", spec.users);
-    if (!a.topology.empty()) spec.topology = haptic::model::parse_graph_1based(a.topology, spec.users, "--topology");
-    if (!a.damping.empty()) spec.damping_Ns_per_m = parse_list(a.damping, "--damping");
-    if (a.push_end >= 0) spec.script.push_end_s = a.push_end;
-    if (a.release >= 0) spec.script.release_s = a.release;
-    if (a.duration >= 0) {
-      if (spec.script.kind == UserScriptSpec::Kind::kPushHoldRelease && a.duration <= spec.script.release_s)
-        std::cerr << "haptic-station: note: --duration " << a.duration << " s ends before the release at " << spec.script.release_s << " s\n";
-      spec.duration_s = a.duration;
-    }
-    spec.seed = a.seed;
-    if (a.loss >= 0) spec.loss_probability = a.loss;
-    if (a.dup >= 0) spec.duplicate_probability = a.dup;
-    if (a.nodes > 0) spec.scene_nodes = a.nodes;
-    spec.scene_file.path = a.scene;
-    spec.scene_file.unit_m = a.scene_unit_m;
-    spec.scene_file.density_kg_per_m3 = a.density;
-    spec.scene_file.youngs_modulus_Pa = a.youngs;
-    if (a.p_gain >= 0) spec.p_gain_N_per_m = a.p_gain;
-    if (a.d_gain >= 0) spec.d_gain_Ns_per_m = a.d_gain;
-    if (a.margin >= 0) spec.damping_margin = a.margin;
-    if (a.allowance >= 0) spec.loss_allowance_ticks = a.allowance;
-    if (a.edge_energy_bound != -1) spec.edge_energy_bound_J = a.edge_energy_bound;
-    if (a.edge_energy_leak != -1) spec.edge_energy_leak_W = a.edge_energy_leak;
-    spec.tx_deadband.position_deadband_m = a.tx_deadband_mm * 1e-3;
-    spec.tx_deadband.max_interval_ticks = a.tx_interval;
-    spec.tx_deadband.predictive = a.tx_predict;
-    spec.trace_node = a.trace_node;
-    spec.receive_rule = haptic::rt::parse_rx_rule(a.receive_rule, "--receive-rule");
-    if (a.jitter != -1) spec.jitter_fraction = a.jitter;
-    spec.delay_correlation = a.delay_correlation;
-    if (a.node_mass_kg != -1) spec.scene.node_mass_kg = a.node_mass_kg;
-    spec.timer_jitter_s = a.timer_jitter_ms * 1e-3;
-    spec.step_jitter = a.step_jitter;
-    spec.clock_drift_ppm = a.clock_drift_ppm;
-    spec.consensus_passivity = haptic::rt::parse_consensus_passivity(a.consensus_passivity, "--consensus-passivity");
-    if (!(a.pspm_reservoir_J >= 0 && std::isfinite(a.pspm_reservoir_J)))
-      throw std::invalid_argument("--pspm-reservoir-J = " + std::to_string(a.pspm_reservoir_J) + " must be finite and >= 0");
-    spec.pspm_reservoir0_J = a.pspm_reservoir_J;
+    const ScenarioSpec spec = sim_scenario_spec(a);
     const BuiltScenario built = build_scenario(spec);
     fs::create_directories(a.out);
     SimOptions opt;
@@ -486,6 +492,8 @@ int main(int argc, char** argv) {
       "  merge  merge the outputs of N run processes into the simulator's summary.json, trace.csv, series.csv, snapshots.json\n"
       "  scenario  print a built-in scenario's users, links and delays as JSON"};
   app.require_subcommand(1);
+  app.footer("Exit status: 0 done; 2 bad options or configuration. `run` also: " + exit_code_help() +
+             " `replay`: see `replay --help`.");
 
   SimArgs sim_args;
   RunArgs run_args;

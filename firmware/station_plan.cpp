@@ -160,9 +160,7 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   p->built = std::make_shared<const BuiltScenario>(build_scenario(spec));
   p->station_id = f.station.id;
   p->me = f.station.id - 1;
-  const std::size_t slash = f.path.rfind('/');
-  p->net = net::parse_net_config(f.text, static_cast<std::uint32_t>(p->built->scene.dofs),
-                                 f.path.empty() ? std::string() : slash == std::string::npos ? std::string(".") : f.path.substr(0, slash == 0 ? 1 : slash));
+  p->net = net::parse_net_config(f.text, static_cast<std::uint32_t>(p->built->scene.dofs), f.path);
   if (p->net.endpoint.wire.station_id != f.station.id)
     bad("the wire station id (" + f.net_section + ".station_id / station.id) must be station.id = " + std::to_string(f.station.id));
   p->peers = plan_peer_table(f, *p->built, p->me, p->net);
@@ -226,7 +224,7 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
 
 ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) {
   const StationSection& s = f.station;
-  ScenarioSpec spec = make_scenario(s.scenario);
+  ScenarioSpec spec = make_scenario(s.scenario, "station.scenario");
   if (s.users != 0) set_user_count(spec, s.users, "station.users");
   if (!s.delay_matrix.empty()) {
     try {
@@ -271,6 +269,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.loss_allowance_ticks = s.loss_allowance_ticks;
   spec.edge_energy_bound_J = s.edge_energy_bound_J;
   spec.edge_energy_leak_W = s.edge_energy_leak_W;
+  spec.divergence_speed_m_per_s = s.divergence_speed_m_per_s;
   spec.tx_deadband.position_deadband_m = s.tx_deadband_mm * 1e-3;
   spec.tx_deadband.max_interval_ticks = s.tx_max_interval_ticks;
   spec.tx_deadband.predictive = s.tx_predict;
@@ -320,6 +319,14 @@ SceneFingerprint scene_fingerprint(const BuiltScenario& b, std::int64_t period_n
   }
   g.value(b.spec.vp);
   fp.gains_hash = g.h;
+  // The coupling law both ends must run alike (net::Fingerprint).
+  fp.consensus_law = b.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation ? net::kConsensusLawPspm : net::kConsensusLawEq18;
+  fp.tx_predict = b.spec.tx_deadband.predictive ? 1 : 0;
+  if (b.spec.tx_deadband.enabled()) {
+    const double band[2] = {b.spec.tx_deadband.position_deadband_m, static_cast<double>(b.spec.tx_deadband.max_interval_ticks)};
+    const std::uint64_t h = net::fingerprint_hash(band, sizeof band);
+    fp.tx_deadband_hash = static_cast<std::uint16_t>((h ^ (h >> 16) ^ (h >> 32) ^ (h >> 48)) | 1u);  // 0 means off
+  }
   return fp;
 }
 

@@ -33,7 +33,8 @@ ScenarioSpec station_scenario_spec(const StationFile& file, const RunOverrides& 
 
 // What two stations must agree on before they couple: net/'s fingerprint message (sent during
 // probing; net::fingerprint_difference names each field that differs). Two stations with equal
-// fingerprints run the same scene, period, gains and wire protocol.
+// fingerprints run the same scene, period, gains, coupling law (station.consensus_passivity,
+// station.tx_predict, the transmission deadband) and wire protocol.
 using SceneFingerprint = net::Fingerprint;
 SceneFingerprint scene_fingerprint(const BuiltScenario& built, std::int64_t period_ns);
 // The fingerprint in words, for session logs (station and simulator alike). Not RT-safe.

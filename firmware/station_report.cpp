@@ -36,7 +36,8 @@ json station_scenario_json(const StationPlan& p) {
   j["loss_allowance_ticks"] = p.file.station.loss_allowance_ticks;
   j["loss_allowance_max_ticks"] = p.file.station.loss_allowance_max_ticks;
   j["fingerprint"] = {{"protocol_version", p.fingerprint.protocol_version}, {"scene_nodes", p.fingerprint.scene_nodes},
-                      {"period_ns", p.fingerprint.period_ns}, {"scene_hash", p.fingerprint.scene_hash}, {"gains_hash", p.fingerprint.gains_hash}};
+                      {"period_ns", p.fingerprint.period_ns}, {"scene_hash", p.fingerprint.scene_hash}, {"gains_hash", p.fingerprint.gains_hash},
+                      {"consensus_law", p.fingerprint.consensus_law}, {"tx_predict", p.fingerprint.tx_predict}, {"tx_deadband_hash", p.fingerprint.tx_deadband_hash}};
   return j;
 }
 

@@ -31,7 +31,7 @@ T integer(View n, const std::string& key, T def, long long lo, long long hi) {
 
 namespace {
 // net.key_file (pairwise keys) or net.shared_session_key (one key for the whole session).
-void parse_keys(const toml::node_view<const toml::node>& net, const std::string& P, const std::string& config_dir,
+void parse_keys(const toml::node_view<const toml::node>& net, const std::string& P, const std::string& config_file,
                 EndpointConfig& e) {
   const bool demo = boolean(net["demo_keys"], P + "demo_keys", false);
   if (net["session_key"])
@@ -44,8 +44,7 @@ void parse_keys(const toml::node_view<const toml::node>& net, const std::string&
   if (e.pairwise_keys) {
     std::string path = text(net["key_file"], P + "key_file", "");
     if (path.empty()) bad(P + "key_file", "a file name");
-    if (path[0] != '/' && !config_dir.empty()) path = config_dir + "/" + path;
-    e.own_keys = read_key_file(path, P + "key_file", demo);
+    e.own_keys = read_key_file(platform::config::path_beside(path, config_file), P + "key_file", demo);
     return;
   }
   if (!net["shared_session_key"])
@@ -61,7 +60,7 @@ void parse_keys(const toml::node_view<const toml::node>& net, const std::string&
 }
 }  // namespace
 
-NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count, const std::string& config_dir) {
+NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count, const std::string& config_file) {
   const toml::table doc = platform::config::parse_document(toml_text);
   // The section is [net]; [network] (firmware/deploy's lab configs) is accepted as an alias,
   // with `listen` for `bind` and peers' `station` for `id`.
@@ -79,7 +78,7 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
   c.transport = text(net["transport"], P + "transport", "udp");
   if (c.transport != "udp" && c.transport != "raw") bad(P + "transport", "\"udp\" or \"raw\"");
   e.wire.session_id = integer<std::uint32_t>(net["session_id"], P + "session_id", 1, 0, 0xFFFFFFFFll);
-  parse_keys(net, P, config_dir, e);
+  parse_keys(net, P, config_file, e);
   const std::string enc = text(net["encoding"], P + "encoding", "float32");
   if (enc == "float64") e.wire.encoding = ValueEncoding::float64;
   else if (enc == "float32") e.wire.encoding = ValueEncoding::float32;
@@ -184,9 +183,7 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
 }
 
 NetConfig load_net_config(const std::string& path, std::uint32_t value_count) {
-  const std::size_t slash = path.rfind('/');
-  return parse_net_config(platform::config::read_file(path), value_count,
-                          slash == std::string::npos ? std::string(".") : path.substr(0, slash == 0 ? 1 : slash));
+  return parse_net_config(platform::config::read_file(path), value_count, path);
 }
 
 std::unique_ptr<Transport> NetConfig::make_transport() const {

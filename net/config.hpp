@@ -74,9 +74,10 @@ struct NetConfig {
   std::unique_ptr<Transport> make_transport() const;
 };
 
-// Parses the whole TOML document text; value_count is the scene's 3n; config_dir: the folder a
-// relative net.key_file is read from ("" = the working directory).
-NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count, const std::string& config_dir = "");
+// Parses the whole TOML document text; value_count is the scene's 3n; config_file: the file the
+// text came from (a relative net.key_file is read beside it, platform::config::path_beside; "" =
+// from the working directory).
+NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count, const std::string& config_file = "");
 NetConfig load_net_config(const std::string& path, std::uint32_t value_count);
 
 }  // namespace haptic::net

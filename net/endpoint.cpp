@@ -354,10 +354,7 @@ void Endpoint::io_step(std::int64_t now_ns, bool rx, bool caught_spinning) {
   }
   if (rx) handle_rx(now_ns);
   handle_tx(now_ns, caught_spinning);
-  if (pairwise_ && now_ns >= next_hello_ns_ && hellos_wanted()) {
-    send_hellos(pushes_sent_, now_ns);
-    next_hello_ns_ = now_ns + hello_interval_ns_;
-  }
+  if (now_ns >= next_hello_ns_) send_wanted_hellos(pushes_sent_, now_ns, now_ns);
   release_due(monotonic_ns());
   check_silence(monotonic_ns());
   publish_stats();
@@ -677,6 +674,12 @@ void Endpoint::send_hellos(std::uint64_t seq, std::int64_t stamp_ns) {
   }
 }
 
+void Endpoint::send_wanted_hellos(std::uint64_t seq, std::int64_t stamp_ns, std::int64_t now_ns) {
+  if (!pairwise_ || !hellos_wanted()) return;
+  send_hellos(seq, stamp_ns);
+  next_hello_ns_ = now_ns + hello_interval_ns_;
+}
+
 bool Endpoint::hellos_wanted() const {
   for (const auto& pp : peers_)
     if (!pp->stats.keys_agreed || pp->hello_due) return true;
@@ -737,10 +740,7 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
                                                      : now_ns;
     send_records_[m.seq % kSendRecords] = SendRecord{true, m.seq, stamp};
     if (m.safe_state) ++counters_.tx_safe_state;
-    if (pairwise_ && hellos_wanted()) {
-      send_hellos(m.seq, stamp);
-      next_hello_ns_ = now_ns + hello_interval_ns_;
-    }
+    send_wanted_hellos(m.seq, stamp, now_ns);
     send_fingerprints(m.seq, stamp);
     ++pushes_sent_;
     for (auto& pp : peers_) {

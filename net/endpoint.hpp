@@ -411,6 +411,9 @@ class Endpoint {
   void send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns);
   void send_hellos(std::uint64_t seq, std::int64_t stamp_ns);                 // I/O thread: per push and timer
   bool hellos_wanted() const;  // a neighbour without agreed keys, or one that asked for a hello
+  // I/O thread: with pairwise keys, the hellos hellos_wanted() asks for, and the hello timer
+  // restarted from now_ns (called with each push and when the timer is due).
+  void send_wanted_hellos(std::uint64_t seq, std::int64_t stamp_ns, std::int64_t now_ns);
   void on_hello(PeerState& p, const DecodedState& st);                        // nonce agreement
   void forget_keys(PeerState& p);                                             // a restarted neighbour
   void handle_rx(std::int64_t now_ns);

@@ -127,6 +127,15 @@ std::string fingerprint_difference(const Fingerprint& mine, const Fingerprint& t
   else field("scene data (hash)", mine.scene_hash, theirs.scene_hash, false);
   field("period_ns", mine.period_ns, theirs.period_ns, true);
   field("gains (hash)", mine.gains_hash, theirs.gains_hash, false);
+  auto named = [&](const char* name, const char* a, const char* b) {
+    if (std::strcmp(a, b) == 0) return;
+    if (!out.empty()) out += "; ";
+    out += std::string(name) + ": " + a + " here, " + b + " at the peer";
+  };
+  auto law = [](std::uint8_t c) { return c == kConsensusLawEq18 ? "eq18" : c == kConsensusLawPspm ? "pspm" : c == 0 ? "not sent" : "unknown"; };
+  named("consensus passivity (station.consensus_passivity)", law(mine.consensus_law), law(theirs.consensus_law));
+  named("predictive deadband (station.tx_predict)", mine.tx_predict ? "on" : "off", theirs.tx_predict ? "on" : "off");
+  field("transmission deadband (station.tx_deadband_mm, station.tx_max_interval_ticks; hash)", mine.tx_deadband_hash, theirs.tx_deadband_hash, false);
   return out;
 }
 
@@ -237,7 +246,9 @@ std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, s
   put<std::uint64_t>(p, 24, f.gains_hash);
   put<std::uint64_t>(p, 32, round_trip_bound_ns);
   put<std::uint32_t>(p, 40, loss_allowance_ticks < 0 ? 0u : static_cast<std::uint32_t>(loss_allowance_ticks) + 1u);
-  put<std::uint32_t>(p, 44, 0u);
+  put<std::uint8_t>(p, 44, f.consensus_law);
+  put<std::uint8_t>(p, 45, f.tx_predict);
+  put<std::uint16_t>(p, 46, f.tx_deadband_hash);
   mac(out, kHeaderBytes + kFingerprintBytes, key ? *key : cfg_.key, out + kHeaderBytes + kFingerprintBytes);
   return size;
 }
@@ -289,6 +300,12 @@ bool payload_finite(const std::uint8_t* p, std::size_t values, std::size_t vb) {
       if ((get<std::uint32_t>(p, 4 * i) & 0x7F800000u) == 0x7F800000u) return false;
   }
   return true;
+}
+
+// A control message (hello, fingerprint): no values, one fragment of exactly `bytes` payload bytes.
+bool single_control_fragment(const HeaderView& h, std::size_t bytes) {
+  return h.value_count == 0 && h.frag_index == 0 && h.frag_count == 1 && h.frag_offset == 0 && h.frag_len == bytes &&
+         h.frag_stride == bytes;
 }
 }  // namespace
 
@@ -476,8 +493,7 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
 
   // Authenticated from here on; still validate every field before touching state.
   if (is_hello) {
-    if (!peer.pairwise || (h.flags & ~kFlagHelloAgreed) != 0 || h.value_count != 0 || h.frag_index != 0 ||
-        h.frag_count != 1 || h.frag_offset != 0 || h.frag_len != kHelloBytes || h.frag_stride != kHelloBytes)
+    if (!peer.pairwise || (h.flags & ~kFlagHelloAgreed) != 0 || !single_control_fragment(h, kHelloBytes))
       return drop(DropReason::garbled);
     // Hellos obey the incarnation rule (a hello of an earlier process, e.g. replayed from an
     // earlier run, is dropped once a newer one was seen) but not the replay window: they are
@@ -493,9 +509,7 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
     return DecodeStatus::hello;
   }
   if (h.kind == static_cast<std::uint8_t>(PayloadKind::fingerprint)) {
-    if (h.flags != 0 || h.value_count != 0 || h.frag_index != 0 || h.frag_count != 1 || h.frag_offset != 0 ||
-        h.frag_len != kFingerprintBytes || h.frag_stride != kFingerprintBytes)
-      return drop(DropReason::garbled);
+    if (h.flags != 0 || !single_control_fragment(h, kFingerprintBytes)) return drop(DropReason::garbled);
     bool raised = false;
     if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
     const std::uint8_t* p = d + kHeaderBytes;
@@ -506,6 +520,9 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
     out.fingerprint.scene_hash = get<std::uint64_t>(p, 8);
     out.fingerprint.period_ns = get<std::uint64_t>(p, 16);
     out.fingerprint.gains_hash = get<std::uint64_t>(p, 24);
+    out.fingerprint.consensus_law = get<std::uint8_t>(p, 44);
+    out.fingerprint.tx_predict = get<std::uint8_t>(p, 45);
+    out.fingerprint.tx_deadband_hash = get<std::uint16_t>(p, 46);
     out.round_trip_bound_ns = get<std::uint64_t>(p, 32);
     const std::uint32_t allowance = get<std::uint32_t>(p, 40);
     out.loss_allowance_ticks = allowance == 0 || allowance > (1u << 30) ? -1 : static_cast<std::int32_t>(allowance - 1);

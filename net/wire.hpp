@@ -123,12 +123,22 @@ struct Fingerprint {
   std::uint64_t scene_hash = 0;   // scene data: high 32 bits geometry (rest positions, tetrahedra), low 32 material (M, B, K)
   std::uint64_t period_ns = 0;    // the tick period T
   std::uint64_t gains_hash = 0;   // fingerprint_hash of the coupling gains (P_ij, D_ij, ...)
+  // The coupling law, which both ends of a link must run alike (eq. 18's proof, the predictive
+  // deadband's extrapolation): kConsensusLaw* (the station's station.consensus_passivity; 0: not
+  // sent), the predictive deadband (station.tx_predict: 1 on), and 16 bits of fingerprint_hash of
+  // the transmission deadband (band in m, max interval in ticks; 0: off).
+  std::uint8_t consensus_law = 0;
+  std::uint8_t tx_predict = 0;
+  std::uint16_t tx_deadband_hash = 0;
 };
+inline constexpr std::uint8_t kConsensusLawEq18 = 1;  // B_i from eq. (18) (the paper)
+inline constexpr std::uint8_t kConsensusLawPspm = 2;  // passive set-position modulation
 // The fingerprint message's payload: the Fingerprint (32 bytes), then what is not part of the
 // fingerprint but travels with it so both ends of a link agree on the larger of each (net/README.md):
 // a u64, the sender's round-trip bound to the destination as its probing fixed it, in ns (0: not
 // yet); a u32, the sender's loss allowance for the link in ticks + 1 (0: not yet; the station's
-// station.loss_allowance_ticks, firmware/station_probe.hpp); a u32 reserved (0).
+// station.loss_allowance_ticks, firmware/station_probe.hpp); then the fingerprint's coupling law
+// (u8 consensus_law, u8 tx_predict, u16 tx_deadband_hash: the word that was reserved, 0, before).
 inline constexpr std::size_t kFingerprintBytes = 48;
 // 64-bit keyless BLAKE2b of bytes (for Fingerprint's hashes). Not RT-safe (start-up).
 std::uint64_t fingerprint_hash(const void* data, std::size_t bytes);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -72,6 +73,12 @@ std::string read_file(const std::string& path) {
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
+}
+
+std::string path_beside(const std::string& path, const std::string& config_file) {
+  const std::filesystem::path p(path);
+  if (path.empty() || config_file.empty() || p.is_absolute()) return path;
+  return (std::filesystem::path(config_file).parent_path() / p).string();
 }
 
 }  // namespace haptic::platform::config

@@ -27,5 +27,9 @@ bool boolean(View n, const std::string& key, bool def);
 void only_keys(View t, const std::string& where, std::initializer_list<const char*> known);
 // The whole file as text ("config: cannot open PATH").
 std::string read_file(const std::string& path);
+// A path a configuration file names, as the program opens it: a relative one is taken relative
+// to the folder of the file that names it (config_file: its path as opened; "": not from a file,
+// the path is left as it is).
+std::string path_beside(const std::string& path, const std::string& config_file);
 
 }  // namespace haptic::platform::config

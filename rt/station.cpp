@@ -1,4 +1,5 @@
 #include "rt/station.hpp"
+#include "rt/tx_deadband.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -508,7 +509,7 @@ const double* StationCore::modulation_target(int j, std::int64_t k) {
   const double h = static_cast<double>(k - since) * cfg_.period_s;
   if (h <= 0) return view.x_hat;
   const double lim = cfg_.predict_held_limit_m;
-  for (int i = 0; i < dofs_; ++i) predicted_[i] = view.x_hat[i] + std::clamp(h * view.v_hat[i], -lim, lim);
+  for (int i = 0; i < dofs_; ++i) predicted_[i] = extrapolated_position(view.x_hat[i], view.v_hat[i], h, lim);
   return predicted_.data();
 }
 

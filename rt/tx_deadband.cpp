@@ -28,7 +28,7 @@ bool TxDeadband::should_send(std::int64_t k, const double* x_hat, const double* 
     // the receiver's value: the last sent x_hat, extrapolated by its velocity when predictive
     const double h = predictive ? static_cast<double>(k - last_k_) * period_s_ : 0.0, lim = cfg_.prediction_limit_m();
     for (std::size_t i = 0; i < n; ++i)
-      if (!(std::abs(x_hat[i] - (last_x_[i] + std::clamp(h * last_v_[i], -lim, lim))) <= band)) {  // also sends a non-finite state
+      if (!(std::abs(x_hat[i] - extrapolated_position(last_x_[i], last_v_[i], h, lim)) <= band)) {  // also sends a non-finite state
         send = true;
         break;
       }

@@ -19,12 +19,20 @@
 // long delays excited the copies: paper-worst's 10 % consensus took 14.6 s instead of 1.7 s). Only
 // with the set-position modulation (rt/README.md): eq. (18)'s proof does not cover extrapolated
 // neighbour data.
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
 namespace haptic::rt {
 
 inline constexpr double kPredictionBands = 4.0;
+
+// The predictive reference, one formula for both ends: a held coordinate x_hat extrapolated with
+// its velocity v_hat over h_s seconds, the offset limited to +-limit_m (the sender compares with
+// it, a receiver with StationConfig::predict_held_state couples to it). RT-safe.
+inline double extrapolated_position(double x_hat, double v_hat, double h_s, double limit_m) {
+  return x_hat + std::clamp(h_s * v_hat, -limit_m, limit_m);
+}
 
 struct TxDeadbandConfig {
   double position_deadband_m = 0;  // 0: send every tick (the policy is off)

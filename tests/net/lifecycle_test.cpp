@@ -190,6 +190,9 @@ TEST(Fingerprints, RoundTripAndFieldByFieldDifference) {
   f.scene_hash = fingerprint_hash("scene-a", 7);
   f.period_ns = 2'000'000;
   f.gains_hash = fingerprint_hash("gains", 5);
+  f.consensus_law = kConsensusLawPspm;
+  f.tx_predict = 1;
+  f.tx_deadband_hash = 0xBEEF;
   const std::uint16_t peers[1] = {1};
   Decoder dec{wire_of(0, 1), peers, 99};
   Encoder enc{wire_of(1, 9)};
@@ -223,6 +226,16 @@ TEST(Fingerprints, RoundTripAndFieldByFieldDifference) {
   g = f;
   g.protocol_version = 3;
   STRCMP_EQUAL("protocol version: 2 here, 3 at the peer", fingerprint_difference(f, g).c_str());
+  // The coupling law travels and is compared field by field (a decoded copy of f matched above).
+  g = f;
+  g.consensus_law = kConsensusLawEq18;
+  STRCMP_EQUAL("consensus passivity (station.consensus_passivity): pspm here, eq18 at the peer", fingerprint_difference(f, g).c_str());
+  g = f;
+  g.tx_predict = 0;
+  STRCMP_EQUAL("predictive deadband (station.tx_predict): on here, off at the peer", fingerprint_difference(f, g).c_str());
+  g = f;
+  g.tx_deadband_hash = 0;
+  STRCMP_EQUAL("transmission deadband (station.tx_deadband_mm, station.tx_max_interval_ticks; hash) differs", fingerprint_difference(f, g).c_str());
   // A changed field without the key fails the MAC.
   auto bad = d;
   bad[kHeaderBytes + 4] ^= 1;

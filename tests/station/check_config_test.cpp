@@ -136,6 +136,8 @@ TEST(CheckConfig, ScenarioKeysAreNamedAsWrittenNotAsFlags) {
   rejected_with_key(s.text(), "station.topology must connect all users");
   s.station_extra = "push_end_s = 6\nrelease_s = 5\n";
   rejected_with_key(s.text(), "station.release_s");
+  s.station_extra = "scenario = \"paper-bestest\"\n";
+  rejected_with_key(s.text(), "station.scenario = \"paper-bestest\": unknown scenario");
 }
 
 TEST(CheckConfig, ARunThatEndsBeforeTheReleaseIsAWarningAtStart) {
@@ -170,6 +172,23 @@ TEST(CheckConfig, TheFingerprintNamesTheFieldsThatDiffer) {
   STRCMP_CONTAINS("scene nodes: 33 here, 27 at the peer", fingerprint_difference(fa, scene_fingerprint(build_scenario(bigger), 2'000'000)).c_str());
   STRCMP_EQUAL("gains (hash) differs", fingerprint_difference(fa, scene_fingerprint(build_scenario(stiffer), 2'000'000)).c_str());
   STRCMP_EQUAL("period_ns: 2000000 here, 1000000 at the peer", fingerprint_difference(fa, scene_fingerprint(a, 1'000'000)).c_str());
+  // The coupling law: another consensus passivity, predictive deadband or transmission deadband.
+  ScenarioSpec pspm = make_scenario("paper-best");
+  pspm.consensus_passivity = rt::ConsensusPassivity::kSetPositionModulation;
+  STRCMP_EQUAL("consensus passivity (station.consensus_passivity): eq18 here, pspm at the peer",
+               fingerprint_difference(fa, scene_fingerprint(build_scenario(pspm), 2'000'000)).c_str());
+  ScenarioSpec band = pspm;
+  band.tx_deadband.position_deadband_m = 1e-5;
+  band.tx_deadband.max_interval_ticks = 4;
+  ScenarioSpec predict = band;
+  predict.tx_deadband.predictive = true;
+  const SceneFingerprint fb = scene_fingerprint(build_scenario(band), 2'000'000);
+  STRCMP_EQUAL("predictive deadband (station.tx_predict): off here, on at the peer",
+               fingerprint_difference(fb, scene_fingerprint(build_scenario(predict), 2'000'000)).c_str());
+  ScenarioSpec wider = band;
+  wider.tx_deadband.position_deadband_m = 2e-5;
+  STRCMP_EQUAL("transmission deadband (station.tx_deadband_mm, station.tx_max_interval_ticks; hash) differs",
+               fingerprint_difference(fb, scene_fingerprint(build_scenario(wider), 2'000'000)).c_str());
 }
 
 // A session-log ring that cannot fit station.record_max_mb is refused at plan time, naming both

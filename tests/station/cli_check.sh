@@ -20,6 +20,7 @@ expect() {  # expect NAME WANT_RC REGEX -- command...
   echo "ok $name: exit $rc, $(grep -Eo "$re" "$out/$name.log" | head -1)"
 }
 expect help 0 "7 no neighbour" -- "$bin" run --help
+expect top_help 0 "4 diverged; 5 safe state latched" -- "$bin" --help
 write "$out/not-neighbour.toml" 3 ""
 expect not_neighbour 2 "net\.peers\[0\]\.id = 3 is not a neighbour" -- "$bin" run --config "$out/not-neighbour.toml" --check-config
 write "$out/spin.toml" 1 $'tx_spin = true\ntx_spin_lead_us = 2500\n'

@@ -25,9 +25,10 @@ namespace {
 // `scene`: a [scene] table instead of station.nodes (nodes is then unused).
 // (a fixed loss allowance: these tests are about fingerprints and clocks, and a measured one can warn
 // when a loaded machine's probing loop skips ticks)
-StationFile star_station_file(int id, int nodes, double probe_s, const std::string& scene = "") {
+// `station_keys`: further [station] lines.
+StationFile star_station_file(int id, int nodes, double probe_s, const std::string& scene = "", const std::string& station_keys = "") {
   std::string text = "[station]\nid = " + std::to_string(id) + (scene.empty() ? "\nnodes = " + std::to_string(nodes) : std::string()) +
-                     "\nprobe_s = " + std::to_string(probe_s) + "\nloss_allowance_ticks = 1\nout_dir = \"/tmp\"\n" + scene + "[device]\nkind = \"simulated\"\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:1\"\n"
+                     "\nprobe_s = " + std::to_string(probe_s) + "\nloss_allowance_ticks = 1\nout_dir = \"/tmp\"\n" + station_keys + scene + "[device]\nkind = \"simulated\"\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:1\"\n"
                      "shared_session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\nrtt_min_probe_samples = 5\n";
   for (int j : id == 1 ? std::vector<int>{2, 3, 4} : std::vector<int>{1})
     text += "[[net.peers]]\nid = " + std::to_string(j) + "\naddress = \"127.0.0.1:9\"\n";
@@ -109,6 +110,22 @@ TEST(StationLifecycle, StationsWithTheSameMeshButDifferentMaterialsRefuseAndSayS
   CHECK(rb.status == PhaseStatus::kFailed);
   STRCMP_CONTAINS("refusing to couple: neighbour fingerprint differs (station 2: scene material (hash) differs", ra.message.c_str());
   STRCMP_CONTAINS("refusing to couple: neighbour fingerprint differs (station 1: scene material (hash) differs", rb.message.c_str());
+}
+
+TEST(StationLifecycle, StationsWithDifferentCouplingLawsRefuseToCoupleAndSayWhichKeyDiffers) {
+  // Same scene and gains; one runs eq. (18), the other the set-position modulation with the
+  // predictive deadband: eq. (18)'s proof needs both ends of a link on the same law.
+  const double t0 = soon_s();
+  Station a = open_station(star_station_file(1, 33, 0.3), t0);
+  Station b = open_station(star_station_file(2, 33, 0.3, "", "consensus_passivity = \"pspm\"\ntx_deadband_mm = 0.01\ntx_max_interval_ticks = 4\ntx_predict = true\n"), t0);
+  connect(a, b);
+  auto [ra, rb] = probe_both(a, b);
+  CHECK(ra.status == PhaseStatus::kFailed);
+  CHECK(rb.status == PhaseStatus::kFailed);
+  STRCMP_CONTAINS("refusing to couple: neighbour fingerprint differs (station 2: consensus passivity (station.consensus_passivity): eq18 here, pspm at the peer; "
+                  "predictive deadband (station.tx_predict): off here, on at the peer; transmission deadband (station.tx_deadband_mm, station.tx_max_interval_ticks; hash) differs",
+                  ra.message.c_str());
+  STRCMP_CONTAINS("(station 1: consensus passivity (station.consensus_passivity): pspm here, eq18 at the peer", rb.message.c_str());
 }
 
 TEST(StationLifecycle, StationsWithTheSameSceneProbeAndSeeNoClockOffset) {

@@ -331,6 +331,22 @@ TEST(StationPhases, DampingBelowEq18OnTheMeasuredBoundsExitsPassivityNotMet) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(StationPhases, AStationWhoseCopyDivergesExitsDivergedAndNamesIt) {
+  // The core's divergence check (rt::StationConfig::divergence_speed_m_per_s: a node faster than
+  // this) with a bound the scripted push exceeds: the core enters its safe state, the run goes on
+  // with zero force, and the station exits 4 (diverged comes before the latched safe state).
+  const std::string dir = test::fresh_dir("diverged");
+  const std::string tight = std::string(kShort) + "divergence_speed_m_per_s = 1e-4\n";
+  const std::vector<int> codes = run_four(dir, 106, {kShort, tight, kShort, kShort});
+  LONGS_EQUAL(kExitDiverged, codes[1]);
+  const json j = station_json(dir, 2);
+  CHECK(has(j["conditions"], "diverged"));
+  CHECK(j["diverged"].get<bool>());
+  CHECK(number(j["diverged_at_s"]) >= 0);
+  LONGS_EQUAL(kExitDiverged, j["exit_code"].get<int>());
+  std::filesystem::remove_all(dir);
+}
+
 TEST(StationPhases, AHubWhoseNeighboursLeaveEarlyExitsNoNeighbour) {
   const std::string dir = test::fresh_dir("left");
   const std::string leaf =

@@ -187,7 +187,10 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   cnt.last_wake_ns = info.wake_ns;
   const auto out = in.core->tick(kr, q, step_s);  // the coupled VO + VP step at run cycle kr
   platform::trace::solve_end();
-  const double F[3] = {out.device_force_N[0], out.device_force_N[1], out.device_force_N[2]};
+  // The force the device is told, in the object frame (ramp-in applied): what the trace, the
+  // telemetry and the checks on them see.
+  const double ramp = ramp_in_factor(cnt.ticks_run, in.ramp_ticks);
+  const double F[3] = {ramp * out.device_force_N[0], ramp * out.device_force_N[1], ramp * out.device_force_N[2]};
   {
     StageScope stage(Stage::publish);
     double F_dev[3];

@@ -2,10 +2,11 @@
 """Checks a four-station run in which one station was SIGKILLed and restarted (tools/run4/run4.sh
 --kill I:KILL_S:RESTART_S): the restarted station rejoined within --max-rejoin-s of its start, its
 copy started within --adopt-m of the neighbour copy it took over (state adoption before coupling),
-the copies reached consensus again by the end, and no station's device force jumped (tick to tick)
-by more than the hold force around the rejoin. Also prints, without checking it, the largest
-change of each device force from its value at the restart until the release (the copies that
-drifted apart while the station was away are pulled together again).
+the copies reached consensus again by the end, and no user's device force jumped by more than the
+hold force: neither tick to tick nor within any 100 ms (a jolt a hand feels), from just before the
+kill until the release, nor (the other stations) away from its value at the restart until the
+release (the copies that drifted apart while the station was away are pulled together again). Also printed, not checked:
+how far each force moved from its value at the kill while the station was away (the outage itself).
 Prints the figures; exit 0 when all checks hold, 1 otherwise.
 Usage: rejoin_check.py OUT_DIR [--max-rejoin-s 2.0] [--consensus-m 1e-3] [--adopt-m 1e-3]"""
 import argparse, csv, json, math, os, sys
@@ -91,28 +92,50 @@ else:
 push_end, release = js[1]['push_end_s'], js[1]['release_time_s']
 t_re = restart['restart_run_s']
 hold = []
-jumps, base, drift = {}, {}, {}
+jumps, base, drift, jolts, outage = {}, {}, {}, {}, {}
 for i in range(1, 5):
     rows = read_rows(os.path.join(a.out, f'station-{i}-trace.csv'))
     F = [(float(r['t_s']), (float(r['force_x_N']), float(r['force_y_N']), float(r['force_z_N']))) for r in rows]
-    h = [math.hypot(*f) for t, f in F if push_end + 0.5 <= t <= release - 0.1]
+    # the hold force: while holding, undisturbed (before the kill; the restarted station's new trace has no such rows)
+    h = [math.hypot(*f) for t, f in F if push_end + 0.5 <= t <= min(release, restart['kill_run_s']) - 0.1]
     if h:
         hold.append(sum(h) / len(h))
     def largest_change(t0, t1):
         win = [(t, f) for t, f in F if t0 <= t <= t1]
         return max((math.dist(f1, f0) for (_, f0), (_, f1) in zip(win, win[1:])), default=0.0)
-    jumps[i] = largest_change(t_re, t_re + a.max_rejoin_s + 1.0)
-    at_restart = [f for t, f in F if t <= t_re]
-    drift[i] = max((math.dist(f, at_restart[-1]) for t, f in F if t_re <= t <= release - 0.1), default=0.0) if at_restart else math.nan
+    t_kill = restart['kill_run_s']
+    jumps[i] = largest_change(t_kill - 0.1, release - 0.1)
+    def change_within(t0, t1, dt):  # largest |F(t') - F(t)| over t <= t' <= t + dt in [t0, t1]
+        win = [(t, f) for t, f in F if t0 <= t <= t1]
+        out, j = 0.0, 0
+        for n, (t, f) in enumerate(win):
+            j = max(j, n)
+            while j + 1 < len(win) and win[j + 1][0] <= t + dt:
+                j += 1
+            out = max(out, max(math.dist(f, g) for _, g in win[n:j + 1]))
+        return out
+    jolts[i] = change_within(t_kill - 0.1, release - 0.1, 0.1)
+    def drift_from(t0, t1):  # largest |F(t) - F(t0)| over [t0, t1]; from the first row at or after t0
+        win = [f for t, f in F if t0 <= t <= t1]
+        return max((math.dist(f, win[0]) for f in win), default=0.0)
+    # from the restart (the restarted station: its first run tick) until the release
+    drift[i] = drift_from(t_re, release - 0.1)
+    outage[i] = drift_from(t_kill, t_re) if i != who else math.nan
     # Baseline: the same statistic over an undisturbed stretch of the hold (before the kill).
     base[i] = largest_change(push_end + 0.5, min(release, restart['kill_run_s']) - 0.1) if i != who else math.nan
 hold_N = min(hold) if hold else math.nan
-print('hold force (smallest station mean |F| while holding): %.3f N' % hold_N)
+print('hold force (smallest station mean |F| while holding, before the kill): %.3f N' % hold_N)
 for i in range(1, 5):
-    print(f'  station {i}: largest tick-to-tick force change in run time [{t_re}, {t_re + a.max_rejoin_s + 1.0}] s: {jumps[i]:.4f} N '
-          f'(undisturbed hold before the kill: {base[i]:.4f} N); largest |F - F(restart)| until the release: {drift[i]:.4f} N')
-    if not jumps[i] <= hold_N:
-        fails.append(f'station {i} force jumped {jumps[i]:.3f} N > hold force {hold_N:.3f} N')
+    print(f'  station {i}: largest force change from the kill to the release: tick to tick {jumps[i]:.4f} N '
+          f'(undisturbed hold before the kill: {base[i]:.4f} N), within 100 ms {jolts[i]:.4f} N; '
+          f'largest |F - F(restart)| until the release {drift[i]:.4f} N; '
+          f'(not checked) largest |F - F(kill)| while station {who} was away {outage[i]:.4f} N')
+    # (the restarted station's own force starts at 0 and returns to its hold force: not a change
+    # away from its value at the restart; its ramp-in, device.ramp_in_s, bounds its 100 ms change)
+    checked = [('tick to tick', jumps[i]), ('within 100 ms', jolts[i])] + ([('from its value at the restart', drift[i])] if i != who else [])
+    for what, v in checked:
+        if not v <= hold_N:
+            fails.append(f'station {i} force changed {v:.3f} N {what} > hold force {hold_N:.3f} N')
 
 # 4. the neighbours logged the silence and the return
 for i in range(1, 5):

@@ -14,6 +14,7 @@
 #                [--net KEY=VALUE]...   (extra [net] keys in every station, TOML values: e.g.
 #                                        --net tx_spin=true --net 'encoding="float64"')
 #                [--station KEY=VALUE]... (extra [station] keys, e.g. --station max_no_neighbour_fraction=0.5)
+#                [--device KEY=VALUE]... (extra [device] keys, e.g. --device ramp_in_s=1)
 #                [--view-port P]         (live web view: station i serves it on port P + i - 1, 127.0.0.1)
 #                [--kill I:KILL_S:RESTART_S] (SIGKILL station I at run time KILL_S, restart it with the
 #                                        same configuration at RESTART_S: it rejoins; its first log is
@@ -32,7 +33,7 @@ here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../.." && pwd)"
 transport=udp; bin="$repo/build/bin/haptic-station"; out=""; scenario=paper-best
 duration=8; push_end=2.5; release=5; seed=1; probe=1.5; preset=paper
-nodes=33; state_every=5; plots=1; prio=80; net_extra=(); station_extra=(); kill_spec=""; fresh_epoch=0; view_port=0
+nodes=33; state_every=5; plots=1; prio=80; net_extra=(); station_extra=(); device_extra=(); kill_spec=""; fresh_epoch=0; view_port=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --transport) transport="$2"; shift 2 ;;
@@ -52,6 +53,7 @@ while [ $# -gt 0 ]; do
     --net) [[ "$2" == *=* ]] || { echo "run4.sh: --net needs KEY=VALUE, got '$2'" >&2; exit 2; }; net_extra+=("$2"); shift 2 ;;
     --view-port) view_port="$2"; shift 2 ;;
     --station) [[ "$2" == *=* ]] || { echo "run4.sh: --station needs KEY=VALUE, got '$2'" >&2; exit 2; }; station_extra+=("$2"); shift 2 ;;
+    --device) [[ "$2" == *=* ]] || { echo "run4.sh: --device needs KEY=VALUE, got '$2'" >&2; exit 2; }; device_extra+=("$2"); shift 2 ;;
     --kill) [[ "$2" =~ ^[1-4]:[0-9.]+:[0-9.]+$ ]] || { echo "run4.sh: --kill needs I:KILL_S:RESTART_S (e.g. 2:5:8), got '$2'" >&2; exit 2; }
             kill_spec="$2"; shift 2 ;;
     --restart-fresh-epoch) fresh_epoch=1; shift ;;
@@ -100,6 +102,10 @@ trap 'rm -f "$lab_file"' EXIT
   for kv in "${station_extra[@]}"; do echo "${kv%%=*} = ${kv#*=}"; done
   echo "[net]"
   for kv in "${net_extra[@]}"; do echo "${kv%%=*} = ${kv#*=}"; done
+  if [ "${#device_extra[@]}" -gt 0 ]; then
+    echo "[device]"
+    for kv in "${device_extra[@]}"; do echo "${kv%%=*} = ${kv#*=}"; done
+  fi
 } > "$lab_file"
 "$lab_tool" plan "$lab_file" --run-dir "$out" > "$out/plan.log" || { cat "$out/plan.log" >&2; exit 2; }
 "$lab_tool" check "$out" > "$out/check.log" 2>&1 || { cat "$out/check.log" >&2; exit 1; }

@@ -290,7 +290,8 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
 
 std::string fingerprint_text(const SceneFingerprint& f) {
   return "protocol " + std::to_string(f.protocol_version) + ", nodes " + std::to_string(f.scene_nodes) + ", period_ns " + std::to_string(f.period_ns) +
-         ", scene hash " + std::to_string(f.scene_hash) + ", gains hash " + std::to_string(f.gains_hash);
+         ", scene hash " + std::to_string(f.scene_hash) + ", gains hash " + std::to_string(f.gains_hash) + ", consensus law " +
+         std::to_string(f.consensus_law) + ", tx_predict " + std::to_string(f.tx_predict) + ", tx deadband hash " + std::to_string(f.tx_deadband_hash);
 }
 
 SceneFingerprint scene_fingerprint(const BuiltScenario& b, std::int64_t period_ns) {

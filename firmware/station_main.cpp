@@ -409,6 +409,12 @@ int sim_command(const SimArgs& a) {
     const SimResult r = run_simulation(built, opt);
     write_summary_json(a.out + "/summary.json", built, r);
     std::cout << sim_result_line(spec.name, r) << "\n";
+    const auto& m = r.metrics;
+    if (spec.script.push_pattern == UserScriptSpec::PushPattern::kAsymmetric && m.hold_force_sum_N && m.hold_force_mean_N &&
+        *m.hold_force_sum_N > 0.1 * *m.hold_force_mean_N)
+      std::cerr << "haptic-station: note: with asymmetric pushes the users' forces balance (eq. 20) once the object has stopped "
+                   "drifting; the damping drags the drift, so hold longer (--release, README \"Hold-force balance\"; "
+                   "tools/study/hold_balance.py OUT shows the time constant)\n";
     std::cout << "wrote " << a.out << "/summary.json, trace.csv, series.csv, snapshots.json\n";
     if (a.record) std::cout << "wrote " << a.out << "/station-<i>.h5 (session logs)\n";
     if (!a.no_plots && make_plots(a.out)) std::cout << "wrote " << a.out << "/*.png\n";

@@ -136,7 +136,7 @@ std::vector<TickRecord> read_tick_records(hid_t file) {
 
 std::string ReplayResult::summary() const {
   std::ostringstream os;
-  os << "replay of " << source << " station " << station_id << ": " << ticks << " ticks";
+  os << "replay of station " << station_id << " (" << source << " log): " << ticks << " ticks";
   if (gains_changed) {
     os << " re-run with changed gains; max |F - F_recorded| = " << max_force_difference_N << " N";
   } else if (bit_exact()) {

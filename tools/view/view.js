@@ -101,7 +101,7 @@ function fillHistory(s) {
     }
   });
   const t0 = s.history[0][0], t1 = s.history[s.history.length - 1][0];
-  Object.values(charts).forEach(c => { c.options.scales.x.min = t0; c.options.scales.x.max = t1; });
+  Object.values(charts).forEach(c => { c.options.scales.x.min = Math.floor(t0); c.options.scales.x.max = t1; });
   charts.delay.options.plugins.title.text = "per-link one-way delay / loss (live station only: not in the log)";
 }
 
@@ -109,6 +109,8 @@ function onScene(s) {
   scene = s;
   setup3d(s); setupCharts(s);
   if (s.history && s.history.length) fillHistory(s);
+  document.getElementById("status").textContent = "station " + s.station + " (" + s.mode + "): connected; waiting for the first frame" +
+    (s.mode === "station" ? " (the station publishes frames while its run goes on)" : "");
   if (s.mode === "replay" || s.mode === "sim") {
     document.getElementById("timeline").style.display = "block";
     const seek = document.getElementById("seek");

@@ -39,13 +39,63 @@ struct Player {
 // The plots' values of every kept frame (sent once in the scene message, so the page plots the
 // whole recording and moves a cursor: a paused or sought timeline still shows the curves).
 // Row: t, force x/y/z, port, controller, VO energies, consensus error (mm), tick time and
-// wake-up latency (us), then index delay and bound per link.
+// wake-up latency (us), then index delay and bound per link, then delay (ms) and loss (%) per link.
 nlohmann::json history_row(const nlohmann::json& f) {
   nlohmann::json row = {f["t"], f["force"][0], f["force"][1], f["force"][2], f["port_J"], f["controller_J"], f["vo_J"],
                         f["consensus_error_m"].get<double>() * 1e3, f["exec_max_us"], f["wake_max_us"]};
   for (const auto& l : f["links"]) row.push_back(l["index_delay"]), row.push_back(l["bound"]);
+  for (const auto& l : f["links"]) row.push_back(l.value("delay_ms", 0.0)), row.push_back(100 * l.value("loss", 0.0));
   return row;
 }
+
+// Per-link delay and loss of a recording, from its packets (what the live page gets from the
+// endpoint): a packet's age when the core got it, (tick - seq) T, averaged over the packets since
+// the previous frame (a one-way delay to within a tick, both run indices counting from the common
+// epoch), and the fraction of the neighbour's sequence numbers up to the newest one seen that never
+// arrived (cumulative).
+class LinkAges {
+ public:
+  LinkAges(const std::string& log, int neighbours) : seen_(static_cast<std::size_t>(neighbours)), newest_(static_cast<std::size_t>(neighbours), -1),
+                                                      count_(static_cast<std::size_t>(neighbours), 0), last_delay_ms_(static_cast<std::size_t>(neighbours), 0.0) {
+    h5::Id file = h5::open_file_read(log);
+    period_s_ = h5::attr_f64(file.get(), "period_s");
+    h5::Id g = h5::open_group(file.get(), "packets");
+    tick_ = h5::read_i64(g.get(), "tick");
+    seq_ = h5::read_i64(g.get(), "seq");
+    nbr_ = h5::read_i64(g.get(), "neighbour");
+  }
+  // Adds delay_ms and loss to each of the frame's links from the packets used up to its tick.
+  void annotate(nlohmann::json& frame) {
+    const std::int64_t k = frame["k"].get<std::int64_t>();
+    std::vector<double> age_sum(seen_.size(), 0.0);
+    std::vector<int> n_age(seen_.size(), 0);
+    for (; next_ < tick_.size() && tick_[next_] <= k; ++next_) {
+      const auto n = static_cast<std::size_t>(nbr_[next_]);
+      const std::int64_t q = seq_[next_];
+      if (n >= seen_.size() || q < 0) continue;
+      age_sum[n] += static_cast<double>(tick_[next_] - q);
+      ++n_age[n];
+      auto& seen = seen_[n];
+      if (static_cast<std::size_t>(q) >= seen.size()) seen.resize(static_cast<std::size_t>(q) + 1, false);
+      if (!seen[static_cast<std::size_t>(q)]) seen[static_cast<std::size_t>(q)] = true, ++count_[n];
+      newest_[n] = std::max(newest_[n], q);
+    }
+    auto& links = frame["links"];
+    for (std::size_t n = 0; n < links.size() && n < seen_.size(); ++n) {
+      if (n_age[n] > 0) last_delay_ms_[n] = 1e3 * period_s_ * age_sum[n] / n_age[n];  // else the last one seen
+      links[n]["delay_ms"] = last_delay_ms_[n];
+      links[n]["loss"] = newest_[n] >= 0 ? 1.0 - static_cast<double>(count_[n]) / static_cast<double>(newest_[n] + 1) : 0.0;
+    }
+  }
+
+ private:
+  double period_s_ = 0;
+  std::vector<std::int64_t> tick_, seq_, nbr_;
+  std::vector<std::vector<bool>> seen_;
+  std::vector<std::int64_t> newest_, count_;
+  std::vector<double> last_delay_ms_;
+  std::size_t next_ = 0;
+};
 
 // Eq. (18)'s minimum B_i and whether it is met, as the station or the simulator recorded them.
 void add_passivity(nlohmann::json& scene, const std::string& log) {
@@ -73,6 +123,10 @@ ReplayResult serve_timeline(const std::string& log, const ReplayOptions& replay,
                  rec.flags, rec.exec_ns, rec.wake_latency_ns);
     if (pub->take(frame)) kept.push_back(view_frame_json(frame));
   });
+  if (!kept.empty()) {
+    LinkAges ages(log, static_cast<int>(kept.front()["links"].size()));
+    for (auto& f : kept) ages.annotate(f);
+  }
   const std::size_t stride = kept.size() / 4000 + 1;
   nlohmann::json history = nlohmann::json::array();
   for (std::size_t i = 0; i < kept.size(); i += stride) {

@@ -96,13 +96,17 @@ function fillHistory(s) {
     for (let e = 0; e < 3; ++e) charts.energy.data.datasets[e].data.push({x: t, y: r[4 + e]});
     charts.cons.data.datasets[0].data.push({x: t, y: r[7]});
     charts.tick.data.datasets[0].data.push({x: t, y: r[8]}); charts.tick.data.datasets[1].data.push({x: t, y: r[9]});
-    for (let j = 0; 10 + 2 * j + 1 < r.length; ++j) {
+    const L = s.neighbours.length;  // then (index delay, bound) per link, then (delay ms, loss %) per link
+    for (let j = 0; j < L; ++j) {
       charts.links.data.datasets[2 * j].data.push({x: t, y: r[10 + 2 * j]}); charts.links.data.datasets[2 * j + 1].data.push({x: t, y: r[11 + 2 * j]});
+      if (r.length >= 10 + 4 * L) {
+        charts.delay.data.datasets[2 * j].data.push({x: t, y: r[10 + 2 * L + 2 * j]}); charts.delay.data.datasets[2 * j + 1].data.push({x: t, y: r[11 + 2 * L + 2 * j]});
+      }
     }
   });
   const t0 = s.history[0][0], t1 = s.history[s.history.length - 1][0];
   Object.values(charts).forEach(c => { c.options.scales.x.min = Math.floor(t0); c.options.scales.x.max = t1; });
-  charts.delay.options.plugins.title.text = "per-link one-way delay / loss (live station only: not in the log)";
+  charts.delay.options.plugins.title.text = "per-link delay (age of each packet used, ms) / loss (cumulative %)";
 }
 
 function onScene(s) {

@@ -19,11 +19,15 @@ plots = (slice(515, 890), slice(10, 1390))  # the six plots under the canvas and
 nonwhite = min(float(np.mean(np.any(x[canvas] < 0.95, axis=2))) for x in (a, b))
 if nonwhite < 0.03:
     fail.append("3D canvas blank: %.2f %% non-white pixels" % (100 * nonwhite))
+for name, x in (("first", a), ("second", b)):  # drawn: the renderer's white background around the object (an undrawn WebGL canvas is black)
+    white = float(np.mean(np.all(x[canvas] >= 0.95, axis=2)))
+    if white < 0.3:
+        fail.append("3D canvas of the %s screenshot not drawn: %.1f %% white background" % (name, 100 * white))
 changed_canvas = int(np.sum(np.any(np.abs(a[canvas] - b[canvas]) > 0.02, axis=2)))
 
 
 def grey(x):  # this copy's shading and edges: grey, not white; the markers and the neighbours' copies are coloured
-    return (x.max(axis=2) - x.min(axis=2) < 0.04) & (x.max(axis=2) < 0.93)
+    return (x.max(axis=2) - x.min(axis=2) < 0.04) & (x.max(axis=2) < 0.93) & (x.max(axis=2) > 0.15)
 
 
 # the mesh itself moved: pixels grey in both screenshots that changed (the proxy, device and the

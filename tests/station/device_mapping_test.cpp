@@ -130,3 +130,60 @@ TEST(DeviceMapping, TheMapMovesTheDeviceIntoTheObjectFrameAndScalesEq26AndTheLim
   DOUBLES_EQUAL(3.3 / 2.0, b.core->config().max_device_force_N, 1e-12);
   CHECK(plan_station_2("kind = \"touch\"\ndamping_Ns_per_m = 1.5\nmap_scale = 2.0\n").status == PhaseStatus::kConfigError);  // 1.5 / 4 < 0.4: refused
 }
+
+namespace {
+// A device whose samples the test sets (one servo period per publish).
+class HeldDevice final : public drivers::HapticDevice {
+ public:
+  HeldDevice() : HapticDevice(caps(), drivers::SafetyLimits{}) {}
+  static drivers::DeviceCapabilities caps() {
+    drivers::DeviceCapabilities c = drivers::touch_default_capabilities();
+    c.workspace_radius_m = 0.1;
+    return c;
+  }
+  void start() override { arm(); }
+  void stop() override { disarm(); }
+  void hold_at(double x) {
+    drivers::DeviceSample s{};
+    s.position_m[0] = x;
+    s.sequence = ++seq_;
+    s.time_s = 1e-3 * static_cast<double>(seq_);
+    publish_sample(s);
+  }
+  void output(double f[3]) { take_force(f); }
+  std::uint64_t seq_ = 0;
+};
+}  // namespace
+
+// Positions outside the mapped workspace, handled explicitly at the station's device read: within
+// the device's workspace radius the map applies; beyond it (up to device.workspace_margin x the
+// radius) the position is clamped radially onto the radius and the tick is counted
+// (lifecycle.device.outside_workspace_ticks); beyond the margin the sample is out of range: the device
+// enters its safe state in that tick (no position, every later force exactly zero).
+TEST(DeviceMapping, APositionBeyondTheWorkspaceIsClampedAndCountedAndBeyondTheMarginIsTheSafeState) {
+  HeldDevice dev;
+  dev.start();
+  drivers::WorkspaceMapConfig mc;
+  mc.offset_m[0] = 0.5;
+  mc.workspace_radius_m = HeldDevice::caps().workspace_radius_m;
+  const drivers::WorkspaceMap map(mc);
+  TickInputs in;
+  in.device = &dev;
+  in.map = &map;
+  TickCounters cnt;
+  dev.hold_at(0.05);  // inside: mapped as it is
+  DOUBLES_EQUAL(0.55, read_device(in, cnt).x(), 1e-12);
+  LONGS_EQUAL(0, cnt.outside_workspace_ticks);
+  dev.hold_at(0.12);  // beyond the 0.1 m radius, within the 1.5 margin: clamped onto the radius, counted
+  DOUBLES_EQUAL(0.6, read_device(in, cnt).x(), 1e-12);
+  LONGS_EQUAL(1, cnt.outside_workspace_ticks);
+  dev.hold_at(0.2);  // beyond 1.5 x 0.1 m: out of range, the safe state in this tick
+  CHECK(std::isnan(read_device(in, cnt).x()));
+  CHECK(dev.fault() == drivers::DeviceFault::kOutOfRange);
+  LONGS_EQUAL(1, cnt.device_fault_ticks);
+  const double f[3] = {1.0, 0.0, 0.0};
+  dev.command_force(f);
+  double out[3] = {9, 9, 9};
+  dev.output(out);
+  DOUBLES_EQUAL(0.0, out[0], 0.0);
+}

@@ -15,6 +15,11 @@
 
 namespace haptic::drivers {
 
+// The device's figures in the object frame of a map with this scale (the station's eq. (26) check and
+// force limit use these; the one implementation). RT-safe.
+inline double object_frame_damping(double device_damping_Ns_per_m, double scale) { return device_damping_Ns_per_m / (scale * scale); }
+inline double object_frame_force_limit(double device_force_limit_N, double scale) { return device_force_limit_N / scale; }
+
 struct WorkspaceMapConfig {
   double offset_m[3] = {0.0, 0.0, 0.0};        // object-frame position of the device origin
   double rotation_deg[3] = {0.0, 0.0, 0.0};    // rx, ry, rz
@@ -34,8 +39,6 @@ class WorkspaceMap {
   // Non-RT: the inverse, object frame -> device frame (the guided set-up prints it).
   Eigen::Vector3d to_device(const Eigen::Vector3d& object_position_m) const;
 
-  double object_frame_damping(double device_damping_Ns_per_m) const { return device_damping_Ns_per_m / (scale_ * scale_); }
-  double object_frame_force_limit(double device_force_limit_N) const { return device_force_limit_N / scale_; }
   double scale() const { return scale_; }
   const Eigen::Matrix3d& rotation() const { return R_; }
   const Eigen::Vector3d& offset() const { return offset_; }

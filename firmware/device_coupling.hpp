@@ -26,8 +26,8 @@ struct DeviceCoupling {
   double force_limit_N = 0.0;        // the one force limit: min(device capability, device.max_force_N)
   bool force_feedback = true;        // false: position input only (no actuated axis): eq. (26) does not apply
   double map_scale = 1.0;            // device.map_scale: eq. (26) and the limit act in the object frame
-  double object_b_d_Ns_per_m() const { return b_d_Ns_per_m / (map_scale * map_scale); }  // b_d / scale^2
-  double object_force_limit_N() const { return force_limit_N / map_scale; }               // F_max / scale
+  double object_b_d_Ns_per_m() const { return drivers::object_frame_damping(b_d_Ns_per_m, map_scale); }  // b_d / scale^2
+  double object_force_limit_N() const { return drivers::object_frame_force_limit(force_limit_N, map_scale); }  // F_max / scale
 };
 
 // The coupling for a device with capabilities `caps` and the file's [device] keys (-1 = from the

@@ -9,6 +9,7 @@
 #include <sstream>
 #include <string>
 
+#include "drivers/falcon_device.hpp"
 #include "drivers/phantom_device.hpp"
 #include "drivers/spacemouse.hpp"
 #include "firmware/station_probe.hpp"
@@ -90,6 +91,25 @@ TEST(DeviceCoupling, Eq26ViolationProposesTheLargestKvcAndThatValueIsAccepted) {
   const std::string with_b = "kind = \"touch\"\ndamping_Ns_per_m = 0.3\ncoupling_damping_Ns_per_m = 0.05\ncoupling_stiffness_N_per_m = ";
   CHECK(plan(with_b + std::to_string(kb) + "\n").status == PhaseStatus::kOk);
   CHECK(plan(with_b + std::to_string(kb + 0.01) + "\n").status == PhaseStatus::kConfigError);
+}
+
+// Eq. (26) with the Falcon's figures (no published b_d: the key is required; its 8.9 N limit), and
+// through the workspace map (b_d / scale^2 in the object frame, F_max / scale).
+TEST(DeviceCoupling, Eq26WithTheFalconsFiguresRequiresItsDampingAndProposesTheLargestKvc) {
+  const std::string falcon = "kind = \"falcon\"\nfalcon_firmware_path = \"/nonexistent/falcon.bin\"\n";
+  const PlanResult none = plan(falcon);
+  CHECK(none.status == PhaseStatus::kConfigError);
+  CHECK_TEXT(contains(none.error, "device.damping_Ns_per_m: required for device.kind = \"falcon\"") && contains(none.error, "never assumed 0"),
+             none.error.c_str());
+  const PlanResult low = plan(falcon + "damping_Ns_per_m = 0.3\n");
+  CHECK_TEXT(contains(low.error, "eq. (26) violated"), low.error.c_str());
+  DOUBLES_EQUAL(150.0, proposed_kvc(low.error), 1e-9);
+  const PlanResult scaled = plan(falcon + "damping_Ns_per_m = 0.3\nmap_scale = 2\n");  // b_d / 4 = 0.075 in the object frame
+  DOUBLES_EQUAL(37.5, proposed_kvc(scaled.error), 1e-9);
+  const PlanResult ok = plan(falcon + "damping_Ns_per_m = 0.5\n");
+  CHECK_TEXT(ok.status == PhaseStatus::kOk, ok.error.c_str());
+  DOUBLES_EQUAL(drivers::falcon_capabilities().max_force_N, ok.plan->coupling->force_limit_N, 0);
+  DOUBLES_EQUAL(8.9, drivers::falcon_capabilities().max_force_N, 1e-9);
 }
 
 TEST(DeviceCoupling, GainsAndTheForceLimitComeFromTheDeviceAndTheFile) {

@@ -45,6 +45,9 @@ std::uint64_t frames_of(const drivers::HapticDevice& dev) {
 int report_fault(const drivers::HapticDevice& dev, std::ostream& out) {
   out << "device fault: " << drivers::fault_name(dev.fault()) << " (detail " << dev.fault_detail()
       << "): the device is in its safe state (zero force)\n";
+  if (dev.fault() == drivers::DeviceFault::kStaleSample)
+    out << "the device's servo loop delivered no new sample for more than --max-stale-reads ticks of 2 ms (as device.max_stale_reads, "
+           "default 5): a busy or non-RT machine can starve it; stop other load, or try a larger --max-stale-reads to see if it recovers\n";
   if (dev.fault() == drivers::DeviceFault::kCalibrationNeeded) {
     char code[16];
     std::snprintf(code, sizeof code, "0x%04x", static_cast<unsigned>(dev.fault_detail()));

@@ -77,9 +77,11 @@ env -u HAPTIC_TOOLS_DIR -u HAPTIC_BIN_DIR PATH=/usr/bin:/bin "$prefix/bin/haptic
 ls "$work"/runs/*/lab-report.json "$work"/runs/*/summary.json > /dev/null || { cat lab.log; echo "no lab-report.json/summary.json"; exit 1; }
 ls "$work"/runs/*/*.png > /dev/null 2>&1 || { cat lab.log; echo "haptic-lab collect drew no figures"; exit 1; }
 if command -v cyclictest > /dev/null; then  # the deploy guide's jitter comparison finds the installed haptic-jitter (P/bin not on PATH)
-  env -u HAPTIC_BIN_DIR PATH=/usr/bin:/bin "$prefix/share/haptic/tools/jitter/compare_cyclictest.sh" -D 1 -i 1000 -b 1 -o "$work/jitter" > jitter.log 2>&1 ||
-    { cat jitter.log; echo "compare_cyclictest.sh failed from the install tree"; exit 1; }
-  [ -f "$work/jitter/comparison.json" ] || { cat jitter.log; echo "compare_cyclictest.sh wrote no comparison.json"; exit 1; }
+  # exit 1 = the latency target was not met on this (loaded) machine: a measurement, not this check's
+  # subject; 2 = it could not run (e.g. haptic-jitter not found), which is
+  rc_j=0; env -u HAPTIC_BIN_DIR PATH=/usr/bin:/bin "$prefix/share/haptic/tools/jitter/compare_cyclictest.sh" -D 1 -i 1000 -b 1 -o "$work/jitter" > jitter.log 2>&1 || rc_j=\$?
+  [ "\$rc_j" -le 1 ] && [ -f "$work/jitter/comparison.json" ] ||
+    { cat jitter.log; echo "compare_cyclictest.sh did not run from the install tree (exit \$rc_j)"; exit 1; }
 fi
 EOF
 )

@@ -40,6 +40,7 @@ MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& te
   for (int t = 0; t < terms_; ++t)
     if (has_off[static_cast<std::size_t>(t)]) off_term_.push_back(t);
   off_terms_ = static_cast<int>(off_term_.size());
+  use_avx(true);
   // Shared values: every slot's off-diagonal values a multiple of slot 0's (to 1e-14 per entry).
   ratio_.assign(static_cast<std::size_t>(off_terms_), 1.0);
   shared_ = off_terms_ > 1;
@@ -67,14 +68,27 @@ MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& te
   }
 }
 
+bool MultiTermOperator::use_avx(bool allow) {
+#if defined(__x86_64__)
+  avx_ = allow && __builtin_cpu_supports("avx");
+#else
+  (void)allow;
+#endif
+  return avx_;
+}
+
 long MultiTermOperator::stored_doubles() const {
   return static_cast<long>(diag_.size() + off_.size()) + static_cast<long>(rowptr_.size() + col_.size()) / 2;
 }
 
 // TT, S: number of terms and of off-diagonal slots known at compile time (the common cases), or
-// -1 (run-time counts). Shared: one stored value per entry, slot s scaled by ratio[s].
-template <int W, int TT, int S, bool Shared>
-static void apply_kernel(int rows, int terms_rt, int off_terms_rt, const int* off_term, const double* ratio, const double* diag,
+// -1 (run-time counts). Shared: one stored value per entry, slot s scaled by ratio[s]. Wide (W = 3,
+// Shared): a row's off-diagonal sums in 4-lane vectors (the 3 columns and one unused lane, read from
+// the next node; rows that reach the last node stay scalar), each lane the same multiply and add in
+// the same order as the scalar loop, so the results are identical bit for bit.
+typedef double Lanes4 __attribute__((vector_size(32)));
+template <int W, int TT, int S, bool Shared, bool Wide = false>
+[[gnu::always_inline]] inline void apply_body(int rows, int terms_rt, int off_terms_rt, const int* off_term, const double* ratio, const double* diag,
                          const int* rowptr, const int* col, const double* off, const double* const* u, const double* to_y,
                          const double* to_h, double* y, double* h, double* quad) {
   constexpr int kT = MultiTermOperator::kMaxTerms;
@@ -97,7 +111,26 @@ static void apply_kernel(int rows, int terms_rt, int off_terms_rt, const int* of
       us[s] = up[off_term[s]];
       for (int c = 0; c < W; ++c) oacc[s][c] = 0.0;
     }
-    for (int e = rowptr[i]; e < rowptr[i + 1]; ++e) {
+    bool done = false;
+    if constexpr (Wide && W == 3 && Shared && S > 0) {
+      const int e0 = rowptr[i], e1 = rowptr[i + 1];
+      if (e1 > e0 && col[e1 - 1] < rows - 1) {  // columns ascend: the last one is the largest
+        Lanes4 o[kS] = {};
+        for (int e = e0; e < e1; ++e) {
+          const long j = static_cast<long>(col[e]) * 3;
+          const Lanes4 a = {off[e], off[e], off[e], off[e]};
+          for (int s = 0; s < S; ++s) {
+            Lanes4 x;
+            __builtin_memcpy(&x, us[s] + j, sizeof x);
+            o[s] += a * x;
+          }
+        }
+        for (int s = 0; s < S; ++s)
+          for (int c = 0; c < 3; ++c) oacc[s][c] = o[s][c];
+        done = true;
+      }
+    }
+    for (int e = done ? rowptr[i + 1] : rowptr[i]; e < rowptr[i + 1]; ++e) {
       const long j = static_cast<long>(col[e]) * W;
       const double* ov = off + static_cast<long>(e) * (Shared ? 1 : off_terms);
       for (int s = 0; s < off_terms; ++s) {
@@ -125,6 +158,23 @@ static void apply_kernel(int rows, int terms_rt, int off_terms_rt, const int* of
     for (int t = 0; t < terms; ++t) quad[t] = q[t];
 }
 
+#define HAPTIC_MTO_PARAMS                                                                                                    \
+  int rows, int terms_rt, int off_terms_rt, const int *off_term, const double *ratio, const double *diag, const int *rowptr, \
+      const int *col, const double *off, const double *const *u, const double *to_y, const double *to_h, double *y, double *h, \
+      double *quad
+#define HAPTIC_MTO_ARGS rows, terms_rt, off_terms_rt, off_term, ratio, diag, rowptr, col, off, u, to_y, to_h, y, h, quad
+template <int W, int TT, int S, bool Shared>
+static void apply_kernel(HAPTIC_MTO_PARAMS) {
+  apply_body<W, TT, S, Shared>(HAPTIC_MTO_ARGS);
+}
+#if defined(__x86_64__)
+// The same kernel compiled for AVX (256-bit lanes), chosen at run time when the CPU has it.
+template <int W, int TT, int S, bool Shared>
+__attribute__((target("avx"))) static void apply_kernel_avx(HAPTIC_MTO_PARAMS) {
+  apply_body<W, TT, S, Shared, true>(HAPTIC_MTO_ARGS);
+}
+#endif
+
 template <int W>
 void MultiTermOperator::apply_w(const double* const* u, const double* to_y, const double* to_h, double* y, double* h,
                                 double* quad) const {
@@ -136,6 +186,12 @@ void MultiTermOperator::apply_w(const double* const* u, const double* to_y, cons
   };
   const int key = 10 * terms_ + off_terms_;
   if (shared_) {
+#if defined(__x86_64__)
+    if (avx_ && key == 42) {
+      args(apply_kernel_avx<W, 4, 2, true>);
+      return;
+    }
+#endif
     switch (key) {
       case 42: args(apply_kernel<W, 4, 2, true>); break;
       default: args(apply_kernel<W, -1, -1, true>); break;

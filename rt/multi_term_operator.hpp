@@ -31,6 +31,9 @@ class MultiTermOperator {
   int width() const { return width_; }  // 3: node rows with three columns; 1: dof rows
   long stored_doubles() const;
   bool shared_values() const { return shared_; }
+  // The shared-values kernel runs an AVX build (4 lanes per block) when the CPU has AVX; it gives
+  // the same results bit for bit. Tests: false forces the scalar build; returns whether AVX is used.
+  bool use_avx(bool allow);
 
   // One pass: u[t] is term t's input (3n interleaved); y and h (each if not null; written, not
   // accumulated) receive the weighted sums; quad (if not null, terms() values, written) receives
@@ -45,6 +48,7 @@ class MultiTermOperator {
   void apply_w(const double* const* u, const double* to_y, const double* to_h, double* y, double* h, double* quad) const;
   int rows_ = 0, width_ = 3, terms_ = 0, off_terms_ = 0;
   bool shared_ = false;         // off_ holds slot 0's values only; slot s scales them by ratio_[s]
+  bool avx_ = false;            // the CPU runs the AVX build of the shared kernel (same results)
   std::vector<double> ratio_;   // per slot (1 for slot 0)
   std::vector<int> off_term_;   // slot s -> term index (terms that have off-diagonal entries)
   std::vector<double> diag_;    // rows x terms

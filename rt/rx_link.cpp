@@ -16,13 +16,14 @@ RxRule parse_rx_rule(const std::string& text, const std::string& key) {
 const char* rx_rule_name(RxRule rule) { return rule == RxRule::kNewestBySequence ? "newest" : "paper"; }
 
 namespace {
-// Nonzero if some value is inf or NaN (exponent bits all ones). Branch-free over the whole payload so
-// that it vectorizes: a payload is 3n doubles, read once here and once by the copy.
-std::uint64_t any_non_finite(const double* a, int n) {
+// Copies n values and returns nonzero if some value is inf or NaN (exponent bits all ones), in one
+// branch-free pass that vectorizes: a payload (3n doubles) is read once.
+std::uint64_t copy_non_finite(const double* from, double* to, int n) {
   std::uint64_t bad = 0;
   for (int i = 0; i < n; ++i) {
     std::uint64_t bits;
-    std::memcpy(&bits, a + i, sizeof bits);
+    std::memcpy(&bits, from + i, sizeof bits);
+    std::memcpy(to + i, &bits, sizeof bits);
     bad |= ((bits >> 52) & 0x7ffu) + 1u;  // 0x800 exactly when the exponent is 0x7ff
   }
   return bad & 0x800u;
@@ -55,6 +56,8 @@ void RxLink::init(int dofs, const double* x0, const double* v0, std::int64_t ini
   x_hat_.assign(x0, x0 + dofs);
   if (v0) v_hat_.assign(v0, v0 + dofs);
   else v_hat_.assign(static_cast<std::size_t>(dofs), 0.0);
+  x_in_.assign(static_cast<std::size_t>(dofs), 0.0);
+  v_in_.assign(static_cast<std::size_t>(dofs), 0.0);
   newest_seq_ = initial_sequence;
   max_seen_ = initial_sequence;
   rule_ = rule;
@@ -83,12 +86,13 @@ RxVerdict RxLink::offer(std::int64_t seq, double send_time_s, const double* x_ha
     ++counters_.future;
     return RxVerdict::kFuture;
   }
-  if (any_non_finite(x_hat, dofs_) != 0 || any_non_finite(v_hat, dofs_) != 0) {
+  // Into the landing buffers (the held packet stays intact if this one is refused), then swapped in.
+  if ((copy_non_finite(x_hat, x_in_.data(), dofs_) | copy_non_finite(v_hat, v_in_.data(), dofs_)) != 0) {
     ++counters_.non_finite;
     return RxVerdict::kNonFinite;
   }
-  std::memcpy(x_hat_.data(), x_hat, sizeof(double) * static_cast<std::size_t>(dofs_));
-  std::memcpy(v_hat_.data(), v_hat, sizeof(double) * static_cast<std::size_t>(dofs_));
+  x_hat_.swap(x_in_);  // swaps the buffers: no allocation
+  v_hat_.swap(v_in_);
   newest_seq_ = seq;
   max_seen_ = std::max(max_seen_, seq);
   newest_send_time_ = send_time_s;

@@ -73,6 +73,7 @@ class RxLink {
  private:
   int dofs_ = 0;
   std::vector<double> x_hat_, v_hat_;
+  std::vector<double> x_in_, v_in_;  // offer() copies and checks into these, swapped in when finite
   std::int64_t newest_seq_ = -1;
   std::int64_t max_seen_ = -1;
   RxRule rule_ = RxRule::kNewestBySequence;

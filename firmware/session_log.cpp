@@ -1,8 +1,11 @@
 #include "firmware/session_log.hpp"
 
+#include <elf.h>
+#include <link.h>
 #include <xxhash.h>
 
 #include <algorithm>
+#include <cstring>
 #include <stdexcept>
 
 namespace haptic::firmware {
@@ -206,6 +209,37 @@ TickRecord make_tick_record(const rt::StationCore& core, std::int64_t kr, const 
   return r;
 }
 
+namespace {
+// dl_iterate_phdr callback: the NT_GNU_BUILD_ID note of the main program (the first object).
+int find_build_id(dl_phdr_info* info, std::size_t, void* data) {
+  auto* out = static_cast<std::string*>(data);
+  for (int i = 0; i < info->dlpi_phnum; ++i) {
+    const ElfW(Phdr)& ph = info->dlpi_phdr[i];
+    if (ph.p_type != PT_NOTE) continue;
+    const auto* p = reinterpret_cast<const unsigned char*>(info->dlpi_addr + ph.p_vaddr);
+    const unsigned char* end = p + ph.p_memsz;
+    while (p + sizeof(ElfW(Nhdr)) <= end) {
+      const auto* n = reinterpret_cast<const ElfW(Nhdr)*>(p);
+      const unsigned char* name = p + sizeof(ElfW(Nhdr));
+      const unsigned char* desc = name + ((n->n_namesz + 3) & ~3u);
+      if (n->n_type == NT_GNU_BUILD_ID && n->n_namesz == 4 && std::memcmp(name, "GNU", 4) == 0 && desc + n->n_descsz <= end) {
+        static const char hex[] = "0123456789abcdef";
+        for (unsigned k = 0; k < n->n_descsz; ++k) out->push_back(hex[desc[k] >> 4]), out->push_back(hex[desc[k] & 15]);
+        return 1;
+      }
+      p = desc + ((n->n_descsz + 3) & ~3u);
+    }
+  }
+  return 1;  // only the main program
+}
+}  // namespace
+
+std::string program_build_id() {
+  std::string id;
+  dl_iterate_phdr(find_build_id, &id);
+  return id;
+}
+
 void write_session_header(hid_t file, const SessionInfo& info, const rt::StationConfig& c) {
   h5::attr(file, "format", std::string("haptic-session"));
   h5::attr(file, "version", kSessionLogVersion);
@@ -218,6 +252,7 @@ void write_session_header(hid_t file, const SessionInfo& info, const rt::Station
   h5::attr(file, "config_text", info.config_text);
   h5::attr(file, "fingerprint", info.fingerprint);
   h5::attr(file, "packet_values", std::string(info.packets_float32 ? "float32" : "float64"));
+  h5::attr(file, "build_id", program_build_id());
   if (info.damping_min_Ns_per_m >= 0) {
     h5::attr(file, "damping_min_Ns_per_m", info.damping_min_Ns_per_m);
     h5::attr(file, "passivity_condition_met", static_cast<std::int64_t>(info.passivity_condition_met ? 1 : 0));

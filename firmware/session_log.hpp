@@ -8,6 +8,7 @@
 //                    station_id (1-based), users, nodes, dofs, period_s, config_text (station
 //                    file or sim command line), fingerprint, packet_values ("float32" | "float64"),
 //                    damping_min_Ns_per_m and passivity_condition_met (eq. 18; the view's status),
+//                    build_id (the writing program's GNU build ID),
 //                    and at close: ticks, packets, dropped_records, dropped_ticks, truncated_at_tick,
 //                    lossy_packet_values, bytes_limit, ring_ticks (0: the whole run), first_tick (the
 //                    oldest tick row; > 0 only for a ring that wrapped), packets_complete_from_tick
@@ -85,6 +86,11 @@ struct CoreSetup {
   CoreSetup(const CoreSetup&) = delete;
   CoreSetup& operator=(const CoreSetup&) = delete;
 };
+
+// The running program's GNU build ID (hex; "" when it has none): which binary wrote a log. A log
+// replays bit-exactly with a build whose core does the same arithmetic; a different build ID is the
+// first thing to check when it does not. Not RT-safe.
+std::string program_build_id();
 
 // Writes the header (attributes + /core) of a new log. Not RT-safe.
 void write_session_header(hid_t file, const SessionInfo& info, const rt::StationConfig& core);

@@ -143,6 +143,9 @@ std::string ReplayResult::summary() const {
     os << ", bit-exact at every tick (state hash)";
   } else if (first_mismatch >= 0) {
     os << ", state hash differs first at tick " << first_mismatch << " (" << matched << " ticks matched before)";
+    if (recorded_build_id != replay_build_id)
+      os << "; the log was written by another build (" << (recorded_build_id.empty() ? "unknown" : recorded_build_id.substr(0, 12)) << ", this one "
+         << replay_build_id.substr(0, 12) << "): a change in the core's arithmetic since then also makes every tick differ";
   } else {
     os << ", " << matched << " matched";
   }
@@ -162,6 +165,8 @@ ReplayResult replay_session(const std::string& path, const ReplayOptions& opt, c
   ReplayResult res;
   res.station_id = static_cast<int>(h5::attr_i64(file.get(), "station_id"));
   res.source = h5::attr_str(file.get(), "source");
+  if (h5::has_attr(file.get(), "build_id")) res.recorded_build_id = h5::attr_str(file.get(), "build_id");
+  res.replay_build_id = program_build_id();
   res.gains_changed = opt.gains_changed();
   if (opt.damping_Ns_per_m >= 0) setup->config.damping_Ns_per_m = opt.damping_Ns_per_m;
   for (auto& g : setup->gains) scale(g.P, opt.p_scale), scale(g.D, opt.d_scale);

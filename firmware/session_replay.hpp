@@ -37,6 +37,8 @@ struct ReplayResult {
   double max_force_difference_N = 0;  // |F_replay - F_recorded| max over the ticks
   int station_id = 0;
   std::string source;
+  std::string recorded_build_id;      // the build that wrote the log ("" in logs before session 7)
+  std::string replay_build_id;        // this program's
   bool bit_exact() const { return !gains_changed && first_mismatch < 0 && ticks > 0 && matched == ticks; }
   // The log holds every input of the run, or the replay stopped (--to) before the first one lost.
   bool inputs_complete() const { return inputs_end < 0 || (stopped_at_to && inputs_end > last_tick); }

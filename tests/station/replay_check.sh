@@ -70,6 +70,7 @@ with h5py.File(sys.argv[1], "r+") as f:
     assert f["ticks/hash"].shape == (1000,), f["ticks/hash"].shape
     f.visit(lambda name: print("  h5py:", name, getattr(f[name], "shape", "(group)")) if name.count("/") < 1 or name.startswith(("ticks/", "packets/")) else None)
     assert "scene hash" in f.attrs["fingerprint"] and f.attrs["damping_min_Ns_per_m"] > 0, dict(f.attrs)
+    assert len(f.attrs["build_id"]) >= 16, "the writing program's GNU build ID: %r" % f.attrs["build_id"]
     x = f["packets/x"]
     row = 200
     v = x[row, 7]
@@ -77,7 +78,8 @@ with h5py.File(sys.argv[1], "r+") as f:
     print("perturbed packet", row, "tick", int(f["packets/tick"][row]), "value", repr(v), "->", repr(x[row, 7]))
 PY
 "$bin" replay "$out/perturbed.h5" > "$out/perturbed.log" 2>&1; rc=$?
-if [ $rc -ne 3 ] || ! grep -q "state hash differs first at tick" "$out/perturbed.log"; then
+# (written and replayed by this build: the replay must not blame another build)
+if [ $rc -ne 3 ] || ! grep -q "state hash differs first at tick" "$out/perturbed.log" || grep -q "another build" "$out/perturbed.log"; then
   echo "FAILED: a perturbed log must not replay bit-exactly (exit $rc):"; cat "$out/perturbed.log"; fail=1
 else echo "ok perturbed: $(cat "$out/perturbed.log")"; fi
 "$bin" replay "$out/sim/station-2.h5" --damping 60 --trace "$out/regain.csv" > "$out/regain.log" 2>&1; rc=$?

@@ -8,7 +8,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -17,6 +19,7 @@
 #include "drivers/simulated_device.hpp"
 #include "firmware/station_run.hpp"
 #include "firmware/station_tick.hpp"
+#include "platform/clock.hpp"
 #include "tests/station/station_files.hpp"
 
 using namespace haptic;
@@ -46,9 +49,11 @@ bool has(const json& list, const std::string& name) {
 }
 
 // The paper's star (1 is the hub): four run_station() calls on four threads with one common epoch.
-// station_extra[i] is appended to station i+1's [station] section.
+// station_extra[i] is appended to station i+1's [station] section. `before(id, text, overrides)`, if
+// given, runs on each station's thread before its run (overrides.start_at is the common epoch).
+using BeforeRun = std::function<void(int, const std::string&, const RunOverrides&)>;
 std::vector<int> run_four(const std::string& dir, int session, const std::vector<std::string>& station_extra,
-                          const std::vector<std::string>& net_extra = {"", "", "", ""}) {
+                          const std::vector<std::string>& net_extra = {"", "", "", ""}, const BeforeRun& before = nullptr) {
   const int base = test::station_port_base();
   const double epoch_s = static_cast<double>(read_clocks().monotonic_ns) * 1e-9 + 1.0;  // four plans (scene builds) on a loaded machine fit in 1 s
   std::vector<int> codes(4, -1);
@@ -63,10 +68,11 @@ std::vector<int> run_four(const std::string& dir, int session, const std::vector
     s.out_dir = dir;
     s.station_extra = station_extra[static_cast<std::size_t>(i - 1)];
     s.net_extra = net_extra[static_cast<std::size_t>(i - 1)];
-    threads.emplace_back([&codes, &stop, i, text = s.text(), epoch_s] {
+    threads.emplace_back([&codes, &stop, &before, i, text = s.text(), epoch_s] {
       RunOverrides o;
       o.quiet = true;
       o.start_at = epoch_s;
+      if (before) before(i, text, o);
       codes[static_cast<std::size_t>(i - 1)] = run_station(parse_station_file(text), o, stop);
     });
   }
@@ -344,6 +350,60 @@ TEST(StationPhases, AStationWhoseCopyDivergesExitsDivergedAndNamesIt) {
   CHECK(j["diverged"].get<bool>());
   CHECK(number(j["diverged_at_s"]) >= 0);
   LONGS_EQUAL(kExitDiverged, j["exit_code"].get<int>());
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, ALeafStartedAfterTheProbingPhaseRejoinsTheRunningSessionInProcess) {
+  // The rejoin phase (station_rejoin.cpp) in-process: four stations start on the common epoch;
+  // station 2's first run ends at run time 0.3 s (as if it had died), and it starts again with the
+  // same epoch at run time 0.6 s (a new endpoint: a new incarnation): it probes 0.2 s, learns the
+  // session's epoch, takes over the hub's object state and couples until the session's end.
+  // The multi-process SIGKILL/restart test is station_run4_rejoin.
+  const std::string dir = test::fresh_dir("rejoin");
+  const std::string keys =
+      "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 2.0\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 1.5\n"
+      "max_no_neighbour_fraction = 1.0\nrejoin_probe_s = 0.2\nstate_every = 1\n";
+  std::atomic<bool> stop{false};
+  const std::vector<int> codes = run_four(dir, 111, {keys, keys, keys, keys}, {"", "", "", ""}, [&](int id, const std::string& text, const RunOverrides& o) {
+    if (id != 2) return;
+    RunOverrides first = o;
+    first.duration_s = 0.3;
+    run_station(parse_station_file(text), first, stop);  // ends before the release: exit 8
+    haptic::platform::sleep_until_monotonic_ns(static_cast<std::int64_t>((o.start_at + 0.4 + 0.6) * 1e9));
+  });
+  const json j = station_json(dir, 2);
+  CHECK_TEXT(j["lifecycle"].contains("rejoin"), j.dump().substr(0, 400).c_str());
+  const json& rj = j["lifecycle"]["rejoin"];
+  LONGS_EQUAL(1, rj["state_from_station"].get<int>());  // the hub's copy
+  LONGS_EQUAL(1, rj["epoch_from_station"].get<int>());
+  CHECK(std::abs(number(rj["epoch_shift_ms"])) < 20);   // one host, one clock: the same epoch
+  CHECK(rj["coupled_at_tick"].get<long long>() > 0);
+  CHECK(number(j["ticks_run"]) > 100);                   // it ran coupled until the session's end
+  CHECK(codes[1] != kExitNoNeighbour && codes[1] != kExitRunFailed && codes[1] != kExitConfigError);
+  // It took over the hub's copy: its first state row is within 1 mm of the hub's row of that tick.
+  const auto rows = [&](int id) {
+    std::ifstream in(dir + "/station-" + std::to_string(id) + "-state.csv");
+    std::vector<std::vector<double>> out;
+    std::string line;
+    std::getline(in, line);  // header
+    while (std::getline(in, line)) {
+      std::vector<double> r;
+      std::stringstream ss(line);
+      for (std::string cell; std::getline(ss, cell, ',');) r.push_back(std::stod(cell));
+      out.push_back(r);
+    }
+    return out;
+  };
+  const auto hub = rows(1), leaf = rows(2);
+  CHECK(!leaf.empty());
+  double largest = NAN;
+  for (const auto& h : hub)
+    if (!leaf.empty() && h[0] == leaf[0][0]) {
+      largest = 0;
+      for (std::size_t c = 1; c + 2 < h.size(); c += 3)
+        largest = std::max(largest, std::hypot(h[c] - leaf[0][c], h[c + 1] - leaf[0][c + 1], h[c + 2] - leaf[0][c + 2]));
+    }
+  CHECK_TEXT(largest <= 1e-3, ("first rejoined state row " + std::to_string(largest * 1e3) + " mm from the hub's copy").c_str());
   std::filesystem::remove_all(dir);
 }
 

@@ -124,7 +124,7 @@ void add_view_options(CLI::App* app, int& port, std::string& bind, double& secon
 struct RunArgs {
   std::string config, out;
   double start_at = -1, duration = -1;
-  bool quiet = false, check = false;
+  bool quiet = false, check = false, probe_only = false;
 };
 
 // --scene and its material options (firmware/scene, rt::Material). Not RT-safe.
@@ -236,6 +236,10 @@ CLI::App* add_run_options(CLI::App& app, RunArgs& a) {
   run->add_option("--duration", a.duration, "Run time in s after probing (default: station.duration_s, else the scenario's)");
   run->add_flag("--check-config", a.check,
                 "Run every check `run` makes before it opens a socket (the plan phase), print a summary and exit: 0 valid, 2 configuration error");
+  run->add_flag("--probe-only", a.probe_only,
+                "Plan, open the device and endpoint, probe the neighbours (round trips, loss, clock offsets, fingerprints) at the common "
+                "epoch, write station-<id>.json and stop before coupling: 0 every neighbour answered and matches, 7 none answered, 3 otherwise "
+                "(start every station of the lab with the same --start-at; `haptic-lab check --probe` does)");
   run->footer(exit_code_help());
   run->add_flag("--quiet", a.quiet, "Only the final line");
 
@@ -313,6 +317,7 @@ int run_command(const RunArgs& a) {
   ov.out_dir = a.out;
   ov.duration_s = a.duration;
   ov.quiet = a.quiet;
+  ov.probe_only = a.probe_only;
   try {
     file = load_station_file(a.config);
   } catch (const std::exception& e) {

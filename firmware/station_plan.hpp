@@ -26,6 +26,8 @@ struct RunOverrides {
   std::string out_dir;       // --out, "": from the file
   double duration_s = -1;    // --duration, < 0: from the file
   bool quiet = false;
+  bool probe_only = false;   // --probe-only: plan, probe the neighbours (round trips, loss, clock offsets,
+                             // fingerprints), report and stop; no coupling, no run (haptic-lab check)
 };
 
 // Applies the file's [station] keys to the scenario (throws std::invalid_argument naming the key).

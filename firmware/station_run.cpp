@@ -383,7 +383,9 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
                             {"name", res.dev.device->capabilities().name},
                             {"simulated_user", plan.device.kind == "simulated"}};
   say_plan(plan, log);
+  const char* probe_only_late = "probe only: the session already runs (or its probing is over); give every station the same future --start-at";
   if (plan.times.rejoin) {
+    if (plan.overrides.probe_only) return pr.fail(PhaseStatus::kFailed, probe_only_late);  // never joins a running session
     if (!rejoin_session(plan, res, pr, stop, log)) return;
   } else {
     pr.probe = probe_neighbours(plan, *res.ep, stop);
@@ -391,6 +393,7 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
     if (pr.probe.status == PhaseStatus::kStopped) return;
     if (pr.probe.status != PhaseStatus::kOk) return pr.fail(pr.probe.status, pr.probe.message);
     if (pr.probe.running_session_from != 0) {  // a restart with a fresh epoch (relative start_delay_s): rejoin
+      if (plan.overrides.probe_only) return pr.fail(PhaseStatus::kFailed, probe_only_late);
       log.say("rejoining: " + pr.probe.message + "; this station is a restart, its own epoch is not the session's");
       plan.times.rejoin = true;
       pr.lifecycle["rejoin_detected_from_station"] = pr.probe.running_session_from;
@@ -398,6 +401,11 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
     }
   }
   note_probe(plan, pr, log);
+  if (plan.overrides.probe_only) {  // --probe-only: reachability, round trips, loss and clock offsets measured; nothing coupled
+    pr.lifecycle["probe_only"] = true;
+    log.say("probe only: every neighbour answered with a matching fingerprint; stopping before coupling (no run)");
+    return;
+  }
   double q0[3];
   const bool have_q0 = initial_device_position(*res.dev.device, q0);
   if (!have_q0) log.say("warning: the device gave no sample before coupling: the virtual proxy starts at the scenario's start");

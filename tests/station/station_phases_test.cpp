@@ -50,8 +50,9 @@ bool has(const json& list, const std::string& name) {
 
 // The paper's star (1 is the hub): four run_station() calls on four threads with one common epoch.
 // station_extra[i] is appended to station i+1's [station] section. `before(id, text, overrides)`, if
-// given, runs on each station's thread before its run (overrides.start_at is the common epoch).
-using BeforeRun = std::function<void(int, const std::string&, const RunOverrides&)>;
+// given, runs on each station's thread before its run (overrides.start_at is the common epoch; it
+// may change the overrides).
+using BeforeRun = std::function<void(int, const std::string&, RunOverrides&)>;
 std::vector<int> run_four(const std::string& dir, int session, const std::vector<std::string>& station_extra,
                           const std::vector<std::string>& net_extra = {"", "", "", ""}, const BeforeRun& before = nullptr) {
   const int base = test::station_port_base();
@@ -194,6 +195,28 @@ TEST(StationPhases, FourStationsWithThePredictiveDeadbandSendAStateAtLeastEveryI
     // measured 26-29 % on a quiet machine, 79 % at load 6 (late packets change the copies' motion):
     // only "not every tick" is independent of the machine's load
     CHECK_TEXT(sent < ticks, ("sent " + std::to_string(sent) + " of " + std::to_string(ticks)).c_str());
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// haptic-lab check --probe: every station probes at the common epoch, reports each link's round
+// trips and clock offset, and stops before coupling (no tick of the run, no device force).
+TEST(StationPhases, ProbeOnlyMeasuresEveryLinkAndStopsBeforeCoupling) {
+  const std::string dir = test::fresh_dir("probe-only");
+  const std::vector<int> codes =
+      run_four(dir, 112, {kShort, kShort, kShort, kShort}, {"", "", "", ""}, [](int, const std::string&, RunOverrides& o) { o.probe_only = true; });
+  for (int i = 1; i <= 4; ++i) {
+    LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
+    const json j = station_json(dir, i);
+    CHECK(j["conditions"].empty());
+    DOUBLES_EQUAL(0.0, number(j["ticks_run"]), 0.0);  // stopped before the run
+    CHECK(j["damping_Ns_per_m"].is_null());            // and before the core was built
+    CHECK(j["lifecycle"].value("probe_only", false));
+    for (const auto& l : j["links"]) {
+      CHECK(number(l["rtt_samples"]) > 0);       // reachability: measured round trips
+      CHECK(number(l["rtt_bound_ms_now"]) > 0);
+    }
+    CHECK_EQUAL(i == 1 ? 3u : 1u, j["lifecycle"]["clock_offsets"].size());  // one offset per neighbour
   }
   std::filesystem::remove_all(dir);
 }

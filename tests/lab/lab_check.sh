@@ -96,6 +96,16 @@ done
 p2=$(python3 -c "import json;print(json.load(open('$a/plan.json'))['stations'][1]['port'])")
 grep -q "address = \"127.0.0.1:$p2\"" "$a/station-1.toml" || fail "station 1 does not send to station 2's planned port $p2"
 echo "ok: two plans, two folders ($(basename "$a"), $(basename "$b")), sessions $sa / $sb, files 0600"
+# check --probe: the stations themselves measure reachability (round trips per link) and clock
+# offsets, probing only, nothing coupled; 1-2-3 has four directed links
+"$lab" check --probe "$a" >"$work/probe.log" 2>&1 || { cat "$work/probe.log"; fail "check --probe of three local stations failed"; }
+[ "$(grep -cE '^  station [123] -> [123]: [1-9][0-9]* round trips, mean [0-9.]+ ms, .*clock offset -?[0-9.]+ ms' "$work/probe.log")" = 4 ] ||
+  { cat "$work/probe.log"; fail "check --probe did not report round trips and a clock offset for each of the 4 directed links"; }
+for i in 1 2 3; do
+  python3 -c "import json,sys;j=json.load(open('$a/probe/station-$i.json'));sys.exit(0 if j['ticks_run']==0 and j['lifecycle']['probe_only'] else 1)" ||
+    fail "station $i's probe ran ticks or is not marked probe_only"
+done
+echo "ok: check --probe measured every link's round trips and clock offset, no run ($(grep -m1 'round trips' "$work/probe.log" | sed 's/^ *//'))"
 set +e
 "$lab" plan "$work/three.toml" --run-dir "$a" >"$work/rerun.log" 2>&1; rc_dir=$?
 "$lab" start "$a" --kill 4:1:2 >"$work/kill.log" 2>&1; rc_kill=$?
@@ -142,6 +152,10 @@ grep -q "scp -p $c/keys/station-4.key 192.168.10.14:$n/keys/" "$work/start-4pcs.
   grep -q "scp -p '192.168.10.13:$n/\*-s${n##*-s}/station-3\*' $c/" "$work/start-4pcs.log" ||
   { cat "$work/start-4pcs.log"; fail "the printed per-PC steps do not copy each station's key or fetch its outputs"; }
 echo "ok: the four-PC lab's printed steps give each PC its station file and key and fetch its outputs"
+"$lab" check --probe "$c" >"$work/probe-4pcs.log" 2>&1 || true  # exit 3 here: the station files are refused on this machine
+grep -q "\[192.168.10.13\] cd $n && haptic-station run --config station-3.toml --probe-only --out probe --start-at" "$work/probe-4pcs.log" ||
+  { cat "$work/probe-4pcs.log"; fail "check --probe of the four-PC lab does not print each PC's probe-only command"; }
+echo "ok: check --probe of the four-PC lab prints each PC's probe-only command (one epoch)"
 
 "$lab" run "$work/three.toml" --runs-dir "$work/runs" --no-plots >"$work/run.log" 2>&1 || { cat "$work/run.log"; fail "haptic-lab run failed"; }
 d=$(run_folder) || { cat "$work/run.log"; fail "no run folder with lab-report.json"; }

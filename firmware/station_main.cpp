@@ -142,6 +142,27 @@ void add_scene_options(CLI::App& sim, SimArgs& a, CLI::Option* nodes) {
                                            ": the paper ball's mean edge spring 100 N/m)")->needs(scene)->check(CLI::PositiveNumber);
 }
 
+// The `sim` options of what a run writes (traces, figures, live view, session logs) into `a`. Not RT-safe.
+void add_sim_output_options(CLI::App* sim, SimArgs& a) {
+  sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
+  sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)");
+  sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)");
+  sim->add_option("--release", a.release, "Push-hold-release script: release time in s (default: the scenario's, 12 for paper-best)");
+  sim->add_flag("--no-plots", a.no_plots, "Do not draw the PNG figures");
+  add_view_options(sim, a.view_port, a.view_bind, a.view_for);
+  sim->add_option("--view-station", a.view_station, "Station (1-based) the view shows (default 1; needs --record)");
+  sim->add_flag("--record", a.record, "Write each station's session log OUT/station-<i>.h5 (HDF5; `haptic-station replay` re-runs it bit-exactly)");
+  sim->add_option("--record-deflate", a.record_deflate, "With --record: HDF5 shuffle + deflate of the packet values at this level (1-9; 0 none, the "
+                                                        "default; as station.record_deflate; lossless, the replay stays bit-exact)")
+      ->check(CLI::Range(0, 9));
+  sim->add_option("--record-max-mb", a.record_max_mb, "With --record: each log stops growing at this many MB of rows and says at which tick "
+                                                      "(truncated_at_tick; replay re-runs up to there); as station.record_max_mb (default 0: unbounded)")
+      ->check(CLI::Range(0.0, 1e6));
+  sim->add_option("--record-ring-s", a.record_ring_s, "With --record: keep only the last S seconds in each log (a ring of bounded size; for inspection, not replay)")
+      ->check(CLI::Range(0.0, 86400.0));
+  sim->add_flag("--quiet", a.quiet, "No progress lines");
+}
+
 // The `sim` subcommand's options into `a`. Not RT-safe.
 CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   auto* sim = app.add_subcommand("sim", "Deterministic simulation of all stations (simulated users, impaired network)");
@@ -206,24 +227,7 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
                   "set-position modulation per edge: B_i = 0 unless --damping, no delay bound; rt/set_position_modulation.hpp) "
                   "(default eq18)");
   sim->add_option("--pspm-reservoir-J", a.pspm_reservoir_J, "With --consensus-passivity pspm: each edge's initial energy reservoir, J (default 0)");
-  sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
-  sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)");
-  sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)");
-  sim->add_option("--release", a.release, "Push-hold-release script: release time in s (default: the scenario's, 12 for paper-best)");
-  sim->add_flag("--no-plots", a.no_plots, "Do not draw the PNG figures");
-  add_view_options(sim, a.view_port, a.view_bind, a.view_for);
-  sim->add_option("--view-station", a.view_station, "Station (1-based) the view shows (default 1; needs --record)");
-  sim->add_flag("--record", a.record, "Write each station's session log OUT/station-<i>.h5 (HDF5; `haptic-station replay` re-runs it bit-exactly)");
-  sim->add_option("--record-deflate", a.record_deflate, "With --record: HDF5 shuffle + deflate of the packet values at this level (1-9; 0 none, the "
-                                                        "default; as station.record_deflate; lossless, the replay stays bit-exact)")
-      ->check(CLI::Range(0, 9));
-  sim->add_option("--record-max-mb", a.record_max_mb, "With --record: each log stops growing at this many MB of rows and says at which tick "
-                                                      "(truncated_at_tick; replay re-runs up to there); as station.record_max_mb (default 0: unbounded)")
-      ->check(CLI::Range(0.0, 1e6));
-  sim->add_option("--record-ring-s", a.record_ring_s, "With --record: keep only the last S seconds in each log (a ring of bounded size; for inspection, not replay)")
-      ->check(CLI::Range(0.0, 86400.0));
-  sim->add_flag("--quiet", a.quiet, "No progress lines");
-
+  add_sim_output_options(sim, a);
   return sim;
 }
 

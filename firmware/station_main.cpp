@@ -142,7 +142,8 @@ void add_scene_options(CLI::App& sim, SimArgs& a, CLI::Option* nodes) {
                                            ": the paper ball's mean edge spring 100 N/m)")->needs(scene)->check(CLI::PositiveNumber);
 }
 
-// The `sim` options of what a run writes (traces, figures, live view, session logs) into `a`. Not RT-safe.
+// The `sim` options of the script times (--push-end, --release) and of what a run writes (traces, figures,
+// live view, session logs) into `a`. Not RT-safe.
 void add_sim_output_options(CLI::App* sim, SimArgs& a) {
   sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
   sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)");

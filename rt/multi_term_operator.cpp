@@ -1,6 +1,8 @@
 #include "rt/multi_term_operator.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <map>
 #include <string>
 #include <stdexcept>
@@ -65,6 +67,24 @@ MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& te
       for (int s = 0; s < stored_slots; ++s) off_.push_back(v[static_cast<std::size_t>(off_term_[static_cast<std::size_t>(s)])]);
     }
     rowptr_[static_cast<std::size_t>(r) + 1] = static_cast<int>(col_.size());
+  }
+  // apply_consensus: terms [M, K, P, D] with off-diagonal entries in K and P only, shared values,
+  // isotropic; the ring holds the band of columns rows read (bounded: 4096 nodes, 256 KB).
+  const bool mkpd = terms_ == 4 && off_terms_ == 2 && off_term_[0] == 1 && off_term_[1] == 2 && shared_ && width_ == 3;
+  if (mkpd) {
+    int behind = 0, ahead = 0;
+    for (int r = 0; r < rows_; ++r)
+      if (rowptr_[static_cast<std::size_t>(r) + 1] > rowptr_[static_cast<std::size_t>(r)]) {
+        behind = std::max(behind, r - col_[static_cast<std::size_t>(rowptr_[static_cast<std::size_t>(r)])]);
+        ahead = std::max(ahead, col_[static_cast<std::size_t>(rowptr_[static_cast<std::size_t>(r) + 1]) - 1] - r);
+      }
+    int nodes = 1;
+    while (nodes <= behind + ahead + 1) nodes *= 2;  // node m lives from row m - ahead - 1 to row m + behind
+    if (nodes <= 4096) {
+      ring_mask_ = nodes - 1;
+      band_ahead_ = ahead;
+      ring_.assign(static_cast<std::size_t>(nodes) * 8 + 8, 0.0);
+    }
   }
 }
 
@@ -214,6 +234,114 @@ void MultiTermOperator::apply(const double* const* u, const double* to_y, const 
     apply_w<3>(u, to_y, to_h, y, h, quad);
   else
     apply_w<1>(u, to_y, to_h, y, h, quad);
+}
+
+namespace {
+// apply_consensus's pass. Every quantity is a 4-lane vector over a node's 3 columns (lane 3 unused:
+// it carries the next node's first column or 0 and is never stored or summed). The baseline build
+// runs the same lane operations in SSE2 pairs, the AVX build in 256-bit registers: the same bits.
+struct ConsensusPass {
+  int rows, ahead, mask;
+  const double* diag;  // rows x 4
+  const int* rowptr;
+  const int* col;
+  const double* off;
+  double ratio_k, ratio_p;
+  double* ring;
+  MultiTermOperator::ConsensusInputs in;
+  const double* to_y;
+  double* y;
+  double* quad;
+};
+#define HAPTIC_NODE_LANES(p, node, last)                                                              \
+  __extension__({                                                                                   \
+    Lanes4 r_;                                                                                      \
+    if (!(last)) {                                                                                  \
+      __builtin_memcpy(&r_, (p) + 3L * (node), sizeof r_);                                          \
+    } else {                                                                                        \
+      r_ = Lanes4{(p)[3L * (node)], (p)[3L * (node) + 1], (p)[3L * (node) + 2], 0.0};              \
+    }                                                                                               \
+    r_;                                                                                             \
+  })
+[[gnu::always_inline]] inline void consensus_body(const ConsensusPass& a) {
+  const int rows = a.rows, mask = a.mask, na = a.in.na, nf = a.in.nf;
+  const double nad = static_cast<double>(na);
+  double* __restrict ring = a.ring;
+  const auto produce = [&](int m) {  // u_K = x - x_d, u_P = na x - sum xs, as sum_group forms them
+    const bool last = m == rows - 1;
+    const Lanes4 xm = HAPTIC_NODE_LANES(a.in.x, m, last);
+    const Lanes4 d = xm - HAPTIC_NODE_LANES(a.in.x_d, m, last);
+    Lanes4 sx = nad * xm;
+    for (int n = 0; n < na; ++n) sx -= HAPTIC_NODE_LANES(a.in.xs[n], m, last);
+    double* slot = ring + 8L * (m & mask);
+    __builtin_memcpy(slot, &d, sizeof d);
+    __builtin_memcpy(slot + 4, &sx, sizeof sx);
+  };
+  const int first = std::min(a.ahead, rows);
+  for (int m = 0; m < first; ++m) produce(m);
+  const double ty0 = a.to_y[0], ty1 = a.to_y[1], ty2 = a.to_y[2], ty3 = a.to_y[3];
+  Lanes4 q0 = {}, q1 = {}, q2 = {}, q3 = {};
+  for (int i = 0; i < rows; ++i) {
+    if (i + a.ahead < rows) produce(i + a.ahead);
+    const bool last = i == rows - 1;
+    const Lanes4 vi = HAPTIC_NODE_LANES(a.in.v, i, last);
+    Lanes4 svi = {};
+    for (int n = 0; n < nf; ++n) svi += HAPTIC_NODE_LANES(a.in.vs[n], i, last);
+    Lanes4 di, sxi;
+    const double* own = ring + 8L * (i & mask);
+    __builtin_memcpy(&di, own, sizeof di);
+    __builtin_memcpy(&sxi, own + 4, sizeof sxi);
+    const double* dg = a.diag + 4L * i;
+    Lanes4 acc0 = dg[0] * vi, acc1 = dg[1] * di, acc2 = dg[2] * sxi, acc3 = dg[3] * svi;
+    Lanes4 ok = {}, op = {};
+    for (int e = a.rowptr[i]; e < a.rowptr[i + 1]; ++e) {
+      const double* rj = ring + 8L * (a.col[e] & mask);
+      Lanes4 uk, up;
+      __builtin_memcpy(&uk, rj, sizeof uk);
+      __builtin_memcpy(&up, rj + 4, sizeof up);
+      const double w = a.off[e];
+      ok += w * uk;
+      op += w * up;
+    }
+    acc1 += a.ratio_k * ok;
+    acc2 += a.ratio_p * op;
+    Lanes4 yv = {};
+    yv += ty0 * acc0;
+    yv += ty1 * acc1;
+    yv += ty2 * acc2;
+    yv += ty3 * acc3;
+    __builtin_memcpy(a.y + 3L * i, &yv, 3 * sizeof(double));
+    q0 += vi * acc0;
+    q1 += di * acc1;
+    q2 += sxi * acc2;
+    q3 += svi * acc3;
+  }
+  if (a.quad) {
+    a.quad[0] = (q0[0] + q0[1]) + q0[2];
+    a.quad[1] = (q1[0] + q1[1]) + q1[2];
+    a.quad[2] = (q2[0] + q2[1]) + q2[2];
+    a.quad[3] = (q3[0] + q3[1]) + q3[2];
+  }
+}
+void consensus_kernel(const ConsensusPass& a) { consensus_body(a); }
+#if defined(__x86_64__)
+__attribute__((target("avx"))) void consensus_kernel_avx(const ConsensusPass& a) { consensus_body(a); }
+#endif
+}  // namespace
+#undef HAPTIC_NODE_LANES
+
+void MultiTermOperator::apply_consensus(const ConsensusInputs& in, const double* to_y, double* y, double* quad) const {
+  ConsensusPass a{rows_, band_ahead_ + 1, ring_mask_, diag_.data(), rowptr_.data(), col_.data(), off_.data(), ratio_[0], ratio_[1],
+                  nullptr, in, to_y, y, quad};
+  // 64-byte aligned ring slots: a node's two loads share one cache line
+  a.ring = reinterpret_cast<double*>((reinterpret_cast<std::uintptr_t>(ring_.data()) + 63) & ~std::uintptr_t{63});
+#if defined(__x86_64__)
+  if (avx_) {
+    consensus_kernel_avx(a);
+    return;
+  }
+#endif
+  consensus_kernel(a);
 }
 
 double MultiTermOperator::quadratic_form(const double* u) const {

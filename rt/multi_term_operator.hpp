@@ -43,6 +43,25 @@ class MultiTermOperator {
   // u^T A_0 u for a one-term operator (or term 0 of several). RT-safe, one pass, writes nothing.
   double quadratic_form(const double* u) const;
 
+  // The tick's right-hand side (DESIGN.md step 4) in ONE pass, for the operator [M, K, P_0, D_0]
+  // with shared off-diagonal values (the paper's gains): the terms' inputs are formed in the pass,
+  //   u_M = v, u_K = x - x_d, u_P = na x - sum_n xs[n], u_D = sum_n vs[n],
+  // u_K and u_P a band ahead of the rows into a small ring (the columns a row reads; L1/L2 sized),
+  // u_M and u_D row by row; nothing of them is written to memory. y and quad as apply(). y equals
+  // apply() on those inputs bit for bit; quad is summed per column, then over the columns.
+  struct ConsensusInputs {
+    const double* v = nullptr;
+    const double* x = nullptr;
+    const double* x_d = nullptr;
+    const double* const* xs = nullptr;  // the active neighbours' x_hat (na of them)
+    int na = 0;
+    const double* const* vs = nullptr;  // the fresh neighbours' v_hat (nf of them)
+    int nf = 0;
+  };
+  bool fuses_consensus() const { return ring_mask_ > 0; }  // [M, K, P, D], shared, isotropic, band fits
+  void apply_consensus(const ConsensusInputs& in, const double* to_y, double* y, double* quad) const;
+  int ring_nodes() const { return ring_mask_ + 1; }
+
  private:
   template <int W>
   void apply_w(const double* const* u, const double* to_y, const double* to_h, double* y, double* h, double* quad) const;
@@ -54,6 +73,10 @@ class MultiTermOperator {
   std::vector<double> diag_;    // rows x terms
   std::vector<int> rowptr_, col_;
   std::vector<double> off_;     // nnz x off_terms (values of each slot on the union pattern)
+  // apply_consensus: ring of ring_mask_ + 1 nodes (a power of two > the band's width), 8 doubles per
+  // node [u_K 3, pad, u_P 3, pad] (one cache line); node m at m & ring_mask_. 0: no fusion.
+  int ring_mask_ = 0, band_ahead_ = 0;
+  mutable std::vector<double> ring_;
 };
 
 }  // namespace haptic::rt

@@ -290,16 +290,22 @@ void StationCore::prepare_contact_solve(StepLevel& level) {
   level.lu.compute(G);
 }
 
-void StationCore::sum_group(int g, double* sx, double* sv, double* d) const {
+void StationCore::group_inputs(int g, const double** xs, int& na, const double** vs, int& nf) const {
   const EdgeGains* eg = cfg_.neighbors[static_cast<std::size_t>(g)].gains;
-  const double* xs[kMaxNeighbors];
-  const double* vs[kMaxNeighbors];
-  int na = 0, nf = 0;
+  na = 0;
+  nf = 0;
   for (int j = g; j < neighbor_count(); ++j) {
     if (!active_[static_cast<std::size_t>(j)] || cfg_.neighbors[static_cast<std::size_t>(j)].gains != eg) continue;
     xs[na++] = views_[static_cast<std::size_t>(j)].x_hat;
     if (views_[static_cast<std::size_t>(j)].fresh) vs[nf++] = views_[static_cast<std::size_t>(j)].v_hat;
   }
+}
+
+void StationCore::sum_group(int g, double* sx, double* sv, double* d) const {
+  const double* xs[kMaxNeighbors];
+  const double* vs[kMaxNeighbors];
+  int na = 0, nf = 0;
+  group_inputs(g, xs, na, vs, nf);
   const double* x = x_.data();
   const double* xd = scene_.x_d.data();
   for (int i = 0; i < dofs_; ++i) {
@@ -319,12 +325,25 @@ void StationCore::build_rhs() {
   // x - x_hat_j = 0, delta_ij = 0).
   const double* u[4] = {v_.data(), tmp_.data(), tmp2_.data(), scratch_.data()};
   const double to_b[4] = {2.0 / (N * T_), -1.0 / N, -1.0, 1.0};
-  if (neighbor_count() > 0) {
-    sum_group(0, tmp2_.data(), scratch_.data(), tmp_.data());
+  if (rhs_op_.fuses_consensus()) {  // the terms' inputs formed inside the pass (sum_group's sums)
+    const double* xs[kMaxNeighbors];
+    const double* vs[kMaxNeighbors];
+    MultiTermOperator::ConsensusInputs in;
+    in.v = v_.data();
+    in.x = x_.data();
+    in.x_d = scene_.x_d.data();
+    in.xs = xs;
+    in.vs = vs;
+    group_inputs(0, xs, in.na, vs, in.nf);
+    rhs_op_.apply_consensus(in, to_b, rhs_.data(), quad);
   } else {
-    tmp_ = x_ - scene_.x_d;
+    if (neighbor_count() > 0) {
+      sum_group(0, tmp2_.data(), scratch_.data(), tmp_.data());
+    } else {
+      tmp_ = x_ - scene_.x_d;
+    }
+    rhs_op_.apply(u, to_b, nullptr, rhs_.data(), nullptr, quad);
   }
-  rhs_op_.apply(u, to_b, nullptr, rhs_.data(), nullptr, quad);
   // E_i(k) = 1/N (|v|_M^2 / 2 + |x - x_d|_K^2 / 2) at the start of the tick (eq. 12)
   energy_.vo_J = 0.5 * (quad[0] + quad[1]) / N;
   // Further gain groups (edges with their own gains; rare): two matvecs each.

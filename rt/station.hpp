@@ -263,6 +263,8 @@ class StationCore {
   const double* modulation_target(int j, std::int64_t k);
   // Sums of gain group g (neighbours sharing cfg_.neighbors[g].gains): sx = sum_active (x - x_hat_j),
   // sv = sum_{active, fresh} v_hat_j, and (if d) d = x - x_d, in one pass. RT-safe.
+  // Gain group g's active neighbours' x_hat (na) and fresh ones' v_hat (nf), in neighbour order.
+  void group_inputs(int g, const double** xs, int& na, const double** vs, int& nf) const;
   void sum_group(int g, double* sx, double* sv, double* d) const;
   // Steps 6 and 7 of the first gain group: D_0 v_hat and P_0 v_hat in one operator pass, then ONE
   // pass over the dofs for x_hat = x + T/2 v_hat, |v_hat|^2 and the residual's energy

@@ -206,3 +206,66 @@ TEST(MultiTerm, the_avx_kernel_gives_the_scalar_kernels_bits_and_one_value_is_st
     CHECK_EQUAL(0, std::memcmp(qw, qs, sizeof(double) * 4));
   }
 }
+
+// The tick's fused right-hand-side pass (apply_consensus) forms the terms' inputs inside the pass
+// (x - x_d and na x - sum x_hat_j a band ahead in a ring, v and sum v_hat_j row by row). It must
+// give the two-pass form's right-hand side (sum_group's inputs, then apply) bit for bit, in its AVX
+// and its baseline build alike (replay needs the same bits on every CPU), and the same energies.
+TEST(MultiTerm, the_fused_consensus_pass_gives_the_two_pass_right_hand_side_bit_for_bit) {
+  for (int nodes : {33, 3000}) {
+    const Scene s = build_scene(nodes == 33 ? make_paper_ball(0.05) : make_lattice_ball(nodes, 0.05), SceneParams{});
+    const EdgeGains g = paper_edge_gains(s);
+    MultiTermOperator op({&s.M, &s.K, &g.P, &g.D});
+    CHECK_TRUE(op.fuses_consensus());
+    CHECK_TRUE(op.ring_nodes() < s.nodes || nodes == 33);  // a band, not the whole object
+    const auto n = static_cast<std::size_t>(s.dofs);
+    std::mt19937 rng(static_cast<unsigned>(nodes) + 7);
+    std::uniform_real_distribution<double> U(-1, 1);
+    auto random_vec = [&](double scale, const double* base) {
+      std::vector<double> r(n);
+      for (std::size_t i = 0; i < n; ++i) r[i] = (base ? base[i] : 0.0) + scale * U(rng);
+      return r;
+    };
+    const std::vector<double> x = random_vec(1e-3, s.x_d.data()), v = random_vec(1e-2, nullptr);
+    std::vector<std::vector<double>> xj, vj;
+    for (int k = 0; k < 3; ++k) {
+      xj.push_back(random_vec(1e-3, s.x_d.data()));
+      vj.push_back(random_vec(1e-2, nullptr));
+    }
+    // three active neighbours, two of them fresh
+    const double* xs[3] = {xj[0].data(), xj[1].data(), xj[2].data()};
+    const double* vs[2] = {vj[0].data(), vj[2].data()};
+    std::vector<double> d(n), sx(n), sv(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      d[i] = x[i] - s.x_d[static_cast<long>(i)];
+      double a = 3 * x[i];
+      for (const double* p : xs) a -= p[i];
+      sx[i] = a;
+      double b = 0;
+      for (const double* p : vs) b += p[i];
+      sv[i] = b;
+    }
+    const double* u[4] = {v.data(), d.data(), sx.data(), sv.data()};
+    const double to_y[4] = {2.0 / (4 * 0.002), -0.25, -1.0, 1.0};
+    std::vector<double> two_pass(n), fused(n), fused_base(n);
+    double q2[MultiTermOperator::kMaxTerms] = {}, qf[MultiTermOperator::kMaxTerms] = {}, qb[MultiTermOperator::kMaxTerms] = {};
+    op.apply(u, to_y, nullptr, two_pass.data(), nullptr, q2);
+    MultiTermOperator::ConsensusInputs in;
+    in.v = v.data();
+    in.x = x.data();
+    in.x_d = s.x_d.data();
+    in.xs = xs;
+    in.na = 3;
+    in.vs = vs;
+    in.nf = 2;
+    const bool avx = op.use_avx(true);
+    op.apply_consensus(in, to_y, fused.data(), qf);
+    op.use_avx(false);
+    op.apply_consensus(in, to_y, fused_base.data(), qb);
+    CHECK_EQUAL(0, std::memcmp(two_pass.data(), fused.data(), sizeof(double) * n));
+    CHECK_EQUAL(0, std::memcmp(fused.data(), fused_base.data(), sizeof(double) * n));
+    CHECK_EQUAL(0, std::memcmp(qf, qb, sizeof(double) * 4));
+    for (int t = 0; t < 4; ++t) DOUBLES_EQUAL(q2[t], qf[t], 1e-12 * std::abs(q2[t]));
+    if (!avx) printf("\n  note: this CPU has no AVX; both runs used the baseline build\n");
+  }
+}

@@ -2,42 +2,70 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace haptic::rt {
+
+namespace {
+
+using Index = std::size_t;
+
+// max |a_ij - a_ji| <= 1e-12 max |a_ij|: CG needs a symmetric A, and the upper storage uses a_ij
+// (i < j) for both.
+void require_symmetric(const SparseColMajor& A, const SparseRowMajor& R) {
+  const SparseRowMajor At(A.transpose());
+  const SparseRowMajor diff = R - At;
+  double scale = 0, worst = 0;
+  for (int k = 0; k < R.nonZeros(); ++k) scale = std::max(scale, std::abs(R.valuePtr()[k]));
+  for (int k = 0; k < diff.nonZeros(); ++k) worst = std::max(worst, std::abs(diff.valuePtr()[k]));
+  if (!(worst <= 1e-12 * scale)) throw std::invalid_argument("JacobiCg: matrix is not symmetric");
+}
+
+}  // namespace
 
 JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance) {
   if (A.rows() != A.cols()) throw std::invalid_argument("JacobiCg: matrix is not square");
   if (width != 1 && width != 3) throw std::invalid_argument("JacobiCg: width must be 1 or 3");
   if (!(relative_tolerance > 0 && relative_tolerance < 1)) throw std::invalid_argument("JacobiCg: tolerance must be in (0, 1)");
   n_ = static_cast<int>(A.rows());
-  const SparseRowMajor R(A);  // symmetric: rows of A
-  rowptr_.assign(R.outerIndexPtr(), R.outerIndexPtr() + n_ + 1);
-  colidx_.assign(R.innerIndexPtr(), R.innerIndexPtr() + R.nonZeros());
-  val_.assign(R.valuePtr(), R.valuePtr() + R.nonZeros());
-  dinv_.assign(static_cast<std::size_t>(n_), 0.0);
-  std::vector<double> diag(static_cast<std::size_t>(n_), 0.0);
+  SparseRowMajor R(A);  // rows of A
+  R.makeCompressed();
+  require_symmetric(A, R);
+  const int* rp = R.outerIndexPtr();
+  const int* ci = R.innerIndexPtr();
+  const double* av = R.valuePtr();
+  diag_.assign(static_cast<Index>(n_), 0.0);
+  dinv_.assign(static_cast<Index>(n_), 0.0);
+  int band = 0;
+  long upper_entries = 0;
   for (int i = 0; i < n_; ++i)
-    for (int p = rowptr_[static_cast<std::size_t>(i)]; p < rowptr_[static_cast<std::size_t>(i) + 1]; ++p)
-      if (colidx_[static_cast<std::size_t>(p)] == i) diag[static_cast<std::size_t>(i)] += val_[static_cast<std::size_t>(p)];
+    for (int p = rp[i]; p < rp[i + 1]; ++p) {
+      if (ci[p] == i) diag_[static_cast<Index>(i)] += av[p];
+      if (ci[p] > i) {
+        band = std::max(band, ci[p] - i);
+        ++upper_entries;
+      }
+    }
   for (int i = 0; i < n_; ++i) {
-    if (!(diag[static_cast<std::size_t>(i)] > 0)) throw std::invalid_argument("JacobiCg: non-positive diagonal");
-    dinv_[static_cast<std::size_t>(i)] = 1.0 / diag[static_cast<std::size_t>(i)];
+    if (!(diag_[static_cast<Index>(i)] > 0)) throw std::invalid_argument("JacobiCg: non-positive diagonal");
+    dinv_[static_cast<Index>(i)] = 1.0 / diag_[static_cast<Index>(i)];
   }
   // Gershgorin discs of D^{-1/2} A D^{-1/2} (unit diagonal) and of A.
   double radius_scaled = 0, lo_a = INFINITY, hi_a = 0;
   for (int i = 0; i < n_; ++i) {
     double rs = 0, ra = 0;
-    for (int p = rowptr_[static_cast<std::size_t>(i)]; p < rowptr_[static_cast<std::size_t>(i) + 1]; ++p) {
-      const int j = colidx_[static_cast<std::size_t>(p)];
+    const double di = diag_[static_cast<Index>(i)];
+    for (int p = rp[i]; p < rp[i + 1]; ++p) {
+      const int j = ci[p];
       if (j == i) continue;
-      const double a = std::abs(val_[static_cast<std::size_t>(p)]);
+      const double a = std::abs(av[p]);
       ra += a;
-      rs += a / std::sqrt(diag[static_cast<std::size_t>(i)] * diag[static_cast<std::size_t>(j)]);
+      rs += a / std::sqrt(di * diag_[static_cast<Index>(j)]);
     }
     radius_scaled = std::max(radius_scaled, rs);
-    lo_a = std::min(lo_a, diag[static_cast<std::size_t>(i)] - ra);
-    hi_a = std::max(hi_a, diag[static_cast<std::size_t>(i)] + ra);
+    lo_a = std::min(lo_a, di - ra);
+    hi_a = std::max(hi_a, di + ra);
   }
   if (!(radius_scaled < 1) || !(lo_a > 0))
     throw std::invalid_argument("JacobiCg: matrix is not diagonally dominant enough for a proven iteration cap");
@@ -47,30 +75,179 @@ JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance
   const double rho = (sk - 1) / (sk + 1);
   const double need = relative_tolerance / (2 * std::sqrt(kappa_a_));
   cap_ = rho <= 0 ? 1 : std::max(1, static_cast<int>(std::ceil(std::log(need) / std::log(rho))));
-  const auto w = static_cast<std::size_t>(n_) * 3;
+
+  upper_ = band <= std::numeric_limits<std::uint16_t>::max();
+  if (upper_) {
+    band_ = band;
+    rowptr_.assign(static_cast<Index>(n_) + 1, 0);
+    offset_.reserve(static_cast<Index>(upper_entries));
+    val_.reserve(static_cast<Index>(upper_entries));
+    for (int i = 0; i < n_; ++i) {
+      for (int p = rp[i]; p < rp[i + 1]; ++p)
+        if (ci[p] > i) {
+          offset_.push_back(static_cast<std::uint16_t>(ci[p] - i));
+          val_.push_back(av[p]);
+        }
+      rowptr_[static_cast<Index>(i) + 1] = static_cast<int>(val_.size());
+    }
+    unsigned slots = 1;
+    while (slots <= static_cast<unsigned>(band)) slots *= 2;  // > band: rows i..i+band live at once
+    ring_mask_ = slots - 1;
+    ring_.assign(static_cast<Index>(slots) * 4, 0.0);  // 4 doubles a row (W <= 3; aligned lanes)
+    diag_.shrink_to_fit();
+  } else {
+    diag_ = {};
+    rowptr_.assign(rp, rp + n_ + 1);
+    colidx_.assign(ci, ci + R.nonZeros());
+    val_.assign(av, av + R.nonZeros());
+  }
+  use_avx(true);
+  const auto w = static_cast<Index>(n_) * 3;
   p_.assign(w, 0.0);
   q_.assign(w, 0.0);
 }
 
-long JacobiCg::stored_doubles() const {
-  return static_cast<long>(val_.size() + dinv_.size() + p_.size() + q_.size()) +
-         static_cast<long>(rowptr_.size() + colidx_.size()) / 2;
+bool JacobiCg::use_avx(bool allow) {
+#if defined(__x86_64__)
+  avx_ = allow && __builtin_cpu_supports("avx");
+#else
+  (void)allow;
+#endif
+  return avx_;
 }
 
-template <int W>
-void JacobiCg::multiply_fixed(const double* x, double* y) const {
-  const int* rp = rowptr_.data();
-  const int* ci = colidx_.data();
-  const double* v = val_.data();
-  for (int i = 0; i < n_; ++i) {
+long JacobiCg::stored_doubles() const {
+  return static_cast<long>(val_.size() + diag_.size() + dinv_.size() + ring_.size() + p_.size() + q_.size()) +
+         static_cast<long>(rowptr_.size() + colidx_.size()) / 2 + static_cast<long>(offset_.size()) / 4;
+}
+
+// One matrix pass: row_done(i, acc) receives acc = (A x)_i (W columns) for i = 0, 1, ..., n-1 in
+// order. Upper storage: acc = partial_i + a_ii x_i + sum_{j>i} a_ij x_j, where partial_i (S
+// doubles per row, the first W used) collected a_ki x_k from the rows k < i in ascending k: the
+// same terms in the same order as the full row's sum, so the two storages give the same bits for an
+// exactly symmetric A. partial is indexed by (row & mask), must be zero on entry and is left zero.
+// Wide (W = 3, S = 4): a row's columns in 4-lane vectors (the 4th lane reads the next node and is
+// dropped; rows that reach the last node stay scalar), each lane the same multiply and add in the
+// same order as the scalar loop (no FMA), so the results are identical bit for bit.
+typedef double Lanes4 __attribute__((vector_size(32)));
+
+namespace {
+
+struct UpperRows {
+  int n;
+  const int* rowptr;
+  const std::uint16_t* offset;
+  const double* val;
+  const double* diag;
+};
+
+template <int W, class RowDone>
+[[gnu::always_inline]] inline RowDone full_rows(int n, const int* rp, const int* ci, const double* v, const double* x, RowDone row_done) {
+  for (int i = 0; i < n; ++i) {
     double acc[W] = {};
-    for (int p = rp[i]; p < rp[i + 1]; ++p) {
-      const double a = v[p];
-      const double* xj = x + static_cast<long>(ci[p]) * W;
+    for (int e = rp[i]; e < rp[i + 1]; ++e) {
+      const double a = v[e];
+      const double* xj = x + static_cast<long>(ci[e]) * W;
       for (int c = 0; c < W; ++c) acc[c] += a * xj[c];
     }
-    for (int c = 0; c < W; ++c) y[static_cast<long>(i) * W + c] = acc[c];
+    row_done(i, acc);
   }
+  return row_done;
+}
+
+template <int W, int S, bool Wide, class RowDone>
+[[gnu::always_inline]] inline RowDone upper_rows(const UpperRows& m, const double* __restrict x, double* __restrict partial,
+                                                 unsigned mask, RowDone row_done) {
+  const int n = m.n;
+  const int* rp = m.rowptr;
+  const std::uint16_t* off = m.offset;
+  const double* v = m.val;
+  for (int i = 0; i < n; ++i) {
+    const int e0 = rp[i], e1 = rp[i + 1];
+    double* own = partial + static_cast<long>(static_cast<unsigned>(i) & mask) * S;
+    const double* xi = x + static_cast<long>(i) * W;
+    double acc[W];
+    if constexpr (Wide) {
+      static_assert(W == 3 && S == 4);
+      if (i < n - 1 && (e1 == e0 || i + off[e1 - 1] < n - 1)) {  // offsets ascend: the last is the largest
+        Lanes4 xv, o;
+        __builtin_memcpy(&xv, xi, sizeof xv);
+        xv[3] = 0;
+        __builtin_memcpy(&o, own, sizeof o);
+        const double di = m.diag[i];
+        Lanes4 a4 = o + Lanes4{di, di, di, di} * xv;
+        const Lanes4 zero = {};
+        __builtin_memcpy(own, &zero, sizeof zero);
+        for (int e = e0; e < e1; ++e) {
+          const double a = v[e];
+          const Lanes4 av = {a, a, a, a};
+          const unsigned j = static_cast<unsigned>(i) + off[e];
+          Lanes4 xj, pj;
+          __builtin_memcpy(&xj, x + static_cast<long>(j) * 3, sizeof xj);
+          double* pp = partial + static_cast<long>(j & mask) * 4;
+          __builtin_memcpy(&pj, pp, sizeof pj);
+          a4 += av * xj;
+          pj += av * xv;
+          __builtin_memcpy(pp, &pj, sizeof pj);
+        }
+        for (int c = 0; c < 3; ++c) acc[c] = a4[c];
+        row_done(i, acc);
+        continue;
+      }
+    }
+    double xl[W];
+    for (int c = 0; c < W; ++c) {
+      xl[c] = xi[c];
+      acc[c] = own[c] + m.diag[i] * xl[c];
+    }
+    for (int c = 0; c < S; ++c) own[c] = 0;
+    for (int e = e0; e < e1; ++e) {
+      const double a = v[e];
+      const unsigned j = static_cast<unsigned>(i) + off[e];
+      const double* xj = x + static_cast<long>(j) * W;
+      double* pj = partial + static_cast<long>(j & mask) * S;
+      for (int c = 0; c < W; ++c) {
+        acc[c] += a * xj[c];
+        pj[c] += a * xl[c];
+      }
+    }
+    row_done(i, acc);
+  }
+  return row_done;
+}
+
+#if defined(__x86_64__)
+template <int W, class RowDone>
+__attribute__((target("avx"))) RowDone upper_rows_avx(const UpperRows& m, const double* x, double* partial, unsigned mask,
+                                                      RowDone row_done) {
+  return upper_rows<W, 4, W == 3>(m, x, partial, mask, row_done);
+}
+#endif
+
+}  // namespace
+
+template <int W, class RowDone>
+RowDone JacobiCg::pass(const double* x, double* partial, unsigned mask, RowDone row_done) const {
+  if (!upper_) return full_rows<W>(n_, rowptr_.data(), colidx_.data(), val_.data(), x, row_done);
+  const UpperRows m{n_, rowptr_.data(), offset_.data(), val_.data(), diag_.data()};
+#if defined(__x86_64__)
+  if (avx_) return upper_rows_avx<W>(m, x, partial, mask, row_done);
+#endif
+  return upper_rows<W, 4, false>(m, x, partial, mask, row_done);
+}
+
+// Scalar; y itself collects the partial sums (stride W, mask: every row its own slot).
+template <int W>
+void JacobiCg::multiply_fixed(const double* x, double* y) const {
+  const auto done = [y](int i, const double* acc) {
+    for (int c = 0; c < W; ++c) y[static_cast<long>(i) * W + c] = acc[c];
+  };
+  if (!upper_) {
+    full_rows<W>(n_, rowptr_.data(), colidx_.data(), val_.data(), x, done);
+    return;
+  }
+  for (long k = 0; k < static_cast<long>(n_) * W; ++k) y[k] = 0;
+  upper_rows<W, W, false>(UpperRows{n_, rowptr_.data(), offset_.data(), val_.data(), diag_.data()}, x, y, ~0u, done);
 }
 
 void JacobiCg::multiply(const double* x, double* y, int width) const {
@@ -80,27 +257,18 @@ void JacobiCg::multiply(const double* x, double* y, int width) const {
     multiply_fixed<1>(x, y);
 }
 
-// Preconditioned CG (Saad, Alg. 9.1) run on W independent systems; one matrix pass per iteration
-// with the p.q products accumulated in it, z = D^{-1} r never stored (three vector passes); the
-// initial residual is formed in the initial matvec's pass.
+namespace {
+
+// Row-local work of the initial pass: r = b - A x, p = z = D^{-1} r, |b|^2, |r|^2, r.z per column.
+// Passed by value into the pass so the sums stay in registers.
 template <int W>
-int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int max_iterations) {
-  double* p = p_.data();
-  double* q = q_.data();
-  const double* dinv = dinv_.data();
-  const int* rp = rowptr_.data();
-  const int* ci = colidx_.data();
-  const double* av = val_.data();
-  // r = b - A x, p = z = D^{-1} r and the products, in the initial matvec's pass (row-local).
-  double bb = 0, rr = 0;
-  double rz[W] = {};
-  for (int i = 0; i < n_; ++i) {
-    double acc[W] = {};
-    for (int e = rp[i]; e < rp[i + 1]; ++e) {
-      const double a = av[e];
-      const double* xj = x + static_cast<long>(ci[e]) * W;
-      for (int c = 0; c < W; ++c) acc[c] += a * xj[c];
-    }
+struct InitialRows {
+  const double* b;
+  double* r;
+  double* p;
+  const double* dinv;
+  double bb = 0, rr = 0, rz[W] = {};
+  void operator()(int i, const double* acc) {
     for (int c = 0; c < W; ++c) {
       const long k = static_cast<long>(i) * W + c;
       r[k] = b[k] - acc[c];
@@ -110,25 +278,47 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
       rz[c] += r[k] * p[k];
     }
   }
+};
+
+// Row-local work of an iteration's pass: q = A p and p.q per column.
+template <int W>
+struct DirectionRows {
+  const double* p;
+  double* q;
+  double pq[W] = {};
+  void operator()(int i, const double* acc) {
+    const long k = static_cast<long>(i) * W;
+    for (int c = 0; c < W; ++c) {
+      q[k + c] = acc[c];
+      pq[c] += p[k + c] * acc[c];
+    }
+  }
+};
+
+}  // namespace
+
+// Preconditioned CG (Saad, Alg. 9.1) run on W independent systems; one matrix pass per iteration
+// with the p.q products accumulated in it, z = D^{-1} r never stored (three vector passes); the
+// initial residual is formed in the initial matvec's pass.
+template <int W>
+int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int max_iterations) {
+  double* p = p_.data();
+  double* q = q_.data();
+  double* ring = ring_.data();
+  const double* dinv = dinv_.data();
+  // r = b - A x, p = z = D^{-1} r and the products, in the initial matvec's pass (row-local).
+  const InitialRows<W> init = pass<W>(x, ring, ring_mask_, InitialRows<W>{b, r, p, dinv});
+  double rr = init.rr;
+  double rz[W];
+  for (int c = 0; c < W; ++c) rz[c] = init.rz[c];
+  const double bb = init.bb;
   const double threshold = tol * tol * bb;
   int it = 0;
   while (rr > threshold) {
     if (it == max_iterations) return max_iterations + 1;
     ++it;
-    double pq[W] = {};
-    for (int i = 0; i < n_; ++i) {  // q = A p, pq = p.q
-      double acc[W] = {};
-      for (int e = rp[i]; e < rp[i + 1]; ++e) {
-        const double a = av[e];
-        const double* pj = p + static_cast<long>(ci[e]) * W;
-        for (int c = 0; c < W; ++c) acc[c] += a * pj[c];
-      }
-      const long k = static_cast<long>(i) * W;
-      for (int c = 0; c < W; ++c) {
-        q[k + c] = acc[c];
-        pq[c] += p[k + c] * acc[c];
-      }
-    }
+    const DirectionRows<W> dir = pass<W>(p, ring, ring_mask_, DirectionRows<W>{p, q});
+    const double* pq = dir.pq;
     double alpha[W];
     for (int c = 0; c < W; ++c) alpha[c] = pq[c] > 0 ? rz[c] / pq[c] : 0.0;
     double rz_new[W] = {};

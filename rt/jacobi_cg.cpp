@@ -5,6 +5,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "rt/cpu_avx.hpp"
+
 namespace haptic::rt {
 
 namespace {
@@ -108,11 +110,7 @@ JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance
 }
 
 bool JacobiCg::use_avx(bool allow) {
-#if defined(__x86_64__)
-  avx_ = allow && __builtin_cpu_supports("avx");
-#else
-  (void)allow;
-#endif
+  avx_ = allow && cpu_has_avx();
   return avx_;
 }
 

@@ -7,6 +7,8 @@
 #include <string>
 #include <stdexcept>
 
+#include "rt/cpu_avx.hpp"
+
 namespace haptic::rt {
 
 MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& terms) {
@@ -89,11 +91,7 @@ MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& te
 }
 
 bool MultiTermOperator::use_avx(bool allow) {
-#if defined(__x86_64__)
-  avx_ = allow && __builtin_cpu_supports("avx");
-#else
-  (void)allow;
-#endif
+  avx_ = allow && cpu_has_avx();
   return avx_;
 }
 

@@ -27,6 +27,19 @@ using namespace haptic::firmware;
 
 namespace {
 
+// A number >= 0 (CLI::NonNegativeNumber's message prints the largest double as the range's end). The
+// `sim` options whose -1 default means "the scenario's" check it, so that a negative value is an error
+// naming the option, never silently the default.
+const CLI::Validator kNonNegative(
+    [](std::string& s) {
+      try {
+        return std::stod(s) >= 0 ? std::string() : "Value " + s + " must be >= 0";
+      } catch (const std::exception&) {
+        return "Value " + s + " is not a number";
+      }
+    },
+    "NONNEGATIVE");
+
 // Runs the matplotlib figure script on a run directory; explains plainly when it cannot.
 bool make_plots(const std::string& dir) {
   const std::string script = haptic::platform::tools_dir() + "/plots/plot_run.py";
@@ -118,7 +131,7 @@ void add_view_options(CLI::App* app, int& port, std::string& bind, double& secon
   app->add_option("--view-port", port, "Serve the web view with a timeline on this port after the run (HTTP + WebSocket; 0 = none)")
       ->check(CLI::Range(0, 65535));
   app->add_option("--view-bind", bind, "Interface the view listens on (default 127.0.0.1: this machine only)");
-  app->add_option("--view-for", seconds, "Stop serving the view after this many seconds (default 0: until Ctrl-C)")->check(CLI::NonNegativeNumber);
+  app->add_option("--view-for", seconds, "Stop serving the view after this many seconds (default 0: until Ctrl-C)")->check(kNonNegative);
 }
 
 struct RunArgs {
@@ -147,8 +160,9 @@ void add_scene_options(CLI::App& sim, SimArgs& a, CLI::Option* nodes) {
 void add_sim_output_options(CLI::App* sim, SimArgs& a) {
   sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
   sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)");
-  sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)");
-  sim->add_option("--release", a.release, "Push-hold-release script: release time in s (default: the scenario's, 12 for paper-best)");
+  sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)")->check(kNonNegative);
+  sim->add_option("--release", a.release, "Push-hold-release script: release time in s (default: the scenario's, 12 for paper-best)")
+      ->check(kNonNegative);
   sim->add_flag("--no-plots", a.no_plots, "Do not draw the PNG figures");
   add_view_options(sim, a.view_port, a.view_bind, a.view_for);
   sim->add_option("--view-station", a.view_station, "Station (1-based) the view shows (default 1; needs --record)");
@@ -187,21 +201,26 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   sim->add_option("--delay-matrix", a.delay_matrix,
                   "Mean one-way delays in ms, row i receives from column j, rows separated by ';' "
                   "(default: the paper's 0,4,4,4;8,0,80,200;4,100,0,200;6,240,200,0)");
-  sim->add_option("--loss", a.loss, "Packet loss probability per packet (default 0.05)");
-  sim->add_option("--duplication", a.dup, "Packet duplication probability (default 0.01)");
-  sim->add_option("--p-gain", a.p_gain, "Consensus stiffness scale p in P_ij = p[I/2 + K_int/(2 lambda_max)], N/m (default 1000)");
-  sim->add_option("--d-gain", a.d_gain, "Consensus damping D_ij = d I, N s/m (default 5)");
-  auto* nodes = sim->add_option("--nodes", a.nodes, "Scene size: 33 is the paper's ball, other values a lattice ball of about that many nodes (default 33)");
+  sim->add_option("--loss", a.loss, "Packet loss probability per packet (default 0.05)")->check(CLI::Range(0.0, 1.0));
+  sim->add_option("--duplication", a.dup, "Packet duplication probability (default 0.01)")->check(CLI::Range(0.0, 1.0));
+  sim->add_option("--p-gain", a.p_gain, "Consensus stiffness scale p in P_ij = p[I/2 + K_int/(2 lambda_max)], N/m (default 1000)")
+      ->check(kNonNegative);
+  sim->add_option("--d-gain", a.d_gain, "Consensus damping D_ij = d I, N s/m (default 5)")->check(kNonNegative);
+  auto* nodes = sim->add_option("--nodes", a.nodes, "Scene size: 33 is the paper's ball, other values a lattice ball of about that many nodes (default 33)")
+                    ->check(CLI::Range(7, 20000));
   add_scene_options(*sim, a, nodes);
-  sim->add_option("--damping-margin", a.margin, "B_i = (1 + margin) x eq. (18) minimum (default 0.05)");
-  sim->add_option("--loss-allowance", a.allowance, "Ticks added to ceil(max delay / T) for the bound Nbar_ij (default: from the loss model, the smallest L with run ticks x directed links x loss^(L+1) <= 0.01)");
-  sim->add_option("--tx-deadband-mm", a.tx_deadband_mm,
-                  "Send a state only when some node moved more than this since the last one sent, in mm (default 0: every tick)");
+  sim->add_option("--damping-margin", a.margin, "B_i = (1 + margin) x eq. (18) minimum (default 0.05)")->check(CLI::Range(0.0, 10.0));
+  sim->add_option("--loss-allowance", a.allowance, "Ticks added to ceil(max delay / T) for the bound Nbar_ij (default: from the loss model, the smallest L with run ticks x directed links x loss^(L+1) <= 0.01)")
+      ->check(CLI::Range(0, 1000));
+  auto* band = sim->add_option("--tx-deadband-mm", a.tx_deadband_mm,
+                               "Send a state only when some node moved more than this since the last one sent, in mm (default 0: every tick)");
   sim->add_option("--tx-max-interval", a.tx_interval,
-                  "With --tx-deadband-mm: a state at least every this many ticks; Nbar_ij grows by this - 1 (default 1)");
+                  "With --tx-deadband-mm: a state at least every this many ticks; Nbar_ij grows by this - 1 (default 1)")
+      ->needs(band);
   sim->add_flag("--tx-predict", a.tx_predict,
                 "With --tx-deadband-mm and --consensus-passivity pspm: predictive deadband, the band applies to the error against the last "
-                "sent state extrapolated by its velocity, and receivers extrapolate a held state the same way (rt/tx_deadband.hpp)");
+                "sent state extrapolated by its velocity, and receivers extrapolate a held state the same way (rt/tx_deadband.hpp); "
+                "without --tx-deadband-mm every state is sent and receivers extrapolate only the states held for lost packets");
   sim->add_option("--edge-energy-bound", a.edge_energy_bound,
                   "Per-edge damage bound in J: an edge whose energy account (eq. 14 split per edge) exceeds it acts as a damper "
                   "until the account has fallen to half of it; 0 = off (default " + std::to_string(haptic::rt::kDefaultEdgeEnergyBoundJ) + ")");
@@ -260,9 +279,9 @@ CLI::App* add_replay_options(CLI::App& app, ReplayArgs& a) {
   rp->add_option("--p-scale", a.p_scale, "Re-run with P_ij scaled by this factor (default 1)");
   rp->add_option("--d-scale", a.d_scale, "Re-run with D_ij scaled by this factor (default 1)");
   rp->add_option("--from", a.from, "Step through: print one line per tick from this run index on (device sample, force, VP, energies, flags, "
-                                   "replayed and recorded state hash)")->check(CLI::NonNegativeNumber);
+                                   "replayed and recorded state hash)")->check(kNonNegative);
   rp->add_option("--to", a.to, "Stop after this run index (the comparison and --trace end there; with --from, the last tick printed)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   rp->add_option("--state-json", a.state_json, "Write the core's full state after the last tick replayed (--to) to this JSON file: x, v, VP, energies, links");
   add_view_options(rp, a.view_port, a.view_bind, a.view_for);
   rp->add_option("--trace", a.trace, "Write the replayed ticks to this CSV (force, VP, energies, the recorded force, hash match)");

@@ -295,9 +295,10 @@ json station_rows(const std::vector<StationFiles>& st) {
   return rows;
 }
 
-// Per station: its B_i, eq. (18) minimum, the model's B_i, the passivity flag, final energies.
+// Per station: its B_i, eq. (18) minimum, the model's B_i, the passivity flag, final energies, solver.
 void add_station_arrays(const std::vector<StationFiles>& st, json& j) {
-  for (const char* k : {"damping_Ns_per_m", "damping_min_Ns_per_m", "damping_model_Ns_per_m", "port_energy_final_J", "controller_energy_final_J"}) {
+  for (const char* k : {"damping_Ns_per_m", "damping_min_Ns_per_m", "damping_model_Ns_per_m", "port_energy_final_J", "controller_energy_final_J",
+                        "solver", "solver_residual_energy_final_J", "solver_unconverged_ticks"}) {
     json a = json::array();
     for (const auto& s : st) a.push_back(s.summary.value(k, json(nullptr)));
     j[k] = a;

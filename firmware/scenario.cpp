@@ -408,6 +408,7 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
     c.neighbors.push_back(nc);
   }
   c.rx_rule = spec.receive_rule;
+  c.solver.kind = spec.solver;
   c.divergence_speed_m_per_s = spec.divergence_speed_m_per_s;
   c.consensus_passivity = spec.consensus_passivity;
   c.pspm_reservoir0_J = spec.pspm_reservoir0_J;

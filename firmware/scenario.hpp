@@ -95,6 +95,7 @@ struct ScenarioSpec {
   int loss_allowance_ticks = -1;
   rt::TxDeadbandConfig tx_deadband{};    // transmission deadband (off); Nbar_ij adds its interval - 1
   rt::RxRule receive_rule = rt::RxRule::kNewestBySequence;  // --receive-rule newest|paper (rt/rx_link.hpp)
+  rt::StepSolverKind solver = rt::StepSolverKind::kAuto;     // --solver auto|direct|iterative (rt/step_solver.hpp)
   // Variable steps T_k (rt/README.md "Variable steps"). The simulator's station clocks: every wake
   // is late by a uniform draw in [0, timer_jitter_s] after its grid time; step_jitter F makes each
   // grid interval T (1 + F u), u uniform in [-1, 1] (a free-running loop: the station's tick count

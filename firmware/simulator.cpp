@@ -383,6 +383,9 @@ SimResult finish(Simulation& s, std::int64_t ticks_run) {
     r.steps_clamped += core->step_clamped_ticks();
     r.final_port_J.push_back(core->energy().port_J);
     r.final_controller_J.push_back(core->energy().controller_J);
+    r.solver.emplace_back(core->solver_name());
+    r.final_solver_residual_J.push_back(core->energy().solver_residual_J);
+    r.solver_unconverged_ticks.push_back(core->solver_unconverged_ticks());
     r.final_x.push_back(core->x());
   }
   for (auto& recorder : s.rec) recorder->finish();
@@ -477,6 +480,9 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["passivity_bound_J"] = r.passivity_bound_J;
   j["port_energy_final_J"] = r.final_port_J;
   j["controller_energy_final_J"] = r.final_controller_J;
+  j["solver"] = r.solver;
+  j["solver_residual_energy_final_J"] = r.final_solver_residual_J;
+  j["solver_unconverged_ticks"] = r.solver_unconverged_ticks;
   j["edge_energy_bound_J"] = b.spec.edge_energy_bound_J > 0 ? json(b.spec.edge_energy_bound_J) : json(nullptr);
   std::uint64_t trips = 0;
   for (const auto& l : r.links) trips += l.edge_energy.trips;

@@ -41,6 +41,12 @@ struct SimResult {
   std::uint64_t steps_clamped = 0;  // T_k outside [T^min, T^max] over all stations (0 with the clock model's own bounds)
   double wall_time_s = 0;
   std::vector<double> final_port_J, final_controller_J;
+  // Per station: the linear step's solver (rt/step_solver: "direct" or "iterative"), the energy its
+  // residual put in (EnergyMonitor::solver_residual_J, counted in the balance) and the ticks that
+  // stopped at the iteration cap above the tolerance.
+  std::vector<std::string> solver;
+  std::vector<double> final_solver_residual_J;
+  std::vector<std::uint64_t> solver_unconverged_ticks;
   std::vector<Eigen::VectorXd> final_x;  // every copy's configuration at the end
 };
 

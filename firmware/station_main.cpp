@@ -106,6 +106,7 @@ struct SimArgs {
   int nodes = -1, trace_every = 1, allowance = -1, trace_node = -1, tx_interval = 1;
   double tx_deadband_mm = 0, edge_energy_bound = -1, edge_energy_leak = -1;
   std::string scene;                          // --scene FILE
+  std::string solver = "auto";                // --solver
   double scene_unit_m = 1, density = 0, youngs = 0;
   bool no_plots = false, quiet = false, record = false, tx_predict = false;
   double record_ring_s = 0;
@@ -209,6 +210,10 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   auto* nodes = sim->add_option("--nodes", a.nodes, "Scene size: 33 is the paper's ball, other values a lattice ball of about that many nodes (default 33)")
                     ->check(CLI::Range(7, 20000));
   add_scene_options(*sim, a, nodes);
+  sim->add_option("--solver", a.solver, "Linear step solver (rt/README.md \"Solver by size\"; station.solver): auto (the direct sparse LDL^T below 600 "
+                                        "factor rows: nodes, or 3 per node when a matrix is not isotropic; Jacobi-preconditioned CG above), "
+                                        "direct or iterative (default auto)")
+      ->check(CLI::IsMember({"auto", "direct", "iterative"}));
   sim->add_option("--damping-margin", a.margin, "B_i = (1 + margin) x eq. (18) minimum (default 0.05)")->check(CLI::Range(0.0, 10.0));
   sim->add_option("--loss-allowance", a.allowance, "Ticks added to ceil(max delay / T) for the bound Nbar_ij (default: from the loss model, the smallest L with run ticks x directed links x loss^(L+1) <= 0.01)")
       ->check(CLI::Range(0, 1000));
@@ -398,6 +403,7 @@ ScenarioSpec sim_scenario_spec(const SimArgs& a) {
   spec.tx_deadband.predictive = a.tx_predict;
   spec.trace_node = a.trace_node;
   spec.receive_rule = haptic::rt::parse_rx_rule(a.receive_rule, "--receive-rule");
+  spec.solver = haptic::rt::parse_step_solver_kind(a.solver);
   if (a.jitter != -1) spec.jitter_fraction = a.jitter;
   spec.delay_correlation = a.delay_correlation;
   if (a.node_mass_kg != -1) spec.scene.node_mass_kg = a.node_mass_kg;
@@ -436,6 +442,7 @@ int sim_command(const SimArgs& a) {
       std::cerr << (built.passivity_condition_met ? "  (met)\n" : "  (VIOLATED)\n");
     }
     const SimResult r = run_simulation(built, opt);
+    if (!a.quiet) std::cerr << "  solver of the linear step: " << r.solver.front() << " (station 1; summary.json \"solver\")\n";
     write_summary_json(a.out + "/summary.json", built, r);
     std::cout << sim_result_line(spec.name, r) << "\n";
     const auto& m = r.metrics;

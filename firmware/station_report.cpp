@@ -79,6 +79,9 @@ void add_run_json(const StationOutcome& o, json& j) {
   const rt::StationCore* core = o.build ? o.build->core.get() : nullptr;
   j["port_energy_final_J"] = core && ran ? json(core->energy().port_J) : json(nullptr);
   j["controller_energy_final_J"] = core && ran ? json(core->energy().controller_J) : json(nullptr);
+  j["solver"] = core ? json(core->solver_name()) : json(nullptr);  // the linear step's (rt/step_solver)
+  j["solver_residual_energy_final_J"] = core && ran ? json(core->energy().solver_residual_J) : json(nullptr);
+  j["solver_unconverged_ticks"] = core ? json(core->solver_unconverged_ticks()) : json(nullptr);
   j["edge_drop_events"] = core ? json(core->edge_drop_events()) : json(nullptr);
   j["edge_energy_trips"] = core ? json(core->edge_gate().trips()) : json(nullptr);
   j["safe_state_ticks"] = core ? json(core->safe_state_ticks()) : json(nullptr);

@@ -66,6 +66,49 @@ def net_oneway(d):
         print("matplotlib missing: no plot")
 
 
+UNIT_US = {"ns": 1e-3, "us": 1.0, "ms": 1e3, "s": 1e6}
+SOLVERS = {0: "auto", 1: "direct LDL^T", 2: "Jacobi-PCG", 3: "dense, factored once", 4: "CHOLMOD, factored once"}
+
+
+def cpu_us(b):
+    return b["cpu_time"] * UNIT_US[b.get("time_unit", "us")]
+
+
+def tick_ratios(m):
+    """The ratios issue 14 asks for, each within this one run (medians of CPU time)."""
+    def t(name):
+        return cpu_us(m[name]) if name in m else None
+
+    def line(text, a, b):
+        if a is not None and b is not None:
+            print("%-62s %10.2f / %10.2f us = %.2fx" % (text, a, b, a / b))
+
+    line("2945 nodes: auto (%s) / direct LDL^T" % m.get("BM_Tick/3000/0", {}).get("label", "?"), t("BM_Tick/3000/0"), t("BM_Tick/3000/1"))
+    line("2945 nodes: worst case (neighbour set changing) / typical", t("BM_TickWorstCase/3000/0"), t("BM_Tick/3000/0"))
+    for s in (1, 2, 3, 4):
+        line("2945 nodes: %s / auto" % SOLVERS[s], t("BM_Tick/3000/%d" % s), t("BM_Tick/3000/0"))
+    for s in (0, 2, 3, 4):
+        line("33 nodes: %s / direct LDL^T" % SOLVERS[s], t("BM_Tick/33/%d" % s), t("BM_Tick/33/1"))
+    line("33 nodes: the refactor-every-tick dense strawman / direct", t("BM_DenseRefactorEveryTick/33"), t("BM_Tick/33/1"))
+    line("33 nodes: worst case / typical", t("BM_TickWorstCase/33/0"), t("BM_Tick/33/0"))
+    if "BM_Tick/10000/0" in m:
+        print("%-62s %10.2f us (target 1000 us)" % ("9915 nodes: auto", t("BM_Tick/10000/0")))
+    for n, b in sorted(m.items()):
+        if n.startswith("BM_StartupToFirstTick/"):
+            print("%-62s %10.3f s CPU, %.3f s wall (target < 3 s)" % (n.split("/iter")[0], cpu_us(b) * 1e-6,
+                                                                      b["real_time"] * UNIT_US[b.get("time_unit", "us")] * 1e-6))
+    peak = {}
+    for n, b in sorted(m.items()):
+        if n.startswith("BM_StationPeakMemory/") and "station_peak_MB" in b:
+            _, nodes, deg, solver = n.split("/iter")[0].split("/")
+            peak[(int(deg), int(solver))] = b["station_peak_MB"]
+            print("%-62s peak %7.2f MB, heap %7.2f MB" % ("peak memory, %s nodes, %s neighbours, %s" % (nodes, deg, SOLVERS[int(solver)]),
+                                                            b["station_peak_MB"], b.get("station_heap_MB", float("nan"))))
+    for solver in (0, 1):
+        if (6, solver) in peak and (1, solver) in peak and peak[(1, solver)] > 0:
+            print("%-62s %.2fx (target <= 3x)" % ("peak memory 6 / 1 neighbours, %s" % SOLVERS[solver], peak[(6, solver)] / peak[(1, solver)]))
+
+
 def main(d):
     net_oneway(d)
     p = os.path.join(d, "rt_tick.json")
@@ -73,29 +116,31 @@ def main(d):
         print("no rt_tick.json in", d)
         return
     m, ctx = medians(p)
-    print("machine: %s CPUs, load avg %s" % (ctx.get("num_cpus"), ctx.get("load_avg")))
+    print("machine: %s CPUs, load avg %s, %s" % (ctx.get("num_cpus"), ctx.get("load_avg"), ctx.get("date")))
     for name, b in sorted(m.items()):
-        print("%-45s real %10.2f us   cpu %10.2f us" % (name, b["real_time"], b["cpu_time"]))
-    s33 = m.get("BM_SparseTick/33")
-    d33 = m.get("BM_DenseBaselineTick/33")
-    if s33 and d33:
-        print("33-node tick: sparse %.2f us, dense baseline %.2f us (cpu): dense/sparse = %.1fx" %
-              (s33["cpu_time"], d33["cpu_time"], d33["cpu_time"] / s33["cpu_time"]))
-    sizes = sorted((int(b.get("nodes", 0)), b["cpu_time"]) for n, b in m.items() if n.startswith("BM_SparseTick/"))
-    if sizes:
+        unit = b.get("time_unit", "us")
+        print("%-45s real %10.2f %s   cpu %10.2f %s  %s" % (name, b["real_time"], unit, b["cpu_time"], unit, b.get("label", "")))
+    tick_ratios(m)
+    curves = {}
+    for n, b in m.items():
+        parts = n.split("/")
+        if parts[0] == "BM_Tick" and len(parts) == 3 and int(parts[2]) in (0, 1, 2, 4):
+            curves.setdefault(int(parts[2]), []).append((int(b.get("nodes", parts[1])), cpu_us(b)))
+    if curves:
         try:
             import matplotlib
             matplotlib.use("Agg")
             import matplotlib.pyplot as plt
             fig, ax = plt.subplots(figsize=(6, 4))
-            ax.loglog([s for s, _ in sizes], [t for _, t in sizes], "o-", label="sparse tick (cpu, median)")
-            dense = sorted((int(b.get("nodes", 0)), b["cpu_time"]) for n, b in m.items() if n.startswith("BM_DenseBaselineTick/"))
-            if dense:
-                ax.loglog([s for s, _ in dense], [t for _, t in dense], "s--", label="dense baseline")
+            for s, style in ((0, "o-"), (1, "s--"), (2, "^--"), (4, "d:")):
+                if s in curves:
+                    pts = sorted(curves[s])
+                    ax.loglog([x for x, _ in pts], [y for _, y in pts], style, label="%s (cpu, median)" % SOLVERS[s])
             ax.axhline(1000, color="r", ls=":", label="1 ms target")
             ax.axhline(2000, color="k", ls=":", label="2 ms period")
             ax.set_xlabel("scene nodes")
-            ax.set_ylabel("tick cost (us)")
+            ax.set_ylabel("station tick (us)")
+            ax.set_title("bench-rt-tick, one run (%s)" % ctx.get("date", "")[:16], fontsize=9)
             ax.legend(fontsize=8)
             ax.grid(True, which="both", alpha=0.3)
             fig.tight_layout()

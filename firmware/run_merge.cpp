@@ -367,6 +367,8 @@ json merge_run(const std::string& dir) {
   json j;
   for (const auto& k : scenario_json_keys())
     if (s0.contains(k)) j[k] = s0[k];
+  // the coupling law, as the simulator's summary says it (the fingerprint makes every station agree)
+  if (s0.contains("consensus_passivity")) j["consensus_passivity"] = s0["consensus_passivity"];
   j["mode"] = "run (" + std::to_string(st.size()) + " processes, " + s0.value("transport", std::string("?")) + ")";
   double d2 = 0;
   j.update(metrics_json(merged_metrics(st, dir, d2)));

@@ -155,6 +155,7 @@ json station_json(int id, int users, double dt) {
   j["device"] = "simulated";
   j["wall_time_s"] = 1.0;
   j["passivity_condition_met"] = true;
+  j["consensus_passivity"] = "pspm";
   j["solver"] = id == 1 ? "direct" : "iterative";
   j["solver_residual_energy_final_J"] = id == 1 ? 0.0 : 2e-12;
   j["solver_unconverged_ticks"] = 0;
@@ -239,6 +240,7 @@ TEST(RunMerge, MergesStationFilesWithTheSimulatorsMetrics) {
   CHECK_EQUAL(4u, s["packets"]["sent_in_hold_window"].get<unsigned>());
   CHECK_EQUAL(7u, s["packets"]["sent_after_consensus"].get<unsigned>());
   CHECK_TRUE(s["passivity_condition_met"].get<bool>());
+  CHECK_EQUAL(std::string("pspm"), s["consensus_passivity"].get<std::string>());  // as the simulator's summary
   // each station's solver of the linear step and the energy its residual put in (issue 14 item 1)
   CHECK_EQUAL(std::string("iterative"), s["solver"][1].get<std::string>());
   DOUBLES_EQUAL(2e-12, s["solver_residual_energy_final_J"][1].get<double>(), 0);

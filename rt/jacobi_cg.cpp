@@ -188,8 +188,7 @@ template <int W, int S, bool Wide, class RowDone>
           pj += av * xv;
           __builtin_memcpy(pp, &pj, sizeof pj);
         }
-        for (int c = 0; c < 3; ++c) acc[c] = a4[c];
-        row_done(i, acc);
+        row_done.wide(i, a4);
         continue;
       }
     }
@@ -216,9 +215,9 @@ template <int W, int S, bool Wide, class RowDone>
 
 #if defined(__x86_64__)
 template <int W, class RowDone>
-__attribute__((target("avx"))) RowDone upper_rows_avx(const UpperRows& m, const double* x, double* partial, unsigned mask,
-                                                      RowDone row_done) {
-  return upper_rows<W, 4, W == 3>(m, x, partial, mask, row_done);
+__attribute__((target("avx"))) void upper_rows_avx(const UpperRows& m, const double* x, double* partial, unsigned mask,
+                                                   RowDone& row_done) {  // by reference: AVX-sized members
+  row_done = upper_rows<W, 4, W == 3>(m, x, partial, mask, row_done);
 }
 #endif
 
@@ -229,7 +228,10 @@ RowDone JacobiCg::pass(const double* x, double* partial, unsigned mask, RowDone 
   if (!upper_) return full_rows<W>(n_, rowptr_.data(), colidx_.data(), val_.data(), x, row_done);
   const UpperRows m{n_, rowptr_.data(), offset_.data(), val_.data(), diag_.data()};
 #if defined(__x86_64__)
-  if (avx_) return upper_rows_avx<W>(m, x, partial, mask, row_done);
+  if (avx_) {
+    upper_rows_avx<W>(m, x, partial, mask, row_done);
+    return row_done;
+  }
 #endif
   return upper_rows<W, 4, false>(m, x, partial, mask, row_done);
 }
@@ -257,41 +259,73 @@ void JacobiCg::multiply(const double* x, double* y, int width) const {
 
 namespace {
 
-// Row-local work of the initial pass: r = b - A x, p = z = D^{-1} r, |b|^2, |r|^2, r.z per column.
-// Passed by value into the pass so the sums stay in registers.
+// Row-local work, passed by value into the pass so its sums stay in registers. Sums are kept per
+// column (lane c of a Lanes4; W short chains of adds). wide(i, acc) is the Wide rows' 4-lane
+// version (W = 3, i < n - 1): each lane the scalar operator's operations in the same order, and a
+// 4-lane store at row i also writes component 0 of row i + 1, which row i + 1 then overwrites.
+
+// Initial pass: r = b - A x, p = z = D^{-1} r, |b|^2, |r|^2 and r.z per column.
 template <int W>
 struct InitialRows {
   const double* b;
   double* r;
   double* p;
   const double* dinv;
-  double bb = 0, rr = 0, rz[W] = {};
-  void operator()(int i, const double* acc) {
+  Lanes4 bb = {}, rr = {}, rz = {};
+  [[gnu::always_inline]] void operator()(int i, const double* acc) {
     for (int c = 0; c < W; ++c) {
       const long k = static_cast<long>(i) * W + c;
       r[k] = b[k] - acc[c];
       p[k] = dinv[i] * r[k];
-      bb += b[k] * b[k];
-      rr += r[k] * r[k];
+      bb[c] += b[k] * b[k];
+      rr[c] += r[k] * r[k];
       rz[c] += r[k] * p[k];
     }
   }
+  [[gnu::always_inline]] void wide(int i, Lanes4 acc) {
+    const long k = static_cast<long>(i) * 3;
+    Lanes4 bv;
+    __builtin_memcpy(&bv, b + k, sizeof bv);
+    const Lanes4 rv = bv - acc;
+    const double d = dinv[i];
+    const Lanes4 pv = Lanes4{d, d, d, d} * rv;
+    __builtin_memcpy(r + k, &rv, sizeof rv);
+    __builtin_memcpy(p + k, &pv, sizeof pv);
+    bb += bv * bv;
+    rr += rv * rv;
+    rz += rv * pv;
+  }
 };
 
-// Row-local work of an iteration's pass: q = A p and p.q per column.
+// An iteration's pass: q = A p and p.q per column.
 template <int W>
 struct DirectionRows {
   const double* p;
   double* q;
-  double pq[W] = {};
-  void operator()(int i, const double* acc) {
+  Lanes4 pq = {};
+  [[gnu::always_inline]] void operator()(int i, const double* acc) {
     const long k = static_cast<long>(i) * W;
     for (int c = 0; c < W; ++c) {
       q[k + c] = acc[c];
       pq[c] += p[k + c] * acc[c];
     }
   }
+  [[gnu::always_inline]] void wide(int i, Lanes4 acc) {
+    const long k = static_cast<long>(i) * 3;
+    Lanes4 pv;
+    __builtin_memcpy(&pv, p + k, sizeof pv);
+    __builtin_memcpy(q + k, &acc, sizeof acc);
+    pq += pv * acc;
+  }
 };
+
+// sum_c v[c], in column order.
+template <int W>
+double column_sum(const Lanes4& v) {
+  double s = v[0];
+  for (int c = 1; c < W; ++c) s += v[c];
+  return s;
+}
 
 }  // namespace
 
@@ -306,29 +340,29 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
   const double* dinv = dinv_.data();
   // r = b - A x, p = z = D^{-1} r and the products, in the initial matvec's pass (row-local).
   const InitialRows<W> init = pass<W>(x, ring, ring_mask_, InitialRows<W>{b, r, p, dinv});
-  double rr = init.rr;
+  double rr = column_sum<W>(init.rr);
   double rz[W];
   for (int c = 0; c < W; ++c) rz[c] = init.rz[c];
-  const double bb = init.bb;
-  const double threshold = tol * tol * bb;
+  const double threshold = tol * tol * column_sum<W>(init.bb);
   int it = 0;
   while (rr > threshold) {
     if (it == max_iterations) return max_iterations + 1;
     ++it;
     const DirectionRows<W> dir = pass<W>(p, ring, ring_mask_, DirectionRows<W>{p, q});
-    const double* pq = dir.pq;
+    const Lanes4 pq = dir.pq;
     double alpha[W];
     for (int c = 0; c < W; ++c) alpha[c] = pq[c] > 0 ? rz[c] / pq[c] : 0.0;
-    double rz_new[W] = {};
-    rr = 0;
+    double rz_new[W] = {}, rrc[W] = {};
     for (int i = 0; i < n_; ++i)
       for (int c = 0; c < W; ++c) {
         const long k = static_cast<long>(i) * W + c;
         x[k] += alpha[c] * p[k];
         r[k] -= alpha[c] * q[k];
         rz_new[c] += r[k] * r[k] * dinv[i];
-        rr += r[k] * r[k];
+        rrc[c] += r[k] * r[k];
       }
+    rr = rrc[0];
+    for (int c = 1; c < W; ++c) rr += rrc[c];
     if (rr <= threshold) break;  // converged: the next direction is not needed
     double beta[W];
     for (int c = 0; c < W; ++c) {

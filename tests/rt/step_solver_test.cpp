@@ -74,7 +74,8 @@ void check_full_product_bits(const SparseColMajor& As, JacobiCg& cg, int width, 
 // the full rows' bytes). A pass adds row i's terms in ascending column order, the lower ones through
 // the ring of partial sums, as the full rows do, so A x keeps the full product's bits: checked
 // against Eigen's A x through the initial residual b - A x and multiply(), for widths 3 and 1, in
-// the AVX and the scalar build, on the 2945-node ball (rows reaching the last node run scalar).
+// the AVX and the scalar build, on the 2945-node ball (rows reaching the last node run scalar);
+// a whole solve gives the same bits in both builds.
 // A band past 16 bits keeps the full rows (a 70,000-row chain closed by a corner entry).
 TEST(StepSolver, the_upper_triangle_storage_gives_the_full_products_bits_and_keeps_the_full_rows_past_16_bit_offsets) {
   const Scene s = build_scene(make_lattice_ball(3000, 0.05), SceneParams{});
@@ -93,6 +94,21 @@ TEST(StepSolver, the_upper_triangle_storage_gives_the_full_products_bits_and_kee
       }
       check_full_product_bits(As, cg, width, static_cast<unsigned>(10 * width + avx));
     }
+  for (int width : {3, 1}) {  // a whole solve: the AVX build's x, r and iteration count are the scalar's
+    JacobiCg wide(As, width, 1e-8), scalar(As, width, 1e-8);
+    if (!wide.use_avx(true)) break;
+    scalar.use_avx(false);
+    std::mt19937 rng(static_cast<unsigned>(width));
+    std::uniform_real_distribution<double> U(-1, 1);
+    const auto m = static_cast<std::size_t>(s.nodes * width);
+    std::vector<double> b(m), xw(m, 0.0), xs(m, 0.0), rw(m), rs(m);
+    for (auto& e : b) e = U(rng);
+    const int it = wide.solve(b.data(), xw.data(), rw.data(), width, 1e-12, 100);
+    CHECK_TRUE(it >= 3 && it <= 100);
+    CHECK_EQUAL(it, scalar.solve(b.data(), xs.data(), rs.data(), width, 1e-12, 100));
+    CHECK_EQUAL(0, std::memcmp(xw.data(), xs.data(), sizeof(double) * m));
+    CHECK_EQUAL(0, std::memcmp(rw.data(), rs.data(), sizeof(double) * m));
+  }
   const int n = 70000;
   std::vector<Eigen::Triplet<double>> t;
   for (int i = 0; i < n; ++i) {

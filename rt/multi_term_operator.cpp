@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "rt/cpu_avx.hpp"
+#include "rt/lanes.hpp"
 
 namespace haptic::rt {
 
@@ -104,7 +105,6 @@ long MultiTermOperator::stored_doubles() const {
 // Shared): a row's off-diagonal sums in 4-lane vectors (the 3 columns and one unused lane, read from
 // the next node; rows that reach the last node stay scalar), each lane the same multiply and add in
 // the same order as the scalar loop, so the results are identical bit for bit.
-typedef double Lanes4 __attribute__((vector_size(32)));
 template <int W, int TT, int S, bool Shared, bool Wide = false>
 [[gnu::always_inline]] inline void apply_body(int rows, int terms_rt, int off_terms_rt, const int* off_term, const double* ratio, const double* diag,
                          const int* rowptr, const int* col, const double* off, const double* const* u, const double* to_y,
@@ -251,16 +251,6 @@ struct ConsensusPass {
   double* y;
   double* quad;
 };
-#define HAPTIC_NODE_LANES(p, node, last)                                                              \
-  __extension__({                                                                                   \
-    Lanes4 r_;                                                                                      \
-    if (!(last)) {                                                                                  \
-      __builtin_memcpy(&r_, (p) + 3L * (node), sizeof r_);                                          \
-    } else {                                                                                        \
-      r_ = Lanes4{(p)[3L * (node)], (p)[3L * (node) + 1], (p)[3L * (node) + 2], 0.0};              \
-    }                                                                                               \
-    r_;                                                                                             \
-  })
 [[gnu::always_inline]] inline void consensus_body(const ConsensusPass& a) {
   const int rows = a.rows, mask = a.mask, na = a.in.na, nf = a.in.nf;
   const double nad = static_cast<double>(na);
@@ -308,7 +298,7 @@ struct ConsensusPass {
     yv += ty1 * acc1;
     yv += ty2 * acc2;
     yv += ty3 * acc3;
-    __builtin_memcpy(a.y + 3L * i, &yv, 3 * sizeof(double));
+    HAPTIC_STORE_NODE(a.y, i, yv);
     q0 += vi * acc0;
     q1 += di * acc1;
     q2 += sxi * acc2;
@@ -326,7 +316,6 @@ void consensus_kernel(const ConsensusPass& a) { consensus_body(a); }
 __attribute__((target("avx"))) void consensus_kernel_avx(const ConsensusPass& a) { consensus_body(a); }
 #endif
 }  // namespace
-#undef HAPTIC_NODE_LANES
 
 void MultiTermOperator::apply_consensus(const ConsensusInputs& in, const double* to_y, double* y, double* quad) const {
   ConsensusPass a{rows_, band_ahead_ + 1, ring_mask_, diag_.data(), rowptr_.data(), col_.data(), off_.data(), ratio_[0], ratio_[1],

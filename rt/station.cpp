@@ -1,4 +1,7 @@
 #include "rt/station.hpp"
+
+#include "rt/cpu_avx.hpp"
+#include "rt/lanes.hpp"
 #include "rt/tx_deadband.hpp"
 
 #include <algorithm>
@@ -379,25 +382,28 @@ struct PostSolveRows {
   int ne = 0;
   long dofs = 0;
   double T = 0;
+  bool avx = false;     // run the AVX build (same bits)
 };
 struct PostSolveOut {
   double vv = 0, vr = 0, dvv = 0, vmax = 0, nonfinite = 0;
   double e[kMaxNeighbors] = {};
 };
+// One node (3 columns, lane 3 unused) at a time, every sum kept per lane and the lanes added at the
+// end in a fixed order: the same bits in the baseline (SSE2) and the AVX build (rt/lanes.hpp).
 template <int NE, bool Advance, bool FromA>
-[[gnu::noinline]] PostSolveOut post_solve_rows(const PostSolveRows& p) {
+[[gnu::always_inline]] inline PostSolveOut post_solve_body(const PostSolveRows& p) {
   constexpr int kE = NE >= 0 ? NE : kMaxNeighbors;
   const int ne = NE >= 0 ? NE : p.ne;
-  const double* __restrict vh = p.vh;
-  const double* __restrict r = p.r;
-  const double* __restrict Dv = p.Dv;
-  const double* __restrict Pv = p.Pv;
-  double* __restrict x = p.x;
-  double* __restrict v = p.v;
-  double* __restrict xh = p.xh;
+  // x may be an edge's xj (an over-bound edge reads x(k)): a node's x is stored after its edge
+  // terms are read, and 3 lanes only, so no later read sees a new value.
+  const double* vh = p.vh;
+  const double* r = p.r;
+  double* x = p.x;
+  double* v = p.v;
+  double* xh = p.xh;
   const double half_T = p.T / 2.0, T = p.T;
-  double vv = 0, vr = 0, dvv = 0, vmax = 0, nonfinite = 0;  // nonfinite: 0 unless some x or v is inf/NaN
-  double e[kE > 0 ? kE : 1] = {};
+  Lanes4 vv = {}, vr = {}, dvv = {}, vmax = {}, nonfinite = {};  // nonfinite: 0 unless some x or v is inf/NaN
+  Lanes4 e[kE > 0 ? kE : 1] = {};
   const double* vj[kE > 0 ? kE : 1];
   const double* xj[kE > 0 ? kE : 1];
   double delta[kE > 0 ? kE : 1];
@@ -406,45 +412,72 @@ template <int NE, bool Advance, bool FromA>
     xj[n] = p.xj[n];
     delta[n] = p.delta[n];
   }
-  const double* __restrict b = p.b;
-  const double* __restrict alpha = p.alpha;
-  const double* __restrict dd = p.dd;
   const double rho = p.rho;
-  for (long k = 0; k < p.dofs; ++k) {
-    const double a = vh[k];
+  const long nodes = p.dofs / 3;
+  for (long i = 0; i < nodes; ++i) {
+    const bool last = i == nodes - 1;
+    const Lanes4 a = HAPTIC_NODE_LANES(vh, i, last);
+    const Lanes4 ri = HAPTIC_NODE_LANES(r, i, last);
+    const Lanes4 xi = HAPTIC_NODE_LANES(x, i, last);
     vv += a * a;
-    vr += a * r[k];
-    const double xk = x[k] + half_T * a;  // x_hat; the edge terms read x(k) before the advance
-    xh[k] = xk;
-    double dv, pv;
+    vr += a * ri;
+    const Lanes4 xk = xi + half_T * a;  // x_hat; the edge terms read x(k) before the advance
+    HAPTIC_STORE_NODE(xh, i, xk);
+    Lanes4 dv, pv;
     if constexpr (FromA) {
-      const long node = k / 3;
-      dv = dd[node] * a;
-      pv = alpha[node] * a + rho * (b[k] - r[k]);
+      dv = p.dd[i] * a;
+      pv = p.alpha[i] * a + rho * (HAPTIC_NODE_LANES(p.b, i, last) - ri);
     } else {
-      dv = Dv[k];
-      pv = Pv[k];
+      dv = HAPTIC_NODE_LANES(p.Dv, i, last);
+      pv = HAPTIC_NODE_LANES(p.Pv, i, last);
     }
     dvv += dv * a;
-    for (int n = 0; n < ne; ++n) e[n] += dv * (a - delta[n] * vj[n][k]) + pv * (xk - xj[n][k]);
+    for (int n = 0; n < ne; ++n)
+      e[n] += dv * (a - delta[n] * HAPTIC_NODE_LANES(vj[n], i, last)) + pv * (xk - HAPTIC_NODE_LANES(xj[n], i, last));
     if constexpr (Advance) {
-      x[k] += T * a;
-      v[k] = 2.0 * a - v[k];
-      vmax = std::max(vmax, std::abs(v[k]));
-      nonfinite += 0.0 * x[k] + 0.0 * v[k];
+      const Lanes4 xn = xi + T * a;
+      const Lanes4 vn = 2.0 * a - HAPTIC_NODE_LANES(v, i, last);
+      HAPTIC_STORE_NODE(x, i, xn);
+      HAPTIC_STORE_NODE(v, i, vn);
+      const Lanes4 av = vn < 0.0 ? -vn : vn;
+      vmax = vmax > av ? vmax : av;  // a NaN is caught by nonfinite
+      nonfinite += 0.0 * xn + 0.0 * vn;
     }
   }
+  const auto sum3 = [](const Lanes4& l) { return (l[0] + l[1]) + l[2]; };
   PostSolveOut out;
-  out.vv = vv;
-  out.vr = vr;
-  out.dvv = dvv;
-  out.vmax = vmax;
-  out.nonfinite = nonfinite;
-  for (int n = 0; n < ne; ++n) out.e[n] = e[n];
+  out.vv = sum3(vv);
+  out.vr = sum3(vr);
+  out.dvv = sum3(dvv);
+  out.vmax = std::max(std::max(vmax[0], vmax[1]), vmax[2]);
+  out.nonfinite = sum3(nonfinite);
+  for (int n = 0; n < ne; ++n) out.e[n] = sum3(e[n]);
   return out;
 }
+template <int NE, bool Advance, bool FromA>
+[[gnu::noinline]] PostSolveOut post_solve_rows(const PostSolveRows& p) {
+  return post_solve_body<NE, Advance, FromA>(p);
+}
+#if defined(__x86_64__)
+template <int NE, bool Advance, bool FromA>
+[[gnu::noinline]] __attribute__((target("avx"))) PostSolveOut post_solve_rows_avx(const PostSolveRows& p) {
+  return post_solve_body<NE, Advance, FromA>(p);
+}
+#endif
 template <bool Advance, bool FromA>
 PostSolveOut post_solve_rows_by_edges(const PostSolveRows& p) {
+#if defined(__x86_64__)
+  if (p.avx) {
+    switch (p.ne) {
+      case 0: return post_solve_rows_avx<0, Advance, FromA>(p);
+      case 1: return post_solve_rows_avx<1, Advance, FromA>(p);
+      case 2: return post_solve_rows_avx<2, Advance, FromA>(p);
+      case 3: return post_solve_rows_avx<3, Advance, FromA>(p);
+      case 4: return post_solve_rows_avx<4, Advance, FromA>(p);
+      default: return post_solve_rows_avx<-1, Advance, FromA>(p);
+    }
+  }
+#endif
   switch (p.ne) {
     case 0: return post_solve_rows<0, Advance, FromA>(p);
     case 1: return post_solve_rows<1, Advance, FromA>(p);
@@ -504,6 +537,7 @@ StationCore::PostSolveSums StationCore::post_solve_pass(bool advance) {
   p.xh = x_hat_.data();
   p.dofs = dofs_;
   p.T = T_;
+  p.avx = avx_kernels_;
   const PostSolveOut o = from_a ? (advance ? post_solve_rows_by_edges<true, true>(p) : post_solve_rows_by_edges<false, true>(p))
                                 : (advance ? post_solve_rows_by_edges<true, false>(p) : post_solve_rows_by_edges<false, false>(p));
   if (add_coef)
@@ -565,6 +599,29 @@ void StationCore::contact_correction(const double* y0, double c) {
     }
 }
 
+namespace {
+// warm_start_y0's Jacobi-step pass with two solves kept, isotropic: per node (3 lanes)
+// g = 2 y - g + dinv (b - 2 (b1 - r1) + (b2 - r2)). Baseline and AVX builds: the same bits.
+struct WarmRows {
+  int nodes;
+  double* g;
+  const double *y, *dinv, *b, *b1, *r1, *b2, *r2;
+};
+[[gnu::always_inline]] inline void warm_body(const WarmRows& a) {
+  for (int i = 0; i < a.nodes; ++i) {
+    const bool last = i == a.nodes - 1;
+    const Lanes4 h = HAPTIC_NODE_LANES(a.b, i, last) - 2.0 * (HAPTIC_NODE_LANES(a.b1, i, last) - HAPTIC_NODE_LANES(a.r1, i, last)) +
+                     (HAPTIC_NODE_LANES(a.b2, i, last) - HAPTIC_NODE_LANES(a.r2, i, last));
+    const Lanes4 g = 2.0 * HAPTIC_NODE_LANES(a.y, i, last) - HAPTIC_NODE_LANES(a.g, i, last) + a.dinv[i] * h;
+    HAPTIC_STORE_NODE(a.g, i, g);
+  }
+}
+void warm_rows(const WarmRows& a) { warm_body(a); }
+#if defined(__x86_64__)
+__attribute__((target("avx"))) void warm_rows_avx(const WarmRows& a) { warm_body(a); }
+#endif
+}  // namespace
+
 void StationCore::warm_start_y0() {
   // y0_prev_ := 2 y0(k-1) - y0(k-2) (y0(k-1) until two solves exist) [+ the Jacobi step], then swap:
   // y0_ is the guess.
@@ -573,7 +630,15 @@ void StationCore::warm_start_y0() {
   const double* dinv = step_->solver->inverse_diagonal();
   const bool two = y0_solves_ >= 2;
   const bool jacobi = dinv != nullptr && y0_solves_ >= 1 && y0_level_[0] == step_ && (!two || y0_level_[1] == step_);
-  if (jacobi) {
+  if (jacobi && two && w_ == 3) {  // the common case: one node (3 lanes) at a time
+    const WarmRows rows{nf_, g, y, dinv, rhs_.data(), rhs_prev_.data(), resid_.data(), rhs_prev2_.data(), resid_prev_.data()};
+#if defined(__x86_64__)
+    if (avx_kernels_)
+      warm_rows_avx(rows);
+    else
+#endif
+      warm_rows(rows);
+  } else if (jacobi) {
     // A g from A y0(j) = b(j) - r(j) (the solves of ticks k-1, k-2 with this A).
     const double* b = rhs_.data();
     const double* b1 = rhs_prev_.data();

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "rt/edge_energy.hpp"
+#include "rt/cpu_avx.hpp"
 #include "rt/gains.hpp"
 #include "rt/multi_term_operator.hpp"
 #include "rt/rx_link.hpp"
@@ -348,6 +349,10 @@ class StationCore {
   double contact_coef_[3 * kMaxContactNodes][3] = {};
   bool contact_coef_set_ = false;
   std::vector<double> d0_diag_;
+  bool avx_kernels_ = cpu_has_avx();  // the post-solve pass's AVX build (the same bits as the baseline)
+ public:
+  // Tests: false runs the baseline build of the station's own lane kernels; returns whether AVX is used.
+  bool use_avx(bool allow) { return avx_kernels_ = allow && cpu_has_avx(); }
 };
 
 }  // namespace haptic::rt

@@ -269,6 +269,59 @@ TEST(WarmStart, extrapolated_guess_with_a_jacobi_step_needs_a_cg_iteration_less_
   CHECK_TRUE(mean <= 3.6);
 }
 
+// The station's own lane kernels (the post-solve pass and the warm start's Jacobi step, one node in
+// a 4-lane vector) run an AVX build where the CPU has it. Replay needs the same bits on every CPU:
+// two stations fed the same ticks, one on the baseline build, must agree bit for bit in state,
+// predicted state and every energy, through contact and neighbours that skip packets.
+TEST(WarmStart, the_station_kernels_avx_build_gives_the_baseline_builds_bits) {
+  Scene scene = build_scene(make_lattice_ball(1000, 0.05), SceneParams{});
+  const EdgeGains gains = paper_edge_gains(scene);
+  StationConfig cfg;
+  cfg.users = 4;
+  cfg.scene = &scene;
+  cfg.damping_Ns_per_m = 30.45;
+  for (int p = 1; p <= 3; ++p) cfg.neighbors.push_back({p, &gains, 1 << 30});
+  const int f = scene.mesh.face_towards(Eigen::Vector3d(1, 1, 1));
+  const auto& face = scene.mesh.surface[static_cast<std::size_t>(f)];
+  cfg.contact_nodes = {face[0], face[1], face[2]};
+  cfg.vp_initial_position_m = scene.mesh.face_center(f);
+  cfg.solver.kind = StepSolverKind::kIterative;
+  StationCore wide(cfg), base(cfg);
+  if (!wide.use_avx(true)) {
+    printf("\n  SKIPPED: this CPU has no AVX, only the baseline build runs\n");
+    return;
+  }
+  CHECK_FALSE(base.use_avx(false));
+  const Eigen::Vector3d push = cfg.vp_initial_position_m - 0.01 * scene.mesh.face_normal(f);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> U(-1, 1);
+  std::vector<double> x(static_cast<std::size_t>(scene.dofs)), v(x.size());
+  for (int k = 0; k < 80; ++k) {
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      x[i] = scene.x_d[static_cast<long>(i)] + 1e-4 * U(rng);
+      v[i] = 1e-3 * U(rng);
+    }
+    for (int n = 0; n < 3; ++n)
+      if (n != 2 || k % 3 == 0) {  // neighbour 2 skips two packets in three: held, not fresh
+        wide.rx(n).offer(k, 0, x.data(), v.data(), scene.dofs);
+        base.rx(n).offer(k, 0, x.data(), v.data(), scene.dofs);
+      }
+    wide.tick(push);
+    base.tick(push);
+  }
+  CHECK_TRUE(wide.in_contact());
+  const auto bytes = sizeof(double) * static_cast<std::size_t>(scene.dofs);
+  CHECK_EQUAL(0, std::memcmp(wide.x().data(), base.x().data(), bytes));
+  CHECK_EQUAL(0, std::memcmp(wide.v().data(), base.v().data(), bytes));
+  CHECK_EQUAL(0, std::memcmp(wide.x_hat(), base.x_hat(), bytes));
+  CHECK_EQUAL(0, std::memcmp(wide.v_hat(), base.v_hat(), bytes));
+  const EnergyMonitor& a = wide.energy();
+  const EnergyMonitor& b = base.energy();
+  CHECK_TRUE(a.controller_J == b.controller_J && a.port_J == b.port_J && a.vo_J == b.vo_J &&
+             a.solver_residual_J == b.solver_residual_J && a.device_port_J == b.device_port_J);
+  CHECK_TRUE(a.controller_J != 0.0 && a.solver_residual_J != 0.0);
+}
+
 TEST_GROUP(MultiTerm){};
 
 // The right-hand side's fused pass [M, K, P, D] stores one off-diagonal value per block (K's and the

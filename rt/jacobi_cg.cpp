@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "rt/cpu_avx.hpp"
+#include "rt/lanes.hpp"
 
 namespace haptic::rt {
 
@@ -126,8 +127,7 @@ long JacobiCg::stored_doubles() const {
 // exactly symmetric A. partial is indexed by (row & mask), must be zero on entry and is left zero.
 // Wide (W = 3, S = 4): a row's columns in 4-lane vectors (the 4th lane reads the next node and is
 // dropped; rows that reach the last node stay scalar), each lane the same multiply and add in the
-// same order as the scalar loop (no FMA), so the results are identical bit for bit.
-typedef double Lanes4 __attribute__((vector_size(32)));
+// same order as the scalar loop (no FMA), so the results are identical bit for bit (rt/lanes.hpp).
 
 namespace {
 

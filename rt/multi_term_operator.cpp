@@ -86,7 +86,11 @@ MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& te
     if (nodes <= 4096) {
       ring_mask_ = nodes - 1;
       band_ahead_ = ahead;
-      ring_.assign(static_cast<std::size_t>(nodes) * 8 + 8, 0.0);
+      ring_.assign(static_cast<std::size_t>(nodes) * 3 * 8 + 8, 0.0);
+      rel_.resize(col_.size());  // an entry's slot from its row's: (column - row) slots of 64 bytes
+      for (int r = 0; r < rows_; ++r)
+        for (int e = rowptr_[static_cast<std::size_t>(r)]; e < rowptr_[static_cast<std::size_t>(r) + 1]; ++e)
+          rel_[static_cast<std::size_t>(e)] = (col_[static_cast<std::size_t>(e)] - r) * 64;
     }
   }
 }
@@ -242,10 +246,10 @@ struct ConsensusPass {
   int rows, ahead, mask;
   const double* diag;  // rows x 4
   const int* rowptr;
-  const int* col;
+  const int* rel;  // byte offset of an entry's slot from its row's
   const double* off;
   double ratio_k, ratio_p;
-  double* ring;
+  double* ring;    // 3 copies of a ring of mask + 1 slots: node m at (m & mask) + {0, 1, 2} (mask + 1)
   MultiTermOperator::ConsensusInputs in;
   const double* to_y;
   double* y;
@@ -255,15 +259,19 @@ struct ConsensusPass {
   const int rows = a.rows, mask = a.mask, na = a.in.na, nf = a.in.nf;
   const double nad = static_cast<double>(na);
   double* __restrict ring = a.ring;
+  const long span = 8L * (mask + 1);  // one copy of the ring, in doubles
   const auto produce = [&](int m) {  // u_K = x - x_d, u_P = na x - sum xs, as sum_group forms them
     const bool last = m == rows - 1;
     const Lanes4 xm = HAPTIC_NODE_LANES(a.in.x, m, last);
     const Lanes4 d = xm - HAPTIC_NODE_LANES(a.in.x_d, m, last);
     Lanes4 sx = nad * xm;
     for (int n = 0; n < na; ++n) sx -= HAPTIC_NODE_LANES(a.in.xs[n], m, last);
+    // three copies, so a row at slot R + (i & mask) reaches every column of its band without a wrap
     double* slot = ring + 8L * (m & mask);
-    __builtin_memcpy(slot, &d, sizeof d);
-    __builtin_memcpy(slot + 4, &sx, sizeof sx);
+    for (long c = 0; c < 3; ++c) {
+      __builtin_memcpy(slot + c * span, &d, sizeof d);
+      __builtin_memcpy(slot + c * span + 4, &sx, sizeof sx);
+    }
   };
   const int first = std::min(a.ahead, rows);
   for (int m = 0; m < first; ++m) produce(m);
@@ -276,14 +284,15 @@ struct ConsensusPass {
     Lanes4 svi = {};
     for (int n = 0; n < nf; ++n) svi += HAPTIC_NODE_LANES(a.in.vs[n], i, last);
     Lanes4 di, sxi;
-    const double* own = ring + 8L * (i & mask);
+    const double* own = ring + span + 8L * (i & mask);
+    const char* own_bytes = reinterpret_cast<const char*>(own);
     __builtin_memcpy(&di, own, sizeof di);
     __builtin_memcpy(&sxi, own + 4, sizeof sxi);
     const double* dg = a.diag + 4L * i;
     Lanes4 acc0 = dg[0] * vi, acc1 = dg[1] * di, acc2 = dg[2] * sxi, acc3 = dg[3] * svi;
     Lanes4 ok = {}, op = {};
     for (int e = a.rowptr[i]; e < a.rowptr[i + 1]; ++e) {
-      const double* rj = ring + 8L * (a.col[e] & mask);
+      const double* rj = reinterpret_cast<const double*>(own_bytes + a.rel[e]);
       Lanes4 uk, up;
       __builtin_memcpy(&uk, rj, sizeof uk);
       __builtin_memcpy(&up, rj + 4, sizeof up);
@@ -298,7 +307,10 @@ struct ConsensusPass {
     yv += ty1 * acc1;
     yv += ty2 * acc2;
     yv += ty3 * acc3;
-    HAPTIC_STORE_NODE(a.y, i, yv);
+    if (!last)
+      __builtin_memcpy(a.y + 3L * i, &yv, sizeof yv);  // lane 3 lands on the next row's first column, written next
+    else
+      HAPTIC_STORE_NODE(a.y, i, yv);
     q0 += vi * acc0;
     q1 += di * acc1;
     q2 += sxi * acc2;
@@ -318,7 +330,7 @@ __attribute__((target("avx"))) void consensus_kernel_avx(const ConsensusPass& a)
 }  // namespace
 
 void MultiTermOperator::apply_consensus(const ConsensusInputs& in, const double* to_y, double* y, double* quad) const {
-  ConsensusPass a{rows_, band_ahead_ + 1, ring_mask_, diag_.data(), rowptr_.data(), col_.data(), off_.data(), ratio_[0], ratio_[1],
+  ConsensusPass a{rows_, band_ahead_ + 1, ring_mask_, diag_.data(), rowptr_.data(), rel_.data(), off_.data(), ratio_[0], ratio_[1],
                   nullptr, in, to_y, y, quad};
   // 64-byte aligned ring slots: a node's two loads share one cache line
   a.ring = reinterpret_cast<double*>((reinterpret_cast<std::uintptr_t>(ring_.data()) + 63) & ~std::uintptr_t{63});

@@ -74,8 +74,10 @@ class MultiTermOperator {
   std::vector<int> rowptr_, col_;
   std::vector<double> off_;     // nnz x off_terms (values of each slot on the union pattern)
   // apply_consensus: ring of ring_mask_ + 1 nodes (a power of two > the band's width), 8 doubles per
-  // node [u_K 3, pad, u_P 3, pad] (one cache line); node m at m & ring_mask_. 0: no fusion.
+  // node [u_K 3, pad, u_P 3, pad] (one cache line), kept three times over so a row addresses its
+  // columns by a fixed byte offset (rel_) without a wrap; node m at m & ring_mask_. 0: no fusion.
   int ring_mask_ = 0, band_ahead_ = 0;
+  std::vector<int> rel_;
   mutable std::vector<double> ring_;
 };
 

@@ -464,28 +464,27 @@ template <int NE, bool Advance, bool FromA>
   return post_solve_body<NE, Advance, FromA>(p);
 }
 #endif
+template <int NE, bool Advance, bool FromA, bool Avx>
+PostSolveOut post_solve_rows_on(const PostSolveRows& p) {
+#if defined(__x86_64__)
+  if constexpr (Avx) return post_solve_rows_avx<NE, Advance, FromA>(p);
+#endif
+  return post_solve_rows<NE, Advance, FromA>(p);
+}
+template <bool Advance, bool FromA, bool Avx>
+PostSolveOut post_solve_rows_by_edges_on(const PostSolveRows& p) {
+  switch (p.ne) {
+    case 0: return post_solve_rows_on<0, Advance, FromA, Avx>(p);
+    case 1: return post_solve_rows_on<1, Advance, FromA, Avx>(p);
+    case 2: return post_solve_rows_on<2, Advance, FromA, Avx>(p);
+    case 3: return post_solve_rows_on<3, Advance, FromA, Avx>(p);
+    case 4: return post_solve_rows_on<4, Advance, FromA, Avx>(p);
+    default: return post_solve_rows_on<-1, Advance, FromA, Avx>(p);
+  }
+}
 template <bool Advance, bool FromA>
 PostSolveOut post_solve_rows_by_edges(const PostSolveRows& p) {
-#if defined(__x86_64__)
-  if (p.avx) {
-    switch (p.ne) {
-      case 0: return post_solve_rows_avx<0, Advance, FromA>(p);
-      case 1: return post_solve_rows_avx<1, Advance, FromA>(p);
-      case 2: return post_solve_rows_avx<2, Advance, FromA>(p);
-      case 3: return post_solve_rows_avx<3, Advance, FromA>(p);
-      case 4: return post_solve_rows_avx<4, Advance, FromA>(p);
-      default: return post_solve_rows_avx<-1, Advance, FromA>(p);
-    }
-  }
-#endif
-  switch (p.ne) {
-    case 0: return post_solve_rows<0, Advance, FromA>(p);
-    case 1: return post_solve_rows<1, Advance, FromA>(p);
-    case 2: return post_solve_rows<2, Advance, FromA>(p);
-    case 3: return post_solve_rows<3, Advance, FromA>(p);
-    case 4: return post_solve_rows<4, Advance, FromA>(p);
-    default: return post_solve_rows<-1, Advance, FromA>(p);
-  }
+  return p.avx ? post_solve_rows_by_edges_on<Advance, FromA, true>(p) : post_solve_rows_by_edges_on<Advance, FromA, false>(p);
 }
 }  // namespace
 

@@ -606,18 +606,29 @@ struct WarmRows {
   double* g;
   const double *y, *dinv, *b, *b1, *r1, *b2, *r2;
 };
+// SameAsTwoBack: the neighbour set alternates (this tick's active set is that of tick k-2, not of
+// k-1): g = y0(k-2) + dinv (b - (b2 - r2)), the last solution with this right-hand side's pattern.
+template <bool SameAsTwoBack>
 [[gnu::always_inline]] inline void warm_body(const WarmRows& a) {
   for (int i = 0; i < a.nodes; ++i) {
     const bool last = i == a.nodes - 1;
-    const Lanes4 h = HAPTIC_NODE_LANES(a.b, i, last) - 2.0 * (HAPTIC_NODE_LANES(a.b1, i, last) - HAPTIC_NODE_LANES(a.r1, i, last)) +
-                     (HAPTIC_NODE_LANES(a.b2, i, last) - HAPTIC_NODE_LANES(a.r2, i, last));
-    const Lanes4 g = 2.0 * HAPTIC_NODE_LANES(a.y, i, last) - HAPTIC_NODE_LANES(a.g, i, last) + a.dinv[i] * h;
-    HAPTIC_STORE_NODE(a.g, i, g);
+    if constexpr (SameAsTwoBack) {
+      const Lanes4 h = HAPTIC_NODE_LANES(a.b, i, last) - (HAPTIC_NODE_LANES(a.b2, i, last) - HAPTIC_NODE_LANES(a.r2, i, last));
+      const Lanes4 g = HAPTIC_NODE_LANES(a.g, i, last) + a.dinv[i] * h;
+      HAPTIC_STORE_NODE(a.g, i, g);
+    } else {
+      const Lanes4 h = HAPTIC_NODE_LANES(a.b, i, last) - 2.0 * (HAPTIC_NODE_LANES(a.b1, i, last) - HAPTIC_NODE_LANES(a.r1, i, last)) +
+                       (HAPTIC_NODE_LANES(a.b2, i, last) - HAPTIC_NODE_LANES(a.r2, i, last));
+      const Lanes4 g = 2.0 * HAPTIC_NODE_LANES(a.y, i, last) - HAPTIC_NODE_LANES(a.g, i, last) + a.dinv[i] * h;
+      HAPTIC_STORE_NODE(a.g, i, g);
+    }
   }
 }
-void warm_rows(const WarmRows& a) { warm_body(a); }
+void warm_rows(const WarmRows& a, bool two_back) { two_back ? warm_body<true>(a) : warm_body<false>(a); }
 #if defined(__x86_64__)
-__attribute__((target("avx"))) void warm_rows_avx(const WarmRows& a) { warm_body(a); }
+__attribute__((target("avx"))) void warm_rows_avx(const WarmRows& a, bool two_back) {
+  two_back ? warm_body<true>(a) : warm_body<false>(a);
+}
 #endif
 }  // namespace
 
@@ -629,14 +640,21 @@ void StationCore::warm_start_y0() {
   const double* dinv = step_->solver->inverse_diagonal();
   const bool two = y0_solves_ >= 2;
   const bool jacobi = dinv != nullptr && y0_solves_ >= 1 && y0_level_[0] == step_ && (!two || y0_level_[1] == step_);
+  // The active neighbours shape b: when they alternate tick by tick (an edge over its bound every
+  // other tick), the solution two ticks back is the guess with the right pattern.
+  std::uint32_t active = 0;
+  for (int j = 0; j < neighbor_count(); ++j) active |= active_[static_cast<std::size_t>(j)] ? 1u << j : 0u;
+  const bool two_back = two && active == y0_active_[1] && active != y0_active_[0];
+  y0_active_[1] = y0_active_[0];
+  y0_active_[0] = active;
   if (jacobi && two && w_ == 3) {  // the common case: one node (3 lanes) at a time
     const WarmRows rows{nf_, g, y, dinv, rhs_.data(), rhs_prev_.data(), resid_.data(), rhs_prev2_.data(), resid_prev_.data()};
 #if defined(__x86_64__)
     if (avx_kernels_)
-      warm_rows_avx(rows);
+      warm_rows_avx(rows, two_back);
     else
 #endif
-      warm_rows(rows);
+      warm_rows(rows, two_back);
   } else if (jacobi) {
     // A g from A y0(j) = b(j) - r(j) (the solves of ticks k-1, k-2 with this A).
     const double* b = rhs_.data();

@@ -336,6 +336,7 @@ class StationCore {
   // solve), the step level each of y0(k-1), y0(k-2) was solved with. Rotated by swaps.
   Eigen::VectorXd rhs_prev_, rhs_prev2_, resid_prev_;
   const StepLevel* y0_level_[2] = {nullptr, nullptr};
+  std::uint32_t y0_active_[2] = {0, 0};  // the active-neighbour masks of the last two solves
   std::vector<RxLink::TickView> views_;
   std::vector<unsigned char> active_;
 

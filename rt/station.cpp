@@ -565,6 +565,29 @@ const double* StationCore::modulation_target(int j, std::int64_t k) {
   return predicted_.data();
 }
 
+namespace {
+// contact_correction's common case: v_hat = ((y0 + z0 c0) + z1 c1) + z2 c2 per node, the column
+// passes' order, in 4 lanes (the baseline and AVX builds give the same bits).
+struct ContactRows {
+  int nodes;
+  double* vh;
+  const double* y0;
+  const double* z[3];
+  Lanes4 coef[3];
+};
+[[gnu::always_inline]] inline void contact_body(const ContactRows& a) {
+  for (int i = 0; i < a.nodes; ++i) {
+    const bool last = i == a.nodes - 1;
+    const Lanes4 v = ((HAPTIC_NODE_LANES(a.y0, i, last) + a.z[0][i] * a.coef[0]) + a.z[1][i] * a.coef[1]) + a.z[2][i] * a.coef[2];
+    HAPTIC_STORE_NODE(a.vh, i, v);
+  }
+}
+void contact_rows(const ContactRows& a) { contact_body(a); }
+#if defined(__x86_64__)
+__attribute__((target("avx"))) void contact_rows_avx(const ContactRows& a) { contact_body(a); }
+#endif
+}  // namespace
+
 void StationCore::contact_correction(const double* y0, double c) {
   // v_hat = y0 + sum_a Z_a coef_a, coef_a = c (X_vp - X_a) per column, the terms added in the order
   // a = 0, 1, ... as the column passes of the direct path do.
@@ -578,15 +601,15 @@ void StationCore::contact_correction(const double* y0, double c) {
   }
   contact_coef_set_ = true;
   double* vh = v_hat_.data();
-  if (w == 3 && m == 3) {  // the common case (three contact nodes, isotropic): coefficients in registers
-    const double* z0 = za[0];
-    const double* z1 = za[1];
-    const double* z2 = za[2];
-    for (int r = 0; r < nf_; ++r)
-      for (int col = 0; col < 3; ++col) {
-        const long k = static_cast<long>(r) * 3 + col;
-        vh[k] = ((y0[k] + z0[r] * coef[0][col]) + z1[r] * coef[1][col]) + z2[r] * coef[2][col];
-      }
+  if (w == 3 && m == 3) {  // the common case (three contact nodes, isotropic): one node per 4 lanes
+    ContactRows rows{nf_, vh, y0, {za[0], za[1], za[2]}, {}};
+    for (int a = 0; a < 3; ++a) rows.coef[a] = Lanes4{coef[a][0], coef[a][1], coef[a][2], 0.0};
+#if defined(__x86_64__)
+    if (avx_kernels_)
+      contact_rows_avx(rows);
+    else
+#endif
+      contact_rows(rows);
     return;
   }
   for (int r = 0; r < nf_; ++r)

@@ -76,6 +76,8 @@ void parse_station_section(View root, StationFile& f) {
   if (s.solver != "auto" && s.solver != "direct" && s.solver != "iterative") bad("station.solver", "\"auto\", \"direct\" or \"iterative\"");
   s.tx_deadband_mm = real(st["tx_deadband_mm"], "station.tx_deadband_mm", 0.0, 0.0, 99.999);
   s.tx_max_interval_ticks = static_cast<int>(integer(st["tx_max_interval_ticks"], "station.tx_max_interval_ticks", 1, 1, 1000));
+  if (st["tx_max_interval_ticks"] && s.tx_deadband_mm == 0)  // like sim's --tx-max-interval: nothing to hold without a band
+    bad("station.tx_max_interval_ticks", "left out unless station.tx_deadband_mm > 0 (without a band every state is sent)");
   s.tx_predict = boolean(st["tx_predict"], "station.tx_predict", false);
   if (s.tx_predict && s.consensus_passivity != "pspm")
     bad("station.tx_predict", "false unless station.consensus_passivity = \"pspm\" (eq. 18 does not cover extrapolated neighbour data)");

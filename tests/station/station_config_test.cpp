@@ -83,6 +83,8 @@ TEST(StationConfig, BadValuesNameTheKeyAndTheRange) {
   CHECK(contains(e, "station.solver") && contains(e, "\"iterative\""));
   e = error_of("[station]\nid = 1\ntx_max_interval_ticks = 0\n" + kNet);
   CHECK(contains(e, "station.tx_max_interval_ticks") && contains(e, "[1, 1000]"));
+  e = error_of("[station]\nid = 1\ntx_max_interval_ticks = 20\n" + kNet);  // no band: it would do nothing
+  CHECK(contains(e, "station.tx_max_interval_ticks") && contains(e, "station.tx_deadband_mm"));
   e = error_of("[station]\nid = 1\ntx_predict = true\n" + kNet);
   CHECK(contains(e, "station.tx_predict") && contains(e, "pspm"));
   e = error_of("[station]\nid = 1\nedge_energy_bound_J = -0.5\n" + kNet);

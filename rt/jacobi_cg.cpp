@@ -319,14 +319,6 @@ struct DirectionRows {
   }
 };
 
-// sum_c v[c], in column order.
-template <int W>
-double column_sum(const Lanes4& v) {
-  double s = v[0];
-  for (int c = 1; c < W; ++c) s += v[c];
-  return s;
-}
-
 }  // namespace
 
 // Preconditioned CG (Saad, Alg. 9.1) run on W independent systems; one matrix pass per iteration
@@ -340,10 +332,10 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
   const double* dinv = dinv_.data();
   // r = b - A x, p = z = D^{-1} r and the products, in the initial matvec's pass (row-local).
   const InitialRows<W> init = pass<W>(x, ring, ring_mask_, InitialRows<W>{b, r, p, dinv});
-  double rr = column_sum<W>(init.rr);
+  double rr = lane_sum<W>(init.rr);
   double rz[W];
   for (int c = 0; c < W; ++c) rz[c] = init.rz[c];
-  const double threshold = tol * tol * column_sum<W>(init.bb);
+  const double threshold = tol * tol * lane_sum<W>(init.bb);
   int it = 0;
   while (rr > threshold) {
     if (it == max_iterations) return max_iterations + 1;

@@ -8,6 +8,15 @@ namespace haptic::rt {
 
 typedef double Lanes4 __attribute__((vector_size(32)));
 
+// sum_c l[c] over the first W lanes, in lane order ((l0 + l1) + l2 for a node): how a kernel's
+// per-lane sums become one number, the same in every build.
+template <int W>
+[[gnu::always_inline]] inline double lane_sum(const Lanes4& l) {
+  double s = l[0];
+  for (int c = 1; c < W; ++c) s += l[c];
+  return s;
+}
+
 }  // namespace haptic::rt
 
 // Node `node`'s three columns of the interleaved array p (3 doubles per node) as Lanes4; `last`:

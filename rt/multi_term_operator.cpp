@@ -72,7 +72,8 @@ MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& te
     rowptr_[static_cast<std::size_t>(r) + 1] = static_cast<int>(col_.size());
   }
   // apply_consensus: terms [M, K, P, D] with off-diagonal entries in K and P only, shared values,
-  // isotropic; the ring holds the band of columns rows read (bounded: 4096 nodes, 256 KB).
+  // isotropic; the ring holds the band of columns rows read (bounded: 4096 nodes, three copies of
+  // 64 bytes each: 768 KB).
   const bool mkpd = terms_ == 4 && off_terms_ == 2 && off_term_[0] == 1 && off_term_[1] == 2 && shared_ && width_ == 3;
   if (mkpd) {
     int behind = 0, ahead = 0;
@@ -101,7 +102,7 @@ bool MultiTermOperator::use_avx(bool allow) {
 }
 
 long MultiTermOperator::stored_doubles() const {
-  return static_cast<long>(diag_.size() + off_.size()) + static_cast<long>(rowptr_.size() + col_.size()) / 2;
+  return static_cast<long>(diag_.size() + off_.size() + ring_.size()) + static_cast<long>(rowptr_.size() + col_.size() + rel_.size()) / 2;
 }
 
 // TT, S: number of terms and of off-diagonal slots known at compile time (the common cases), or
@@ -317,10 +318,10 @@ struct ConsensusPass {
     q3 += svi * acc3;
   }
   if (a.quad) {
-    a.quad[0] = (q0[0] + q0[1]) + q0[2];
-    a.quad[1] = (q1[0] + q1[1]) + q1[2];
-    a.quad[2] = (q2[0] + q2[1]) + q2[2];
-    a.quad[3] = (q3[0] + q3[1]) + q3[2];
+    a.quad[0] = lane_sum<3>(q0);
+    a.quad[1] = lane_sum<3>(q1);
+    a.quad[2] = lane_sum<3>(q2);
+    a.quad[3] = lane_sum<3>(q3);
   }
 }
 void consensus_kernel(const ConsensusPass& a) { consensus_body(a); }
@@ -329,7 +330,7 @@ __attribute__((target("avx"))) void consensus_kernel_avx(const ConsensusPass& a)
 #endif
 }  // namespace
 
-void MultiTermOperator::apply_consensus(const ConsensusInputs& in, const double* to_y, double* y, double* quad) const {
+void MultiTermOperator::apply_consensus(const ConsensusInputs& in, const double* to_y, double* y, double* quad) {
   ConsensusPass a{rows_, band_ahead_ + 1, ring_mask_, diag_.data(), rowptr_.data(), rel_.data(), off_.data(), ratio_[0], ratio_[1],
                   nullptr, in, to_y, y, quad};
   // 64-byte aligned ring slots: a node's two loads share one cache line

@@ -59,7 +59,8 @@ class MultiTermOperator {
     int nf = 0;
   };
   bool fuses_consensus() const { return ring_mask_ > 0; }  // [M, K, P, D], shared, isotropic, band fits
-  void apply_consensus(const ConsensusInputs& in, const double* to_y, double* y, double* quad) const;
+  // Writes the operator's ring (not const; not for concurrent calls on one operator).
+  void apply_consensus(const ConsensusInputs& in, const double* to_y, double* y, double* quad);
   int ring_nodes() const { return ring_mask_ + 1; }
 
  private:
@@ -78,7 +79,7 @@ class MultiTermOperator {
   // columns by a fixed byte offset (rel_) without a wrap; node m at m & ring_mask_. 0: no fusion.
   int ring_mask_ = 0, band_ahead_ = 0;
   std::vector<int> rel_;
-  mutable std::vector<double> ring_;
+  std::vector<double> ring_;
 };
 
 }  // namespace haptic::rt

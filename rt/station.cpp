@@ -326,7 +326,6 @@ void StationCore::build_rhs() {
   double quad[MultiTermOperator::kMaxTerms] = {};
   // Terms [M, K, P_0, D_0] on [v, d = x - x_d, sx_0, sv_0] (an over-bound edge contributes nothing:
   // x - x_hat_j = 0, delta_ij = 0).
-  const double* u[4] = {v_.data(), tmp_.data(), tmp2_.data(), scratch_.data()};
   const double to_b[4] = {2.0 / (N * T_), -1.0 / N, -1.0, 1.0};
   if (rhs_op_.fuses_consensus()) {  // the terms' inputs formed inside the pass (sum_group's sums)
     const double* xs[kMaxNeighbors];
@@ -345,6 +344,7 @@ void StationCore::build_rhs() {
     } else {
       tmp_ = x_ - scene_.x_d;
     }
+    const double* u[4] = {v_.data(), tmp_.data(), tmp2_.data(), scratch_.data()};
     rhs_op_.apply(u, to_b, nullptr, rhs_.data(), nullptr, quad);
   }
   // E_i(k) = 1/N (|v|_M^2 / 2 + |x - x_d|_K^2 / 2) at the start of the tick (eq. 12)
@@ -444,14 +444,13 @@ template <int NE, bool Advance, bool FromA>
       nonfinite += 0.0 * xn + 0.0 * vn;
     }
   }
-  const auto sum3 = [](const Lanes4& l) { return (l[0] + l[1]) + l[2]; };
   PostSolveOut out;
-  out.vv = sum3(vv);
-  out.vr = sum3(vr);
-  out.dvv = sum3(dvv);
+  out.vv = lane_sum<3>(vv);
+  out.vr = lane_sum<3>(vr);
+  out.dvv = lane_sum<3>(dvv);
   out.vmax = std::max(std::max(vmax[0], vmax[1]), vmax[2]);
-  out.nonfinite = sum3(nonfinite);
-  for (int n = 0; n < ne; ++n) out.e[n] = sum3(e[n]);
+  out.nonfinite = lane_sum<3>(nonfinite);
+  for (int n = 0; n < ne; ++n) out.e[n] = lane_sum<3>(e[n]);
   return out;
 }
 template <int NE, bool Advance, bool FromA>

@@ -26,8 +26,8 @@
 #include <memory>
 #include <vector>
 
-#include "rt/edge_energy.hpp"
 #include "rt/cpu_avx.hpp"
+#include "rt/edge_energy.hpp"
 #include "rt/gains.hpp"
 #include "rt/multi_term_operator.hpp"
 #include "rt/rx_link.hpp"
@@ -223,6 +223,9 @@ class StationCore {
   std::uint64_t solver_unconverged_ticks() const { return solver_unconverged_ticks_; }
   // Start-up / tests: overwrite the state (allocates nothing; sizes must match).
   void set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v);
+  // Tests: false runs the baseline build of the station's own lane kernels (post-solve, warm start,
+  // contact correction); returns whether AVX is used.
+  bool use_avx(bool allow) { return avx_kernels_ = allow && cpu_has_avx(); }
 
  private:
   using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxContactNodes + 3, 3 * kMaxContactNodes + 3>;
@@ -262,10 +265,11 @@ class StationCore {
   // pspm: the set-position target of edge j at tick k: the held packet's x_hat_j, extrapolated by its
   // v_hat_j over the ticks it has been held when predict_held_state (views_[j] from begin_tick). RT-safe.
   const double* modulation_target(int j, std::int64_t k);
-  // Sums of gain group g (neighbours sharing cfg_.neighbors[g].gains): sx = sum_active (x - x_hat_j),
-  // sv = sum_{active, fresh} v_hat_j, and (if d) d = x - x_d, in one pass. RT-safe.
-  // Gain group g's active neighbours' x_hat (na) and fresh ones' v_hat (nf), in neighbour order.
+  // Gain group g's (neighbours sharing cfg_.neighbors[g].gains) active neighbours' x_hat (na) and
+  // fresh ones' v_hat (nf), in neighbour order.
   void group_inputs(int g, const double** xs, int& na, const double** vs, int& nf) const;
+  // Sums of gain group g: sx = sum_active (x - x_hat_j), sv = sum_{active, fresh} v_hat_j, and (if d)
+  // d = x - x_d, in one pass. RT-safe.
   void sum_group(int g, double* sx, double* sv, double* d) const;
   // Steps 6 and 7 of the first gain group: D_0 v_hat and P_0 v_hat in one operator pass, then ONE
   // pass over the dofs for x_hat = x + T/2 v_hat, |v_hat|^2 and the residual's energy
@@ -350,10 +354,7 @@ class StationCore {
   double contact_coef_[3 * kMaxContactNodes][3] = {};
   bool contact_coef_set_ = false;
   std::vector<double> d0_diag_;
-  bool avx_kernels_ = cpu_has_avx();  // the post-solve pass's AVX build (the same bits as the baseline)
- public:
-  // Tests: false runs the baseline build of the station's own lane kernels; returns whether AVX is used.
-  bool use_avx(bool allow) { return avx_kernels_ = allow && cpu_has_avx(); }
+  bool avx_kernels_ = cpu_has_avx();  // the AVX build of the post-solve, warm-start and contact passes (same bits)
 };
 
 }  // namespace haptic::rt

@@ -55,7 +55,7 @@ struct OpenedDevice {
 };
 
 // No requested device could be started (what() says what was found, why each backend failed,
-// and which key fixes it). The station exits with its own code for this (firmware/station_phase.hpp).
+// and which key fixes it). The station exits with its own code for this (firmware/station/phase.hpp).
 class DeviceMissing : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;

@@ -11,15 +11,15 @@
 #include <iostream>
 #include <string>
 
-#include "firmware/run_merge.hpp"
-#include "firmware/run_summary.hpp"
+#include "firmware/run/merge.hpp"
+#include "firmware/run/summary.hpp"
 #include "firmware/scenario.hpp"
-#include "firmware/session_replay.hpp"
-#include "firmware/simulator.hpp"
-#include "firmware/view_timeline.hpp"
-#include "firmware/station_config.hpp"
-#include "firmware/station_phase.hpp"
-#include "firmware/station_run.hpp"
+#include "firmware/session/replay.hpp"
+#include "firmware/sim/simulator.hpp"
+#include "firmware/view/timeline.hpp"
+#include "firmware/station/config.hpp"
+#include "firmware/station/phase.hpp"
+#include "firmware/station/run.hpp"
 #include "platform/install_paths.hpp"
 
 namespace fs = std::filesystem;
@@ -338,7 +338,7 @@ int replay_command(const ReplayArgs& a) {
   }
 }
 
-// `haptic-station run`: returns the exit code (firmware/station_phase.hpp). Not RT-safe.
+// `haptic-station run`: returns the exit code (firmware/station/phase.hpp). Not RT-safe.
 int run_command(const RunArgs& a) {
   StationFile file;
   RunOverrides ov;

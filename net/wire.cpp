@@ -119,7 +119,7 @@ std::string fingerprint_difference(const Fingerprint& mine, const Fingerprint& t
   };
   field("protocol version", mine.protocol_version, theirs.protocol_version, true);
   field("scene nodes", mine.scene_nodes, theirs.scene_nodes, true);
-  // scene_hash: geometry in the high 32 bits, material in the low 32 (firmware/station_plan.cpp).
+  // scene_hash: geometry in the high 32 bits, material in the low 32 (firmware/station/plan.cpp).
   const bool geometry = (mine.scene_hash >> 32) != (theirs.scene_hash >> 32);
   const bool material = (mine.scene_hash & 0xFFFFFFFFu) != (theirs.scene_hash & 0xFFFFFFFFu);
   if (geometry && !material) field("scene geometry (hash)", mine.scene_hash, theirs.scene_hash, false);

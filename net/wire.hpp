@@ -137,7 +137,7 @@ inline constexpr std::uint8_t kConsensusLawPspm = 2;  // passive set-position mo
 // fingerprint but travels with it so both ends of a link agree on the larger of each (net/README.md):
 // a u64, the sender's round-trip bound to the destination as its probing fixed it, in ns (0: not
 // yet); a u32, the sender's loss allowance for the link in ticks + 1 (0: not yet; the station's
-// station.loss_allowance_ticks, firmware/station_probe.hpp); then the fingerprint's coupling law
+// station.loss_allowance_ticks, firmware/station/probe.hpp); then the fingerprint's coupling law
 // (u8 consensus_law, u8 tx_predict, u16 tx_deadband_hash: the word that was reserved, 0, before).
 inline constexpr std::size_t kFingerprintBytes = 48;
 // 64-bit keyless BLAKE2b of bytes (for Fingerprint's hashes). Not RT-safe (start-up).

@@ -27,11 +27,11 @@ PKGS=(
   nlohmann-json3-dev
   # network namespace reachability check (tools/netns/netns.sh check)
   iputils-ping
-  # session logs and bit-exact replay (firmware/session_log.hpp): HDF5, xxHash state hashes, h5py readers
+  # session logs and bit-exact replay (firmware/session/log.hpp): HDF5, xxHash state hashes, h5py readers
   libhdf5-dev libxxhash-dev python3-h5py
   # scenes from files: TetGen tetrahedralizes surface meshes; Gmsh makes the tests' meshes
   tetgen gmsh
-  # live web view (firmware/view_server.hpp, tools/view/): libwebsockets, three.js, Chart.js (local, no CDN);
+  # live web view (firmware/view/server.hpp, tools/view/): libwebsockets, three.js, Chart.js (local, no CDN);
   # chromium for its headless test (tests/station/view_check.sh; a visible skip without it)
   libwebsockets-dev libjs-three libjs-chart.js chromium
 )

@@ -7,7 +7,7 @@
 #include <cmath>
 
 #include "firmware/scenario.hpp"
-#include "firmware/simulator.hpp"
+#include "firmware/sim/simulator.hpp"
 
 using namespace haptic::firmware;
 

@@ -1,4 +1,4 @@
-// Divergence by growth (issue 15 item 5, firmware/growth_detector.hpp): a slowly growing
+// Divergence by growth (issue 15 item 5, firmware/model/growth_detector.hpp): a slowly growing
 // instability is reported long before any node reaches the 50 m/s speed threshold, and a push
 // that raises the error for a while and then settles is not.
 #include <CppUTest/TestHarness.h>
@@ -6,10 +6,10 @@
 #include <Eigen/Dense>
 #include <cmath>
 
-#include "firmware/growth_detector.hpp"
-#include "firmware/run_metrics.hpp"
+#include "firmware/model/growth_detector.hpp"
+#include "firmware/run/metrics.hpp"
 #include "firmware/scenario.hpp"
-#include "firmware/simulator.hpp"
+#include "firmware/sim/simulator.hpp"
 #include "tests/firmware/tight_case.hpp"
 
 using namespace haptic::firmware;

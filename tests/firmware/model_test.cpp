@@ -8,7 +8,7 @@
 
 #include "firmware/model/delay_model.hpp"
 #include "firmware/model/graph.hpp"
-#include "firmware/probe_loss.hpp"
+#include "firmware/model/probe_loss.hpp"
 #include "firmware/scenario.hpp"
 #include "tests/support/error_of.hpp"
 

@@ -10,9 +10,9 @@
 #include <unistd.h>
 
 #include "firmware/scenario.hpp"
-#include "firmware/simulator.hpp"
-#include "firmware/station_config.hpp"
-#include "firmware/station_plan.hpp"
+#include "firmware/sim/simulator.hpp"
+#include "firmware/station/config.hpp"
+#include "firmware/station/plan.hpp"
 #include "tests/support/error_of.hpp"
 
 using namespace haptic::firmware;

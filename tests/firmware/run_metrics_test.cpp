@@ -1,5 +1,5 @@
-// The run metrics (firmware/run_metrics.hpp) shared by the simulator and the multi-process merge
-// (firmware/run_merge.hpp): empty windows give null, consensus times to the absolute threshold and
+// The run metrics (firmware/run/metrics.hpp) shared by the simulator and the multi-process merge
+// (firmware/run/merge.hpp): empty windows give null, consensus times to the absolute threshold and
 // to 10 % / 1 % of the error at release, and the merge of station files on their common ticks.
 #include <CppUTest/TestHarness.h>
 
@@ -8,10 +8,10 @@
 #include <fstream>
 #include <string>
 
-#include "firmware/run_merge.hpp"
-#include "firmware/run_metrics.hpp"
-#include "firmware/run_summary.hpp"
-#include "firmware/station_tick.hpp"
+#include "firmware/run/merge.hpp"
+#include "firmware/run/metrics.hpp"
+#include "firmware/run/summary.hpp"
+#include "firmware/station/tick.hpp"
 
 using namespace haptic::firmware;
 using nlohmann::json;

@@ -10,7 +10,7 @@
 #include <optional>
 
 #include "firmware/scenario.hpp"
-#include "firmware/simulator.hpp"
+#include "firmware/sim/simulator.hpp"
 #include "tests/firmware/tight_case.hpp"
 
 using namespace haptic::firmware;

@@ -7,8 +7,8 @@
 #include <string>
 
 #include "firmware/scenario.hpp"
-#include "firmware/station_config.hpp"
-#include "firmware/station_plan.hpp"
+#include "firmware/station/config.hpp"
+#include "firmware/station/plan.hpp"
 #include "net/wire.hpp"
 #include "tests/scene/fixtures.hpp"
 #include "tests/support/error_of.hpp"

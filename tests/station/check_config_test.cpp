@@ -8,7 +8,7 @@
 #include <sstream>
 #include <string>
 
-#include "firmware/station_run.hpp"
+#include "firmware/station/run.hpp"
 #include "tests/station/station_files.hpp"
 
 using namespace haptic;

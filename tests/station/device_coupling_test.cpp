@@ -12,8 +12,8 @@
 #include "drivers/falcon_device.hpp"
 #include "drivers/phantom_device.hpp"
 #include "drivers/spacemouse.hpp"
-#include "firmware/station_probe.hpp"
-#include "firmware/station_run.hpp"
+#include "firmware/station/probe.hpp"
+#include "firmware/station/run.hpp"
 #include "tests/station/station_files.hpp"
 
 using namespace haptic;

@@ -11,8 +11,8 @@
 #include <string>
 
 #include "drivers/phantom_device.hpp"
-#include "firmware/station_probe.hpp"
-#include "firmware/station_tick.hpp"
+#include "firmware/station/probe.hpp"
+#include "firmware/station/tick.hpp"
 #include "tests/station/station_files.hpp"
 
 using namespace haptic;

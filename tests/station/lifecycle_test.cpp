@@ -10,9 +10,9 @@
 #include <string>
 #include <thread>
 
-#include "firmware/station_neighbours.hpp"
-#include "firmware/station_probe.hpp"
-#include "firmware/station_run.hpp"
+#include "firmware/station/neighbours.hpp"
+#include "firmware/station/probe.hpp"
+#include "firmware/station/run.hpp"
 #include "net/transport_udp.hpp"
 #include "tests/scene/fixtures.hpp"
 

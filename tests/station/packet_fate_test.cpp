@@ -10,10 +10,10 @@
 #include <cstdint>
 #include <string>
 
-#include "firmware/link_impairment.hpp"
+#include "firmware/station/link_impairment.hpp"
 #include "firmware/scenario.hpp"
-#include "firmware/simulator.hpp"
-#include "firmware/station_config.hpp"
+#include "firmware/sim/simulator.hpp"
+#include "firmware/station/config.hpp"
 #include "net/config.hpp"
 
 using namespace haptic;

@@ -15,8 +15,8 @@
 #include "drivers/device_factory.hpp"
 #include "firmware/scenario.hpp"
 #include "tools/jitter/station_workload.hpp"
-#include "firmware/session_replay.hpp"
-#include "firmware/station_run.hpp"
+#include "firmware/session/replay.hpp"
+#include "firmware/station/run.hpp"
 #include "net/config.hpp"
 #include "tests/support/alloc_counter.hpp"
 

@@ -8,8 +8,8 @@
 #include <string>
 
 #include "firmware/scenario.hpp"
-#include "firmware/station_config.hpp"
-#include "firmware/station_run.hpp"
+#include "firmware/station/config.hpp"
+#include "firmware/station/run.hpp"
 #include "rt/gains.hpp"
 
 using namespace haptic::firmware;

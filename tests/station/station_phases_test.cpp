@@ -17,8 +17,8 @@
 
 #include "drivers/device_factory.hpp"
 #include "drivers/simulated_device.hpp"
-#include "firmware/station_run.hpp"
-#include "firmware/station_tick.hpp"
+#include "firmware/station/run.hpp"
+#include "firmware/station/tick.hpp"
 #include "platform/clock.hpp"
 #include "tests/station/station_files.hpp"
 
@@ -377,7 +377,7 @@ TEST(StationPhases, AStationWhoseCopyDivergesExitsDivergedAndNamesIt) {
 }
 
 TEST(StationPhases, ALeafStartedAfterTheProbingPhaseRejoinsTheRunningSessionInProcess) {
-  // The rejoin phase (station_rejoin.cpp) in-process: four stations start on the common epoch;
+  // The rejoin phase (firmware/station/rejoin.cpp) in-process: four stations start on the common epoch;
   // station 2's first run ends at run time 0.3 s (as if it had died), and it starts again with the
   // same epoch at run time 0.6 s (a new endpoint: a new incarnation): it probes 0.2 s, learns the
   // session's epoch, takes over the hub's object state and couples until the session's end.

@@ -23,9 +23,9 @@
 #include <vector>
 
 #include "firmware/scenario.hpp"
-#include "firmware/session_recorder.hpp"
-#include "firmware/view_frame.hpp"
-#include "firmware/view_server.hpp"
+#include "firmware/session/recorder.hpp"
+#include "firmware/view/frame.hpp"
+#include "firmware/view/server.hpp"
 #include "rt/station.hpp"
 #include "rt/user_model.hpp"
 

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "firmware/scenario.hpp"
-#include "firmware/session_recorder.hpp"
+#include "firmware/session/recorder.hpp"
 #include "rt/station.hpp"
 #include "rt/user_model.hpp"
 #include "tools/jitter/jitter.hpp"

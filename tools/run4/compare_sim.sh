@@ -4,7 +4,7 @@
 # Usage: compare_sim.sh [--transport udp|raw] [--seed N] [--duration S] [--push-end S] [--release S]
 #                       [--bin PATH] [--out DIR]
 # Writes OUT/sim/, OUT/run/, OUT/sim-same-gains/ and OUT/compare.json (consensus times (< 1 mm, and to
-# 10 % / 1 % of the error at release: both sides by the same code, firmware/run_metrics),
+# 10 % / 1 % of the error at release: both sides by the same code, firmware/run/metrics),
 # hold-force balance, relative differences; the target is within 20 %).
 # Two simulator references: `sim` chooses B_i from its own delay model (eq. 18 with the model's
 # N_bar), `sim_same_gains` is given the B_i the four processes chose from their MEASURED round

@@ -13,7 +13,7 @@
 #include <sstream>
 
 #include "firmware/scenario.hpp"
-#include "firmware/simulator.hpp"
+#include "firmware/sim/simulator.hpp"
 #include "rt/spatial_matrix.hpp"
 #include "tools/study/study.hpp"
 

@@ -7,7 +7,7 @@ Around it, one parameter at a time (delay, delay jitter, loss, T_k jitter, D, no
 i.i.d. delay model and the time-correlated one (--delay-correlation RHO, same uniform support),
 this finds by bisection the smallest scale f of eq. (18)'s damping (B_i = f x eq. 18, all users)
 at which the run is stable: no divergence by speed AND no growth of the consensus error
-(summary.json `unstable` = diverged or growth_detected_at_s, firmware/growth_detector.hpp).
+(summary.json `unstable` = diverged or growth_detected_at_s, firmware/model/growth_detector.hpp).
 The eq. (18) line is f = 1: below it eq. (18) is conservative, above it (18) does not suffice.
 
 Bounded: small grids, short runs (--duration, default 8 s), one run at a time, progress on stderr.

@@ -88,7 +88,7 @@ function push(c, i, t, y) {
   while (d.length && d[0].x < t - WINDOW_S) d.shift();
 }
 
-// A recording's plots: every kept frame's values at once (scene.history rows, view_timeline.cpp).
+// A recording's plots: every kept frame's values at once (scene.history rows, firmware/view/timeline.cpp).
 function fillHistory(s) {
   s.history.forEach(r => {
     const t = r[0];

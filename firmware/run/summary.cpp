@@ -1,0 +1,198 @@
+#include "firmware/run/summary.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <stdexcept>
+
+namespace haptic::firmware {
+
+namespace {
+
+using nlohmann::json;
+
+json opt(const std::optional<double>& v) { return v ? json(*v) : json(nullptr); }
+
+}  // namespace
+
+json topology_json(const model::Graph& g) {
+  json topo = json::array();
+  for (const auto& l : g) topo.push_back({l.a + 1, l.b + 1});
+  return topo;
+}
+
+json scenario_json(const BuiltScenario& b) {
+  const ScenarioSpec& s = b.spec;
+  json j;
+  j["scenario"] = s.name;
+  j["users"] = s.users;
+  j["dt_s"] = s.period_s;
+  j["duration_s"] = s.duration_s;
+  j["seed"] = s.seed;
+  j["topology"] = topology_json(s.topology);
+  j["scene_nodes"] = b.scene.nodes;
+  j["scene_edges"] = b.scene.mesh.edges.size();
+  j["scene_tetrahedra"] = b.scene.mesh.tets.size();
+  j["trace_node"] = b.trace_node;
+  j["trace_node_rest_m"] = std::vector<double>(b.scene.x_d.data() + 3 * b.trace_node, b.scene.x_d.data() + 3 * b.trace_node + 3);
+  j["snapshot_times_s"] = snapshot_times_s(s);
+  j["damping_margin"] = s.damping_margin;
+  j["loss_allowance_ticks"] = b.loss_allowance_ticks;  // the one used (given, or from the loss model)
+  j["receive_rule"] = rt::rx_rule_name(s.receive_rule);
+  j["tx_deadband"] = {{"position_m", s.tx_deadband.position_deadband_m}, {"max_interval_ticks", s.tx_deadband.max_interval_ticks}};
+  j["release_time_s"] = s.script.release_s;
+  j["push_end_s"] = s.script.push_end_s;
+  const MetricsWindows w = metrics_windows(s.script);
+  j["metrics_windows"] = {{"release_s", w.release_s},         {"hold_start_s", w.hold_start_s},
+                          {"hold_end_s", w.hold_end_s},       {"push_start_s", w.push_start_s},
+                          {"push_end_s", w.push_end_s},
+                          {"consensus_threshold_m", w.consensus_threshold_m}};
+  return j;
+}
+
+const std::vector<std::string>& scenario_json_keys() {
+  static const std::vector<std::string> keys = {"scenario",    "users",         "dt_s",           "duration_s",           "seed",
+                                                "topology",    "scene_nodes",   "scene_edges",    "scene_tetrahedra",     "trace_node", "trace_node_rest_m", "snapshot_times_s",
+                                                "damping_margin", "loss_allowance_ticks", "receive_rule", "tx_deadband", "release_time_s", "push_end_s",
+                                                "metrics_windows"};
+  return keys;
+}
+
+MetricsWindows metrics_windows_from_json(const json& scenario) {
+  if (!scenario.contains("metrics_windows")) throw std::invalid_argument("no 'metrics_windows' in the station's JSON (written by an older haptic-station?)");
+  const json& m = scenario["metrics_windows"];
+  MetricsWindows w;
+  w.release_s = m.at("release_s").get<double>();
+  w.hold_start_s = m.at("hold_start_s").get<double>();
+  w.hold_end_s = m.at("hold_end_s").get<double>();
+  w.push_start_s = m.at("push_start_s").get<double>();
+  w.push_end_s = m.value("push_end_s", 0.0);  // absent in older station files: no push window
+  w.consensus_threshold_m = m.at("consensus_threshold_m").get<double>();
+  return w;
+}
+
+json metrics_json(const RunMetricsResult& m) {
+  using F = std::optional<double> RunMetricsResult::*;
+  static const std::pair<const char*, F> optional_fields[] = {
+      {"consensus_error_m", &RunMetricsResult::consensus_error_m},
+      {"max_consensus_error_m", &RunMetricsResult::max_consensus_error_m},
+      {"consensus_error_at_release_m", &RunMetricsResult::consensus_error_at_release_m},
+      {"consensus_time_s", &RunMetricsResult::consensus_time_s},
+      {"consensus_time_10pct_s", &RunMetricsResult::consensus_time_10pct_s},
+      {"consensus_time_1pct_s", &RunMetricsResult::consensus_time_1pct_s},
+      {"consensus_time_resolution_s", &RunMetricsResult::consensus_time_resolution_s},
+      {"hold_force_sum_N", &RunMetricsResult::hold_force_sum_N},
+      {"hold_force_mean_N", &RunMetricsResult::hold_force_mean_N},
+      {"hold_force_balance_ratio", &RunMetricsResult::hold_force_balance_ratio},
+      {"deformation_hold_m", &RunMetricsResult::deformation_hold_m},
+      {"deformation_rise_time_s", &RunMetricsResult::deformation_rise_time_s},
+      {"port_energy_min_J", &RunMetricsResult::port_energy_min_J},
+      {"controller_energy_max_J", &RunMetricsResult::controller_energy_max_J},
+      {"diverged_at_s", &RunMetricsResult::diverged_at_s},
+      {"growth_detected_at_s", &RunMetricsResult::growth_detected_at_s},
+      {"growth_rate_per_s", &RunMetricsResult::growth_rate_per_s}};
+  json j;
+  j["simulated_s"] = m.simulated_s;
+  j["release_time_s"] = m.release_time_s;
+  j["hold_window_s"] = {m.hold_window_start_s, m.hold_window_end_s};
+  for (const auto& [key, field] : optional_fields) j[key] = opt(m.*field);
+  j["diverged"] = m.diverged;
+  j["unstable"] = m.unstable;  // diverged by speed or growing consensus error (firmware/model/growth_detector.hpp)
+  const auto& v = m.max_node_speed_m_per_s;
+  j["max_node_speed_m_per_s"] = !v ? json(nullptr) : std::isfinite(*v) ? json(*v) : json("inf");
+  return j;
+}
+
+json link_json(const LinkSummary& l) {
+  json j = {{"to", l.to},
+            {"from", l.from},
+            {"sent", l.sent},
+            {"delivered", l.delivered},
+            {"lost", l.lost},
+            {"duplicated", l.duplicated},
+            {"reordered", l.reordered},
+            {"mean_delay_ms", opt(l.mean_delay_ms)},
+            {"max_delay_ms", opt(l.max_delay_ms)},
+            {"loss_rate", l.sent ? json(static_cast<double>(l.lost) / static_cast<double>(l.sent)) : json(nullptr)}};
+  j["max_index_delay_ticks"] = l.max_index_delay_ticks ? json(*l.max_index_delay_ticks) : json(nullptr);
+  j["bound_violations"] = l.bound_violations ? json(*l.bound_violations) : json(nullptr);
+  j["index_delay_bound_ticks"] = l.index_delay_bound_ticks ? json(*l.index_delay_bound_ticks) : json(nullptr);
+  if (l.edge_energy) j["edge_energy"] = edge_energy_json(*l.edge_energy);
+  return j;
+}
+
+EdgeEnergySummary edge_energy_summary(const rt::StationCore& core, int n) {
+  const auto& a = core.edge_energy();
+  const auto& g = core.edge_gate();
+  return {a.edge_J(n), a.peak_J(n), g.bound_J(n), g.trips(n), g.gated_ticks(n)};
+}
+
+json edge_energy_json(const EdgeEnergySummary& e) {
+  return {{"account_J", e.account_J},
+          {"peak_J", e.peak_J},
+          {"bound_J", std::isfinite(e.bound_J) ? json(e.bound_J) : json(nullptr)},
+          {"trips", e.trips},
+          {"gated_ticks", e.gated_ticks}};
+}
+
+json packets_json(const std::vector<LinkSummary>& links) {
+  std::uint64_t sent = 0, delivered = 0, lost = 0, dup = 0, reord = 0;
+  for (const auto& l : links) {
+    sent += l.sent;
+    delivered += l.delivered;
+    lost += l.lost;
+    dup += l.duplicated;
+    reord += l.reordered;
+  }
+  return {{"sent", sent}, {"delivered", delivered}, {"lost", lost}, {"duplicated", dup}, {"reordered", reord}};
+}
+
+void write_trace_header(std::FILE* f) {
+  std::fprintf(f,
+               "t_s,user,node_x_m,node_y_m,node_z_m,force_x_N,force_y_N,force_z_N,vp_x_m,vp_y_m,vp_z_m,"
+               "device_x_m,device_y_m,device_z_m,port_energy_J,controller_energy_J,vo_energy_J,contact\n");
+}
+
+void write_trace_row(std::FILE* f, const TraceRow& r) {
+  std::fprintf(f, "%.4f,%d,%.7g,%.7g,%.7g,%.6g,%.6g,%.6g,%.7g,%.7g,%.7g,%.7g,%.7g,%.7g,%.7g,%.7g,%.7g,%d\n", r.t_s, r.user, r.node[0], r.node[1], r.node[2],
+               r.force[0], r.force[1], r.force[2], r.vp[0], r.vp[1], r.vp[2], r.device[0], r.device[1], r.device[2], r.port_J, r.ctrl_J, r.vo_J,
+               r.contact ? 1 : 0);
+}
+
+void write_series_header(std::FILE* f) {
+  std::fprintf(f, "t_s,consensus_error_m,deformation_m,port_energy_total_J,controller_energy_total_J,force_sum_x_N,force_sum_norm_N\n");
+}
+
+void write_series_row(std::FILE* f, const SeriesRow& r) {
+  std::fprintf(f, "%.4f,%.7g,%.7g,%.7g,%.7g,%.6g,%.6g\n", r.t_s, r.consensus_error_m, r.deformation_m, r.port_total_J, r.ctrl_total_J, r.force_sum_x_N,
+               r.force_sum_norm_N);
+}
+
+std::vector<double> snapshot_times_s(const ScenarioSpec& s) {
+  const UserScriptSpec& sc = s.script;
+  if (sc.kind == UserScriptSpec::Kind::kPushHoldRelease)
+    return {0.0, sc.push_end_s, 0.5 * (sc.push_end_s + sc.release_s), sc.release_s, s.duration_s};
+  return {0.0, sc.perturb_at_s + sc.perturb_duration_s, s.duration_s};
+}
+
+void write_snapshots_json(const std::string& path, const std::vector<std::array<int, 3>>& surface,
+                          const std::vector<std::vector<int>>& contact_nodes, const std::vector<Snapshot>& snapshots) {
+  json snaps = json::array();
+  for (const Snapshot& sn : snapshots) snaps.push_back({{"t_s", sn.t_s}, {"x_m", sn.x_m}, {"vp_m", sn.vp_m}});
+  std::ofstream f(path);
+  if (!f) throw std::runtime_error("cannot write " + path);
+  f << json{{"surface", surface}, {"contact_nodes", contact_nodes}, {"snapshots", snaps}}.dump() << "\n";
+}
+
+OutFile open_out_file(const std::string& path) {
+  OutFile f(std::fopen(path.c_str(), "w"));
+  if (!f) throw std::runtime_error("cannot write " + path);
+  return f;
+}
+
+void write_json_file(const std::string& path, const json& j) {
+  std::ofstream f(path);
+  if (!f) throw std::runtime_error("cannot write " + path);
+  f << j.dump(2) << "\n";
+}
+
+}  // namespace haptic::firmware

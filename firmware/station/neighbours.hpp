@@ -1,0 +1,65 @@
+#pragma once
+// What a station checks and logs about its neighbours (issue 10, lifecycle), from the network
+// endpoint's statistics snapshots (net/): fingerprints (scene, period, gains, protocol) compared
+// field by field, the offset of each neighbour's tick grid (its epoch, mapped into our clock by
+// the NTP-style clock offset) against ours, and neighbour down/up events, logged once each.
+// Everything here runs on non-RT threads (it allocates and formats strings).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "firmware/station/plan.hpp"
+#include "net/endpoint.hpp"
+#include "rt/station.hpp"
+
+namespace haptic::firmware {
+
+// "" when every neighbour that sent a fingerprint agrees with ours; else one clause per
+// differing neighbour: "station 2: scene nodes: 33 here, 27 at the peer; scene data (hash) differs".
+std::string fingerprint_mismatches(const StationPlan& plan, const net::EndpointStats& stats);
+
+// Per neighbour: the smallest (send stamp - seq T) seen, i.e. its epoch in its own clock plus its
+// smallest push lag (filled from drained packets; preallocated, RT-safe to update).
+struct NeighbourGrid {
+  std::vector<double> epoch_own_clock_s;  // +inf until a packet arrived
+  std::vector<double> newest_seq;         // newest sequence seen (as double), -1 before
+  explicit NeighbourGrid(std::size_t neighbours = 0);
+  // One drained packet of neighbour n. RT-safe (no allocation).
+  void add(int n, std::uint64_t seq, double send_time_s, double period_s);
+};
+
+// The offset of each neighbour's tick grid against ours, in seconds on our clock:
+//   offset_n = (epoch_n in its clock - clock_offset_n) - our epoch,
+// with its uncertainty (half the round trip of the clock-offset sample, plus one period of push lag).
+struct ClockCheck {
+  std::vector<double> grid_offset_s, uncertainty_s;  // per neighbour (NaN: no estimate)
+  std::string message;  // "" when every known offset is within the bound beyond its uncertainty
+  bool exceeded = false;
+};
+ClockCheck check_clock_offsets(const StationPlan& plan, const net::EndpointStats& stats, const NeighbourGrid& grid, std::int64_t epoch_ns);
+
+// Down/up events of the neighbours, each reported once: call poll() with fresh statistics;
+// it returns the new events as log lines with the station id and the run time (since
+// `run_epoch_ns`: "neighbour 2 went silent at run time 5.214 s (no packet for net.peer_silence_s)").
+// Events before run_epoch_ns + quiet_s are counted silently: the first up of each neighbour
+// (probing found it) and the pause between probing and the run (no packets are sent while the
+// core is built) are not events.
+// The per-edge energy bound's trips (rt::EdgeEnergyGate, net/README.md "Bounded damage from an
+// authenticated peer"), one line per neighbour that tripped: "neighbour 3: energy bound 0.1 J
+// tripped 1 time(s) ...". Called after the run loop ended (reads the core). Not RT-safe.
+std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::StationCore& core);
+
+class PeerEventLog {
+ public:
+  PeerEventLog(const StationPlan& plan, std::int64_t run_epoch_ns, double quiet_s);
+  std::vector<std::string> poll(const net::EndpointStats& stats);
+  std::uint64_t events() const { return events_; }
+
+ private:
+  const StationPlan* plan_;
+  double epoch_s_, quiet_until_s_;
+  std::vector<std::uint64_t> downs_, ups_, incarnation_changes_;
+  std::uint64_t events_ = 0;
+};
+
+}  // namespace haptic::firmware

@@ -1,0 +1,525 @@
+#include "firmware/station/plan.hpp"
+
+#include <arpa/inet.h>
+#include <ifaddrs.h>
+#include <netinet/in.h>
+#include <sched.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
+#include <sstream>
+#include <stdexcept>
+#include <system_error>
+
+#include "firmware/station/link_impairment.hpp"
+#include "firmware/session/recorder.hpp"
+#include "platform/toml_config.hpp"
+#include "net/transport_udp.hpp"
+#include "net/wire.hpp"
+#include "platform/clock.hpp"
+#include "platform/toml_config.hpp"
+
+namespace haptic::firmware {
+
+using platform::config::number_text;
+
+namespace {
+
+constexpr std::size_t kMaxTraceRecords = 4'000'000;
+constexpr std::size_t kMaxStateValues = 64'000'000;  // 512 MB of doubles: refuse above
+
+using platform::clock_ns;
+
+[[noreturn]] void bad(const std::string& what) { throw std::invalid_argument("config: " + what); }
+
+// ScenarioSpec::validate() names the simulator's flags; a station file writes them as [station] keys.
+std::string as_station_keys(std::string message) {
+  static const std::pair<const char*, const char*> kKeys[] = {{"--topology", "station.topology"}, {"--nodes", "station.nodes"},
+                                                              {"--duration", "station.duration_s"}, {"--release", "station.release_s"}, {"--delay-matrix", "station.delay_matrix"},
+                                                              {"--push-end", "station.push_end_s"},
+                                                              {"--tx-predict needs --consensus-passivity pspm", "station.tx_predict = true needs station.consensus_passivity = \"pspm\""}};
+  for (const auto& [flag, key] : kKeys)
+    for (auto at = message.find(flag); at != std::string::npos; at = message.find(flag, at)) message.replace(at, std::strlen(flag), key);
+  return message;
+}
+
+// FNV-1a, 64 bit, over raw bytes.
+struct Fnv1a {
+  std::uint64_t h = 1469598103934665603ULL;
+  void bytes(const void* p, std::size_t n) {
+    const auto* b = static_cast<const unsigned char*>(p);
+    for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ULL;
+  }
+  template <class T>
+  void value(const T& v) {
+    bytes(&v, sizeof v);
+  }
+  void sparse(const rt::SpatialMatrix& m) {
+    value(m.width);
+    for (int r = 0; r < m.S.outerSize(); ++r)
+      for (rt::SparseRowMajor::InnerIterator it(m.S, r); it; ++it) {
+        value(static_cast<std::int64_t>(r));
+        value(static_cast<std::int64_t>(it.col()));
+        value(it.value());
+      }
+  }
+};
+
+drivers::DeviceSelection device_selection(const StationFile& f, const BuiltScenario& built, int me) {
+  drivers::DeviceSelection sel;
+  sel.kind = f.device.kind;
+  sel.safety.max_force_N = f.device.max_force_N;
+  sel.safety.max_power_W = f.device.max_power_W;
+  sel.safety.max_speed_m_per_s = f.device.max_speed_m_per_s;
+  sel.safety.max_stale_reads = static_cast<std::uint32_t>(f.device.max_stale_reads);
+  sel.safety.max_reads_before_first_sample = static_cast<std::uint32_t>(f.device.max_reads_before_first_sample);
+  sel.safety.workspace_margin = f.device.workspace_margin;
+  // a bare library name ("libHD.so") is for the dynamic loader's search; a path is the file's
+  const bool lib_is_path = f.device.hd_library_path.find('/') != std::string::npos;
+  sel.touch.hd_library_path = lib_is_path ? f.relative_to_file(f.device.hd_library_path) : f.device.hd_library_path;
+  sel.touch.device_name = f.device.hd_device_name;
+  sel.spacemouse.hidraw_path = f.device.hidraw_path;
+  sel.usb_serial = f.device.usb_serial;
+  sel.falcon.firmware_path = f.relative_to_file(f.device.falcon_firmware_path);
+  sel.falcon.index = f.device.falcon_index;
+  sel.falcon.homing_timeout_s = f.device.falcon_homing_timeout_s;
+  sel.simulated.device = built.spec.device;
+  sel.simulated.hand = built.spec.hand;
+  sel.simulated.script = built.goal_script(me);
+  const Eigen::Vector3d p0 = built.vp_start[static_cast<std::size_t>(me)];
+  for (int a = 0; a < 3; ++a) sel.simulated.start_position_m[a] = p0[a];
+  sel.simulated.max_force_N = f.device.sim_max_force_N;
+  sel.simulated.workspace_radius_m = std::max(0.1, 2.0 * p0.norm() + built.spec.script.retract_depth_m);
+  return sel;
+}
+
+}  // namespace
+
+std::uint64_t record_ring_ticks(const StationPlan& p) {
+  return p.file.record.ring_s > 0 ? static_cast<std::uint64_t>(std::max(1LL, std::llround(p.file.record.ring_s / p.built->spec.period_s))) : 0;
+}
+
+namespace {
+
+void plan_records(StationPlan& p) {
+  const StationSection& s = p.file.station;
+  const std::int64_t run_ticks = p.times.run_ticks;
+  p.trace_capacity = static_cast<std::size_t>(run_ticks / s.trace_every + 2);
+  p.state_capacity = static_cast<std::size_t>(run_ticks / s.state_every + 2);
+  if (p.trace_capacity > kMaxTraceRecords) bad("station.trace_every too small for duration_s (over 4e6 records)");
+  if (p.state_capacity * static_cast<std::size_t>(p.built->scene.dofs) > kMaxStateValues)
+    bad("station.state_every too small for duration_s and nodes (over 64e6 values)");
+  const RecordSection& r = p.file.record;
+  if (r.enabled && r.ring_s > 0) {
+    const bool f32 = p.net.endpoint.wire.encoding == net::ValueEncoding::float32;
+    const auto bytes = ring_bytes(record_ring_ticks(p), static_cast<int>(p.neighbours().size()), p.built->scene.dofs, f32);
+    if (static_cast<double>(bytes) > r.max_mb * 1024 * 1024)
+      bad("station.record_ring_s = " + number_text(r.ring_s) + " needs " + number_text(std::ceil(static_cast<double>(bytes) / (1024 * 1024))) +
+          " MB at " + std::to_string(p.built->scene.nodes) + " nodes and " + std::to_string(p.neighbours().size()) +
+          " neighbours, above station.record_max_mb = " + number_text(r.max_mb) + ": shorten the ring or raise the bound");
+  }
+}
+
+void plan_release_warning(StationPlan& p) {
+  const ScenarioSpec& spec = p.built->spec;
+  if (spec.script.kind != UserScriptSpec::Kind::kPushHoldRelease || spec.duration_s > spec.script.release_s) return;
+  p.ends_before_release = true;
+  const std::string src = p.overrides.duration_s > 0 ? "--duration" : (p.file.station.duration_s > 0 ? "station.duration_s" : "the scenario's duration");
+  p.warnings.push_back("the run (" + src + " = " + number_text(spec.duration_s) + " s) ends before the scripted release at station.release_s = " +
+                       number_text(spec.script.release_s) + " s: the release metrics will be null and the exit code " + std::to_string(kExitBeforeRelease));
+}
+
+// A device file named in [device] that is not there: the device will not start (exit 9 at start-up,
+// never a simulated user); --check-config says so first, with the path as resolved.
+void plan_device_file_warnings(StationPlan& p) {
+  const DeviceSection& d = p.file.device;
+  auto missing = [&](const std::string& key, const std::string& value, const std::string& resolved, const char* what) {
+    std::error_code ec;
+    if (value.empty() || std::filesystem::exists(resolved, ec)) return;
+    p.warnings.push_back("device." + key + " = \"" + value + "\": no such file" + (resolved != value ? " (" + resolved + ", relative to the station file's folder)" : std::string()) +
+                         ": " + what + " will not start (exit " + std::to_string(kExitDeviceMissing) + ")");
+  };
+  if (d.kind == "falcon") missing("falcon_firmware_path", d.falcon_firmware_path, p.device.falcon.firmware_path, "the Falcon");
+  if ((d.kind == "touch" || d.kind == "auto") && d.hd_library_path.find('/') != std::string::npos)
+    missing("hd_library_path", d.hd_library_path, p.device.touch.hd_library_path, "a Touch");
+}
+
+// Every check and translation of the plan phase; throws std::invalid_argument naming the key.
+std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides& o, const ClockReading& now) {
+  auto p = std::make_unique<StationPlan>();
+  p->file = f;
+  p->overrides = o;
+  const ScenarioSpec spec = station_scenario_spec(f, o);
+  p->built = std::make_shared<const BuiltScenario>(build_scenario(spec));
+  p->station_id = f.station.id;
+  p->me = f.station.id - 1;
+  p->net = net::parse_net_config(f.text, static_cast<std::uint32_t>(p->built->scene.dofs), f.path);
+  if (p->net.endpoint.wire.station_id != f.station.id)
+    bad("the wire station id (" + f.net_section + ".station_id / station.id) must be station.id = " + std::to_string(f.station.id));
+  p->peers = plan_peer_table(f, *p->built, p->me, p->net);
+  check_address_families(f, p->net);
+  check_peer_networks(f, p->net);
+  check_io_cpu(f, p->net);
+  check_tx_spin(f, p->net);
+  apply_station_impairments(f, spec, p->net);  // the simulator's link set-up and seed rule
+  p->times = plan_times(f, o, spec, now);
+  if (p->times.rejoin)
+    p->warnings.push_back("started " + std::to_string(-p->times.epoch_in_s) + " s after the common epoch (" +
+                          (o.start_at >= 0 ? std::string("--start-at") : std::string("station.start_at")) +
+                          "), past half the probing phase: rejoining the running session");
+  p->net.endpoint.impairment_epoch_s = static_cast<double>(p->times.run_epoch_ns()) * 1e-9;
+  p->net.endpoint.impairment_first_run_seq = static_cast<std::uint64_t>(p->times.run_k0);  // run packet k draws the simulator's fate k
+  p->net.endpoint.tx_period_s = spec.period_s;  // tick-synchronous TX (net.tx_spin) needs the tick period
+  // A common epoch given (start_at / --start-at): the session's sequence numbers follow the clock, so
+  // the endpoint's sequence ceiling holds while probing too (issue 11: an authentic far-future
+  // sequence while probing made a station rejoin a session that did not exist). A station that
+  // plans its own epoch must be able to find a session already running: no ceiling until its tick.
+  if ((o.start_at >= 0 ? o.start_at : f.station.start_at) > 0) p->net.endpoint.sequence_epoch_ns = p->times.epoch_ns;
+  p->device = device_selection(f, *p->built, p->me);
+  if (const auto caps = drivers::published_capabilities(p->device)) {
+    p->coupling = device_coupling(f, spec, *caps);
+    // at the steps the core will take (station.period_min_s/max_s); the same check runs at start-up on the opened device
+    const auto me = static_cast<std::size_t>(p->me);
+    check_device_coupling(*p->coupling, p->built->t_min_s[me], p->built->t_max_s[me]);
+    workspace_map_config(f, *caps);  // a bad map is a configuration error here too
+  } else {
+    p->warnings.push_back("device.kind = \"auto\": eq. (26) on the device's damping is checked at start-up, once the device is open "
+                          "(name the kind to have --check-config check it)");
+  }
+  plan_device_file_warnings(*p);
+  p->ramp_in_ticks = ramp_in_ticks(f, spec.period_s);
+  p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
+  p->net.endpoint.fingerprint = p->fingerprint;  // sent to every neighbour (net/)
+  p->net.endpoint.io_priority = f.station.io_priority;  // the I/O thread's RtThread (SCHED_FIFO or 0)
+  set_payload_envelope(*p->built, p->net);
+  p->out_dir = o.out_dir.empty() ? f.station.out_dir : o.out_dir;
+  if (f.station.run_subdir) {  // a folder per run: <UTC time of planning>-s<session id>
+    const std::time_t secs = static_cast<std::time_t>(now.realtime_ns / 1'000'000'000);
+    std::tm utc{};
+    gmtime_r(&secs, &utc);
+    char stamp[32];
+    std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &utc);
+    char sess[16];
+    std::snprintf(sess, sizeof sess, "%08x", p->net.endpoint.wire.session_id);
+    p->out_dir += std::string("/") + stamp + "-s" + sess;
+  }
+  check_out_dir_creatable(p->out_dir, o.out_dir.empty() ? "station.out_dir" : "--out");
+  p->base_path = p->out_dir + "/station-" + std::to_string(f.station.id);
+  plan_records(*p);
+  plan_release_warning(*p);
+  if (f.device.kind == "simulated")
+    p->warnings.push_back("device.kind = \"simulated\": a SIMULATED user plays user " + std::to_string(f.station.id) +
+                          "'s scripted push/hold/release; the other stations feel it as if a person pushed");
+  return p;
+}
+
+}  // namespace
+
+ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) {
+  const StationSection& s = f.station;
+  ScenarioSpec spec = make_scenario(s.scenario, "station.scenario");
+  if (s.users != 0) set_user_count(spec, s.users, "station.users");
+  if (!s.delay_matrix.empty()) {
+    try {
+      spec.delay_ms = model::parse_delay_matrix(s.delay_matrix, "delay_matrix", spec.users);
+    } catch (const std::invalid_argument& e) {
+      bad("station.delay_matrix: " + std::string(e.what()));
+    }
+  }
+  spec.script.push_pattern = parse_push_pattern(s.pushes, "station.pushes");
+  spec.script.push_seed = s.push_seed;
+  if (!s.topology.empty()) {
+    try {
+      spec.topology = model::parse_graph_1based(s.topology, spec.users, "topology");
+    } catch (const std::invalid_argument& e) {
+      bad("station.topology = \"" + s.topology + "\": " + e.what());
+    }
+  }
+  spec.scene_nodes = s.nodes;
+  if (!f.scene.file.empty()) {
+    spec.scene_file.path = f.relative_to_file(f.scene.file);
+    spec.scene_file.from_station_file = true;
+    spec.scene_file.unit_m = f.scene.unit_m;
+    spec.scene_file.density_kg_per_m3 = f.scene.density_kg_per_m3;
+    spec.scene_file.youngs_modulus_Pa = f.scene.youngs_modulus_Pa;
+    spec.scene_file.max_elements = f.scene.max_elements;
+  }
+  spec.seed = s.seed;
+  if (s.period_min_s > spec.period_s) bad("station.period_min_s = " + number_text(s.period_min_s) + " must be at most the period " + number_text(spec.period_s) + " s (0 = the period)");
+  if (s.period_max_s > 0 && (s.period_max_s < spec.period_s || s.period_max_s >= 2 * spec.period_s))
+    bad("station.period_max_s = " + number_text(s.period_max_s) + " must be in [period, 2 period) = [" + number_text(spec.period_s) + ", " + number_text(2 * spec.period_s) + ") s (0 = the period)");
+  spec.delay_correlation = s.delay_correlation;  // the emulated links' delay (scenario_link), as the simulator's
+  spec.period_min_s = s.period_min_s;
+  spec.period_max_s = s.period_max_s;
+  const double dur = o.duration_s > 0 ? o.duration_s : s.duration_s;
+  if (dur > 0) spec.duration_s = dur;
+  if (s.push_start_s >= 0) spec.script.push_start_s = s.push_start_s;
+  if (s.push_end_s >= 0) spec.script.push_end_s = s.push_end_s;
+  if (s.release_s >= 0) spec.script.release_s = s.release_s;
+  spec.damping_margin = s.damping_margin;
+  spec.consensus_passivity = rt::parse_consensus_passivity(s.consensus_passivity, "station.consensus_passivity");
+  spec.pspm_reservoir0_J = s.pspm_reservoir_J;
+  spec.loss_allowance_ticks = s.loss_allowance_ticks;
+  spec.edge_energy_bound_J = s.edge_energy_bound_J;
+  spec.edge_energy_leak_W = s.edge_energy_leak_W;
+  spec.divergence_speed_m_per_s = s.divergence_speed_m_per_s;
+  spec.tx_deadband.position_deadband_m = s.tx_deadband_mm * 1e-3;
+  spec.tx_deadband.max_interval_ticks = s.tx_max_interval_ticks;
+  spec.tx_deadband.predictive = s.tx_predict;
+  if (std::llabs(std::llround(spec.period_s * 1e9) - f.loop.period_ns) > 0)
+    bad("loop.period_ns must equal the scenario's period " + std::to_string(std::llround(spec.period_s * 1e9)) + " ns (the paper's T = 2 ms)");
+  if (s.id > spec.users) bad("station.id must be in [1, " + std::to_string(spec.users) + "] for scenario " + spec.name);
+  const auto& sc = spec.script;
+  if (sc.kind == UserScriptSpec::Kind::kPushHoldRelease && !(sc.push_start_s < sc.push_end_s && sc.push_end_s < sc.release_s))
+    bad("station.push_start_s < station.push_end_s < station.release_s must hold (got " + std::to_string(sc.push_start_s) + ", " +
+        std::to_string(sc.push_end_s) + ", " + std::to_string(sc.release_s) + ")");
+  try {
+    spec.validate();
+  } catch (const std::invalid_argument& e) {
+    bad(as_station_keys(e.what()));
+  }
+  return spec;
+}
+
+std::string fingerprint_text(const SceneFingerprint& f) {
+  return "protocol " + std::to_string(f.protocol_version) + ", nodes " + std::to_string(f.scene_nodes) + ", period_ns " + std::to_string(f.period_ns) +
+         ", scene hash " + std::to_string(f.scene_hash) + ", gains hash " + std::to_string(f.gains_hash) + ", consensus law " +
+         std::to_string(f.consensus_law) + ", tx_predict " + std::to_string(f.tx_predict) + ", tx deadband hash " + std::to_string(f.tx_deadband_hash);
+}
+
+SceneFingerprint scene_fingerprint(const BuiltScenario& b, std::int64_t period_ns) {
+  SceneFingerprint fp;
+  fp.protocol_version = net::kWireVersion;
+  fp.scene_nodes = b.scene.nodes;
+  fp.period_ns = period_ns;
+  // scene_hash: high 32 bits the geometry (rest positions, tetrahedra, edges), low 32 bits the
+  // material (M, B, K as assembled, ground/damping parameters), so a mismatch says which differs.
+  Fnv1a geometry, material;
+  geometry.bytes(b.scene.x_d.data(), sizeof(double) * static_cast<std::size_t>(b.scene.x_d.size()));
+  for (const auto& t : b.scene.mesh.tets) geometry.value(t);
+  for (const auto& e : b.scene.mesh.edges) geometry.value(e);
+  material.sparse(b.scene.M);
+  material.sparse(b.scene.B);
+  material.sparse(b.scene.K);
+  material.value(b.scene.params.damping_Ns_per_m);
+  material.value(b.scene.params.ground_stiffness_N_per_m);
+  fp.scene_hash = (geometry.h & 0xFFFFFFFF00000000ULL) | (material.h >> 32);
+  Fnv1a g;
+  g.value(b.spec.users);
+  for (const auto& l : b.spec.topology) g.value(l);
+  for (const auto& e : b.gains) {
+    g.sparse(e.P);
+    g.sparse(e.D);
+  }
+  g.value(b.spec.vp);
+  fp.gains_hash = g.h;
+  // The coupling law both ends must run alike (net::Fingerprint).
+  fp.consensus_law = b.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation ? net::kConsensusLawPspm : net::kConsensusLawEq18;
+  fp.tx_predict = b.spec.tx_deadband.predictive ? 1 : 0;
+  if (b.spec.tx_deadband.enabled()) {
+    const double band[2] = {b.spec.tx_deadband.position_deadband_m, static_cast<double>(b.spec.tx_deadband.max_interval_ticks)};
+    const std::uint64_t h = net::fingerprint_hash(band, sizeof band);
+    fp.tx_deadband_hash = static_cast<std::uint16_t>((h ^ (h >> 16) ^ (h >> 32) ^ (h >> 48)) | 1u);  // 0 means off
+  }
+  return fp;
+}
+
+ClockReading read_clocks() { return {clock_ns(CLOCK_MONOTONIC), clock_ns(CLOCK_REALTIME)}; }
+
+void set_payload_envelope(const BuiltScenario& b, net::NetConfig& nc) {
+  if (!(nc.envelope_radii > 0.0)) return;
+  const Eigen::VectorXd& x = b.scene.x_d;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int p = 0; p < b.scene.nodes; ++p) c += x.segment<3>(3 * p);
+  c /= b.scene.nodes;
+  double radius = 0.0;
+  for (int p = 0; p < b.scene.nodes; ++p) radius = std::max(radius, (x.segment<3>(3 * p) - c).norm());
+  nc.endpoint.envelope_rest_x.assign(x.data(), x.data() + x.size());
+  nc.endpoint.envelope_max_offset_m = nc.envelope_radii * radius;
+  nc.endpoint.envelope_max_speed_m_per_s = b.station_config(0).divergence_speed_m_per_s;  // the core's own divergence bound
+}
+
+PeerTable plan_peer_table(const StationFile& f, const BuiltScenario& built, int me, const net::NetConfig& nc) {
+  const auto& nbrs = built.neighbors[static_cast<std::size_t>(me)];
+  const auto& peers = nc.endpoint.peers;
+  PeerTable t;
+  t.peer_to_nbr.assign(peers.size(), -1);
+  t.nbr_to_peer.assign(nbrs.size(), -1);
+  t.sender_to_nbr.assign(65536, -1);
+  const std::string topo = f.station.topology.empty() ? "the topology of scenario " + built.spec.name : "station.topology = \"" + f.station.topology + "\"";
+  for (std::size_t p = 0; p < peers.size(); ++p) {
+    const int u = peers[p].station_id - 1;
+    for (std::size_t n = 0; n < nbrs.size(); ++n)
+      if (nbrs[n] == u) t.peer_to_nbr[p] = static_cast<int>(n);
+    const std::string key = f.peer_key(p, "id");
+    if (t.peer_to_nbr[p] < 0) bad(key + " = " + std::to_string(u + 1) + " is not a neighbour of station " + std::to_string(me + 1) + " in " + topo);
+    const int first = t.nbr_to_peer[static_cast<std::size_t>(t.peer_to_nbr[p])];
+    if (first >= 0) bad(key + " = " + std::to_string(u + 1) + " lists that station a second time (also " + f.peer_key(static_cast<std::size_t>(first), "id") + ")");
+    t.nbr_to_peer[static_cast<std::size_t>(t.peer_to_nbr[p])] = static_cast<int>(p);
+    t.sender_to_nbr[static_cast<std::size_t>(u + 1)] = t.peer_to_nbr[p];
+  }
+  for (std::size_t n = 0; n < nbrs.size(); ++n)
+    if (t.nbr_to_peer[n] < 0)
+      bad(f.net_section + ".peers lacks station " + std::to_string(nbrs[n] + 1) + ", a neighbour of station " + std::to_string(me + 1) + " in " + topo);
+  return t;
+}
+
+void check_address_families(const StationFile& f, const net::NetConfig& nc) {
+  if (nc.transport != "udp") return;
+  socklen_t len = 0;
+  const std::string bind_key = f.net_section + ".bind";
+  const int family = net::parse_udp_address(nc.bind, bind_key, len).ss_family;
+  for (std::size_t p = 0; p < nc.udp_peers.size(); ++p) {
+    const std::string key = f.peer_key(p, "address");
+    if (net::parse_udp_address(nc.udp_peers[p].address, key, len).ss_family != family)
+      bad(key + " = \"" + nc.udp_peers[p].address + "\" must be the same address family (IPv4 or IPv6) as " + bind_key + " = \"" + nc.bind + "\"");
+  }
+}
+
+namespace {
+// Is `peer` on loopback or on the network of interface address `ifa` with mask `mask`? Not RT-safe.
+bool same_network(const sockaddr_storage& peer, const sockaddr* ifa, const sockaddr* mask) {
+  if (!ifa || !mask || ifa->sa_family != peer.ss_family) return false;
+  const unsigned char *a = nullptr, *m = nullptr, *p = nullptr;
+  std::size_t n = 0;
+  if (peer.ss_family == AF_INET) {
+    a = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in*>(ifa)->sin_addr);
+    m = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in*>(mask)->sin_addr);
+    p = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in*>(&peer)->sin_addr);
+    n = 4;
+  } else if (peer.ss_family == AF_INET6) {
+    a = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in6*>(ifa)->sin6_addr);
+    m = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in6*>(mask)->sin6_addr);
+    p = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in6*>(&peer)->sin6_addr);
+    n = 16;
+  } else {
+    return false;
+  }
+  for (std::size_t i = 0; i < n; ++i)
+    if ((a[i] & m[i]) != (p[i] & m[i])) return false;
+  return true;
+}
+
+std::string address_text(const sockaddr* sa) {
+  char buf[INET6_ADDRSTRLEN] = "?";
+  if (sa->sa_family == AF_INET) inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in*>(sa)->sin_addr, buf, sizeof buf);
+  if (sa->sa_family == AF_INET6) inet_ntop(AF_INET6, &reinterpret_cast<const sockaddr_in6*>(sa)->sin6_addr, buf, sizeof buf);
+  return buf;
+}
+}  // namespace
+
+void check_peer_networks(const StationFile& f, const net::NetConfig& nc) {
+  if (nc.transport != "udp" || f.station.allow_routed_peers) return;
+  ifaddrs* list = nullptr;
+  if (getifaddrs(&list) != 0) bad(std::string("cannot list this machine's interfaces (getifaddrs: ") + std::strerror(errno) + ") to check the peers' networks");
+  std::unique_ptr<ifaddrs, void (*)(ifaddrs*)> guard(list, freeifaddrs);
+  for (std::size_t i = 0; i < nc.udp_peers.size(); ++i) {
+    const std::string key = f.peer_key(i, "address");
+    socklen_t len = 0;
+    const sockaddr_storage peer = net::parse_udp_address(nc.udp_peers[i].address, key, len);
+    std::string nets;
+    bool on_a_network = false;
+    for (const ifaddrs* it = list; it; it = it->ifa_next) {
+      if (!it->ifa_addr || (it->ifa_addr->sa_family != AF_INET && it->ifa_addr->sa_family != AF_INET6)) continue;
+      on_a_network = on_a_network || same_network(peer, it->ifa_addr, it->ifa_netmask);
+      nets += std::string(nets.empty() ? "" : ", ") + it->ifa_name + " " + address_text(it->ifa_addr);
+    }
+    if (!on_a_network)
+      bad(key + " = \"" + nc.udp_peers[i].address + "\" is on no network of this machine's interfaces (" + nets +
+          "): refusing to send packets to it through a router by accident (is this the lab PC the file was written for?); "
+          "set station.allow_routed_peers = true for stations across routers");
+  }
+}
+
+void check_io_cpu(const StationFile& f, const net::NetConfig& nc) {
+  const int cpu = nc.endpoint.io_cpu;
+  if (cpu < 0) return;
+  cpu_set_t allowed;
+  CPU_ZERO(&allowed);
+  if (sched_getaffinity(0, sizeof allowed, &allowed) != 0) return;  // cannot tell: the endpoint reports it at start
+  if (CPU_ISSET(cpu, &allowed)) return;
+  std::string list;
+  for (int c = 0; c < CPU_SETSIZE; ++c)
+    if (CPU_ISSET(c, &allowed)) {
+      if (!list.empty()) list += ' ';
+      list += std::to_string(c);
+    }
+  bad(f.net_section + ".io_cpu = " + std::to_string(cpu) + " must be -1 or a CPU this process may run on here (" + list + ")");
+}
+
+void check_tx_spin(const StationFile& f, const net::NetConfig& nc) {
+  const auto& e = nc.endpoint;
+  if (!e.tx_spin) return;
+  const double period_us = static_cast<double>(f.loop.period_ns) * 1e-3;
+  const double lead_us = e.tx_spin_lead_s * 1e6, tail_us = e.tx_spin_tail_s * 1e6;
+  const std::string P = f.net_section;
+  if (!(lead_us < period_us)) bad(P + ".tx_spin_lead_us = " + number_text(lead_us) + " must be shorter than the tick period (loop.period_ns = " + number_text(period_us) + " us)");
+  if (!(lead_us + tail_us < period_us))
+    bad(P + ".tx_spin_lead_us + " + P + ".tx_spin_tail_us = " + number_text(lead_us + tail_us) + " us must be shorter than the tick period (loop.period_ns = " +
+        number_text(period_us) + " us)");
+}
+
+void check_out_dir_creatable(const std::string& dir, const std::string& key) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path p = fs::absolute(fs::path(dir), ec);
+  if (ec) bad(key + " = \"" + dir + "\": " + ec.message());
+  // The deepest existing ancestor must be a directory we may write into (or the directory itself).
+  while (!fs::exists(p, ec) && p.has_parent_path() && p != p.parent_path()) p = p.parent_path();
+  if (!fs::is_directory(p, ec)) bad(key + " = \"" + dir + "\" cannot be created: " + p.string() + " is not a directory");
+  if (::access(p.c_str(), W_OK | X_OK) != 0)
+    bad(key + " = \"" + dir + "\" cannot be " + (p == fs::absolute(fs::path(dir), ec) ? "written" : "created") + ": " + p.string() + ": " + std::strerror(errno));
+}
+
+StationTimes plan_times(const StationFile& f, const RunOverrides& o, const ScenarioSpec& spec, const ClockReading& now) {
+  const StationSection& S = f.station;
+  const double T = spec.period_s;
+  StationTimes t;
+  t.period_ns = f.loop.period_ns;
+  const std::int64_t mono = now.monotonic_ns;
+  const double start_at = o.start_at >= 0 ? o.start_at : S.start_at;
+  if (start_at <= 0 && S.start_align_s > 0) {
+    const std::int64_t clk_now = S.start_clock == "realtime" ? now.realtime_ns : mono;
+    const auto align = static_cast<std::int64_t>(S.start_align_s * 1e9);
+    const std::int64_t earliest = clk_now + static_cast<std::int64_t>(S.start_delay_s * 1e9);
+    t.epoch_ns = ((earliest + align - 1) / align) * align - (clk_now - mono);
+  } else if (start_at <= 0) {
+    t.epoch_ns = mono + static_cast<std::int64_t>(S.start_delay_s * 1e9);
+  } else if (S.start_clock == "realtime") {
+    t.epoch_ns = static_cast<std::int64_t>(start_at * 1e9) - (now.realtime_ns - mono);
+  } else {
+    t.epoch_ns = static_cast<std::int64_t>(start_at * 1e9);
+  }
+  t.probe_ticks = std::llround(S.probe_s / T);
+  t.run_k0 = t.probe_ticks + std::llround(S.setup_gap_s / T);
+  t.run_ticks = std::llround(spec.duration_s / T);
+  t.epoch_in_s = static_cast<double>(t.epoch_ns - mono) * 1e-9;
+  // Started after half the probing phase: the session runs without us; rejoin it (a restart).
+  // After the session's planned end there is nothing to rejoin.
+  t.rejoin = mono > t.epoch_ns + (t.probe_ticks / 2) * t.period_ns;
+  if (mono > t.epoch_ns + (t.run_k0 + t.run_ticks) * t.period_ns)
+    bad(std::string(o.start_at >= 0 ? "--start-at" : "station.start_at") + ": started " + std::to_string(-t.epoch_in_s) +
+        " s after the common epoch, after the planned end of that session: nothing to rejoin; start earlier");
+  return t;
+}
+
+PlanResult plan_station(const StationFile& file, const RunOverrides& overrides, const ClockReading& now) {
+  PlanResult r;
+  try {
+    r.plan = make_plan(file, overrides, now);
+    r.status = PhaseStatus::kOk;
+  } catch (const std::exception& e) {
+    r.status = PhaseStatus::kConfigError;
+    r.error = e.what();
+  }
+  return r;
+}
+
+}  // namespace haptic::firmware

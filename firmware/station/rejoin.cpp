@@ -1,0 +1,139 @@
+#include "firmware/station/rejoin.hpp"
+
+#include <time.h>
+
+#include <cmath>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "platform/clock.hpp"
+
+namespace haptic::firmware {
+
+namespace {
+
+
+// Step 1's loop: provisional pushes every period, neighbours' packets into the grid.
+void provisional_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, RejoinResult& r) {
+  const BuiltScenario& b = *plan.built;
+  const Eigen::VectorXd& x0 = b.scene.x_d;  // the rest state
+  const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(b.scene.dofs);
+  const double T = b.spec.period_s;
+  const std::int64_t period = plan.times.period_ns;
+  const std::int64_t start = net::monotonic_ns();
+  const auto ticks = static_cast<std::int64_t>(std::llround(plan.file.station.rejoin_probe_s / T));
+  std::int64_t next = start;
+  for (std::int64_t i = 0; i < ticks && !stop.load(std::memory_order_acquire); ++i) {
+    ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
+      r.probe.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, T);
+      r.probe.loss_counter.add(plan.peers.sender_to_nbr[sender], seq);
+    });
+    // Provisional sequence numbers stay below the session's run_k0: the neighbours' ticks ignore them.
+    if (static_cast<std::int64_t>(r.provisional_pushes) < plan.times.run_k0 - 1 &&
+        ep.push_state(r.provisional_pushes, net::monotonic_s(), x0.data(), v0.data()))
+      ++r.provisional_pushes;
+    next += period;
+    platform::sleep_until_monotonic_ns(next);
+  }
+  r.probe.loop_ticks = r.provisional_pushes;
+}
+
+// Step 1's result: the session epoch from the neighbour with the most certain clock offset.
+bool learn_epoch(const StationPlan& plan, RejoinResult& r) {
+  const auto& nbrs = plan.neighbours();
+  double best_unc = INFINITY;
+  for (std::size_t n = 0; n < nbrs.size(); ++n) {
+    const net::PeerStats& p = r.probe.stats_at_end.peers[static_cast<std::size_t>(plan.peers.nbr_to_peer[n])];
+    const double e = r.probe.grid.epoch_own_clock_s[n];
+    if (p.clock_offset_samples == 0 || !std::isfinite(e) || r.probe.grid.newest_seq[n] < static_cast<double>(plan.times.run_k0)) continue;
+    const double unc = p.clock_offset_rtt_s / 2.0;
+    if (unc >= best_unc) continue;
+    best_unc = unc;
+    r.epoch_ns = std::llround((e - p.clock_offset_s) * 1e9);
+    r.epoch_from_station = nbrs[n] + 1;
+  }
+  if (!std::isfinite(best_unc)) return false;
+  r.epoch_uncertainty_s = best_unc;
+  r.epoch_shift_s = static_cast<double>(r.epoch_ns - plan.times.epoch_ns) * 1e-9;
+  return true;
+}
+
+}  // namespace
+
+RejoinResult rejoin_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
+  RejoinResult r;
+  r.probe.grid = NeighbourGrid(plan.neighbours().size());
+  r.probe.loss_counter = ProbeLossCounter(plan.neighbours().size());
+  provisional_probes(plan, ep, stop, r);
+  if (stop.load(std::memory_order_acquire)) {
+    r.probe.status = PhaseStatus::kStopped;
+    r.probe.message = "stopped by a signal while rejoining";
+    return r;
+  }
+  const bool all = ep.finish_probing();
+  // Our allowance from the loss of the running neighbours' packets; theirs arrives in their
+  // fingerprints (their cores were built before we came: they keep their own, agreement_ticks covers it).
+  fix_loss_allowances(plan, ep, r.probe);
+  collect_probe_result(plan, ep, all, "station.rejoin_probe_s = " + std::to_string(plan.file.station.rejoin_probe_s) + " s", r.probe);
+  if (r.probe.status != PhaseStatus::kOk) return r;
+  if (!learn_epoch(plan, r)) {
+    r.probe.status = PhaseStatus::kNoNeighbour;
+    r.probe.message = "rejoin: no neighbour is running the session (no packet with a sequence number >= the run start " +
+                      std::to_string(plan.times.run_k0) + " and an echo), so there is no session to rejoin";
+    return r;
+  }
+  // The tick-grid check against the learned epoch (the planned one may be far off).
+  check_clock(plan, r.epoch_ns, r.probe);
+  return r;
+}
+
+AdoptedState adopt_neighbour_state(const StationPlan& plan, net::Endpoint& ep, rt::StationCore& core, double wait_s) {
+  AdoptedState a;
+  const int dofs = plan.built->scene.dofs;
+  Eigen::VectorXd x(dofs), v(dofs);
+  const std::int64_t until = net::monotonic_ns() + static_cast<std::int64_t>(wait_s * 1e9);
+  // Everything waiting (the newest of it), or, if none of the session yet, wait up to wait_s for one.
+  for (;;) {
+    ep.drain([&](std::uint16_t sender, std::uint64_t seq, double, const double* xh, const double* vh, std::uint32_t count) {
+      const int n = plan.peers.sender_to_nbr[sender];
+      if (n < 0 || static_cast<std::int64_t>(seq) < plan.times.run_k0 || static_cast<int>(count) != dofs) return;
+      if (a.ok && seq <= a.seq) return;
+      a.ok = true;
+      a.seq = seq;
+      a.from_station = plan.neighbours()[static_cast<std::size_t>(n)] + 1;
+      x = Eigen::Map<const Eigen::VectorXd>(xh, dofs);
+      v = Eigen::Map<const Eigen::VectorXd>(vh, dofs);
+    });
+    if (a.ok || net::monotonic_ns() >= until) break;
+    ep.wait_rx(0.01);
+  }
+  if (!a.ok) {
+    a.message = "rejoin: no state packet of the running session arrived to take over";
+    return a;
+  }
+  core.set_state(x, v);
+  return a;
+}
+
+}  // namespace haptic::firmware
+
+namespace haptic::firmware {
+
+void refresh_adopted_state(const StationPlan& plan, net::Endpoint& ep, rt::StationCore& core, Eigen::VectorXd& x, Eigen::VectorXd& v,
+                           AdoptedState& a) {
+  const int dofs = static_cast<int>(x.size());
+  bool newer = false;
+  ep.drain([&](std::uint16_t sender, std::uint64_t seq, double, const double* xh, const double* vh, std::uint32_t count) {
+    const int n = plan.peers.sender_to_nbr[sender];
+    if (n < 0 || seq <= a.seq || static_cast<int>(count) != dofs) return;
+    a.seq = seq;
+    a.from_station = plan.neighbours()[static_cast<std::size_t>(n)] + 1;
+    x = Eigen::Map<const Eigen::VectorXd>(xh, dofs);  // same size: no allocation
+    v = Eigen::Map<const Eigen::VectorXd>(vh, dofs);
+    newer = true;
+  });
+  if (newer) core.set_state(x, v);
+}
+
+}  // namespace haptic::firmware

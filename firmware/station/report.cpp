@@ -1,0 +1,310 @@
+#include "firmware/station/report.hpp"
+
+#include "firmware/run/summary.hpp"
+#include "firmware/model/delay_model.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+namespace haptic::firmware {
+
+namespace {
+
+using nlohmann::json;
+
+json or_null(bool has, double v) { return has ? json(v) : json(nullptr); }
+
+// The run's scenario part (firmware/run/summary.hpp, shared with summary.json) and the station's own.
+json station_scenario_json(const StationPlan& p) {
+  const BuiltScenario& b = *p.built;
+  json j = scenario_json(b);
+  j["station"] = p.station_id;
+  j["x_d"] = std::vector<double>(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs);
+  j["scene_surface"] = b.scene.mesh.surface;                     // for the merge's snapshots.json
+  j["contact_nodes"] = b.contact_nodes[static_cast<std::size_t>(p.me)];
+  j["transport"] = p.net.transport;
+  j["impairment_preset"] = p.file.impairment_preset;
+  j["epoch_monotonic_s"] = static_cast<double>(p.times.epoch_ns) * 1e-9;
+  j["probe_ticks"] = p.times.probe_ticks;
+  j["run_k0"] = p.times.run_k0;
+  j["run_ticks_planned"] = p.times.run_ticks;
+  j["damping_model_Ns_per_m"] = b.damping[static_cast<std::size_t>(p.me)];
+  j["damping_model_min_Ns_per_m"] = b.damping_min[static_cast<std::size_t>(p.me)];
+  j["agreement_ticks"] = p.file.station.agreement_ticks;
+  // the station's loss allowance: fixed, or -1 = measured per link while probing (links[].loss_allowance_ticks)
+  j["loss_allowance_ticks"] = p.file.station.loss_allowance_ticks;
+  j["loss_allowance_max_ticks"] = p.file.station.loss_allowance_max_ticks;
+  j["fingerprint"] = {{"protocol_version", p.fingerprint.protocol_version}, {"scene_nodes", p.fingerprint.scene_nodes},
+                      {"period_ns", p.fingerprint.period_ns}, {"scene_hash", p.fingerprint.scene_hash}, {"gains_hash", p.fingerprint.gains_hash},
+                      {"consensus_law", p.fingerprint.consensus_law}, {"tx_predict", p.fingerprint.tx_predict}, {"tx_deadband_hash", p.fingerprint.tx_deadband_hash}};
+  return j;
+}
+
+void add_run_json(const StationOutcome& o, json& j) {
+  const TickCounters* c = o.counters;
+  const bool ran = c != nullptr && c->ticks_run > 0;
+  j["first_run_k"] = o.run ? o.run->first_run_k : -1;
+  j["ticks_run"] = c ? c->ticks_run : 0;
+  j["diverged"] = c && c->diverged;
+  j["diverged_at_s"] = c && c->diverged ? json(c->diverged_at_s) : json(nullptr);
+  j["max_node_speed_m_per_s"] = !ran ? json(nullptr) : std::isfinite(c->max_speed_m_per_s) ? json(c->max_speed_m_per_s) : json("inf");
+  j["port_energy_min_J"] = or_null(ran, ran ? c->port_min_J : 0);
+  j["no_neighbour_ticks"] = c ? c->no_neighbour_ticks : 0;
+  // Run packets the tick refused: age guard (no echo of our sends / age bound over the limit) and
+  // the receive links (future sequence, non-finite, stale, duplicate).
+  j["rx_refused"] = {{"no_echo", c ? c->no_echo : 0}, {"age_over_bound", c ? c->age_over_bound : 0},
+                     {"receive_link", c ? c->rx_refused : 0}};
+  j["push_failures"] = (c ? c->push_failures : 0) + (o.probe ? o.probe->push_failures : 0);
+  // the trace's flags carry kTraceStateSent (station/tick.hpp) on every trace_every-th tick
+  j["trace_every"] = o.plan->file.station.trace_every;
+  j["trace_marks_state_sent"] = true;
+  j["device_fault_ticks"] = c ? c->device_fault_ticks : 0;
+  j["foreign_packets"] = c ? c->foreign_packets : 0;
+  j["probe_packets_after_run"] = c ? c->probe_packets_after_run : 0;
+  j["rx_offered"] = c ? c->rx_offered : 0;
+  j["device"] = o.device_name;
+  j["device_fault"] = o.device_fault;
+  j["stopped_by_signal"] = o.run && o.run->stopped_by_signal;
+  j["loop_exception"] = o.run && o.run->loop_exception ? json(o.run->loop_exception_what) : json(nullptr);
+  if (o.run) {
+    j["rt"] = {{"summary", o.run->rt_summary}, {"warnings", o.run->rt_warnings}, {"fully_real_time", o.run->rt_warnings.empty()}};
+    j["loop"] = {{"ticks", o.run->loop.ticks}, {"overruns", o.run->loop.overruns}, {"missed_cycles", o.run->loop.missed_cycles},
+                 {"overrun_storms", o.run->loop.overrun_storms}};
+  } else {
+    j["loop"] = {{"ticks", 0}, {"overruns", 0}, {"missed_cycles", 0}, {"overrun_storms", 0}};
+  }
+  if (o.probe)
+    j["probe_loop"] = {{"ticks", o.probe->loop_ticks}, {"overruns", o.probe->loop_overruns}, {"missed_cycles", o.probe->loop_missed_cycles}};
+  const rt::StationCore* core = o.build ? o.build->core.get() : nullptr;
+  j["port_energy_final_J"] = core && ran ? json(core->energy().port_J) : json(nullptr);
+  j["controller_energy_final_J"] = core && ran ? json(core->energy().controller_J) : json(nullptr);
+  j["solver"] = core ? json(core->solver_name()) : json(nullptr);  // the linear step's (rt/step_solver)
+  j["solver_residual_energy_final_J"] = core && ran ? json(core->energy().solver_residual_J) : json(nullptr);
+  j["solver_unconverged_ticks"] = core ? json(core->solver_unconverged_ticks()) : json(nullptr);
+  j["edge_drop_events"] = core ? json(core->edge_drop_events()) : json(nullptr);
+  j["edge_energy_trips"] = core ? json(core->edge_gate().trips()) : json(nullptr);
+  j["safe_state_ticks"] = core ? json(core->safe_state_ticks()) : json(nullptr);
+  j["steps_clamped"] = core ? json(core->step_clamped_ticks()) : json(nullptr);  // measured T_k outside period_min_s..period_max_s
+}
+
+void add_bounds_json(const StationOutcome& o, json& j) {
+  const bool built = o.build != nullptr && o.build->status == PhaseStatus::kOk;
+  j["damping_Ns_per_m"] = built ? json(o.build->bounds.damping_Ns_per_m) : json(nullptr);
+  j["damping_min_Ns_per_m"] = built ? json(o.build->bounds.damping_min_Ns_per_m) : json(nullptr);
+  j["passivity_condition_met"] = built && o.build->passivity_condition_met;  // eq. (18) (eq18), by construction (pspm)
+  if (o.plan) j["consensus_passivity"] = o.plan->file.station.consensus_passivity;
+  const rt::StationCore* core = built ? o.build->core.get() : nullptr;
+  if (core && core->set_position_modulator(0)) {  // per edge: ticks the reservoir limited, energy the jumps put in
+    json m = json::array();
+    for (int n = 0; n < core->neighbor_count(); ++n)
+      m.push_back({{"limited_ticks", core->set_position_modulator(n)->limited_ticks()}, {"injected_J", core->set_position_modulator(n)->injected_J()},
+                   {"reservoir_J", core->set_position_modulator(n)->reservoir_J()}, {"edge_energy_peak_J", core->edge_energy().peak_J(n)}});
+    j["pspm_edges"] = m;
+  }
+}
+
+json endpoint_json(const net::EndpointStats& st, const net::EndpointConfig& ec, const std::string& io_sched) {
+  json j;
+  j["io_thread_scheduling"] = io_sched;
+  j["drops"] = {{"datagrams_received", st.datagrams_received}, {"receive_errors", st.receive_errors}, {"rx_ring_full", st.rx_ring_full},
+                {"tx_overruns", st.tx_overruns}, {"wrong_scene_size", st.wrong_scene_size}, {"tx_safe_state", st.tx_safe_state}};
+  // Every datagram the decoder/endpoint dropped, by reason (net/wire.hpp DropReason), zeros included.
+  json by_reason = json::object();
+  for (std::size_t r = 0; r < net::kDropReasonCount; ++r)
+    by_reason[net::to_string(static_cast<net::DropReason>(r))] = st.drops.by_reason[r];
+  j["drops"]["by_reason"] = by_reason;
+  j["drops"]["total"] = st.drops.total();
+  j["io_thread"] = {{"cpu_s", st.io_thread_cpu_s},         {"tx_spin", ec.tx_spin},
+                    {"tx_packets", st.tx_packets},         {"tx_caught_spinning", st.tx_caught_spinning},
+                    {"tx_spin_windows", st.tx_spin_windows}, {"tx_handoff_mean_us", or_null(st.tx_packets > 0, st.tx_handoff_mean_s * 1e6)},
+                    {"tx_handoff_max_us", or_null(st.tx_packets > 0, st.tx_handoff_max_s * 1e6)}};
+  return j;
+}
+
+json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps, const net::PeerStats& ps0) {
+  const StationPlan& p = *o.plan;
+  json l;
+  l["peer"] = p.neighbours()[n] + 1;
+  const bool rx = ps.packets_received > 0;
+  l["rx_packets_run"] = ps.packets_received - ps0.packets_received;
+  l["rx_packets_total"] = ps.packets_received;
+  l["rx_loss_fraction_measured"] = or_null(rx, ps.loss_fraction);
+  l["one_way_mean_ms"] = or_null(rx, 1e3 * ps.one_way_mean_s);
+  l["one_way_max_ms"] = or_null(rx, 1e3 * ps.one_way_max_s);
+  l["tx_packets_run"] = ps.packets_sent - ps0.packets_sent;
+  // Per-link rates over the run (the simulator's link_stats have the same two): states sent and UDP
+  // payload bytes of every datagram sent to this peer (state fragments, echoes, fingerprints).
+  const double run_s = o.counters ? static_cast<double>(o.counters->ticks_run) * p.built->spec.period_s : 0.0;
+  l["packets_per_s"] = or_null(run_s > 0, static_cast<double>(ps.packets_sent - ps0.packets_sent) / run_s);
+  l["bytes_per_s"] = or_null(run_s > 0, static_cast<double>(ps.bytes_sent - ps0.bytes_sent) / run_s);
+  l["tx_impair_lost_run"] = ps.impair_lost - ps0.impair_lost;
+  l["tx_impair_duplicated_run"] = ps.impair_duplicated - ps0.impair_duplicated;
+  l["tx_send_errors"] = ps.send_errors;
+  l["tx_delay_queue_full"] = ps.delay_queue_full;
+  const bool rtt = ps.rtt_samples > 0;
+  l["rtt_samples"] = ps.rtt_samples;
+  l["rtt_mean_ms"] = or_null(rtt, 1e3 * ps.rtt_mean_s);
+  l["rtt_min_ms"] = or_null(rtt, 1e3 * ps.rtt_min_s);
+  l["rtt_max_ms"] = or_null(rtt, 1e3 * ps.rtt_max_s);
+  l["rtt_bound_ms_now"] = or_null(ps.rtt_has_bound, 1e3 * ps.rtt_bound_s);
+  l["rtt_over_bound_events"] = ps.rtt_over_bound_events;
+  l["peer_safe_state_packets"] = ps.safe_state_packets;
+  l["rate_limited"] = ps.rate_limited;
+  // Pairwise keys (net.key_file): agreed with this neighbour, how often (a restart re-agrees), hellos.
+  l["keys"] = json::object({{"agreed", ps.keys_agreed}, {"agreements", ps.key_agreements}, {"hellos_sent", ps.hellos_sent},
+               {"hellos_received", ps.hellos_received}, {"states_held_back", ps.tx_without_keys}});
+  if (o.build && o.build->status == PhaseStatus::kOk) {
+    l["round_trip_bound_ticks"] = o.build->bounds.round_trip_ticks[n];
+    l["index_delay_bound_ticks"] = o.build->bounds.index_guard_ticks[n];
+    l["assumed_round_trip_ticks"] = o.build->bounds.assumed_sum_ticks[n];
+  }
+  if (o.probe && n < o.probe->own_rtt_bound_ticks.size()) {  // each end's frozen probing bound; both use the larger
+    l["round_trip_bound_ticks_own"] = o.probe->own_rtt_bound_ticks[n];
+    l["round_trip_bound_ticks_peer"] = o.probe->peer_rtt_bound_ticks[n] >= 0 ? json(o.probe->peer_rtt_bound_ticks[n]) : json(nullptr);
+  }
+  if (o.probe && n < o.probe->loss_allowance_ticks.size()) {  // each end's loss allowance; both use the larger
+    const int own = o.probe->own_loss_allowance_ticks[n], peer = o.probe->peer_loss_allowance_ticks[n];
+    l["loss_allowance_ticks"] = o.probe->loss_allowance_ticks[n];
+    l["loss_allowance_ticks_own"] = own >= 0 ? json(own) : json(nullptr);
+    l["loss_allowance_ticks_peer"] = peer >= 0 ? json(peer) : json(nullptr);
+    l["loss_allowance_capped"] = n < o.probe->loss_allowance_capped.size() && o.probe->loss_allowance_capped[n];
+    const ProbeLoss& pl = o.probe->probe_loss[n];
+    l["probe_loss"] = json::object({{"lost", pl.lost}, {"expected", pl.expected}, {"longest_gap", pl.longest_gap},
+                                    {"upper_bound", pl.expected > 0 ? json(model::loss_upper_bound(pl.lost, pl.expected)) : json(nullptr)}});
+  }
+  l["model_index_delay_bound_ticks"] = p.built->nbar_ticks(p.me, p.neighbours()[n]);
+  if (o.build && o.build->core) {
+    rt::StationCore& core = *o.build->core;
+    const auto& rc = core.rx(static_cast<int>(n)).counters();
+    l["rx_accepted"] = rc.accepted;
+    l["rx_stale_reordered"] = rc.stale;
+    l["rx_duplicate"] = rc.duplicate;
+    l["rx_future_refused"] = rc.future;
+    l["rx_non_finite_refused"] = rc.non_finite;
+    l["rx_ahead_ticks"] = rc.ahead_ticks;
+    l["rx_sustained_ticks"] = rc.sustained_ticks;
+    l["max_index_delay_ticks"] = rc.max_index_delay;
+    l["bound_violations"] = core.edge_drop_events(static_cast<int>(n));
+    l["edge_energy"] = edge_energy_json(edge_energy_summary(core, static_cast<int>(n)));
+  }
+  return l;
+}
+
+void add_links_json(const StationOutcome& o, json& j) {
+  if (o.endpoint == nullptr) return;
+  const net::EndpointStats st = o.endpoint->stats();
+  j.update(endpoint_json(st, o.plan->net.endpoint, o.io_sched));
+  if (!o.lifecycle.is_null()) j["lifecycle"] = o.lifecycle;
+  if (!o.recording.is_null()) j["recording"] = o.recording;
+  json links = json::array();
+  for (std::size_t n = 0; n < o.plan->neighbours().size(); ++n) {
+    const auto p = static_cast<std::size_t>(o.plan->peers.nbr_to_peer[n]);
+    const bool have0 = o.probe && p < o.probe->stats_at_end.peers.size();
+    links.push_back(link_json(o, n, st.peers[p], have0 ? o.probe->stats_at_end.peers[p] : net::PeerStats{}));
+  }
+  j["links"] = links;
+}
+
+void write_trace_csv(const std::string& path, const TickRecords& rec, double T) {
+  std::FILE* tf = std::fopen(path.c_str(), "w");
+  if (!tf) throw std::runtime_error("cannot write " + path);
+  std::fprintf(tf, "k,t_s,node_x_m,node_y_m,node_z_m,force_x_N,force_y_N,force_z_N,vp_x_m,vp_y_m,vp_z_m,device_x_m,device_y_m,device_z_m,"
+                   "port_energy_J,controller_energy_J,vo_energy_J,contact,flags,max_speed_m_per_s,wake_latency_ns,step_s\n");
+  for (std::size_t i = 0; i < rec.trace_n; ++i) {
+    const TraceRec& r = rec.trace[i];
+    std::fprintf(tf, "%lld,%.4f,%.9g,%.9g,%.9g,%.7g,%.7g,%.7g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%d,%u,%.6g,%d,%.9g\n", static_cast<long long>(r.k),
+                 static_cast<double>(r.k + 1) * T, r.node[0], r.node[1], r.node[2], r.force[0], r.force[1], r.force[2], r.vp[0], r.vp[1], r.vp[2],
+                 r.device[0], r.device[1], r.device[2], r.port_J, r.ctrl_J, r.vo_J, r.contact, r.flags, r.max_speed, r.wake_latency_ns, r.step_s);
+  }
+  std::fclose(tf);
+}
+
+void write_state_csv(const std::string& path, const TickRecords& rec, int dofs) {
+  std::FILE* sf = std::fopen(path.c_str(), "w");
+  if (!sf) throw std::runtime_error("cannot write " + path);
+  std::fprintf(sf, "k");
+  for (int d = 0; d < dofs; ++d) std::fprintf(sf, ",x%d", d);
+  std::fprintf(sf, "\n");
+  for (std::size_t i = 0; i < rec.state_n; ++i) {
+    std::fprintf(sf, "%lld", static_cast<long long>(rec.state_k[i]));
+    const double* x = rec.state_x.data() + i * static_cast<std::size_t>(dofs);
+    for (int d = 0; d < dofs; ++d) std::fprintf(sf, ",%.10g", x[d]);
+    std::fprintf(sf, "\n");
+  }
+  std::fclose(sf);
+}
+
+}  // namespace
+
+std::vector<std::string> RunConditions::names() const {
+  std::vector<std::string> n;
+  if (device_missing) n.push_back("device_missing");
+  if (diverged) n.push_back("diverged");
+  if (safe_state_latched) n.push_back("safe_state_latched");
+  if (passivity_not_met) n.push_back("passivity_condition_not_met");
+  if (no_neighbour) n.push_back("no_neighbour");
+  if (failed) n.push_back("failed");
+  if (ended_before_release) n.push_back("ended_before_release");
+  return n;
+}
+
+RunConditions run_conditions(const StationOutcome& o) {
+  RunConditions c;
+  const StationPlan& p = *o.plan;
+  const TickCounters* k = o.counters;
+  c.device_missing = o.failure_status == PhaseStatus::kDeviceMissing;
+  c.diverged = k && k->diverged;
+  c.safe_state_latched = (o.run && o.run->loop_exception) || (!o.device_fault.empty() && o.device_fault != "none");
+  c.passivity_not_met = o.build && o.build->status == PhaseStatus::kOk && !o.build->passivity_condition_met;
+  if (k && k->ticks_run > 0) c.no_neighbour_fraction = static_cast<double>(k->no_neighbour_ticks) / static_cast<double>(k->ticks_run);
+  c.no_neighbour = o.failure_status == PhaseStatus::kNoNeighbour ||
+                   (c.no_neighbour_fraction && *c.no_neighbour_fraction > p.file.station.max_no_neighbour_fraction);
+  c.failed = !o.failure.empty() && o.failure_status != PhaseStatus::kNoNeighbour && o.failure_status != PhaseStatus::kDeviceMissing &&
+             !(o.run && o.run->loop_exception);
+  const auto& sc = p.built->spec.script;
+  // Run time reached: a rejoined station's run starts late (first_run_k > run_k0) and ends on time.
+  const std::int64_t first_kr = o.run && o.run->first_run_k >= 0 ? o.run->first_run_k - p.times.run_k0 : 0;
+  const double ran_s = k ? static_cast<double>(first_kr + k->ticks_run) * p.built->spec.period_s : 0.0;
+  // Named when planned so, or when the run phase started and stopped early (a run that never
+  // started is named by its failure).
+  c.ended_before_release = sc.kind == UserScriptSpec::Kind::kPushHoldRelease && (p.ends_before_release || (o.run != nullptr && ran_s <= sc.release_s));
+  return c;
+}
+
+int exit_code(const RunConditions& c) {
+  if (c.device_missing) return kExitDeviceMissing;
+  if (c.diverged) return kExitDiverged;
+  if (c.safe_state_latched) return kExitSafeState;
+  if (c.passivity_not_met) return kExitPassivityNotMet;
+  if (c.no_neighbour) return kExitNoNeighbour;
+  if (c.failed) return kExitRunFailed;
+  if (c.ended_before_release) return kExitBeforeRelease;
+  return kExitOk;
+}
+
+nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c) {
+  json j = station_scenario_json(*o.plan);
+  add_bounds_json(o, j);
+  add_run_json(o, j);
+  add_links_json(o, j);
+  j["error"] = o.failure.empty() ? json(nullptr) : json(o.failure);
+  j["warnings"] = o.plan->warnings;
+  j["no_neighbour_fraction"] = c.no_neighbour_fraction ? json(*c.no_neighbour_fraction) : json(nullptr);
+  j["max_no_neighbour_fraction"] = o.plan->file.station.max_no_neighbour_fraction;
+  j["conditions"] = c.names();
+  j["exit_code"] = exit_code(c);
+  j["wall_time_s"] = o.wall_time_s;
+  return j;
+}
+
+void write_station_outputs(const StationOutcome& o, const RunConditions& c) {
+  const std::string& base = o.plan->base_path;
+  write_json_file(base + ".json", station_summary(o, c));
+  static const TickRecords kNone{};
+  const TickRecords& rec = o.records ? *o.records : kNone;
+  write_trace_csv(base + "-trace.csv", rec, o.plan->built->spec.period_s);
+  write_state_csv(base + "-state.csv", rec, o.plan->built->scene.dofs);
+}
+
+}  // namespace haptic::firmware

@@ -1,0 +1,64 @@
+#pragma once
+// report: the last phase of `haptic-station run` (DESIGN.md, "The station process"). From what
+// the phases returned: the conditions that degrade the run (each named in station-<id>.json and
+// on stderr, each with its exit code, firmware/station/phase.hpp), station-<id>.json,
+// station-<id>-trace.csv and station-<id>-state.csv. Metrics over an empty window are null.
+// Not RT-safe.
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "firmware/station/loop.hpp"
+#include "firmware/station/phase.hpp"
+#include "firmware/station/plan.hpp"
+#include "firmware/station/probe.hpp"
+#include "firmware/station/tick.hpp"
+
+namespace haptic::firmware {
+
+// Everything the phases produced, for the report (pointers: null when that phase did not run).
+struct StationOutcome {
+  const StationPlan* plan = nullptr;
+  const ProbeResult* probe = nullptr;
+  const BuildResult* build = nullptr;
+  const RunPhaseResult* run = nullptr;
+  const TickCounters* counters = nullptr;
+  const TickRecords* records = nullptr;
+  const net::Endpoint* endpoint = nullptr;
+  std::string failure;              // the first phase failure ("" none)
+  PhaseStatus failure_status = PhaseStatus::kOk;
+  std::string device_name;
+  std::string device_fault;         // latched device fault at the end of the run ("none" when none)
+  std::string io_sched;             // scheduling of the endpoint's I/O thread
+  double wall_time_s = 0;
+  nlohmann::json lifecycle;         // rejoin, neighbour clock offsets and events (station/run.cpp)
+  nlohmann::json recording;         // the session log's counters ([record] enabled)
+};
+
+// The degraded conditions of a run (each is also a key of station-<id>.json's "conditions").
+struct RunConditions {
+  bool device_missing = false;          // the configured device could not be started (exit 9)
+  bool diverged = false;
+  bool safe_state_latched = false;      // loop-boundary exception, or a latched device fault
+  bool passivity_not_met = false;       // B_i used < eq. (18) on the measured bounds
+  bool no_neighbour = false;            // none answered probing, or alone > station.max_no_neighbour_fraction
+  bool ended_before_release = false;    // the run ended at or before the scripted release
+  bool failed = false;                  // any other failure
+  std::optional<double> no_neighbour_fraction;  // of the run ticks; null when none ran
+  std::vector<std::string> names() const;       // the conditions that hold, as named in the summary
+};
+RunConditions run_conditions(const StationOutcome& o);
+
+// The process exit code for these conditions (the first that holds, in the documented order).
+int exit_code(const RunConditions& c);
+
+// station-<id>.json's content.
+nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c);
+
+// Writes station-<id>.json, -trace.csv and -state.csv under plan.base_path; throws
+// std::runtime_error naming the file it cannot write.
+void write_station_outputs(const StationOutcome& o, const RunConditions& c);
+
+}  // namespace haptic::firmware

@@ -1,0 +1,519 @@
+#include "firmware/station/run.hpp"
+
+#include <pthread.h>
+#include <sched.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <thread>
+
+#include "drivers/device_factory.hpp"
+#include "firmware/station/neighbours.hpp"
+#include "firmware/station/rejoin.hpp"
+#include "firmware/session/recorder.hpp"
+#include "firmware/view/server.hpp"
+#include "platform/gpio.hpp"
+#include "platform/telemetry.hpp"
+
+namespace haptic::firmware {
+
+namespace {
+
+// Progress lines on stderr, prefixed with the station; silent with --quiet. Not RT-safe.
+struct Log {
+  std::string tag;
+  bool quiet = false;
+  void say(const std::string& line) const {
+    if (!quiet) std::cerr << tag << ": " << line << "\n";
+  }
+  void error(const std::string& line) const { std::cerr << tag << ": error: " << line << "\n"; }
+};
+
+// What the station opens between plan and probe (sockets, the device, files).
+struct StationResources {
+  drivers::OpenedDevice dev;
+  std::unique_ptr<net::Endpoint> ep;
+  std::unique_ptr<platform::GpioToggler> gpio;
+  std::unique_ptr<platform::Telemetry> telemetry;
+  std::unique_ptr<SessionRecorder> recorder;  // station.record: the session log
+  std::unique_ptr<ViewPublisher> view;        // station.view_port: frames from the tick
+  std::unique_ptr<ViewServer> view_server;    // ... served to browsers
+  std::string io_sched = "not started";
+};
+
+// Everything the phases returned, owned here so the report can point into it.
+struct PhaseResults {
+  ProbeResult probe;
+  RejoinResult rejoin;  // when the station rejoined a running session (plan.times.rejoin)
+  AdoptedState adopted;
+  BuildResult build;
+  RunPhaseResult run;
+  bool probed = false, built = false, ran = false;
+  TickCounters counters;
+  TickRecords records;
+  nlohmann::json lifecycle = nlohmann::json::object();  // rejoin, clock offsets, neighbour events
+  std::string failure;
+  PhaseStatus failure_status = PhaseStatus::kOk;
+  void fail(PhaseStatus s, const std::string& message) {
+    if (!failure.empty()) return;
+    failure = message;
+    failure_status = s;
+  }
+};
+
+// The endpoint's I/O thread: platform::RtThread at station.io_priority (net.io_cpu pins it), so
+// round trips measure the network rather than CPU contention; a refusal is a warning.
+std::string start_io_thread(net::Endpoint& ep, const Log& log) {
+  ep.start();
+  for (const auto& w : ep.io_setup_warnings()) log.say("warning: " + w + "; running anyway");
+  return ep.io_scheduling();
+}
+
+// open: output directory, device, transport + endpoint (I/O thread started, probing), GPIO, telemetry.
+void open_resources(const StationPlan& plan, StationResources& res, const Log& log) {
+  std::filesystem::create_directories(plan.out_dir);
+  res.dev = drivers::open_device(plan.device);
+  log.say("device: " + std::string(res.dev.device->capabilities().name) +
+          (res.dev.simulated ? " (simulated user: scenario script of user " + std::to_string(plan.station_id) + ")" : ""));
+  if (!log.quiet && !res.dev.report.empty()) std::cerr << res.dev.report << (res.dev.report.back() == '\n' ? "" : "\n");
+  res.ep = std::make_unique<net::Endpoint>(plan.net.endpoint, plan.net.make_transport());
+  res.gpio = std::make_unique<platform::GpioToggler>(plan.file.gpio);
+  if (!plan.file.telemetry.path.empty()) {
+    platform::TelemetryConfig tc = plan.file.telemetry;
+    tc.period_s = plan.built->spec.period_s;
+    tc.value_names = {"force_x_N", "force_y_N", "force_z_N", "device_x_m", "device_y_m", "device_z_m", "port_energy_J", "controller_energy_J", "vo_energy_J",
+                      "contact", "edge_drops"};
+    res.telemetry = std::make_unique<platform::Telemetry>(tc);
+  }
+  res.io_sched = start_io_thread(*res.ep, log);
+  res.ep->begin_probing();
+}
+
+void say_plan(const StationPlan& plan, const Log& log) {
+  std::ostringstream os;
+  const ScenarioSpec& spec = plan.built->spec;
+  os << "scenario " << spec.name << ", " << spec.users << " users, " << plan.built->scene.nodes << " nodes, neighbours";
+  for (int j : plan.neighbours()) os << " " << j + 1;
+  os << "; transport " << plan.net.transport << "; epoch in " << plan.times.epoch_in_s << " s, probing " << plan.file.station.probe_s << " s, run "
+     << spec.duration_s << " s";
+  log.say(os.str());
+  for (const auto& w : plan.warnings) log.say("warning: " + w);
+}
+
+void say_bounds(const StationPlan& plan, const BuildResult& b, const Log& log) {
+  std::ostringstream os;
+  os << "probing done: round-trip bounds (ticks incl. allowance)";
+  for (std::size_t n = 0; n < plan.neighbours().size(); ++n) os << " " << plan.neighbours()[n] + 1 << ":" << b.bounds.round_trip_ticks[n];
+  os << "; B_i = " << b.bounds.damping_Ns_per_m << " N s/m (eq. 18 minimum " << b.bounds.damping_min_Ns_per_m << ", model "
+     << plan.built->damping[static_cast<std::size_t>(plan.me)] << ")";
+  log.say(os.str());
+  if (!b.passivity_condition_met)
+    log.say("warning: station.damping_Ns_per_m = " + std::to_string(b.bounds.damping_Ns_per_m) + " is below eq. (18) on the measured bounds (" +
+            std::to_string(b.bounds.damping_min_Ns_per_m) + "): the passivity condition is not met (exit code " + std::to_string(kExitPassivityNotMet) + ")");
+}
+
+TickInputs tick_inputs(const StationPlan& plan, StationResources& res, rt::StationCore* core, rt::TxDeadband* tx, const drivers::WorkspaceMap* map) {
+  TickInputs in;
+  in.map = map;
+  in.ramp_ticks = plan.ramp_in_ticks;
+  in.core = core;
+  in.tx_deadband = tx;
+  in.ep = res.ep.get();
+  in.device = res.dev.device.get();
+  in.simulated = res.dev.simulated;
+  in.gpio = res.gpio.get();
+  in.telemetry = res.telemetry.get();
+  in.recorder = res.recorder.get();
+  in.view = res.view.get();
+  in.sender_to_nbr = plan.peers.sender_to_nbr.data();
+  in.dofs = plan.built->scene.dofs;
+  in.trace_node = plan.built->trace_node;
+  in.trace_every = plan.file.station.trace_every;
+  in.state_every = plan.file.station.state_every;
+  in.period_s = plan.built->spec.period_s;
+  in.run_k0 = plan.times.run_k0;
+  return in;
+}
+
+// The session log of this station (record.enabled): header and core configuration written here,
+// before the RT thread exists. Not RT-safe.
+std::unique_ptr<SessionRecorder> open_recorder(const StationPlan& plan, const BuildResult& build) {
+  const rt::StationCore& core = *build.core;
+  RecorderConfig rc;
+  rc.path = plan.base_path + ".h5";
+  rc.max_bytes = static_cast<std::uint64_t>(plan.file.record.max_mb * 1024 * 1024);
+  rc.deflate_level = plan.file.record.deflate;
+  rc.ring_ticks = record_ring_ticks(plan);
+  SessionInfo info;
+  info.source = "station";
+  info.station_id = plan.station_id;
+  info.config_text = plan.file.text;
+  info.fingerprint = fingerprint_text(plan.fingerprint);
+  info.damping_min_Ns_per_m = build.bounds.damping_min_Ns_per_m;
+  info.passivity_condition_met = build.passivity_condition_met;
+  info.packets_float32 = plan.net.endpoint.wire.encoding == net::ValueEncoding::float32;
+  return std::make_unique<SessionRecorder>(rc, info, core.config());
+}
+
+// One frame for the browsers: the tick's frame plus the endpoint's per-link delay, loss and up/down.
+// Called on the view server's thread. Not RT-safe.
+bool station_view_frame(const StationPlan& plan, StationResources& res, ViewFrame& f, std::uint64_t& missed, std::string& out) {
+  const std::uint64_t before = f.seq;
+  if (!res.view->take(f)) return false;
+  if (before > 0 && f.seq > before + 1) missed += f.seq - before - 1;
+  nlohmann::json j = view_frame_json(f);
+  const net::EndpointStats st = res.ep->stats();
+  for (std::size_t n = 0; n < plan.neighbours().size() && n < j["links"].size(); ++n) {
+    const auto p = static_cast<std::size_t>(plan.peers.nbr_to_peer[n]);
+    if (p >= st.peers.size()) continue;
+    j["links"][n]["delay_ms"] = st.peers[p].one_way_mean_s * 1e3;
+    j["links"][n]["loss"] = st.peers[p].loss_fraction;
+    j["links"][n]["up"] = st.peers[p].up;
+  }
+  j["frames_dropped"] = missed;  // frames the tick published that this thread never took (the server adds its own count)
+  out = j.dump();
+  return true;
+}
+
+// The live view (station.view_port > 0): the tick's frame mailbox and the web server, both built
+// here before the RT thread exists. Not RT-safe.
+void open_view(const StationPlan& plan, StationResources& res, const BuildResult& build) {
+  const double T = plan.built->spec.period_s;
+  res.view = std::make_unique<ViewPublisher>(static_cast<int>(std::lround(1.0 / (plan.file.view.rate_hz * T))));
+  nlohmann::json scene = view_scene_json(*build.core, plan.station_id, "station");
+  scene["damping_min_Ns_per_m"] = build.bounds.damping_min_Ns_per_m;
+  scene["passivity_condition_met"] = build.passivity_condition_met;
+  const std::string scene_text = scene.dump();
+  auto frame = std::make_shared<ViewFrame>();
+  auto missed = std::make_shared<std::uint64_t>(0);
+  ViewCallbacks cb;
+  cb.scene = [scene_text] { return scene_text; };
+  cb.next_frame = [&plan, &res, frame, missed](std::string& out) { return station_view_frame(plan, res, *frame, *missed, out); };
+  ViewServerConfig vc;
+  vc.bind = plan.file.view.bind;
+  vc.port = plan.file.view.port;
+  vc.rate_hz = plan.file.view.rate_hz;
+  res.view_server = std::make_unique<ViewServer>(vc, cb);
+}
+
+// run: refuses a core that is ready more than a second after the run start; else the loop.
+void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
+  const double late_s = static_cast<double>(read_clocks().monotonic_ns - plan.times.run_epoch_ns()) * 1e-9;
+  if (late_s > 1.0 && !plan.times.rejoin) {
+    pr.fail(PhaseStatus::kFailed, "the station core was ready " + std::to_string(late_s) + " s after the run start (station.setup_gap_s too short?)");
+    return;
+  }
+  pr.records.reserve(plan.trace_capacity, plan.state_capacity, plan.built->scene.dofs);
+  if (plan.file.record.enabled) {
+    try {
+      res.recorder = open_recorder(plan, pr.build);
+      log.say("recording the session to " + res.recorder->path());
+    } catch (const std::exception& e) {
+      pr.fail(PhaseStatus::kFailed, std::string("session log: ") + e.what());
+      return;
+    }
+  }
+  if (plan.file.view.port > 0) {
+    try {
+      open_view(plan, res, pr.build);
+      log.say("live view at " + res.view_server->url());
+    } catch (const std::exception& e) {
+      pr.fail(PhaseStatus::kFailed, e.what());
+      return;
+    }
+  }
+  TickInputs in = tick_inputs(plan, res, pr.build.core.get(), &pr.build.tx_deadband, &pr.build.map);
+  if (!pr.build.max_age_s.empty()) in.max_age_s = pr.build.max_age_s.data();  // the age guard
+  RunObserver observer;
+  observer.rt_ready = [&](const std::string& summary, const std::vector<std::string>& warnings) {
+    if (!summary.empty() && !log.quiet) std::cerr << summary << (summary.back() == '\n' ? "" : "\n");
+    for (const auto& w : warnings) log.say("warning: " + w + " (running anyway; rt.require_rt = false)");
+  };
+  observer.report = [&](const platform::LoopReport& rep) {
+    if (rep.window_overruns > 0) log.say(platform::format_report(rep));
+  };
+  // Neighbours going silent and coming back: logged once each (station id, session time).
+  PeerEventLog events(plan, plan.times.run_epoch_ns(), plan.net.endpoint.peer_silence_s + 0.1);
+  nlohmann::json& ev = pr.lifecycle["neighbour_events"] = nlohmann::json::array();
+  observer.idle = [&] {
+    for (const auto& line : events.poll(res.ep->stats())) {
+      log.say(line);
+      ev.push_back(line);
+    }
+  };
+  if (plan.times.rejoin) {
+    // A rejoining station refreshes the adopted state at its first tick (RT-safe, preallocated).
+    Eigen::VectorXd x = pr.build.core->x(), v = pr.build.core->v();
+    bool first = true;
+    const RunTickFn tick = [&](std::int64_t k, std::int64_t kr, const platform::TickInfo& info) {
+      if (first) {
+        refresh_adopted_state(plan, *res.ep, *pr.build.core, x, v, pr.adopted);
+        first = false;
+      }
+      run_tick(in, pr.records, pr.counters, k, kr, info);
+    };
+    pr.run = run_periodic(plan, in.device, tick, stop, observer);
+  } else {
+    pr.run = run_loop(plan, in, pr.records, pr.counters, stop, observer);
+  }
+  pr.ran = true;
+  for (const auto& line : energy_bound_events(plan, *pr.build.core)) {  // after the loop: no race with the tick
+    log.say(line);
+    ev.push_back(line);
+  }
+  pr.lifecycle["device"]["outside_workspace_ticks"] = pr.counters.outside_workspace_ticks;
+  if (plan.times.rejoin) {
+    pr.lifecycle["rejoin"]["state_from_station"] = pr.adopted.from_station;
+    pr.lifecycle["rejoin"]["state_tick"] = pr.adopted.seq;
+    pr.lifecycle["rejoin"]["coupled_at_tick"] = pr.run.first_run_k;
+  }
+  if (pr.run.status == PhaseStatus::kFailed) pr.fail(PhaseStatus::kFailed, pr.run.message);
+}
+
+// The probe's warnings and what the report keeps of the neighbours' clocks.
+void note_probe(const StationPlan& plan, PhaseResults& pr, const Log& log) {
+  for (const auto& w : pr.probe.warnings) log.say("warning: " + w);
+  nlohmann::json offs = nlohmann::json::object();
+  for (std::size_t n = 0; n < pr.probe.clock.grid_offset_s.size(); ++n) {
+    const double o = pr.probe.clock.grid_offset_s[n], u = pr.probe.clock.uncertainty_s[n];
+    offs[std::to_string(plan.neighbours()[n] + 1)] = {{"tick_grid_offset_ms", std::isfinite(o) ? nlohmann::json(o * 1e3) : nlohmann::json(nullptr)},
+                                                      {"uncertainty_ms", std::isfinite(u) ? nlohmann::json(u * 1e3) : nlohmann::json(nullptr)}};
+  }
+  pr.lifecycle["clock_offsets"] = offs;
+  pr.lifecycle["clock_offset_exceeded"] = pr.probe.clock.exceeded;
+}
+
+// rejoin (instead of probe): learn the session's epoch, measure round trips; the plan's epoch
+// becomes the learned one.
+bool rejoin_session(StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
+  pr.rejoin = rejoin_probe(plan, *res.ep, stop);
+  pr.probe = pr.rejoin.probe;
+  pr.probed = true;
+  if (pr.probe.status == PhaseStatus::kStopped) return false;
+  if (pr.probe.status != PhaseStatus::kOk) {
+    pr.fail(pr.probe.status, pr.probe.message);
+    return false;
+  }
+  plan.times.epoch_ns = pr.rejoin.epoch_ns;
+  std::ostringstream os;
+  os << "rejoining: the session's epoch from station " << pr.rejoin.epoch_from_station << " is " << pr.rejoin.epoch_shift_s * 1e3
+     << " ms from the planned one (+- " << pr.rejoin.epoch_uncertainty_s * 1e3 << " ms)";
+  log.say(os.str());
+  pr.lifecycle["rejoin"] = {{"epoch_from_station", pr.rejoin.epoch_from_station},
+                            {"epoch_shift_ms", pr.rejoin.epoch_shift_s * 1e3},
+                            {"epoch_uncertainty_ms", pr.rejoin.epoch_uncertainty_s * 1e3},
+                            {"provisional_pushes", pr.rejoin.provisional_pushes}};
+  return true;
+}
+
+// Before a rejoining station couples: a neighbour's current object state becomes its own.
+bool adopt_state(const StationPlan& plan, StationResources& res, PhaseResults& pr, const Log& log) {
+  pr.adopted = adopt_neighbour_state(plan, *res.ep, *pr.build.core, 0.5);
+  if (!pr.adopted.ok) {
+    pr.fail(PhaseStatus::kFailed, pr.adopted.message);
+    return false;
+  }
+  const std::int64_t k_now = (read_clocks().monotonic_ns - plan.times.epoch_ns) / plan.times.period_ns;
+  log.say("rejoining: took over station " + std::to_string(pr.adopted.from_station) + "'s object state of tick " + std::to_string(pr.adopted.seq) +
+          " (now tick " + std::to_string(k_now) + "; refreshed at the first run tick); coupling");
+  return true;
+}
+
+// The device's current position (device frame) before the core is built, to place the virtual
+// proxy there: the newest sample, waiting up to 0.2 s for a first one. Non-RT (the tick thread
+// does not exist yet, so this thread is the mailbox's only reader).
+bool initial_device_position(drivers::HapticDevice& dev, double out[3]) {
+  drivers::DeviceSample s{};
+  for (int i = 0; i < 100; ++i) {
+    if (dev.read_newest(s)) {
+      for (int a = 0; a < 3; ++a) out[a] = s.position_m[a];
+      return true;
+    }
+    if (dev.fault() != drivers::DeviceFault::kNone) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return false;
+}
+
+// Start-up lines and lifecycle.device: gains, b_d, force limit, the map, where the proxy starts, the ramp.
+void note_device_coupling(const StationPlan& plan, PhaseResults& pr, const Log& log) {
+  const BuildResult& b = pr.build;
+  const DeviceCoupling& c = b.coupling;
+  const Eigen::Vector3d& y0 = b.proxy_start_m;
+  std::ostringstream os;
+  os << "device coupling: b_d " << c.b_d_Ns_per_m << " N s/m (" << c.b_d_source << "), K_vc " << c.gains.K_vc_N_per_m << " N/m, B_vc "
+     << c.gains.B_vc_Ns_per_m << " N s/m, b_v " << c.gains.b_v_Ns_per_m << " N s/m, force limit " << c.force_limit_N << " N, map scale "
+     << b.map.scale() << "; proxy starts at (" << y0.x() << ", " << y0.y() << ", " << y0.z() << ") m"
+     << (b.proxy_from_device ? (b.proxy_projected ? " (the mapped device position was inside the object: projected onto its face)" : " (the mapped device position)")
+                             : " (the scenario's start)")
+     << "; force ramp-in " << static_cast<double>(plan.ramp_in_ticks) * plan.built->spec.period_s << " s";
+  log.say(os.str());
+  nlohmann::json& d = pr.lifecycle["device"];
+  d["b_d_Ns_per_m"] = c.b_d_Ns_per_m;
+  d["b_d_source"] = c.b_d_source;
+  d["K_vc_N_per_m"] = c.gains.K_vc_N_per_m;
+  d["B_vc_Ns_per_m"] = c.gains.B_vc_Ns_per_m;
+  d["b_v_Ns_per_m"] = c.gains.b_v_Ns_per_m;
+  d["force_limit_N"] = c.force_limit_N;
+  d["force_feedback"] = c.force_feedback;
+  d["map_scale"] = b.map.scale();
+  d["proxy_start_m"] = {y0.x(), y0.y(), y0.z()};
+  d["proxy_from_device"] = b.proxy_from_device;
+  d["proxy_projected"] = b.proxy_projected;
+  d["ramp_in_s"] = static_cast<double>(plan.ramp_in_ticks) * plan.built->spec.period_s;
+}
+
+// open -> probe (or rejoin) -> build -> run; each phase's failure ends the sequence.
+void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
+  try {
+    open_resources(plan, res, log);
+  } catch (const drivers::DeviceMissing& e) {
+    pr.fail(PhaseStatus::kDeviceMissing, std::string("start-up: ") + e.what());
+    return;
+  } catch (const std::exception& e) {
+    pr.fail(PhaseStatus::kFailed, std::string("start-up: ") + e.what());
+    return;
+  }
+  pr.lifecycle["device"] = {{"kind", plan.device.kind},
+                            {"name", res.dev.device->capabilities().name},
+                            {"simulated_user", plan.device.kind == "simulated"}};
+  say_plan(plan, log);
+  const char* probe_only_late = "probe only: the session already runs (or its probing is over); give every station the same future --start-at";
+  if (plan.times.rejoin) {
+    if (plan.overrides.probe_only) return pr.fail(PhaseStatus::kFailed, probe_only_late);  // never joins a running session
+    if (!rejoin_session(plan, res, pr, stop, log)) return;
+  } else {
+    pr.probe = probe_neighbours(plan, *res.ep, stop);
+    pr.probed = true;
+    if (pr.probe.status == PhaseStatus::kStopped) return;
+    if (pr.probe.status != PhaseStatus::kOk) return pr.fail(pr.probe.status, pr.probe.message);
+    if (pr.probe.running_session_from != 0) {  // a restart with a fresh epoch (relative start_delay_s): rejoin
+      if (plan.overrides.probe_only) return pr.fail(PhaseStatus::kFailed, probe_only_late);
+      log.say("rejoining: " + pr.probe.message + "; this station is a restart, its own epoch is not the session's");
+      plan.times.rejoin = true;
+      pr.lifecycle["rejoin_detected_from_station"] = pr.probe.running_session_from;
+      if (!rejoin_session(plan, res, pr, stop, log)) return;
+    }
+  }
+  note_probe(plan, pr, log);
+  if (plan.overrides.probe_only) {  // --probe-only: reachability, round trips, loss and clock offsets measured; nothing coupled
+    pr.lifecycle["probe_only"] = true;
+    log.say("probe only: every neighbour answered with a matching fingerprint; stopping before coupling (no run)");
+    return;
+  }
+  double q0[3];
+  const bool have_q0 = initial_device_position(*res.dev.device, q0);
+  if (!have_q0) log.say("warning: the device gave no sample before coupling: the virtual proxy starts at the scenario's start");
+  pr.build = build_station_core(plan, pr.probe, res.dev.device->capabilities(), have_q0 ? q0 : nullptr);
+  pr.built = true;
+  if (pr.build.status != PhaseStatus::kOk) return pr.fail(pr.build.status, pr.build.message);
+  note_device_coupling(plan, pr, log);
+  say_bounds(plan, pr.build, log);
+  if (plan.times.rejoin && !adopt_state(plan, res, pr, log)) return;
+  run_phase(plan, res, pr, stop, log);
+}
+
+nlohmann::json recording_json(const RecorderStats& s, const std::string& path) {
+  return {{"path", path}, {"ticks", s.ticks}, {"packets", s.packets}, {"dropped_records", s.dropped_records}, {"bytes", s.bytes},
+          {"truncated_at_tick", s.truncated_at_tick}, {"lossy_packet_values", s.lossy_packet_values}, {"error", s.error},
+          {"first_tick", s.first_tick}, {"packets_complete_from_tick", s.packets_complete_from_tick}};
+}
+
+// report: stop what was opened, name the conditions, write the outputs; returns the exit code.
+int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, double wall_s, const Log& log) {
+  StationOutcome o;
+  o.plan = &plan;
+  o.probe = pr.probed ? &pr.probe : nullptr;
+  o.build = pr.built ? &pr.build : nullptr;
+  o.run = pr.ran ? &pr.run : nullptr;
+  o.counters = &pr.counters;
+  o.records = &pr.records;
+  o.endpoint = res.ep.get();
+  o.failure = pr.failure;
+  o.failure_status = pr.failure_status;
+  o.io_sched = res.io_sched;
+  o.wall_time_s = wall_s;
+  o.lifecycle = pr.lifecycle;
+  if (res.dev.device) {
+    o.device_name = res.dev.device->capabilities().name;
+    o.device_fault = drivers::fault_name(res.dev.device->fault());  // before stop(), which latches "not started"
+    if (res.dev.device->fault() == drivers::DeviceFault::kNone) o.device_fault = "none";
+  }
+  if (res.ep) res.ep->stop();
+  if (res.dev.device) res.dev.device->stop();
+  if (res.telemetry) res.telemetry->flush();
+  if (res.recorder) o.recording = recording_json(res.recorder->finish(), res.recorder->path());
+  if (res.view_server) {
+    const ViewServerStats v = res.view_server->stats();
+    o.recording["view"] = {{"frames", v.frames}, {"frames_sent", v.frames_sent}, {"frames_dropped", v.frames_dropped}, {"browsers", v.clients_total},
+                           {"service_errors", v.service_errors}, {"last_browser_status", v.last_browser_status}};
+    res.view_server.reset();
+  }
+  if (!pr.failure.empty()) log.error(pr.failure);
+  const RunConditions c = run_conditions(o);
+  const int code = exit_code(c);
+  try {
+    write_station_outputs(o, c);
+  } catch (const std::exception& e) {
+    log.error(e.what());
+    return code == kExitOk ? kExitRunFailed : code;
+  }
+  std::string names;
+  for (const auto& n : c.names()) {
+    if (!names.empty()) names += ", ";
+    names += n;
+  }
+  std::cout << log.tag << ": " << (code == kExitOk ? "done" : "FAILED (" + names + ")") << ", " << pr.counters.ticks_run << " ticks, "
+            << pr.run.loop.overruns << " overruns, " << (pr.counters.diverged ? "DIVERGED" : "stable") << ", B_i "
+            << (pr.built ? std::to_string(pr.build.bounds.damping_Ns_per_m) : std::string("none")) << " N s/m; exit " << code << "; wrote "
+            << plan.base_path << ".json, -trace.csv, -state.csv\n";
+  return code;
+}
+
+}  // namespace
+
+std::string exit_code_help() {
+  return "Exit codes (when several hold, the first in this list): 0 done; 2 configuration error (the key is named as written in the file); "
+         "9 device missing (device.kind names a device that could not be started; a station never substitutes a simulated user: "
+         "device.kind = \"simulated\" asks for one); "
+         "4 diverged; 5 safe state latched (loop exception or device fault); 6 passivity condition not met (B_i below eq. (18) on the measured "
+         "round-trip bounds); 7 no neighbour (none answered probing, or none within its bound for more than station.max_no_neighbour_fraction "
+         "of the run); 3 other run-time failure; 8 the run ended before the scripted release (e.g. --duration shorter than station.release_s). "
+         "station-<id>.json names each condition under \"conditions\".";
+}
+
+int check_station_config(const StationFile& file, const RunOverrides& overrides, std::ostream& out, std::ostream& err) {
+  const PlanResult pr = plan_station(file, overrides, read_clocks());
+  if (pr.status != PhaseStatus::kOk) {
+    err << "haptic-station run: error: " << pr.error << "\n";
+    return kExitConfigError;
+  }
+  const StationPlan& p = *pr.plan;
+  const ScenarioSpec& spec = p.built->spec;
+  out << "config ok: station " << p.station_id << " of " << spec.users << ", scenario " << spec.name << ", " << p.built->scene.nodes << " nodes, "
+      << p.neighbours().size() << " neighbour(s), duration " << spec.duration_s << " s, release " << spec.script.release_s << " s, out_dir "
+      << p.out_dir << "\n";
+  for (const auto& w : p.warnings) out << "warning: " << w << "\n";
+  return kExitOk;
+}
+
+int run_station(const StationFile& f, const RunOverrides& o, std::atomic<bool>& stop) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  const Log log{"haptic-station run [station " + std::to_string(f.station.id) + "]", o.quiet};
+  PlanResult plan = plan_station(f, o, read_clocks());
+  if (plan.status != PhaseStatus::kOk) {
+    log.error(plan.error);
+    return kExitConfigError;
+  }
+  StationResources res;
+  PhaseResults pr;
+  run_phases(*plan.plan, res, pr, stop, log);
+  return report_phase(*plan.plan, res, pr, std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count(), log);
+}
+
+}  // namespace haptic::firmware

@@ -1,0 +1,230 @@
+#include "firmware/station/tick.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "firmware/station/device_coupling.hpp"
+#include "platform/trace.hpp"
+
+namespace haptic::firmware {
+
+namespace {
+
+using platform::trace::Stage;
+using platform::trace::StageScope;
+
+// Drains the RX ring into the receive links; sequence numbers become run indices (seq - run_k0).
+// The age guard: a packet whose echo-based age bound (now - our own send stamp of the sequence it
+// echoes) exceeds the neighbour's limit, or that echoes none of our sends, is refused. RT-safe.
+void drain_rx(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
+  StageScope stage(Stage::rx_drain);
+  const double now_s = in.max_age_s ? net::monotonic_s() : 0.0;
+  in.ep->drain_packets([&](const net::RxPacket& p) {
+    const int n = in.sender_to_nbr[p.sender];
+    if (n < 0) {
+      ++cnt.foreign_packets;
+      return;
+    }
+    if (static_cast<std::int64_t>(p.seq) < in.run_k0) {
+      ++cnt.probe_packets_after_run;
+      return;
+    }
+    if (in.max_age_s) {
+      if (!p.has_echo) {
+        ++cnt.no_echo;
+        return;
+      }
+      if (p.age_bound_s(now_s) > in.max_age_s[n]) {
+        ++cnt.age_over_bound;
+        return;
+      }
+    }
+    platform::trace::packet_rx(static_cast<std::uint32_t>(p.sender), p.seq, static_cast<std::uint32_t>(p.count));
+    const rt::RxVerdict v = in.core->rx(n).offer(static_cast<std::int64_t>(p.seq) - in.run_k0, p.send_time_s, p.x_hat, p.v_hat,
+                                                 static_cast<int>(p.count));
+    if (v != rt::RxVerdict::kAccepted) ++cnt.rx_refused;
+    // Recorded as offered (the replay re-offers them), except what the sanity checks refused.
+    if (in.recorder && static_cast<int>(p.count) == in.dofs && v != rt::RxVerdict::kFuture && v != rt::RxVerdict::kNonFinite)
+      in.recorder->rt_packet(kr, n, static_cast<std::int64_t>(p.seq) - in.run_k0, p.send_time_s, p.x_hat, p.v_hat);
+    ++cnt.rx_offered;
+  });
+}
+
+// Largest node speed of the core's state (inf when not finite). RT-safe.
+double max_node_speed(const TickInputs& in) {
+  const auto& v = in.core->v();
+  double vmax = 0;
+  for (int p = 0; p < in.dofs / 3; ++p) vmax = std::max(vmax, v.segment<3>(3 * p).norm());
+  return std::isfinite(vmax) ? vmax : INFINITY;
+}
+
+void record_trace(const TickInputs& in, TickRecords& rec, std::int64_t kr, const double* F, const rt::Vec3& q, double vmax, std::uint32_t flags,
+                  const platform::TickInfo& info) {
+  if (kr % in.trace_every != 0 || rec.trace_n >= rec.trace.size()) return;
+  TraceRec& r = rec.trace[rec.trace_n++];
+  const auto& e = in.core->energy();
+  r.k = kr;
+  const auto xn = in.core->x().segment<3>(3 * in.trace_node);
+  const auto& y = in.core->vp_position_m();
+  for (int a = 0; a < 3; ++a) {
+    r.node[a] = xn[a];
+    r.force[a] = F[a];
+    r.vp[a] = y[a];
+    r.device[a] = q[a];
+  }
+  r.port_J = e.port_J;
+  r.ctrl_J = e.controller_J;
+  r.vo_J = e.vo_J;
+  r.max_speed = vmax;
+  r.step_s = in.core->last_step_s();
+  r.flags = flags;
+  r.wake_latency_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.wake_latency_ns, INT32_MAX));
+  r.contact = in.core->in_contact() ? 1 : 0;
+}
+
+void record_state(const TickInputs& in, TickRecords& rec, std::int64_t kr) {
+  if (kr % in.state_every != 0 || rec.state_n >= rec.state_k.size()) return;
+  rec.state_k[rec.state_n] = kr;
+  const double* x = in.core->x().data();
+  std::copy(x, x + in.dofs, rec.state_x.data() + rec.state_n * static_cast<std::size_t>(in.dofs));
+  ++rec.state_n;
+}
+
+void record_telemetry(const TickInputs& in, const double* F, const rt::Vec3& q, std::uint32_t flags, const platform::TickInfo& info) {
+  if (in.telemetry == nullptr) return;
+  StageScope stage(Stage::telemetry);
+  const auto& e = in.core->energy();
+  platform::TelemetryRecord tr;
+  tr.tick = info.index;
+  tr.scheduled_ns = info.scheduled_ns;
+  tr.wake_latency_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.wake_latency_ns, INT32_MAX));
+  tr.exec_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.prev_exec_ns, INT32_MAX));
+  tr.overruns = static_cast<std::uint32_t>(info.overruns);
+  tr.status = flags;
+  for (int a = 0; a < 3; ++a) {
+    tr.values[static_cast<std::size_t>(a)] = F[a];
+    tr.values[static_cast<std::size_t>(3 + a)] = q[a];
+  }
+  tr.values[6] = e.port_J;
+  tr.values[7] = e.controller_J;
+  tr.values[8] = e.vo_J;
+  tr.values[9] = in.core->in_contact() ? 1 : 0;
+  tr.values[10] = static_cast<double>(in.core->edge_drop_events());
+  in.telemetry->record(tr);
+}
+
+// Energy, speed, divergence and neighbour-presence bookkeeping. RT-safe.
+double monitor(const TickInputs& in, TickCounters& cnt, std::int64_t kr, std::uint32_t flags, const platform::TickInfo& info) {
+  cnt.port_min_J = std::min(cnt.port_min_J, in.core->energy().port_J);
+  const double vmax = max_node_speed(in);
+  cnt.max_speed_m_per_s = std::max(cnt.max_speed_m_per_s, vmax);
+  if (!any_neighbour_within_bound(*in.core, kr)) ++cnt.no_neighbour_ticks;
+  if ((flags & rt::kDiverged) && !cnt.diverged) {
+    cnt.diverged = true;
+    cnt.diverged_at_s = static_cast<double>(kr) * in.period_s;
+    if (in.telemetry) in.telemetry->report_fault(platform::FaultKind::divergence, info.index);
+  }
+  return vmax;
+}
+
+}  // namespace
+
+rt::Vec3 read_device(const TickInputs& in, TickCounters& cnt) {
+  StageScope stage(Stage::device_read);
+  drivers::DeviceSample ds{};
+  rt::Vec3 q;
+  if (in.device->read_newest(ds)) {
+    if (in.map != nullptr) {
+      bool clamped = false;
+      q = in.map->to_object(ds.position_m, &clamped);
+      if (clamped) ++cnt.outside_workspace_ticks;
+    } else {
+      q = rt::Vec3(ds.position_m[0], ds.position_m[1], ds.position_m[2]);
+    }
+  } else {
+    q = rt::Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+    ++cnt.device_fault_ticks;
+  }
+  platform::trace::device_read(0, ds.sequence);
+  return q;
+}
+
+void device_force_out(const TickInputs& in, const TickCounters& cnt, const rt::Vec3& f, double out[3]) {
+  const rt::Vec3 ramped = ramp_in_factor(cnt.ticks_run, in.ramp_ticks) * f;
+  if (in.map != nullptr) {
+    in.map->force_to_device(ramped, out);
+  } else {
+    for (int a = 0; a < 3; ++a) out[a] = ramped[a];
+  }
+}
+
+void TickRecords::reserve(std::size_t trace_rows, std::size_t state_rows, int dofs) {
+  trace.assign(trace_rows, TraceRec{});
+  state_k.assign(state_rows, 0);
+  state_x.assign(state_rows * static_cast<std::size_t>(dofs), 0.0);
+  trace_n = state_n = 0;
+}
+
+bool any_neighbour_within_bound(rt::StationCore& core, std::int64_t kr) {
+  for (int n = 0; n < core.neighbor_count(); ++n)
+    if (kr - core.rx(n).newest_sequence() <= core.neighbor(n).index_delay_bound_ticks) return true;
+  return false;
+}
+
+std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt, std::int64_t k, std::int64_t kr, const platform::TickInfo& info) {
+  if (in.gpio) in.gpio->tick_high();  // the loop already emitted tick_begin
+  in.ep->note_tick(k);                 // the sequence ceiling of the I/O thread's decoder
+  const rt::Vec3 q = read_device(in, cnt);
+  if (in.recorder && cnt.ticks_run == 0) in.recorder->rt_initial_state(in.core->x().data(), in.core->v().data());
+  drain_rx(in, cnt, kr);
+  platform::trace::solve_begin();
+  // T_k: the measured wake-to-wake period (the first tick: the nominal one); the core clamps it to
+  // station.period_min_s..period_max_s and counts it when outside (rt/README.md "Variable steps")
+  // (a fixed-step configuration, period_min_s = period_max_s, integrates over the nominal period)
+  const bool variable = in.core->config().t_max() > in.core->config().t_min();
+  const double step_s = variable && cnt.ticks_run > 0 ? static_cast<double>(info.wake_ns - cnt.last_wake_ns) * 1e-9 : in.period_s;
+  cnt.last_wake_ns = info.wake_ns;
+  const auto out = in.core->tick(kr, q, step_s);  // the coupled VO + VP step at run cycle kr
+  platform::trace::solve_end();
+  // The force the device is told, in the object frame (ramp-in applied): what the trace, the
+  // telemetry and the checks on them see.
+  const double ramp = ramp_in_factor(cnt.ticks_run, in.ramp_ticks);
+  const double F[3] = {ramp * out.device_force_N[0], ramp * out.device_force_N[1], ramp * out.device_force_N[2]};
+  {
+    StageScope stage(Stage::publish);
+    double F_dev[3];
+    device_force_out(in, cnt, out.device_force_N, F_dev);  // ramp-in, object -> device frame
+    in.device->command_force(F_dev);
+    platform::trace::device_write(0, static_cast<std::uint64_t>(kr));
+    if (in.simulated) in.simulated->service(static_cast<double>(kr) * in.period_s, in.period_s);
+  }
+  bool sent = false;
+  {
+    StageScope stage(Stage::tx);
+    if (!in.tx_deadband || in.tx_deadband->should_send(kr, in.core->x_hat(), in.core->v_hat())) {
+      sent = in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), in.core->x_hat(), in.core->v_hat(),
+                               (out.flags & rt::kDiverged) != 0);  // safe state: the flag, never the state
+      if (!sent) ++cnt.push_failures;
+    }
+  }
+  {
+    StageScope stage(Stage::monitor);
+    const double vmax = monitor(in, cnt, kr, out.flags, info);
+    record_trace(in, rec, kr, F, q, vmax, out.flags | (sent ? kTraceStateSent : 0u), info);
+    record_state(in, rec, kr);
+  }
+  record_telemetry(in, F, q, out.flags, info);
+  if (in.recorder) {
+    TickRecord row = make_tick_record(*in.core, kr, q, out, step_s);  // the T_k handed to the core, for replay
+    row.wake_latency_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.wake_latency_ns, INT32_MAX));
+    row.exec_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.prev_exec_ns, INT32_MAX));
+    in.recorder->rt_tick(row);
+  }
+  if (in.view) in.view->on_tick(*in.core, kr, in.period_s, q, out.device_force_N, out.flags, info.prev_exec_ns, info.wake_latency_ns);
+  ++cnt.ticks_run;
+  if (in.gpio) in.gpio->tick_low();
+  return out.flags;
+}
+
+}  // namespace haptic::firmware

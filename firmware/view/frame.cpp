@@ -1,0 +1,107 @@
+#include "firmware/view/frame.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace haptic::firmware {
+
+namespace {
+// Largest node distance between x and a neighbour's x_hat (dofs values each). RT-safe.
+double max_node_distance(const double* x, const double* y, int nodes) {
+  double m2 = 0;
+  for (int p = 0; p < nodes; ++p) {
+    const double dx = x[3 * p] - y[3 * p], dy = x[3 * p + 1] - y[3 * p + 1], dz = x[3 * p + 2] - y[3 * p + 2];
+    m2 = std::max(m2, dx * dx + dy * dy + dz * dz);
+  }
+  return std::sqrt(m2);
+}
+
+nlohmann::json micrometres(const float* x, int values) {
+  std::vector<long> v(static_cast<std::size_t>(values));
+  for (int i = 0; i < values; ++i) v[static_cast<std::size_t>(i)] = std::lround(static_cast<double>(x[i]) * 1e6);
+  return v;
+}
+}  // namespace
+
+void ViewPublisher::on_tick(const rt::StationCore& core, std::int64_t kr, double period_s, const rt::Vec3& q, const rt::Vec3& force,
+                            std::uint32_t flags, std::int64_t exec_ns, std::int64_t wake_ns) {
+  exec_max_ = std::max<std::int32_t>(exec_max_, static_cast<std::int32_t>(std::min<std::int64_t>(exec_ns, INT32_MAX)));
+  wake_max_ = std::max<std::int32_t>(wake_max_, static_cast<std::int32_t>(std::min<std::int64_t>(wake_ns, INT32_MAX)));
+  flags_ |= flags;
+  if (kr % every_ != 0) return;
+  ViewFrame& f = box_.writer_slot();
+  const int n = static_cast<int>(core.x().size() / 3);
+  f.seq = ++seq_;
+  f.k = kr;
+  f.t_s = static_cast<double>(kr + 1) * period_s;
+  f.nodes = std::min(n, kViewMaxNodes);
+  const double* x = core.x().data();
+  for (int i = 0; i < 3 * f.nodes; ++i) f.x[i] = static_cast<float>(x[i]);
+  f.neighbours = core.neighbor_count();
+  f.copies = n <= kViewCopyNodes ? std::min(f.neighbours, kViewMaxCopies) : 0;
+  f.consensus_error_m = 0;
+  for (int j = 0; j < f.neighbours; ++j) {
+    const rt::RxLink& rx = core.rx(j);
+    f.peer[j] = core.neighbor(j).peer_id;
+    f.index_delay[j] = kr - rx.newest_sequence();
+    f.bound[j] = core.neighbor(j).index_delay_bound_ticks;
+    f.consensus_error_m = std::max(f.consensus_error_m, max_node_distance(x, rx.newest_x_hat(), n));
+    if (j < f.copies)
+      for (int i = 0; i < 3 * n; ++i) f.copy_x[j][i] = static_cast<float>(rx.newest_x_hat()[i]);
+  }
+  const auto& y = core.vp_position_m();
+  for (int a = 0; a < 3; ++a) f.vp[a] = y[a], f.device[a] = q[a], f.force[a] = force[a];
+  const auto& e = core.energy();
+  f.port_J = e.port_J, f.controller_J = e.controller_J, f.vo_J = e.vo_J;
+  f.exec_max_ns = exec_max_, f.wake_max_ns = wake_max_, f.flags = flags_;
+  f.in_contact = core.in_contact();
+  box_.writer_publish_slot();
+  exec_max_ = wake_max_ = 0;
+  flags_ = 0;
+}
+
+nlohmann::json view_scene_json(const rt::StationCore& core, int station_id, const std::string& mode) {
+  const rt::Scene& s = *core.config().scene;
+  const int n = std::min(s.nodes, kViewMaxNodes);
+  std::vector<int> tri;
+  for (const auto& t : s.mesh.surface)
+    if (t[0] < n && t[1] < n && t[2] < n) tri.insert(tri.end(), {t[0], t[1], t[2]});
+  std::vector<float> xd(static_cast<std::size_t>(3 * n));
+  for (int i = 0; i < 3 * n; ++i) xd[static_cast<std::size_t>(i)] = static_cast<float>(s.x_d[i]);
+  std::vector<int> peers;
+  for (int j = 0; j < core.neighbor_count(); ++j) peers.push_back(core.neighbor(j).peer_id + 1);
+  return {{"type", "scene"},     {"mode", mode},          {"station", station_id},
+          {"nodes", n},          {"rest_um", micrometres(xd.data(), 3 * n)},
+          {"triangles", tri},    {"contact", core.config().contact_nodes},
+          {"neighbours", peers}, {"period_s", core.config().period_s},
+          {"damping_Ns_per_m", core.config().damping_Ns_per_m}};
+}
+
+nlohmann::json view_frame_json(const ViewFrame& f) {
+  nlohmann::json j = {{"type", "frame"},
+                      {"seq", f.seq},
+                      {"k", f.k},
+                      {"t", f.t_s},
+                      {"x_um", micrometres(f.x, 3 * f.nodes)},
+                      {"vp", {f.vp[0], f.vp[1], f.vp[2]}},
+                      {"device", {f.device[0], f.device[1], f.device[2]}},
+                      {"force", {f.force[0], f.force[1], f.force[2]}},
+                      {"port_J", f.port_J},
+                      {"controller_J", f.controller_J},
+                      {"vo_J", f.vo_J},
+                      {"consensus_error_m", f.consensus_error_m},
+                      {"exec_max_us", f.exec_max_ns * 1e-3},
+                      {"wake_max_us", f.wake_max_ns * 1e-3},
+                      {"flags", f.flags},
+                      {"safe_state", (f.flags & rt::kSafeState) != 0},
+                      {"contact", f.in_contact}};
+  nlohmann::json links = nlohmann::json::array(), copies = nlohmann::json::array();
+  for (int n = 0; n < f.neighbours; ++n)
+    links.push_back({{"peer", f.peer[n] + 1}, {"index_delay", f.index_delay[n]}, {"bound", f.bound[n]}, {"within", f.index_delay[n] <= f.bound[n]}});
+  for (int c = 0; c < f.copies; ++c) copies.push_back(micrometres(f.copy_x[c], 3 * f.nodes));
+  j["links"] = links;
+  j["copies_um"] = copies;
+  return j;
+}
+
+}  // namespace haptic::firmware

@@ -1,6 +1,6 @@
 #pragma once
 // USB serial (cdc_acm) nodes of the devices we recognise: the USB Touch (2988:0302, 0301:2988)
-// appears as /dev/ttyACM*, group dialout by default (issue 12). Found through sysfs
+// appears as /dev/ttyACM*, group dialout by default. Found through sysfs
 // (/sys/bus/usb/devices/<interface>/tty/ttyACM* -> the interface's parent, the USB device, with
 // idVendor/idProduct/serial), so it works under umockdev as on a real system. Non-RT (diagnostics and discovery).
 #include <cstdint>

@@ -2,7 +2,7 @@
 // The USB identities we recognise and which backend drives each. Sources (public, see README):
 //  - Phantom/Touch: the USB Touch as 2988:0302 or 0301:2988, bound to the kernel's cdc_acm
 //    driver (a /dev/ttyACM* node, group dialout by default); the current Touch HID model as
-//    2988:0304 (a /dev/hidraw* node), as reported publicly (issue 12); any other product under
+//    2988:0304 (a /dev/hidraw* node), as reported publicly; any other product under
 //    vendor 0x2988 is reported as "unlisted model".
 //  - 3Dconnexion SpaceMouse family: vendor 0x256f (3Dconnexion) any product; vendor 0x046d
 //    (Logitech, older 3Dconnexion devices) only the product ids listed in usb_ids.cpp.

@@ -1,5 +1,5 @@
 #pragma once
-// The transform from a device's coordinates to the shared object's frame (issue 12 item 1):
+// The transform from a device's coordinates to the shared object's frame:
 //   p_object = offset + scale R p_device,    F_device = scale R^T F_object,
 // so the power the station exchanges with the hand is the same in both frames (F_d . v_d =
 // F_o . v_o): a coupling of stiffness K_vc and damping B_vc in the object frame is one of

@@ -108,7 +108,7 @@ struct ScenarioSpec {
   // 0: from the clock model above (= period_s without one). The real station: station.period_min_s/max_s.
   double period_min_s = 0, period_max_s = 0;
   bool has_clock_model() const { return timer_jitter_s > 0 || step_jitter > 0 || clock_drift_ppm > 0; }
-  // Per-edge damage bound (issue 11 item 5, rt/edge_energy.hpp): an edge whose energy account
+  // Per-edge damage bound (rt/edge_energy.hpp): an edge whose energy account
   // exceeds this acts as the damper until the account has fallen to half of it. 0 = off.
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
   double edge_energy_leak_W = rt::kDefaultEdgeEnergyLeakW;  // the accounts' leak (rt/edge_energy.hpp)

@@ -1,5 +1,5 @@
 #pragma once
-// The physically possible states of a neighbour's payload (issue 11, net/README.md "Receive-path
+// The physically possible states of a neighbour's payload (net/README.md "Receive-path
 // sanity"): every node within max_offset_m of its rest position and no faster than
 // max_speed_m_per_s. Checked by the decoder (DecodeLimits::envelope, before the sequence is marked) on every authentic state packet and by
 // the receive-path fuzz target. contains() is RT-safe (no allocation).

@@ -45,7 +45,7 @@ struct LinkImpairment {
   // Blackout of a given length (off when blackout_length_s == 0), by send time.
   double blackout_start_s = 0.0;
   double blackout_length_s = 0.0;
-  // Time-correlated delay (off when 0; issue 15 item 5): the delay of each packet is driven by a
+  // Time-correlated delay (off when 0): the delay of each packet is driven by a
   // latent Gaussian AR(1) z_k = rho z_{k-1} + sqrt(1 - rho^2) n_k (one step per packet drawn) mapped
   // through the normal CDF onto the same support mean*[1-j, 1+j], so the marginal stays the
   // paper's uniform and only the correlation differs (about 1/(1 - rho) packets). A duplicate's

@@ -1,5 +1,5 @@
 #pragma once
-// Station keys (issue 11, net/README.md "Keys"): each station has a long-term X25519 key pair
+// Station keys (net/README.md "Keys"): each station has a long-term X25519 key pair
 // (libsodium crypto_kx) in a file only its owner may read; the lab file lists every station's
 // public key. Each directed pair i -> j derives its own traffic key from the pair's crypto_kx
 // session keys and a fresh per-run nonce of each station, agreed while probing (hello

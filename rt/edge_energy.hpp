@@ -10,8 +10,8 @@
 // are normalized at start-up, equal by default). The accounts add up to eq. (14)'s total:
 //   sum_j edge_J(j) + unshared_damping_J() == the station's EnergyMonitor::controller_J
 // (unshared_damping_J is B_i's energy while the station has no edge). A positive account is energy
-// the edge has put into the copy: eq. (14) bounds it, so the per-edge damage bound (issue 11) and
-// the adaptive passivity controller (issue 15) read it.
+// the edge has put into the copy: eq. (14) bounds it, so the per-edge damage bound and
+// the adaptive passivity controller read it.
 #include <array>
 #include <cstdint>
 #include <limits>
@@ -68,7 +68,7 @@ class EdgeEnergyAccount {
   std::uint64_t ticks_ = 0;
 };
 
-// The per-edge damage bound (issue 11 item 5; argument in net/README.md, "Bounded damage from an
+// The per-edge damage bound (argument in net/README.md, "Bounded damage from an
 // authenticated peer", and rt/README.md): edge j trips when its account edge_J(j) exceeds
 // bound_J(j) and stays tripped (latched) until the account has fallen to release_J(j) < bound_J(j)
 // (hysteresis). While tripped the station applies the over-bound action to the edge (the damper

@@ -17,7 +17,7 @@ struct SceneParams {
   void validate() const;                  // throws std::invalid_argument naming the key
 };
 
-// A material (issue 13 item 3): the same physical object at any resolution. Lumped masses
+// A material: the same physical object at any resolution. Lumped masses
 // m_i = rho sum_{t ni i} V_t / 4 (total mass rho V) and one spring per edge with van Gelder's
 // stiffness k_e = E sum_{t ni e} V_t / |e|^2 (A. van Gelder, "Approximate simulation of elastic
 // membranes by triangulated spring meshes", 1998, 3-D form): k_e scales like E h, the spring

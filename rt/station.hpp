@@ -61,7 +61,7 @@ struct NeighborConfig {
   // This edge's share of B_i in the per-edge energy account (rt/edge_energy.hpp); shares are
   // normalized over the neighbours, all 0 (default): equal shares.
   double damping_share = 0;
-  // Per-edge damage bound (issue 11 item 5, rt/edge_energy.hpp EdgeEnergyGate): when this edge's
+  // Per-edge damage bound (rt/edge_energy.hpp EdgeEnergyGate): when this edge's
   // energy account exceeds energy_bound_J the edge takes the over-bound action above (the damper),
   // latched until the account has fallen to energy_release_J. +inf: off.
   double energy_bound_J = EdgeEnergyGate::kOff;

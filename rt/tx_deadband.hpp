@@ -1,5 +1,5 @@
 #pragma once
-// Transmission deadband (issue 14; kinesthetic deadband codecs, IEEE 1918.1.1): a station sends its
+// Transmission deadband (kinesthetic deadband codecs, IEEE 1918.1.1): a station sends its
 // state (x_hat, v_hat) to its neighbours only when its configuration changed perceptibly since
 // the last state it sent -- some node's x_hat moved more than `position_deadband_m` (max norm
 // over coordinates) -- and at least every `max_interval_ticks` ticks. The receiver's packet

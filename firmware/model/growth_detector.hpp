@@ -1,5 +1,5 @@
 #pragma once
-// Divergence by growth (issue 15 item 5): a slow instability grows for seconds before any node
+// Divergence by growth: a slow instability grows for seconds before any node
 // reaches the 50 m/s speed threshold (the tight case at 0.45 x eq. 18: the consensus error grows
 // from 0.6 mm to 0.6 m in 10 s). The detector takes the maximum of a signal (the consensus error,
 // or an energy) over consecutive windows of window_s and reports growth when `windows`

@@ -1,6 +1,6 @@
 #pragma once
-// The loss allowance a station measures while probing (issue 15 item 4, the station's part of "a
-// bound that holds"): per neighbour, which probe packets (sequence numbers) arrived, and at the
+// The loss allowance a station measures while probing (the station's part of "a
+// bound that holds", rt/README.md): per neighbour, which probe packets (sequence numbers) arrived, and at the
 // freeze of the round-trip bounds the allowance of Nbar for that incoming direction from the loss
 // measured over the packets that must have arrived by then (model::loss_allowance_from_measured_loss,
 // the scenario's own rule with the probability's upper confidence bound). Non-RT (probing phase).

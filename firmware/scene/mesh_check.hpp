@@ -1,5 +1,5 @@
 #pragma once
-// Checks of meshes read from files (issue 13 item 3). Every error names the file and the element
+// Checks of meshes read from files. Every error names the file and the element
 // (its id as written and its line): "ball.msh:412: element 77: inverted tetrahedron (volume
 // -2.1e-09 m^3; corners must be ordered so that (b-a) x (c-a) . (d-a) > 0)". Start-up only
 // (allocates). Not RT-safe.

@@ -1,5 +1,5 @@
 #pragma once
-// Scenes from files (issue 13 item 3): tetrahedral meshes from Gmsh .msh (ASCII v2.2 and v4.1),
+// Scenes from files: tetrahedral meshes from Gmsh .msh (ASCII v2.2 and v4.1),
 // TetGen .node/.ele and legacy VTK unstructured grids (ASCII), surface meshes (.obj, .stl ASCII
 // or binary, .off) tetrahedralized by TetGen (Debian package `tetgen`, run as a program). Every
 // mesh is checked (mesh_check.hpp) before it becomes an rt::TetMesh. Start-up only: reads files,

@@ -1,5 +1,5 @@
 #pragma once
-// Session log (issue 16 items 2-3): one HDF5 file per station (readable with h5py) holding what
+// Session log: one HDF5 file per station (readable with h5py) holding what
 // its rt::StationCore ran with and every input it got, so `haptic-station replay LOG` can re-run
 // the core bit for bit. Written by the real station (`run`, station.record = true) and by the
 // simulator (`sim --record`), in the same layout:

@@ -1,5 +1,5 @@
 #pragma once
-// Session recorder (issue 16 item 2): the RT tick hands fixed-size slots to a lock-free SPSC ring
+// Session recorder: the RT tick hands fixed-size slots to a lock-free SPSC ring
 // (platform/spsc_ring.hpp); a non-RT writer thread drains it every 5 ms and appends to the HDF5
 // session log (firmware/session/log.hpp). The tick never waits: a record that does not fit is
 // dropped and counted (the next tick row says how many were lost, so replay knows where its

@@ -1,5 +1,5 @@
 #pragma once
-// Replay (issue 16 item 3): `haptic-station replay LOG` rebuilds the rt::StationCore a session
+// Replay: `haptic-station replay LOG` rebuilds the rt::StationCore a session
 // log (firmware/session/log.hpp) was recorded with, feeds it the recorded inputs in the recorded
 // order (the packets offered before each tick, then the tick with its device sample) and compares
 // every tick's state hash with the recorded one: a bit-exact replay matches at every tick. With
@@ -37,7 +37,7 @@ struct ReplayResult {
   double max_force_difference_N = 0;  // |F_replay - F_recorded| max over the ticks
   int station_id = 0;
   std::string source;
-  std::string recorded_build_id;      // the build that wrote the log ("" in logs before session 7)
+  std::string recorded_build_id;      // the build that wrote the log ("" in older logs without it)
   std::string replay_build_id;        // this program's
   bool bit_exact() const { return !gains_changed && first_mismatch < 0 && ticks > 0 && matched == ticks; }
   // The log holds every input of the run, or the replay stopped (--to) before the first one lost.

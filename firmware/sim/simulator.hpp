@@ -69,7 +69,7 @@ SimResult run_simulation(const BuiltScenario& scenario, const SimOptions& option
 // link set-up (firmware/station/link_impairment.hpp), run packet k = the core's sequence number k.
 net::SendImpairment simulator_channel(const ScenarioSpec& spec, int receiver, int sender);
 
-// summary.json contract (README, firmware/run/summary.hpp): writes path. Not RT-safe.
+// summary.json contract (firmware/README.md, firmware/run/summary.hpp): writes path. Not RT-safe.
 void write_summary_json(const std::string& path, const BuiltScenario& b, const SimResult& r);
 
 }  // namespace haptic::firmware

@@ -1,5 +1,5 @@
 #pragma once
-// What couples this station's device to its virtual proxy (issue 12 item 2; Section III-C): the
+// What couples this station's device to its virtual proxy (Section III-C): the
 // device damping b_d, the virtual-coupling gains K_vc, B_vc, b_v and the force limit, from the
 // device's published capabilities and the [device] keys of the station file, and eq. (26) on them.
 // Checked twice: by the plan (`run --check-config`, with the figures the device kind publishes)
@@ -56,7 +56,7 @@ inline double ramp_in_factor(std::int64_t n, std::int64_t ramp_ticks) {
   return ramp_ticks <= 0 || n + 1 >= ramp_ticks ? 1.0 : static_cast<double>(n + 1) / static_cast<double>(ramp_ticks);
 }
 
-// Where the virtual proxy starts (issue 12 item 1): the mapped device position, unless that is
+// Where the virtual proxy starts: the mapped device position, unless that is
 // inside the object (behind the contact face's outward plane at rest), in which case its
 // projection onto that plane (*projected = true). Start-up.
 Eigen::Vector3d initial_proxy_position(const Eigen::Vector3d& mapped_device_m, const rt::Scene& scene, const std::vector<int>& contact_nodes,

@@ -1,5 +1,5 @@
 #pragma once
-// What a station checks and logs about its neighbours (issue 10, lifecycle), from the network
+// What a station checks and logs about its neighbours (lifecycle), from the network
 // endpoint's statistics snapshots (net/): fingerprints (scene, period, gains, protocol) compared
 // field by field, the offset of each neighbour's tick grid (its epoch, mapped into our clock by
 // the NTP-style clock offset) against ours, and neighbour down/up events, logged once each.

@@ -178,7 +178,7 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   p->net.endpoint.impairment_first_run_seq = static_cast<std::uint64_t>(p->times.run_k0);  // run packet k draws the simulator's fate k
   p->net.endpoint.tx_period_s = spec.period_s;  // tick-synchronous TX (net.tx_spin) needs the tick period
   // A common epoch given (start_at / --start-at): the session's sequence numbers follow the clock, so
-  // the endpoint's sequence ceiling holds while probing too (issue 11: an authentic far-future
+  // the endpoint's sequence ceiling holds while probing too (without it an authentic far-future
   // sequence while probing made a station rejoin a session that did not exist). A station that
   // plans its own epoch must be able to find a session already running: no ceiling until its tick.
   if ((o.start_at >= 0 ? o.start_at : f.station.start_at) > 0) p->net.endpoint.sequence_epoch_ns = p->times.epoch_ns;

@@ -77,7 +77,7 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
 
 
 // What the endpoint dropped while probing, by counted cause ("; counted: 120 bad_mac (forged or
-// wrong key), 3 future_sequence"), or "; nothing received at all" (issue 11 item 6).
+// wrong key), 3 future_sequence"), or "; nothing received at all".
 std::string counted_causes(const net::EndpointStats& s) {
   std::string c;
   auto add = [&](std::uint64_t n, const std::string& what) {

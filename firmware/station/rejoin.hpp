@@ -1,7 +1,7 @@
 #pragma once
 // Rejoin: a station started after its session's probing phase (a restart after a crash or
 // SIGKILL; StationTimes::rejoin) joins the running session instead of probing from k = 0
-// (issue 10, lifecycle; DESIGN.md "The station process"). Its new incarnation (net/) makes its
+// (DESIGN.md "The station process"). Its new incarnation (net/) makes its
 // neighbours accept it afresh. In order, on the calling (non-RT) thread, before the RT thread:
 //   1. rejoin_probe(): for station.rejoin_probe_s it sends its rest state every period with
 //      provisional sequence numbers 0, 1, ... below the session's run_k0 (the neighbours' ticks

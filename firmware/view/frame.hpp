@@ -1,5 +1,5 @@
 #pragma once
-// What the live web view shows of one station (issue 16 item 1), as a fixed-size record the RT
+// What the live web view shows of one station, as a fixed-size record the RT
 // tick fills in place every few ticks and hands over through a latest-value mailbox
 // (platform/latest_mailbox.hpp): the tick never waits, an unread frame is replaced (counted by the
 // reader from the sequence numbers). The non-RT side turns frames into JSON for the browser.

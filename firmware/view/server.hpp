@@ -1,5 +1,5 @@
 #pragma once
-// The live web view's server (issue 16 item 1): HTTP + WebSocket through Debian's libwebsockets,
+// The live web view's server: HTTP + WebSocket through Debian's libwebsockets,
 // on its own non-RT thread. Serves the page (tools/view/, found with platform::tools_dir()),
 // three.js from Debian's libjs-three and Chart.js from libjs-chart.js (both local: no CDN), and a
 // WebSocket protocol "haptic-view": one scene message per browser, then frames at rate_hz. It

@@ -100,7 +100,7 @@ class LinkAges {
 // Eq. (18)'s minimum B_i and whether it is met, as the station or the simulator recorded them.
 void add_passivity(nlohmann::json& scene, const std::string& log) {
   h5::Id file = h5::open_file_read(log);
-  if (!h5::has_attr(file.get(), "damping_min_Ns_per_m")) return;  // logs written before session 7
+  if (!h5::has_attr(file.get(), "damping_min_Ns_per_m")) return;  // logs from builds that did not record it
   scene["damping_min_Ns_per_m"] = h5::attr_f64(file.get(), "damping_min_Ns_per_m");
   scene["passivity_condition_met"] = h5::attr_i64(file.get(), "passivity_condition_met") != 0;
 }

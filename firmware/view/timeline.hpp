@@ -1,5 +1,5 @@
 #pragma once
-// The web view of a recorded session with a timeline (issue 16 items 1 and 3): the session log is
+// The web view of a recorded session with a timeline: the session log is
 // replayed (firmware/session/replay.hpp), a frame kept every few ticks, and the live view's page
 // plays them back at recorded speed with play/pause and a seek slider. Used by
 // `haptic-station replay LOG --view-port P` and `sim --record --view-port P`. Not RT-safe.

@@ -1,4 +1,4 @@
-// End-to-end session with a stand-in Novint Falcon (issue 12): the Falcon stand-in
+// End-to-end session with a stand-in Novint Falcon: the Falcon stand-in
 // (falcon_standin.hpp, a hand-made usbdevfs emulation, NOT a recording) is attached in this
 // process; a two-station loopback lab (haptic-lab, a child process tree that inherits
 // LD_PRELOAD=libumockdev-preload.so.0 and this testbed's UMOCKDEV_DIR) runs station 1 with

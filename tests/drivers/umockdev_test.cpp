@@ -277,7 +277,7 @@ TEST(UmockdevHidraw, EnumerationFindsTheSpaceMouseAndTheTouchHidModel) {
   LONGS_EQUAL(0x256f, sm->vendor_id);
   LONGS_EQUAL(0xc635, sm->product_id);
   STRCMP_EQUAL("/dev/hidraw1", touch->path.c_str());
-  LONGS_EQUAL(0x0304, touch->product_id);  // the current Touch HID model (issue 12)
+  LONGS_EQUAL(0x0304, touch->product_id);  // the current Touch HID model
   STRCMP_CONTAINS("HID model", touch->model);
 }
 

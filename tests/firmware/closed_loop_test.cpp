@@ -211,7 +211,7 @@ FullAndDeadband pspm_full_and_predictive_deadband(const char* scenario) {
 }  // namespace
 
 TEST(ClosedLoop, predictive_deadband_under_pspm_sends_80_percent_fewer_states_in_the_hold_and_after_consensus_within_5_percent_of_full_rate) {
-  // Issue 14's target, like with like: paper-best under the set-position modulation (E0 = 1 mJ,
+  // The bandwidth target, like with like: paper-best under the set-position modulation (E0 = 1 mJ,
   // the station default) at full rate against the same run (same seed) with the predictive deadband
   // (1 um band, a state at least every 20 ticks; rt/tx_deadband.hpp): at least 80 % fewer states in
   // the hold window and after consensus, consensus time (< 1 mm) and hold |sum u| within 5 %.

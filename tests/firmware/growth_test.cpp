@@ -1,4 +1,4 @@
-// Divergence by growth (issue 15 item 5, firmware/model/growth_detector.hpp): a slowly growing
+// Divergence by growth (firmware/model/growth_detector.hpp): a slowly growing
 // instability is reported long before any node reaches the 50 m/s speed threshold, and a push
 // that raises the error for a while and then settles is not.
 #include <CppUTest/TestHarness.h>

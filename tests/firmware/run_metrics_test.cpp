@@ -241,7 +241,7 @@ TEST(RunMerge, MergesStationFilesWithTheSimulatorsMetrics) {
   CHECK_EQUAL(7u, s["packets"]["sent_after_consensus"].get<unsigned>());
   CHECK_TRUE(s["passivity_condition_met"].get<bool>());
   CHECK_EQUAL(std::string("pspm"), s["consensus_passivity"].get<std::string>());  // as the simulator's summary
-  // each station's solver of the linear step and the energy its residual put in (issue 14 item 1)
+  // each station's solver of the linear step and the energy its residual put in
   CHECK_EQUAL(std::string("iterative"), s["solver"][1].get<std::string>());
   DOUBLES_EQUAL(2e-12, s["solver_residual_energy_final_J"][1].get<double>(), 0);
   // the steps T_k each station integrated with, from its trace (station 1's trace has none)

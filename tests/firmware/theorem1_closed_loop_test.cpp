@@ -1,4 +1,4 @@
-// Theorem 1 in closed loop where eq. (18) is nearly tight (issue 15): the paper's star with every
+// Theorem 1 in closed loop where eq. (18) is nearly tight: the paper's star with every
 // one-way delay 1.33 ms (packets arrive within one tick: Nbar_ij = 1), no loss, no duplication,
 // no loss allowance and D_ij = 0, user 1 perturbing at 2.5 s. Eq. (18) gives B = (6, 2, 2, 2) N s/m;
 // the simulated system is stable at eq. (18) and diverges at 0.45 x eq. (18) (measured: at 6.76 s),
@@ -95,7 +95,7 @@ TEST_GROUP(ReceiveRule){};
 TEST(ReceiveRule, the_papers_rule_uses_late_data_so_index_delays_grow_on_the_worst_topology) {
   // Fig. 4's "most recently received" against newest-by-sequence on the same seeded network: the
   // paper's rule keeps swapped (late) packets, so measured index delays are at least as large on
-  // every link and larger on some (issue 15: 659 vs 386 ms round-trip half sum for user 4 over 80 s).
+  // every link and larger on some (measured: 659 vs 386 ms round-trip half sum for user 4 over 80 s).
   ScenarioSpec s = make_scenario("paper-worst");
   s.duration_s = 10.0;
   const SimResult newest = run_simulation(build_scenario(s), SimOptions{});

@@ -1,5 +1,5 @@
 #pragma once
-// The tight case of issue 15, where eq. (18) nearly decides stability: the paper's star with every
+// The tight case, where eq. (18) nearly decides stability: the paper's star with every
 // one-way delay 1.33 ms (Nbar_ij = 1), no loss, no duplication, no loss allowance, D_ij = 0, user 1
 // perturbing at 2.5 s, and the per-edge energy bound off (its tripped edges act as dampers and keep
 // even 0.45 x eq. (18) from diverging, so eq. (18) alone decides here). B_i = factor x eq. (18)

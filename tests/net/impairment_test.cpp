@@ -169,7 +169,7 @@ TEST(Impairment, BadModelsAndPresetNamesAreRejectedWithTheKey) {
   CHECK_EQUAL(0.0, LinkImpairment::preset("none", 0.1).loss_probability);
 }
 
-// The time-correlated delay (issue 15 item 5): the same uniform support and mean as the paper's
+// The time-correlated delay: the same uniform support and mean as the paper's
 // i.i.d. delay, but consecutive packets' delays strongly correlated; rho = 0 is the i.i.d. model.
 TEST(Impairment, CorrelatedDelayKeepsTheUniformSupportAndCorrelatesConsecutivePackets) {
   auto stats = [](double rho, double* lag1, double* mean, double* lo, double* hi, double* frac_low_quarter) {

@@ -1,4 +1,4 @@
-// Station keys (net/keys.hpp, issue 11 item 1): key files only their owner may read, created 0600
+// Station keys (net/keys.hpp): key files only their owner may read, created 0600
 // and never overwritten, example keys refused outside demo mode (also in shipped configurations),
 // the pair-key derivation, and the pairwise protocol between two in-process endpoints over a
 // socketpair (no root, no ports): both ends agree on this run's traffic keys, no state leaves

@@ -1,4 +1,4 @@
-// Lifecycle on the wire and in the endpoint (issue 10 item 4): incarnations (a restarted
+// Lifecycle on the wire and in the endpoint: incarnations (a restarted
 // neighbour is accepted afresh, an older incarnation is dropped), fingerprints exchanged and
 // compared field by field, round trips from our own send records, the clock offset to a
 // neighbour (NTP-style), neighbour down/up events, and statistics read while the I/O thread runs.

@@ -1,4 +1,4 @@
-// Attacks on a station's receive path over real UDP loopback sockets (issue 11): a forged
+// Attacks on a station's receive path over real UDP loopback sockets: a forged
 // packet from another address, a far-future sequence from an authentic peer, zero-length and
 // flooding datagrams, non-finite and out-of-envelope states. Each test checks that the attack is
 // dropped and counted by its reason AND that the genuine neighbour's packets still arrive

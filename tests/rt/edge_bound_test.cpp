@@ -1,4 +1,4 @@
-// Bounded damage from an authenticated peer (issue 11 item 5; net/README.md, "Bounded damage from
+// Bounded damage from an authenticated peer (net/README.md, "Bounded damage from
 // an authenticated peer"): a peer whose packets pass every network check (valid keys, sequence,
 // envelope) but whose states are chosen to push energy into a neighbour. The victim V has an
 // honest neighbour H (a real StationCore, 2-tick delay both ways) and the attacker A. With the

@@ -1,4 +1,4 @@
-// Attacks that reach the receive links (issue 11), checked against an unattacked twin: station A
+// Attacks that reach the receive links, checked against an unattacked twin: station A
 // and its twin A' see the same genuine neighbour stream; A also gets the attack. The attack is
 // harmless when A's state, VP and device force stay bit-identical to A''s at every tick.
 #include <CppUTest/TestHarness.h>

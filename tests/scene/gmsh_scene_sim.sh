@@ -1,5 +1,5 @@
 #!/bin/sh
-# Acceptance (issue 13 item 3): scenes generated here by Gmsh run in the simulator with consensus
+# Acceptance: scenes generated here by Gmsh run in the simulator with consensus
 # after release and the passivity condition met: a ball meshed by `gmsh -3` (.msh 4.1), and a
 # cylinder's surface from `gmsh -2` (.stl) tetrahedralized by TetGen.
 # With a third argument `lab`: the ball instead runs as a four-process UDP lab from one lab file

@@ -1,4 +1,4 @@
-// A scene file in the scenario, the station file and the fingerprint (issue 13 item 3): contact
+// A scene file in the scenario, the station file and the fingerprint: contact
 // faces where each proxy touches the surface, keys named as written, and two stations whose
 // scenes differ tell which part differs.
 #include <CppUTest/TestHarness.h>

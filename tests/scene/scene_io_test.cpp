@@ -1,4 +1,4 @@
-// Scenes from files (issue 13 item 3): every reader gives the same box; bad meshes fail with the
+// Scenes from files: every reader gives the same box; bad meshes fail with the
 // file and the element/line named; the material keeps the object at any resolution.
 #include <CppUTest/TestHarness.h>
 

@@ -1,4 +1,4 @@
-// Coupling gains from the device (issue 12 item 2): b_d, K_vc, B_vc, b_v and the force limit come
+// Coupling gains from the device: b_d, K_vc, B_vc, b_v and the force limit come
 // from the device's capabilities and the [device] keys; a Touch (no published b_d) must state one;
 // eq. (26) is checked by the plan (--check-config) and again at start-up with the opened device,
 // and its message proposes the largest K_vc that satisfies it.

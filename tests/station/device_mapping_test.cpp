@@ -1,4 +1,4 @@
-// Workspace mapping and ramp-in (issue 12 item 1): the virtual proxy starts at the mapped device
+// Workspace mapping and ramp-in: the virtual proxy starts at the mapped device
 // position (outside the object), and the force sent to the device ramps in, so the first coupled
 // tick cannot jolt the hand. Stated bound: with device.ramp_in_s = R the force sent at the n-th
 // coupled tick (n = 0 first) is at most F_max (n + 1) T / R (F_max: the device's force limit).

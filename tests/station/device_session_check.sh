@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# End-to-end session with a stand-in Touch (issue 12): the documented configuration path, then a
+# End-to-end session with a stand-in Touch: the documented configuration path, then a
 # two-station loopback lab (haptic-lab) whose station 1 drives the fake OpenHaptics library
 # (tests/drivers/fake_hd, automatic 1 kHz servo thread, FAKEHD_PLANT: a free stylus of known
 # damping; FAKEHD_FORCE_LOG: every servo frame's force) and station 2 a simulated user.

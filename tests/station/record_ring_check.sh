@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Recording as a ring of the last seconds (station.record_ring_s / sim --record-ring-s, issue 16
-# item 2): a 1 s ring of a 3 s and of a 6 s run are files of the SAME size (bounded, however long
+# Recording as a ring of the last seconds (station.record_ring_s / sim --record-ring-s): a 1 s ring
+# of a 3 s and of a 6 s run are files of the SAME size (bounded, however long
 # the run); each holds exactly the last 500 ticks, in order once rotated by ring_next_row; every
 # packet of the ticks from packets_complete_from_tick equals the whole-run log's; replay refuses a
 # wrapped ring (exit 3, saying why); a ring longer than the run replays bit-exactly (~6 s).

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Rejoin after SIGKILL (issue 10, lifecycle): four `haptic-station run` processes over UDP on
+# Rejoin after SIGKILL: four `haptic-station run` processes over UDP on
 # loopback (tools/run4/run4.sh), paper-best star; a leaf (station 2), then the hub (station 1), is
 # SIGKILLed at run time 5 s, during the hold, and restarted at 8 s with the same configuration.
 # tools/run4/rejoin_check.py checks each run: rejoined (coupled) within 2 s of its restart, the copies

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Replay is bit-exact and the comparison can fail (issue 16 item 3): a recorded simulated run
+# Replay is bit-exact and the comparison can fail: a recorded simulated run
 # replays with the same state hash at every tick for every station; the same log with ONE packet
 # value changed in its last bit (h5py) fails the comparison at a tick; a re-run with other gains
 # runs and differs in force; h5py reads the log (~3 s).

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A recorded four-process run replays bit-exactly for every station (issue 16 item 3): four
+# A recorded four-process run replays bit-exactly for every station: four
 # `haptic-station run` processes over UDP on loopback with station.record = true, then
 # `haptic-station replay` on each station's log must match the recorded state hash at every tick
 # with no input lost (~10 s; multi-process: run it under /tmp/haptic-multiproc.lock).

@@ -503,7 +503,7 @@ TEST(StationPhases, ExitCodesFollowTheDocumentedOrder) {
   LONGS_EQUAL(7u, c.names().size());
 }
 
-// No silent stand-in (issue 12): a configured device that cannot be started ends the run with its
+// No silent stand-in: a configured device that cannot be started ends the run with its
 // own exit code before any socket traffic; the station never plays a simulated user instead.
 TEST(StationPhases, AMissingDeviceIsAnErrorNotASimulatedUser) {
   const std::string dir = test::fresh_dir("nodevice");

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Headless Chromium loads the live web view (issue 16 item 1) and checks it: the 3D canvas is not
+# Headless Chromium loads the live web view and checks it: the 3D canvas is not
 # blank, the mesh and the plots change between two screenshots, the status the page shows (it
 # reports it back over its WebSocket; the server logs it) names the neighbours.
 #   view_check.sh replay BIN OUT : a recorded simulated run with its timeline: the first screenshot from

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Transmission deadband on paper-best (issue 14 item 4), like with like: every deadband run is compared
+"""Transmission deadband on paper-best, like with like: every deadband run is compared
 with the full-rate run of the SAME passivity method and seed (eq. 18's B_i, or the set-position
 modulation with E0 = 1 mJ, the station default). Writes one JSON with each run's command, metrics
 and its differences from its baseline; prints a table.

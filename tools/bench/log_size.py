@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Session-log size per minute (issue 16's benchmark), from files: each case runs
+"""Session-log size per minute, from files: each case runs
 `haptic-station sim ... --record` for 1 s and for 2 s and takes (size(2 s) - size(1 s)) x 60 per
 station log, so the header (the core's configuration, ~0.1-4 MB) is not counted as a rate; the
 header is reported separately. Cases: the paper's 33-node scene and a ~3000-node ball, as recorded

@@ -1,6 +1,6 @@
 // Tick cost of one station against fair baselines, in one run (rt/README.md, tools/bench/README):
 //  - the station's tick with each solver of the linear step: auto (by size), direct (the project's
-//    sparse LDL^T, the only solver before issue 14), iterative (Jacobi-preconditioned CG), and two
+//    sparse LDL^T, the only solver before the solver by size), iterative (Jacobi-preconditioned CG), and two
 //    baselines plugged in through StepSolverConfig::custom: a dense Cholesky (Eigen LLT) factored
 //    ONCE at start-up and solved per tick, and CHOLMOD (SuiteSparse) factored once at start-up;
 //  - the old strawman (a dense assemble-and-factor every tick) at 33 nodes only, labelled as such;
@@ -70,7 +70,7 @@ class CholmodSolver final : public StepSolver {
  public:
   explicit CholmodSolver(const SparseColMajor& A, int width) {
     cholmod_start(&cm_);
-    // The configuration measured best for this matrix (issue 14): simplicial LDL^T, METIS ordering
+    // The configuration measured best for this matrix: simplicial LDL^T, METIS ordering
     // (no BLAS threads competing with the tick).
     cm_.supernodal = CHOLMOD_SIMPLICIAL;
     cm_.final_ll = 0;
@@ -267,7 +267,7 @@ void BM_TickTolerance(benchmark::State& state) {
   state.counters["unconverged_ticks"] = static_cast<double>(st.solver_unconverged_ticks());
 }
 
-// The strawman the README used to quote: assemble and factor the dense (3n+3) system every tick.
+// The strawman (tools/bench/results/README.md): assemble and factor the dense (3n+3) system every tick.
 void BM_DenseRefactorEveryTick(benchmark::State& state) {
   World w(static_cast<int>(state.range(0)));
   DenseStationReference st(w.cfg);
@@ -372,7 +372,7 @@ void BM_StationPeakMemory(benchmark::State& state) {
       set_solver(w.cfg.solver, static_cast<int>(state.range(2)));
       // Hand the pages freed while building the world (lambda_max, scene temporaries) back to the
       // kernel: else the station's allocations reuse them, never raise the RSS, and its peak reads
-      // as almost nothing (0.44 MB at 2945 nodes with 16 neighbours in session 8).
+      // as almost nothing (0.44 MB at 2945 nodes with 16 neighbours before this was done).
       malloc_trim(0);
       const std::size_t heap_before = mallinfo2().uordblks + mallinfo2().hblkhd;
       if (FILE* f = std::fopen("/proc/self/clear_refs", "w")) {

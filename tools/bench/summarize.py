@@ -75,7 +75,7 @@ def cpu_us(b):
 
 
 def tick_ratios(m):
-    """The ratios issue 14 asks for, each within this one run (medians of CPU time)."""
+    """The tick's target ratios (tools/bench/results/README.md), each within this one run (medians of CPU time)."""
     def t(name):
         return cpu_us(m[name]) if name in m else None
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The station's real tick with two browsers on its live view against none (issue 16's benchmark).
+"""The station's real tick with two browsers on its live view against none.
 
 tools/bench/view_record_bench.cpp times the tick back to back on an ordinary thread, where two
 software-rendering browsers on the same 2 vCPUs simply take CPU from it. This measures what a lab

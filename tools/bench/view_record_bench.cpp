@@ -1,4 +1,4 @@
-// What the live view and the session recorder cost the tick (issue 16), in one run so the figures
+// What the live view and the session recorder cost the tick, in one run so the figures
 // are ratios on the same loaded machine. One "station tick" = user 1 of the paper's scene (or a
 // lattice ball of about N nodes) with three neighbours' packets offered per tick (their copies at
 // rest, index delay 3), core.tick, the simulated user advanced by the force, plus:

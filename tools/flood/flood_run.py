@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The four-process flood run (issue 11): the paper's four stations as four `haptic-station run`
+"""The four-process flood run: the paper's four stations as four `haptic-station run`
 processes on loopback (UDP), planned ONCE by haptic-lab (one session id, key files and ports) and
 run with a fixed seed, first clean, then -- same station files -- under a bounded flood of every
 attack class from `haptic-flood`, at the highest rate this machine sustains (or --rate). Compares
@@ -31,7 +31,7 @@ REPO = os.path.dirname(os.path.dirname(HERE))
 # Tolerances for "unchanged" (flood run against the clean run of the same station files). Two clean
 # runs already differ: the stations are real processes on a shared machine, so which packet is
 # the newest at a tick, and the measured round trips (hence B_i), vary with scheduling. Each
-# tolerance is wider than the clean-vs-clean spread measured here (README "Security", flood.md),
+# tolerance is wider than the clean-vs-clean spread measured here (tools/flood/README.md "Measured"),
 # and far narrower than what an attack that gets through does (a frozen link: no consensus; a
 # 50 mm forged shift; a safe state: exit 5).
 TOL = {

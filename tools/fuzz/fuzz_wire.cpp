@@ -1,4 +1,4 @@
-// libFuzzer target: a station's whole receive path with arbitrary datagrams (issue 11):
+// libFuzzer target: a station's whole receive path with arbitrary datagrams:
 //   decoder + reassembly (net/wire.hpp) with the endpoint's limits (a fuzzer-chosen source
 //   address, the sequence ceiling of our own tick) -> the payload envelope (net/envelope.hpp)
 //   -> the tick's echo-based age guard (net::RxPacket::age_bound_s) -> rt::RxLink::offer and

@@ -122,7 +122,7 @@ int main(int argc, char** argv) {
   app.add_flag("--no-isolate", no_isolate, "leave the process's other threads on the measuring CPU (default: move them off, rt.isolate_cpu)");
   app.add_option("--record-blocks", record_blocks,
                  "with the station's tick: N pairs of blocks (each --duration-s or --loops) with the session recorder off and on, in alternating "
-                 "order, then the on/off ratios (issue 16: recording must not change the tick's timing); the other runs are skipped")
+                 "order, then the on/off ratios (recording must not change the tick's timing); the other runs are skipped")
       ->check(CLI::Range(1, 1000));
   app.add_option("--record-file", record_file, "the session log the recording blocks write (HDF5, overwritten)")->capture_default_str();
   CLI11_PARSE(app, argc, argv);

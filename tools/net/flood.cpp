@@ -1,4 +1,4 @@
-// haptic-flood: the attacker of the four-process flood run (issue 11, tools/flood/flood_run.py).
+// haptic-flood: the attacker of the four-process flood run (tools/flood/flood_run.py).
 // Sends a bounded flood (count AND time) of every attack class at the stations of one lab on
 // loopback, as fast as this machine sends (or at --rate), and prints one JSON object: datagrams
 // sent per class, the achieved rate, what it sniffed. Traffic goes only to 127.0.0.0/8.

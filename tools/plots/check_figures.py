@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Checks the figures plot_run.py draws for RUN_DIR against the run's own files (issue 16 item 4),
+"""Checks the figures plot_run.py draws for RUN_DIR against the run's own files,
 then writes them (PNG) like plot_run.py does.
 
 usage: /usr/bin/python3 tools/plots/check_figures.py RUN_DIR

@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
-# The "Measure and report": the four-process run against the deterministic simulator on
+# Measure and report: the four-process run against the deterministic simulator on
 # the same scenario and seed (shortened paper-best by default: 8 s, push end 2.5 s, release 5 s).
 # Usage: compare_sim.sh [--transport udp|raw] [--seed N] [--duration S] [--push-end S] [--release S]
 #                       [--bin PATH] [--out DIR]
 # Writes OUT/sim/, OUT/run/, OUT/sim-same-gains/ and OUT/compare.json (consensus times (< 1 mm, and to
 # 10 % / 1 % of the error at release: both sides by the same code, firmware/run/metrics),
-# hold-force balance, relative differences; the target is within 20 %).
+# hold-force balance, relative differences; the target is within 20 %).
 # Two simulator references: `sim` chooses B_i from its own delay model (eq. 18 with the model's
 # N_bar), `sim_same_gains` is given the B_i the four processes chose from their MEASURED round
 # trips (--damping). The second isolates what the real network and processes change; the first

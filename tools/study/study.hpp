@@ -1,5 +1,5 @@
 #pragma once
-// The speed-against-accuracy study (issue 6, parts 3 and 5): runs the reference integrators and
+// The speed-against-accuracy study: runs the reference integrators and
 // reduced models of tools/study/integrators.hpp, tools/study/modal.hpp on the push problem of tools/study/model_selector.hpp
 // and measures their error against the exact (modal closed-form) solution. Analysis code: it
 // allocates freely; only the timed step loops are allocation-free.

@@ -1,4 +1,4 @@
-// haptic-study: the speed-against-accuracy study, stability maps and model selector (issue 6).
+// haptic-study: the speed-against-accuracy study, stability maps and model selector.
 // Subcommands: accuracy, energy, stability, consensus, select. See tools/study/README.md.
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -226,7 +226,7 @@ std::vector<study::ModelCandidate> candidates_from(const std::vector<Row>& rows,
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"haptic-study: speed against accuracy, stability maps, model selector (issue 6)"};
+  CLI::App app{"haptic-study: speed against accuracy, stability maps, model selector"};
   app.require_subcommand(1);
   std::string out = "tools/study/results";
   app.add_option("--out", out, "Output folder for CSV/JSON (default tools/study/results)");

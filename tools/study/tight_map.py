@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Stability map around the tight case (issue 15 item 5).
+"""Stability map around the tight case.
 
 The tight case: `haptic-station sim --scenario paper-unstable` with every one-way delay 1.33 ms, no
 loss, no duplication, no loss allowance and D_ij = 0 (eq. 18 gives B = (6, 2, 2, 2) N s/m there).

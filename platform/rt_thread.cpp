@@ -207,68 +207,78 @@ std::string move_other_threads_off(int cpu, int& moved) {
   closedir(d);
   return errors.empty() ? "" : "rt.isolate_cpu: could not move threads " + errors + " off cpu " + std::to_string(cpu);
 }
-}  // namespace
 
-RtReport apply_rt_config(const RtConfig& config) {
-  validate(config);
-  RtReport report;
-  std::vector<std::string> refusals;  // steps that require_rt does not accept
-  auto fail = [&](const std::string& what) {
+// Each step below records what it could not do in report.warnings; a step that rt.require_rt does
+// not accept also goes to `refusals` (apply_rt_config throws on any when require_rt is set).
+struct RtSetup {
+  RtReport& report;
+  std::vector<std::string>& refusals;
+  void fail(const std::string& what) {
     report.warnings.push_back(what);
     refusals.push_back(what);
-  };
+  }
+};
 
+void check_kernel(RtSetup& setup) {
+  RtReport& report = setup.report;
   report.kernel = detect_kernel();
   if (!report.kernel.preempt_rt) {
-    fail("kernel " + report.kernel.uname_release + " is not PREEMPT_RT (/sys/kernel/realtime " +
-         (report.kernel.sys_kernel_realtime.empty() ? std::string("absent") : "= " + report.kernel.sys_kernel_realtime) +
-         ", uname -v '" + report.kernel.uname_version + "'): wake-up latency is not bounded");
+    setup.fail("kernel " + report.kernel.uname_release + " is not PREEMPT_RT (/sys/kernel/realtime " +
+               (report.kernel.sys_kernel_realtime.empty() ? std::string("absent") : "= " + report.kernel.sys_kernel_realtime) +
+               ", uname -v '" + report.kernel.uname_version + "'): wake-up latency is not bounded");
   }
+}
 
-  if (config.lock_memory) {
-    if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
-      report.memory_locked = true;
+// mlockall, then the heap and stack prefaults (only with rt.lock_memory).
+void lock_memory(const RtConfig& config, RtSetup& setup) {
+  RtReport& report = setup.report;
+  if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
+    report.memory_locked = true;
+  } else {
+    const int err = errno;
+    setup.fail("mlockall(MCL_CURRENT|MCL_FUTURE) failed: " + errno_text(err) + "; RLIMIT_MEMLOCK = " +
+               rlimit_text(RLIMIT_MEMLOCK) + " bytes, CAP_IPC_LOCK " + (has_capability(kCapIpcLock) ? "present" : "absent") +
+               " (set LimitMEMLOCK=infinity in the systemd unit)");
+  }
+  if (config.prefault_heap_bytes > 0) {
+    report.heap_prefaulted = prefault_heap(config.prefault_heap_bytes);
+    if (!report.heap_prefaulted) report.warnings.push_back("heap prefault of " + std::to_string(config.prefault_heap_bytes) + " bytes failed");
+  }
+  if (config.prefault_stack_bytes > 0) {
+    const std::size_t stack = current_stack_size();
+    if (stack != 0 && config.prefault_stack_bytes + kStackMargin > stack) {
+      report.warnings.push_back("rt.prefault_stack_bytes = " + std::to_string(config.prefault_stack_bytes) +
+                                " does not fit this thread's stack of " + std::to_string(stack) +
+                                " bytes; stack not prefaulted (use RtThread, which sizes the stack)");
     } else {
-      const int err = errno;
-      fail("mlockall(MCL_CURRENT|MCL_FUTURE) failed: " + errno_text(err) + "; RLIMIT_MEMLOCK = " +
-           rlimit_text(RLIMIT_MEMLOCK) + " bytes, CAP_IPC_LOCK " + (has_capability(kCapIpcLock) ? "present" : "absent") +
-           " (set LimitMEMLOCK=infinity in the systemd unit)");
-    }
-    if (config.prefault_heap_bytes > 0) {
-      report.heap_prefaulted = prefault_heap(config.prefault_heap_bytes);
-      if (!report.heap_prefaulted) report.warnings.push_back("heap prefault of " + std::to_string(config.prefault_heap_bytes) + " bytes failed");
-    }
-    if (config.prefault_stack_bytes > 0) {
-      const std::size_t stack = current_stack_size();
-      if (stack != 0 && config.prefault_stack_bytes + kStackMargin > stack) {
-        report.warnings.push_back("rt.prefault_stack_bytes = " + std::to_string(config.prefault_stack_bytes) +
-                                  " does not fit this thread's stack of " + std::to_string(stack) +
-                                  " bytes; stack not prefaulted (use RtThread, which sizes the stack)");
-      } else {
-        prefault_stack(config.prefault_stack_bytes);
-        report.stack_prefaulted = true;
-      }
+      prefault_stack(config.prefault_stack_bytes);
+      report.stack_prefaulted = true;
     }
   }
+}
 
-  if (config.cpu >= 0) {
-    cpu_set_t set;
-    CPU_ZERO(&set);
-    CPU_SET(config.cpu, &set);
-    const int rc = pthread_setaffinity_np(pthread_self(), sizeof set, &set);
-    if (rc == 0) {
-      report.pinned = true;
-      report.cpu = config.cpu;
-    } else {
-      fail("pinning to cpu " + std::to_string(config.cpu) + " failed: " + errno_text(rc) +
-           " (is the cpu in this process's cpuset / systemd CPUAffinity?)");
-    }
-    if (report.pinned && config.isolate_cpu) {
-      const std::string why = move_other_threads_off(config.cpu, report.threads_moved_off);
-      if (!why.empty()) report.warnings.push_back(why);
-    }
+// Pins the calling thread to rt.cpu and, with rt.isolate_cpu, moves the process's other threads off it.
+void pin_to_cpu(const RtConfig& config, RtSetup& setup) {
+  RtReport& report = setup.report;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  CPU_SET(config.cpu, &set);
+  const int rc = pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+  if (rc == 0) {
+    report.pinned = true;
+    report.cpu = config.cpu;
+  } else {
+    setup.fail("pinning to cpu " + std::to_string(config.cpu) + " failed: " + errno_text(rc) +
+               " (is the cpu in this process's cpuset / systemd CPUAffinity?)");
   }
+  if (report.pinned && config.isolate_cpu) {
+    const std::string why = move_other_threads_off(config.cpu, report.threads_moved_off);
+    if (!why.empty()) report.warnings.push_back(why);
+  }
+}
 
+void set_scheduling(const RtConfig& config, RtSetup& setup) {
+  RtReport& report = setup.report;
   sched_param param{};
   param.sched_priority = config.priority;
   const int rc = config.sched_fifo ? pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) : -1;
@@ -278,14 +288,26 @@ RtReport apply_rt_config(const RtConfig& config) {
     report.sched_fifo = true;
     report.priority = config.priority;
   } else {
-    fail("SCHED_FIFO priority " + std::to_string(config.priority) + " refused: " + errno_text(rc) +
-         "; CAP_SYS_NICE " + (has_capability(kCapSysNice) ? "present" : "absent") + ", RLIMIT_RTPRIO = " +
-         rlimit_text(RLIMIT_RTPRIO) + " (set LimitRTPRIO in the systemd unit); running SCHED_OTHER");
+    setup.fail("SCHED_FIFO priority " + std::to_string(config.priority) + " refused: " + errno_text(rc) +
+               "; CAP_SYS_NICE " + (has_capability(kCapSysNice) ? "present" : "absent") + ", RLIMIT_RTPRIO = " +
+               rlimit_text(RLIMIT_RTPRIO) + " (set LimitRTPRIO in the systemd unit); running SCHED_OTHER");
   }
+}
+}  // namespace
 
+RtReport apply_rt_config(const RtConfig& config) {
+  validate(config);
+  RtReport report;
+  std::vector<std::string> refusals;  // steps that require_rt does not accept
+  RtSetup setup{report, refusals};
+
+  check_kernel(setup);
+  if (config.lock_memory) lock_memory(config, setup);
+  if (config.cpu >= 0) pin_to_cpu(config, setup);
+  set_scheduling(config, setup);
   if (config.hold_dma_latency) {
     const std::string why = report.dma_latency.acquire(0);
-    if (!why.empty()) fail(why + "; CPU idle states may add wake-up latency");
+    if (!why.empty()) setup.fail(why + "; CPU idle states may add wake-up latency");
   }
 
   if (config.require_rt && !refusals.empty()) {

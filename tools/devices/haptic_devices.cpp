@@ -127,19 +127,28 @@ void report_vendor_config() {
 }
 }  // namespace
 
-// The default command: what is connected, its backend, access rights. Always exits 0 (a report).
-static int list_devices(bool all, const std::string& hd_path) {
+namespace {
+// What list_devices found: haptic devices, position-input devices, nodes the user may not open.
+struct DeviceCounts {
+  int haptic = 0;
+  int input = 0;
+  int blocked = 0;
+};
+
+// The HD library line (and its fix); returns why it cannot be loaded, "" when it can.
+std::string report_hd_library(const std::string& hd_path) {
   const std::string hd_problem = hd::HdLibrary::probe(hd_path);
   const std::string hd_resolved = hd::HdLibrary::resolve_path(hd_path);
-  std::printf("haptic-devices (uid %u)\n", static_cast<unsigned>(getuid()));
   std::printf("OpenHaptics HD library (%s): %s\n", hd_resolved.c_str(),
               hd_problem.empty() ? "loadable" : "NOT available");
   if (!hd_problem.empty())
     std::printf("  %s\n  fix: device.hd_library_path = \"/path/to/libHD.so\" in the station file (check it here with --hd-library PATH)\n",
                 hd_problem.c_str());
-  report_vendor_config();
+  return hd_problem;
+}
 
-  int haptic = 0, input = 0, blocked = 0;
+// libusb's view: each device, its backend, how it is servoed and whether the user may open it.
+void report_usb(bool all, const std::string& hd_problem, DeviceCounts& counts) {
   std::printf("\nUSB devices (libusb):\n");
   try {
     UsbMonitor monitor;
@@ -152,22 +161,22 @@ static int list_devices(bool all, const std::string& hd_path) {
       if (d.kind == DeviceKind::kUnknown) continue;
       std::printf("      backend: %s\n", backend_name(d.kind));
       if (d.kind == DeviceKind::kPhantomTouch) {
-        ++haptic;
+        ++counts.haptic;
         std::printf("      servo: %s\n", hd_problem.empty()
                                                ? "via the HD library (USB used for presence, serial and unplug only)"
                                                : "UNAVAILABLE: the HD library is missing (see above); "
                                                  "the Touch servo protocol is not public and is not reimplemented");
       } else if (d.kind == DeviceKind::kFalcon) {
-        ++haptic;
+        ++counts.haptic;
         std::printf("      servo: our libusb driver (protocol as libnifalcon documents it; never tested on a real Falcon);\n"
                     "             needs the Novint firmware file: device.falcon_firmware_path (--falcon-firmware here)\n");
       } else {
-        ++input;
+        ++counts.input;
       }
       const bool ok = may_open(d.devnode);
       std::printf("      access: %s %s\n", d.devnode.c_str(), ok ? "read/write OK" : "NO read/write permission");
       if (!ok) {
-        ++blocked;
+        ++counts.blocked;
         print_rule_howto(usb_rule(d.vendor_id, d.product_id, false));
       }
     }
@@ -177,9 +186,10 @@ static int list_devices(bool all, const std::string& hd_path) {
   } catch (const std::exception& e) {
     std::printf("  cannot enumerate USB: %s\n", e.what());
   }
+}
 
-  report_ttys(all, blocked);
-
+// hidapi's view (hidraw nodes): SpaceMice and the Touch's HID models.
+void report_hids(bool all, DeviceCounts& counts) {
   std::printf("\nHID devices (hidapi, hidraw):\n");
   const auto hids = list_hid_devices(!all);
   if (hids.empty()) std::printf("  none%s\n", all ? "" : " of the known haptic/input identities");
@@ -189,23 +199,36 @@ static int list_devices(bool all, const std::string& hd_path) {
                 h.product.c_str());
     if (h.kind == DeviceKind::kUnknown) continue;
     if (h.kind == DeviceKind::kSpaceMouse) {
-      ++input;
+      ++counts.input;
       std::printf("      backend: %s\n", backend_name(h.kind));
     } else {
-      ++haptic;
+      ++counts.haptic;
       std::printf("      backend: Touch HID model detected: %s\n", backend_name(h.kind));
     }
     const bool ok = may_open(h.path);
     std::printf("      access: %s %s\n", h.path.c_str(), ok ? "read/write OK" : "NO read/write permission");
     if (!ok) {
-      ++blocked;
+      ++counts.blocked;
       print_rule_howto(hidraw_rule(h.vendor_id, h.product_id, false));
     }
   }
+}
+}  // namespace
+
+// The default command: what is connected, its backend, access rights. Always exits 0 (a report).
+static int list_devices(bool all, const std::string& hd_path) {
+  std::printf("haptic-devices (uid %u)\n", static_cast<unsigned>(getuid()));
+  const std::string hd_problem = report_hd_library(hd_path);
+  report_vendor_config();
+
+  DeviceCounts counts;
+  report_usb(all, hd_problem, counts);
+  report_ttys(all, counts.blocked);
+  report_hids(all, counts);
 
   std::printf("\nsummary: %d haptic device(s), %d position-input device(s) (no force feedback), %d without access\n",
-              haptic, input, blocked);
-  if (haptic + input == 0)
+              counts.haptic, counts.input, counts.blocked);
+  if (counts.haptic + counts.input == 0)
     std::printf("no device found: a station with device.kind = \"auto\" or a device kind will refuse to start (exit 9);\n"
                 "a simulated user must be asked for explicitly: device.kind = \"simulated\"\n");
   return 0;

@@ -70,16 +70,9 @@ std::string record_compare_summary(const std::vector<haptic::tools::JitterResult
   json = js;
   return buf;
 }
-}  // namespace
 
-int main(int argc, char** argv) {
-  using namespace haptic;
-  CLI::App app{
-      "haptic-jitter: wake-up latency of the station's periodic loop (absolute CLOCK_MONOTONIC deadlines,\n"
-      "clock_nanosleep TIMER_ABSTIME), measured like cyclictest: latency = actual wake-up - deadline.\n"
-      "Runs every combination of --period-us x --workload-us one after the other on one real-time thread\n"
-      "and prints min/avg/max, P99/P99.9/P99.99 and optionally the histogram. Without a PREEMPT_RT kernel,\n"
-      "CAP_SYS_NICE or mlockall it says so and measures anyway (unless --require-rt)."};
+// The command line: every option, its default and range, and what follows from them.
+struct JitterOptions {
   std::vector<double> periods_us{1000, 2000};
   std::vector<double> workloads_us{0, 500};
   double duration_s = 10.0;
@@ -95,7 +88,20 @@ int main(int argc, char** argv) {
   std::string json_path;
   int record_blocks = 0;
   std::string record_file = "/tmp/haptic-jitter-record.h5";
-  platform::RtConfig rt;
+  haptic::platform::RtConfig rt;
+
+  // Returns -1 to go on, else the exit code (--help: 0; a usage error: CLI11's).
+  int parse(int argc, char** argv);
+};
+
+int JitterOptions::parse(int argc, char** argv) {
+  using namespace haptic;
+  CLI::App app{
+      "haptic-jitter: wake-up latency of the station's periodic loop (absolute CLOCK_MONOTONIC deadlines,\n"
+      "clock_nanosleep TIMER_ABSTIME), measured like cyclictest: latency = actual wake-up - deadline.\n"
+      "Runs every combination of --period-us x --workload-us one after the other on one real-time thread\n"
+      "and prints min/avg/max, P99/P99.9/P99.99 and optionally the histogram. Without a PREEMPT_RT kernel,\n"
+      "CAP_SYS_NICE or mlockall it says so and measures anyway (unless --require-rt)."};
   rt.prefault_heap_bytes = 1u << 20;
   app.add_option("-i,--period-us", periods_us, "loop periods to measure, microseconds")->default_str("1000 2000")->check(CLI::Range(10.0, 1e6));
   app.add_option("-w,--workload-us", workloads_us, "busy-loop workload per tick, microseconds (0 = none)")->default_str("0 500")->check(CLI::Range(0.0, 1e6));
@@ -128,71 +134,81 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   if (record_blocks > 0) station_workload = true;
   rt.lock_memory = !no_mlock;
+  rt.isolate_cpu = !no_isolate;
+  return -1;
+}
 
+void install_signal_handlers() {
   struct sigaction sa {};
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+}
 
-  std::vector<tools::JitterResult> results;
-  std::string json;
+// One run at `period_us`: --loops ticks, else --duration-s worth of them.
+haptic::tools::JitterRunConfig run_config(const JitterOptions& o, double period_us) {
+  haptic::tools::JitterRunConfig run;
+  run.period_ns = static_cast<std::int64_t>(period_us * 1e3);
+  run.ticks = o.loops != 0 ? o.loops : static_cast<std::uint64_t>(o.duration_s * 1e6 / period_us);
+  run.histogram_bin_ns = static_cast<std::int64_t>(o.histogram_bin_us * 1e3);
+  return run;
+}
+
+// Every run at one period, printed as it ends: the recording blocks alone (--record-blocks), else
+// each --workload-us busy loop and then the station's tick (--station). Runs on the RT thread.
+void measure_period(const JitterOptions& o, double period_us, haptic::tools::StationJitterWorkload* station,
+                    std::vector<haptic::tools::JitterResult>& results) {
+  using namespace haptic;
+  if (o.record_blocks > 0) {
+    record_compare_blocks(*station, run_config(o, period_us), o.record_blocks, results);
+    return;
+  }
+  for (double workload_us : o.workloads_us) {
+    if (g_stop.load(std::memory_order_acquire)) break;
+    const tools::JitterRunConfig run = run_config(o, period_us);
+    tools::BusyLoopWorkload workload(static_cast<std::int64_t>(workload_us * 1e3), o.overrun_every, 1.5, run.period_ns);
+    results.push_back(tools::run_jitter(run, workload, g_stop));
+    std::fputs(tools::format_result(results.back(), o.histogram).c_str(), stdout);
+    std::fflush(stdout);
+  }
+  if (station && !g_stop.load(std::memory_order_acquire)) {
+    results.push_back(tools::run_jitter(run_config(o, period_us), *station, g_stop));
+    std::fputs(tools::format_result(results.back(), o.histogram).c_str(), stdout);
+    std::fflush(stdout);
+  }
+}
+
+// Every run on one real-time thread; `json` gets the results (and the recording comparison).
+// Returns 0, or 2 when the set-up failed (said on stderr).
+int measure(const JitterOptions& o, std::vector<haptic::tools::JitterResult>& results, std::string& json) {
+  using namespace haptic;
   try {
     // Built (and factored) before the real-time thread starts: construction allocates.
     std::unique_ptr<tools::StationJitterWorkload> station;
-    if (station_workload) station = std::make_unique<tools::StationJitterWorkload>("paper-best");
+    if (o.station_workload) station = std::make_unique<tools::StationJitterWorkload>("paper-best");
     std::unique_ptr<firmware::SessionRecorder> recorder;
-    if (record_blocks > 0) {
+    if (o.record_blocks > 0) {
       firmware::RecorderConfig rc;
-      rc.path = record_file;
+      rc.path = o.record_file;
       firmware::SessionInfo info;
       info.config_text = "haptic-jitter --record-blocks";
       recorder = std::make_unique<firmware::SessionRecorder>(rc, info, station->core().config());
       station->attach_recorder(recorder.get());
     }
     std::string compare_json;
-    rt.isolate_cpu = !no_isolate;
     std::atomic<bool> finished{false};
-    platform::RtThread thread(rt, [&](const platform::RtReport& report) {
-      for (double period_us : periods_us) {
-        if (record_blocks > 0) {
-          tools::JitterRunConfig run;
-          run.period_ns = static_cast<std::int64_t>(period_us * 1e3);
-          run.ticks = loops != 0 ? loops : static_cast<std::uint64_t>(duration_s * 1e6 / period_us);
-          run.histogram_bin_ns = static_cast<std::int64_t>(histogram_bin_us * 1e3);
-          record_compare_blocks(*station, run, record_blocks, results);
-          continue;
-        }
-        for (double workload_us : workloads_us) {
-          if (g_stop.load(std::memory_order_acquire)) break;
-          tools::JitterRunConfig run;
-          run.period_ns = static_cast<std::int64_t>(period_us * 1e3);
-          run.ticks = loops != 0 ? loops : static_cast<std::uint64_t>(duration_s * 1e6 / period_us);
-          run.histogram_bin_ns = static_cast<std::int64_t>(histogram_bin_us * 1e3);
-          tools::BusyLoopWorkload workload(static_cast<std::int64_t>(workload_us * 1e3), overrun_every, 1.5, run.period_ns);
-          results.push_back(tools::run_jitter(run, workload, g_stop));
-          std::fputs(tools::format_result(results.back(), histogram).c_str(), stdout);
-          std::fflush(stdout);
-        }
-        if (station && !g_stop.load(std::memory_order_acquire)) {
-          tools::JitterRunConfig run;
-          run.period_ns = static_cast<std::int64_t>(period_us * 1e3);
-          run.ticks = loops != 0 ? loops : static_cast<std::uint64_t>(duration_s * 1e6 / period_us);
-          run.histogram_bin_ns = static_cast<std::int64_t>(histogram_bin_us * 1e3);
-          results.push_back(tools::run_jitter(run, *station, g_stop));
-          std::fputs(tools::format_result(results.back(), histogram).c_str(), stdout);
-          std::fflush(stdout);
-        }
-      }
-      json = tools::to_json(results, report, rt);
+    platform::RtThread thread(o.rt, [&](const platform::RtReport& report) {
+      for (double period_us : o.periods_us) measure_period(o, period_us, station.get(), results);
+      json = tools::to_json(results, report, o.rt);
       finished.store(true, std::memory_order_release);
     });
-    if (!quiet) {
+    if (!o.quiet) {
       std::fputs(thread.setup_summary().c_str(), stdout);
       std::printf("trace: LTTng tracepoints %s\n", platform::trace::kCompiledIn ? "compiled in (provider 'haptic')" : "compiled out");
       std::fflush(stdout);
     }
-    if (main_wake_ms > 0) {
-      const auto step = std::chrono::duration<double, std::milli>(main_wake_ms);
+    if (o.main_wake_ms > 0) {
+      const auto step = std::chrono::duration<double, std::milli>(o.main_wake_ms);
       while (!finished.load(std::memory_order_acquire)) std::this_thread::sleep_for(step);
     }
     thread.join();
@@ -200,23 +216,39 @@ int main(int argc, char** argv) {
       const firmware::RecorderStats st = recorder->finish();
       std::fputs(record_compare_summary(results, st.dropped_records, compare_json).c_str(), stdout);
       json.erase(json.rfind('}'));
-      json += ",\n  \"record_compare\": " + compare_json + ",\n  \"record_file\": \"" + record_file + "\"\n}\n";
+      json += ",\n  \"record_compare\": " + compare_json + ",\n  \"record_file\": \"" + o.record_file + "\"\n}\n";
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "haptic-jitter: %s\n", e.what());
     return 2;
   }
-  if (!json_path.empty()) {
-    if (json_path == "-") {
-      std::fputs(json.c_str(), stdout);
-    } else {
-      std::ofstream out(json_path);
-      out << json;
-      if (!out) {
-        std::fprintf(stderr, "haptic-jitter: cannot write %s\n", json_path.c_str());
-        return 1;
-      }
-    }
+  return 0;
+}
+
+// --json: to a file, or to stdout for '-'. Returns 0, or 1 when the file cannot be written.
+int write_json(const std::string& json_path, const std::string& json) {
+  if (json_path.empty()) return 0;
+  if (json_path == "-") {
+    std::fputs(json.c_str(), stdout);
+    return 0;
   }
+  std::ofstream out(json_path);
+  out << json;
+  if (!out) {
+    std::fprintf(stderr, "haptic-jitter: cannot write %s\n", json_path.c_str());
+    return 1;
+  }
+  return 0;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  JitterOptions options;
+  if (const int rc = options.parse(argc, argv); rc >= 0) return rc;
+  install_signal_handlers();
+  std::vector<haptic::tools::JitterResult> results;
+  std::string json;
+  if (const int rc = measure(options, results, json); rc != 0) return rc;
+  if (const int rc = write_json(options.json_path, json); rc != 0) return rc;
   return g_stop.load() ? 130 : 0;
 }

@@ -357,240 +357,307 @@ void emit(const std::string& js, const std::string& path) {
   if (!f) throw std::runtime_error("cannot write " + path);
 }
 
-}  // namespace
+// One run of the attacker: the sniffer (with --sniff or --record), the sockets, the datagrams it
+// forges and what it counted. The steps, in order: start_sniffer, then record (--record) or
+// prepare, send_all, stop and report. Not RT-safe.
+class Flood {
+ public:
+  static constexpr std::uint32_t kValues = 99;
 
-int main(int argc, char** argv) {
-  try {
-    Options o = parse(argc, argv);
-    std::map<std::uint16_t, std::uint16_t> id_of_port, port_of;
-    for (const auto& s : o.stations) {
-      id_of_port[s.port] = s.id;
-      port_of[s.id] = s.port;
+  // Which port each station listens on; every --link must name two --station.
+  explicit Flood(const Options& o) : o_(o) {
+    for (const auto& s : o_.stations) {
+      id_of_port_[s.port] = s.id;
+      port_of_[s.id] = s.port;
     }
-    for (const auto& l : o.links)
-      if (!port_of.count(l.first) || !port_of.count(l.second)) usage("--link names a station without --station");
-    const bool recording = !o.record_file.empty();
-    Shared sh;
-    std::atomic<bool> stop{false};
-    std::thread sniffer;
-    int sniff_fd = -1;
-    if (o.sniff || recording) {
-      sniff_fd = ::socket(AF_PACKET, SOCK_DGRAM, htons(ETH_P_IP));
-      if (sniff_fd < 0) throw std::runtime_error(std::string("AF_PACKET socket (needs root): ") + std::strerror(errno));
+    for (const auto& l : o_.links)
+      if (!port_of_.count(l.first) || !port_of_.count(l.second)) usage("--link names a station without --station");
+  }
+
+  // The AF_PACKET sniffer on lo (--sniff, --record); the run's clock starts after it.
+  void start_sniffer() {
+    const bool recording = !o_.record_file.empty();
+    if (o_.sniff || recording) {
+      sniff_fd_ = ::socket(AF_PACKET, SOCK_DGRAM, htons(ETH_P_IP));
+      if (sniff_fd_ < 0) throw std::runtime_error(std::string("AF_PACKET socket (needs root): ") + std::strerror(errno));
       sockaddr_ll ll{};
       ll.sll_family = AF_PACKET;
       ll.sll_protocol = htons(ETH_P_IP);
       ll.sll_ifindex = static_cast<int>(if_nametoindex("lo"));
-      if (ll.sll_ifindex == 0 || ::bind(sniff_fd, reinterpret_cast<sockaddr*>(&ll), sizeof ll) != 0)
+      if (ll.sll_ifindex == 0 || ::bind(sniff_fd_, reinterpret_cast<sockaddr*>(&ll), sizeof ll) != 0)
         throw std::runtime_error("cannot bind the sniffer to lo");
       timeval tv{0, 100000};
-      ::setsockopt(sniff_fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+      ::setsockopt(sniff_fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
       int big = 8 << 20;
-      ::setsockopt(sniff_fd, SOL_SOCKET, SO_RCVBUFFORCE, &big, sizeof big);
-      sniffer = std::thread(sniff, sniff_fd, std::cref(id_of_port), std::ref(sh), recording, std::size_t{200000}, std::cref(stop));
+      ::setsockopt(sniff_fd_, SOL_SOCKET, SO_RCVBUFFORCE, &big, sizeof big);
+      sniffer_ = std::thread(sniff, sniff_fd_, std::cref(id_of_port_), std::ref(sh_), recording, std::size_t{200000}, std::cref(stop_));
     }
-    const auto t0 = std::chrono::steady_clock::now();
-    auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
-    if (recording) {
-      while (elapsed() < o.duration_s) std::this_thread::sleep_for(std::chrono::milliseconds(20));
-      stop = true;
-      sniffer.join();
-      ::close(sniff_fd);
-      write_capture(o.record_file, sh.recorded);
-      emit("{\"recorded\": " + std::to_string(sh.recorded.size()) + ", \"sniffed\": " + std::to_string(sh.sniffed) + "}\n",
-           o.json_file);
-      return 0;
-    }
+    t0_ = std::chrono::steady_clock::now();
+  }
 
-    std::vector<Captured> old_run;
-    if (o.classes[cross_run_replay]) {
-      old_run = read_capture(o.replay_file);
-      if (old_run.empty()) throw std::runtime_error(o.replay_file + " holds no datagram");
+  // --record: sniff for --duration, store the genuine datagrams, report how many.
+  void record() {
+    while (elapsed() < o_.duration_s) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    stop_ = true;
+    sniffer_.join();
+    ::close(sniff_fd_);
+    write_capture(o_.record_file, sh_.recorded);
+    emit("{\"recorded\": " + std::to_string(sh_.recorded.size()) + ", \"sniffed\": " + std::to_string(sh_.sniffed) + "}\n",
+         o_.json_file);
+  }
+
+  // Everything the flood sends from: the old run's capture, the stolen key, the sockets, the
+  // random bytes, the classes to send and a template datagram per directed link.
+  void prepare() {
+    if (o_.classes[cross_run_replay]) {
+      old_run_ = read_capture(o_.replay_file);
+      if (old_run_.empty()) throw std::runtime_error(o_.replay_file + " holds no datagram");
     }
-    StationKeyPair stolen{};
-    if (o.stolen_id >= 0) stolen = read_key_file(o.stolen_file, "--stolen-key", false);
-    std::unique_ptr<Spoofer> spoof;
+    if (o_.stolen_id >= 0) stolen_ = read_key_file(o_.stolen_file, "--stolen-key", false);
     bool any_root = false;
-    for (int c = 0; c < class_count; ++c) any_root = any_root || (o.classes[static_cast<std::size_t>(c)] && needs_root(c));
-    if (any_root) spoof = std::make_unique<Spoofer>();
-    const int udp = ::socket(AF_INET, SOCK_DGRAM, 0);
-    if (udp < 0) throw std::runtime_error("udp socket");
+    for (int c = 0; c < class_count; ++c) any_root = any_root || (o_.classes[static_cast<std::size_t>(c)] && needs_root(c));
+    if (any_root) spoof_ = std::make_unique<Spoofer>();
+    udp_ = ::socket(AF_INET, SOCK_DGRAM, 0);
+    if (udp_ < 0) throw std::runtime_error("udp socket");
     int sndbuf = 4 << 20;
-    ::setsockopt(udp, SOL_SOCKET, SO_SNDBUF, &sndbuf, sizeof sndbuf);
+    ::setsockopt(udp_, SOL_SOCKET, SO_SNDBUF, &sndbuf, sizeof sndbuf);
 
-    std::mt19937_64 rng(0x464c4f4f44ull);  // "FLOOD": the same flood every run
-    std::vector<std::uint8_t> big(65000), d(kMaxDatagramBytes);
-    for (auto& b : big) b = static_cast<std::uint8_t>(rng());
-    const std::uint32_t kValues = 99;
-    std::vector<double> x(kValues, 0.01), v(kValues, 0.0), x_bad(kValues, 1.0e3), x_nan(kValues, 0.01);
-    x_nan[7] = std::numeric_limits<double>::quiet_NaN();
+    for (auto& b : big_) b = static_cast<std::uint8_t>(rng_());
+    x_nan_[7] = std::numeric_limits<double>::quiet_NaN();
     SessionKey random_key{};
-    for (auto& b : random_key.bytes) b = static_cast<std::uint8_t>(rng());
+    for (auto& b : random_key.bytes) b = static_cast<std::uint8_t>(rng_());
 
-    std::vector<int> active;
     for (int c = 0; c < class_count; ++c)
-      if (o.classes[static_cast<std::size_t>(c)]) active.push_back(c);
-    if (active.empty()) usage("no class to send (spoofed and replay classes need root and --sniff)");
-    std::vector<std::uint64_t> sent(class_count, 0), errors(class_count, 0), skipped(class_count, 0);
-    // Spoofed datagrams per directed link: a token bucket each (they share the real neighbour's
-    // per-source budget at the receiver, net.rx_rate_limit_per_s).
-    std::vector<double> tokens(o.links.size(), 0.0);
-    double last_refill = 0.0, flood_start = -1.0, flood_end = 0.0;
-    std::uint64_t total = 0, iter = 0;
-
-    // A datagram with a valid format claiming sender s -> dest j, MAC'd with `key`.
-    auto forge = [&](std::uint16_t s, std::uint16_t j, std::uint64_t seq, std::uint64_t incarnation, const double* xs,
-                     ValueEncoding enc, const SessionKey& key) {
-      WireConfig w;
-      w.session_id = o.session;
-      w.station_id = s;
-      w.incarnation = incarnation;
-      w.encoding = enc;
-      Encoder e(w);
-      OutgoingState st;
-      st.dest = j;
-      st.seq = seq;
-      st.send_time_ns = static_cast<std::int64_t>(elapsed() * 1e9);
-      st.value_count = kValues;
-      st.x_hat = xs;
-      st.v_hat = v.data();
-      return e.encode_fragment(st, 0, d.data(), d.size(), &key);
-    };
+      if (o_.classes[static_cast<std::size_t>(c)]) active_.push_back(c);
+    if (active_.empty()) usage("no class to send (spoofed and replay classes need root and --sniff)");
     // One well-formed datagram per directed link, MAC'd with a key no station holds: the keyless
     // classes patch its sequence (the MAC fails either way), so they cost a copy, not a MAC.
-    std::vector<std::vector<std::uint8_t>> tmpl;
-    for (const auto& l : o.links) {
-      const std::size_t n = forge(l.first, l.second, 1, 1, x.data(), ValueEncoding::float32, random_key);
-      tmpl.emplace_back(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(n));
+    for (const auto& l : o_.links) {
+      const std::size_t n = forge(l.first, l.second, 1, 1, x_.data(), ValueEncoding::float32, random_key);
+      tmpl_.emplace_back(d_.begin(), d_.begin() + static_cast<std::ptrdiff_t>(n));
     }
-    auto from_template = [&](std::size_t li, std::uint64_t seq) {
-      std::memcpy(d.data(), tmpl[li].data(), tmpl[li].size());
-      std::memcpy(d.data() + wire_offset::seq, &seq, sizeof seq);
-      return tmpl[li].size();
-    };
-    while (total < o.max_datagrams) {
+  }
+
+  // The flood: the active classes in turn over the directed links, until --max-datagrams were
+  // sent or --duration is over; at most --rate datagrams/s, spoofed ones within each link's budget.
+  void send_all() {
+    double last_refill = 0.0;
+    std::uint64_t iter = 0;
+    while (total_ < o_.max_datagrams) {
       const double t = elapsed();
-      if (t >= o.duration_s) break;
-      if (t < o.start_after_s) {
+      if (t >= o_.duration_s) break;
+      if (t < o_.start_after_s) {
         std::this_thread::sleep_for(std::chrono::milliseconds(2));
         continue;
       }
-      if (flood_start < 0) flood_start = last_refill = t;
-      if (o.rate > 0 && static_cast<double>(total) > (t - flood_start) * o.rate) {
+      if (flood_start_ < 0) flood_start_ = last_refill = t;
+      if (o_.rate > 0 && static_cast<double>(total_) > (t - flood_start_) * o_.rate) {
         std::this_thread::sleep_for(std::chrono::microseconds(200));
         continue;
       }
-      for (std::size_t k = 0; k < tokens.size(); ++k)
-        tokens[k] = std::min(o.spoof_rate_per_link * 0.01, tokens[k] + (t - last_refill) * o.spoof_rate_per_link);
+      for (std::size_t k = 0; k < tokens_.size(); ++k)
+        tokens_[k] = std::min(o_.spoof_rate_per_link * 0.01, tokens_[k] + (t - last_refill) * o_.spoof_rate_per_link);
       last_refill = t;
-      const int c = active[iter % active.size()];
-      const std::size_t li = (iter / active.size()) % o.links.size();
+      const int c = active_[iter % active_.size()];
+      const std::size_t li = (iter / active_.size()) % o_.links.size();
       ++iter;
-      const std::uint16_t s = o.links[li].first, j = o.links[li].second;  // claimed sender, victim
-      sockaddr_in to = loopback(port_of[j]);
-      std::size_t n = 0;
-      const std::uint8_t* payload = d.data();
       bool spoofed = needs_root(c);
-      std::uint16_t src_port = port_of[s];
       if (spoofed) {
-        if (tokens[li] < 1.0) {
-          ++skipped[c];
+        if (tokens_[li] < 1.0) {
+          ++skipped_[c];
           continue;
         }
       }
-      switch (c) {
-        case garbage:
-          n = 1 + rng() % kDefaultDatagramBytes;
-          payload = big.data() + rng() % 60000;
-          break;
-        case truncated:
-          from_template(li, 1 + iter);
-          n = rng() % (kHeaderBytes + kMacBytes);
-          if (n == 0) n = 1;
-          break;
-        case bad_mac:
-        case spoof_bad_mac: n = from_template(li, 1 + iter % 100000); break;
-        case oversized:
-          n = kDefaultDatagramBytes + 1 + rng() % (big.size() - kDefaultDatagramBytes - 1);
-          payload = big.data();
-          break;
-        case zero_length: n = 0; break;
-        case future_wrong_addr:
-        case spoof_future: n = from_template(li, 1'000'000'000ull + iter); break;
-        case replay_wrong_addr:
-        case live_replay: {
-          std::lock_guard<std::mutex> lk(sh.m);
-          if (sh.recent.empty()) break;
-          const Captured& cap = sh.recent[rng() % sh.recent.size()];
-          n = cap.bytes.size();
-          std::memcpy(d.data(), cap.bytes.data(), n);
-          src_port = cap.src_port;
-          to = loopback(cap.dst_port);  // to where it went (live_replay: from where it came)
-          break;
-        }
-        case cross_run_replay: {
-          const Captured& cap = old_run[rng() % old_run.size()];
-          n = cap.bytes.size();
-          std::memcpy(d.data(), cap.bytes.data(), n);
-          src_port = cap.src_port;
-          to = loopback(cap.dst_port);
-          break;
-        }
-        case keyed_nan:
-        case keyed_envelope:
-        case keyed_future: {
-          if (static_cast<int>(s) != o.stolen_id || !o.public_keys.count(j)) {
-            ++skipped[c];
-            continue;
-          }
-          LinkView sv, jv;
-          {
-            std::lock_guard<std::mutex> lk(sh.m);
-            sv = sh.links[{s, j}];
-            jv = sh.links[{j, s}];
-          }
-          if (!sv.have_nonce || !jv.have_nonce || !sv.have_state) break;
-          const SessionKey k = traffic_key(pair_keys(stolen, s, o.public_keys.at(j), j).tx, sv.nonce, jv.nonce);
-          const ValueEncoding enc = (sv.flags & kFlagFloat32) ? ValueEncoding::float32 : ValueEncoding::float64;
-          const std::uint64_t seq = sv.newest_seq + 1 + (c == keyed_future ? 1'000'000ull : 0);
-          n = forge(s, j, seq, sv.incarnation, c == keyed_nan ? x_nan.data() : c == keyed_envelope ? x_bad.data() : x.data(),
-                    enc, k);
-          break;
-        }
-        default: break;
-      }
-      if (n == 0 && c != zero_length) {
-        ++skipped[c];  // nothing captured / learned yet
+      Datagram dg = build(c, li, iter);
+      if (dg.n == 0 && c != zero_length) {
+        ++skipped_[c];  // nothing captured / learned yet
         continue;
       }
-      if (spoofed) tokens[li] -= 1.0;
+      if (spoofed) tokens_[li] -= 1.0;
       bool ok;
-      if (spoofed) ok = spoof->send(src_port, ntohs(to.sin_port), payload, n);
-      else ok = ::sendto(udp, payload, n, 0, reinterpret_cast<const sockaddr*>(&to), sizeof to) >= 0;
+      if (spoofed) ok = spoof_->send(dg.src_port, ntohs(dg.to.sin_port), dg.payload, dg.n);
+      else ok = ::sendto(udp_, dg.payload, dg.n, 0, reinterpret_cast<const sockaddr*>(&dg.to), sizeof dg.to) >= 0;
       if (ok) {
-        ++sent[c];
-        ++total;
-        flood_end = elapsed();
+        ++sent_[c];
+        ++total_;
+        flood_end_ = elapsed();
       } else {
-        ++errors[c];
+        ++errors_[c];
       }
     }
-    stop = true;
-    if (sniffer.joinable()) sniffer.join();
-    if (sniff_fd >= 0) ::close(sniff_fd);
-    ::close(udp);
-    const double span = flood_start >= 0 ? flood_end - flood_start : 0.0;
-    std::string js = "{\n  \"sent_total\": " + std::to_string(total) + ",\n  \"flood_s\": " + std::to_string(span) +
-                     ",\n  \"rate_per_s\": " + std::to_string(span > 0 ? static_cast<double>(total) / span : 0.0) +
-                     ",\n  \"sniffed\": " + std::to_string(sh.sniffed) + ",\n  \"classes\": {";
-    for (std::size_t i = 0; i < active.size(); ++i) {
-      const int c = active[i];
-      js += std::string(i ? "," : "") + "\n    \"" + kNames[c] + "\": {\"sent\": " + std::to_string(sent[c]) +
-            ", \"send_errors\": " + std::to_string(errors[c]) + ", \"skipped\": " + std::to_string(skipped[c]) +
+  }
+
+  void stop() {
+    stop_ = true;
+    if (sniffer_.joinable()) sniffer_.join();
+    if (sniff_fd_ >= 0) ::close(sniff_fd_);
+    ::close(udp_);
+  }
+
+  // The JSON report: totals, the achieved rate, what was sniffed, and per class.
+  void report() const {
+    const double span = flood_start_ >= 0 ? flood_end_ - flood_start_ : 0.0;
+    std::string js = "{\n  \"sent_total\": " + std::to_string(total_) + ",\n  \"flood_s\": " + std::to_string(span) +
+                     ",\n  \"rate_per_s\": " + std::to_string(span > 0 ? static_cast<double>(total_) / span : 0.0) +
+                     ",\n  \"sniffed\": " + std::to_string(sh_.sniffed) + ",\n  \"classes\": {";
+    for (std::size_t i = 0; i < active_.size(); ++i) {
+      const int c = active_[i];
+      js += std::string(i ? "," : "") + "\n    \"" + kNames[c] + "\": {\"sent\": " + std::to_string(sent_[c]) +
+            ", \"send_errors\": " + std::to_string(errors_[c]) + ", \"skipped\": " + std::to_string(skipped_[c]) +
             ", \"spoofed\": " + (needs_root(c) ? "true" : "false") + "}";
     }
     js += "\n  }\n}\n";
-    emit(js, o.json_file);
+    emit(js, o_.json_file);
+  }
+
+ private:
+  // One datagram to send: n bytes at payload, from 127.0.0.1:src_port (spoofed classes) to `to`.
+  struct Datagram {
+    sockaddr_in to{};
+    std::size_t n = 0;
+    const std::uint8_t* payload = nullptr;
+    std::uint16_t src_port = 0;
+  };
+
+  double elapsed() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count(); }
+
+  // A datagram with a valid format claiming sender s -> dest j, MAC'd with `key`.
+  std::size_t forge(std::uint16_t s, std::uint16_t j, std::uint64_t seq, std::uint64_t incarnation, const double* xs,
+                    ValueEncoding enc, const SessionKey& key) {
+    WireConfig w;
+    w.session_id = o_.session;
+    w.station_id = s;
+    w.incarnation = incarnation;
+    w.encoding = enc;
+    Encoder e(w);
+    OutgoingState st;
+    st.dest = j;
+    st.seq = seq;
+    st.send_time_ns = static_cast<std::int64_t>(elapsed() * 1e9);
+    st.value_count = kValues;
+    st.x_hat = xs;
+    st.v_hat = v_.data();
+    return e.encode_fragment(st, 0, d_.data(), d_.size(), &key);
+  }
+
+  std::size_t from_template(std::size_t li, std::uint64_t seq) {
+    std::memcpy(d_.data(), tmpl_[li].data(), tmpl_[li].size());
+    std::memcpy(d_.data() + wire_offset::seq, &seq, sizeof seq);
+    return tmpl_[li].size();
+  }
+
+  // A replayed datagram (live or from the old run) into d_: sent to where it went, from where it came.
+  void replay(const Captured& cap, Datagram& dg) {
+    dg.n = cap.bytes.size();
+    std::memcpy(d_.data(), cap.bytes.data(), dg.n);
+    dg.src_port = cap.src_port;
+    dg.to = loopback(cap.dst_port);
+  }
+
+  // An authentic state from the stolen station s to j (NaN, out of the envelope, or far ahead),
+  // at the sequence s's next genuine one carries; 0 when s is not the stolen station or the
+  // sniffer has not learned the link's nonces and state yet.
+  std::size_t keyed(int c, std::uint16_t s, std::uint16_t j) {
+    if (static_cast<int>(s) != o_.stolen_id || !o_.public_keys.count(j)) return 0;
+    LinkView sv, jv;
+    {
+      std::lock_guard<std::mutex> lk(sh_.m);
+      sv = sh_.links[{s, j}];
+      jv = sh_.links[{j, s}];
+    }
+    if (!sv.have_nonce || !jv.have_nonce || !sv.have_state) return 0;
+    const SessionKey k = traffic_key(pair_keys(stolen_, s, o_.public_keys.at(j), j).tx, sv.nonce, jv.nonce);
+    const ValueEncoding enc = (sv.flags & kFlagFloat32) ? ValueEncoding::float32 : ValueEncoding::float64;
+    const std::uint64_t seq = sv.newest_seq + 1 + (c == keyed_future ? 1'000'000ull : 0);
+    return forge(s, j, seq, sv.incarnation, c == keyed_nan ? x_nan_.data() : c == keyed_envelope ? x_bad_.data() : x_.data(),
+                 enc, k);
+  }
+
+  // The datagram of class c on directed link li (the iter-th of the flood); n = 0: nothing to
+  // send yet (nothing captured or learned), except for zero_length.
+  Datagram build(int c, std::size_t li, std::uint64_t iter) {
+    const std::uint16_t s = o_.links[li].first, j = o_.links[li].second;  // claimed sender, victim
+    Datagram dg;
+    dg.to = loopback(port_of_[j]);
+    dg.payload = d_.data();
+    dg.src_port = port_of_[s];
+    switch (c) {
+      case garbage:
+        dg.n = 1 + rng_() % kDefaultDatagramBytes;
+        dg.payload = big_.data() + rng_() % 60000;
+        break;
+      case truncated:
+        from_template(li, 1 + iter);
+        dg.n = rng_() % (kHeaderBytes + kMacBytes);
+        if (dg.n == 0) dg.n = 1;
+        break;
+      case bad_mac:
+      case spoof_bad_mac: dg.n = from_template(li, 1 + iter % 100000); break;
+      case oversized:
+        dg.n = kDefaultDatagramBytes + 1 + rng_() % (big_.size() - kDefaultDatagramBytes - 1);
+        dg.payload = big_.data();
+        break;
+      case zero_length: dg.n = 0; break;
+      case future_wrong_addr:
+      case spoof_future: dg.n = from_template(li, 1'000'000'000ull + iter); break;
+      case replay_wrong_addr:
+      case live_replay: {
+        std::lock_guard<std::mutex> lk(sh_.m);
+        if (sh_.recent.empty()) break;
+        replay(sh_.recent[rng_() % sh_.recent.size()], dg);
+        break;
+      }
+      case cross_run_replay: replay(old_run_[rng_() % old_run_.size()], dg); break;
+      case keyed_nan:
+      case keyed_envelope:
+      case keyed_future: dg.n = keyed(c, s, j); break;
+      default: break;
+    }
+    return dg;
+  }
+
+  const Options& o_;
+  std::map<std::uint16_t, std::uint16_t> id_of_port_, port_of_;
+  Shared sh_;
+  std::atomic<bool> stop_{false};
+  int sniff_fd_ = -1;
+  std::chrono::steady_clock::time_point t0_;
+
+  std::vector<Captured> old_run_;
+  StationKeyPair stolen_{};
+  std::unique_ptr<Spoofer> spoof_;
+  int udp_ = -1;
+  std::mt19937_64 rng_{0x464c4f4f44ull};  // "FLOOD": the same flood every run
+  std::vector<std::uint8_t> big_ = std::vector<std::uint8_t>(65000), d_ = std::vector<std::uint8_t>(kMaxDatagramBytes);
+  std::vector<double> x_ = std::vector<double>(kValues, 0.01), v_ = std::vector<double>(kValues, 0.0),
+                      x_bad_ = std::vector<double>(kValues, 1.0e3), x_nan_ = std::vector<double>(kValues, 0.01);
+  std::vector<int> active_;
+  std::vector<std::uint64_t> sent_ = std::vector<std::uint64_t>(class_count, 0), errors_ = std::vector<std::uint64_t>(class_count, 0),
+                             skipped_ = std::vector<std::uint64_t>(class_count, 0);
+  // Spoofed datagrams per directed link: a token bucket each (they share the real neighbour's
+  // per-source budget at the receiver, net.rx_rate_limit_per_s).
+  std::vector<double> tokens_ = std::vector<double>(o_.links.size(), 0.0);
+  double flood_start_ = -1.0, flood_end_ = 0.0;
+  std::uint64_t total_ = 0;
+  std::vector<std::vector<std::uint8_t>> tmpl_;
+  std::thread sniffer_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const Options o = parse(argc, argv);
+    Flood flood(o);
+    flood.start_sniffer();
+    if (!o.record_file.empty()) {
+      flood.record();
+      return 0;
+    }
+    flood.prepare();
+    flood.send_all();
+    flood.stop();
+    flood.report();
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "haptic-flood: %s\n", e.what());

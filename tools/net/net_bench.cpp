@@ -288,11 +288,50 @@ void sleep_until_ns(std::int64_t t) { haptic::platform::sleep_until_monotonic_ns
 
 void start_echo_process();
 
+constexpr int kModes = 3;  // udp, stack_wake, stack_spin (BM_OneWayPeriodic)
+
+// The counters of BM_OneWayPeriodic: per mode the one-way latency's min, P50, mean, P99, max
+// and losses, each stack mode against minimal UDP, and the TX hand-off figures.
+void report_one_way(benchmark::State& st, int enc, bool rt, std::vector<double> (&samples)[kModes],
+                    const std::uint64_t (&lost)[kModes]) {
+  st.counters["sender_sched_fifo"] = rt ? 1.0 : 0.0;
+  st.counters["pinned"] = g_pin ? 1.0 : 0.0;
+  static const char* names[kModes] = {"udp", "stack_wake", "stack_spin"};
+  double p50[kModes] = {}, p99[kModes] = {}, mean[kModes] = {};
+  for (int m = 0; m < kModes; ++m) {
+    auto& sm = samples[m];
+    std::sort(sm.begin(), sm.end());
+    auto q = [&](double f) { return sm.empty() ? 0.0 : sm[std::min(sm.size() - 1, static_cast<std::size_t>(f * static_cast<double>(sm.size())))] * 1e6; };
+    p50[m] = q(0.5);
+    p99[m] = q(0.99);
+    for (double x1 : sm) mean[m] += x1 * 1e6;
+    mean[m] = sm.empty() ? 0.0 : mean[m] / static_cast<double>(sm.size());
+    const std::string n = names[m];
+    st.counters[n + "_min_us"] = sm.empty() ? 0.0 : sm.front() * 1e6;
+    st.counters[n + "_p50_us"] = p50[m];
+    st.counters[n + "_mean_us"] = mean[m];
+    st.counters[n + "_p99_us"] = p99[m];
+    st.counters[n + "_max_us"] = sm.empty() ? 0.0 : sm.back() * 1e6;
+    st.counters[n + "_lost"] = static_cast<double>(lost[m]);
+  }
+  for (int m = 1; m < kModes; ++m) {
+    const std::string n = names[m];
+    st.counters["ratio_" + n + "_p50"] = p50[0] > 0 ? p50[m] / p50[0] : 0.0;
+    st.counters["ratio_" + n + "_mean"] = mean[0] > 0 ? mean[m] / mean[0] : 0.0;
+    st.counters["ratio_" + n + "_p99"] = p99[0] > 0 ? p99[m] / p99[0] : 0.0;
+  }
+  const EndpointStats es = g_per_ep[2][enc]->stats();
+  st.counters["spin_caught_fraction"] = static_cast<double>(es.tx_caught_spinning) / std::max<double>(1.0, static_cast<double>(es.tx_packets));
+  st.counters["spin_handoff_mean_us"] = es.tx_handoff_mean_s * 1e6;
+  st.counters["wake_handoff_mean_us"] = g_per_ep[1][enc]->stats().tx_handoff_mean_s * 1e6;
+  st.SetLabel(std::string(enc ? "float32" : "float64") +
+              " 33-node state; udp: stamp, sendto -> recv returns; stack: stamp, push_state -> in the receiver's RX ring");
+}
+
 // One iteration = one 2 ms period. The three modes take turns period by period (0, 1, 2, 0,
 // ...) so that they see the same machine load; each endpoint therefore pushes every 3
 // periods (its tick-synchronous TX is configured with that period). A sample is read one
 // rotation after its send, so the sender never waits or polls (no interference).
-constexpr int kModes = 3;
 void BM_OneWayPeriodic(benchmark::State& st) {
   start_echo_process();
   const int enc = static_cast<int>(st.range(0));
@@ -350,38 +389,7 @@ void BM_OneWayPeriodic(benchmark::State& st) {
   }
   if (rt) ::pthread_setschedparam(::pthread_self(), old_policy, &old_param);
   ::pthread_setaffinity_np(::pthread_self(), sizeof old_affinity, &old_affinity);
-  st.counters["sender_sched_fifo"] = rt ? 1.0 : 0.0;
-  st.counters["pinned"] = g_pin ? 1.0 : 0.0;
-  static const char* names[kModes] = {"udp", "stack_wake", "stack_spin"};
-  double p50[kModes] = {}, p99[kModes] = {}, mean[kModes] = {};
-  for (int m = 0; m < kModes; ++m) {
-    auto& sm = samples[m];
-    std::sort(sm.begin(), sm.end());
-    auto q = [&](double f) { return sm.empty() ? 0.0 : sm[std::min(sm.size() - 1, static_cast<std::size_t>(f * static_cast<double>(sm.size())))] * 1e6; };
-    p50[m] = q(0.5);
-    p99[m] = q(0.99);
-    for (double x1 : sm) mean[m] += x1 * 1e6;
-    mean[m] = sm.empty() ? 0.0 : mean[m] / static_cast<double>(sm.size());
-    const std::string n = names[m];
-    st.counters[n + "_min_us"] = sm.empty() ? 0.0 : sm.front() * 1e6;
-    st.counters[n + "_p50_us"] = p50[m];
-    st.counters[n + "_mean_us"] = mean[m];
-    st.counters[n + "_p99_us"] = p99[m];
-    st.counters[n + "_max_us"] = sm.empty() ? 0.0 : sm.back() * 1e6;
-    st.counters[n + "_lost"] = static_cast<double>(lost[m]);
-  }
-  for (int m = 1; m < kModes; ++m) {
-    const std::string n = names[m];
-    st.counters["ratio_" + n + "_p50"] = p50[0] > 0 ? p50[m] / p50[0] : 0.0;
-    st.counters["ratio_" + n + "_mean"] = mean[0] > 0 ? mean[m] / mean[0] : 0.0;
-    st.counters["ratio_" + n + "_p99"] = p99[0] > 0 ? p99[m] / p99[0] : 0.0;
-  }
-  const EndpointStats es = g_per_ep[2][enc]->stats();
-  st.counters["spin_caught_fraction"] = static_cast<double>(es.tx_caught_spinning) / std::max<double>(1.0, static_cast<double>(es.tx_packets));
-  st.counters["spin_handoff_mean_us"] = es.tx_handoff_mean_s * 1e6;
-  st.counters["wake_handoff_mean_us"] = g_per_ep[1][enc]->stats().tx_handoff_mean_s * 1e6;
-  st.SetLabel(std::string(enc ? "float32" : "float64") +
-              " 33-node state; udp: stamp, sendto -> recv returns; stack: stamp, push_state -> in the receiver's RX ring");
+  report_one_way(st, enc, rt, samples, lost);
 }
 BENCHMARK(BM_OneWayPeriodic)->Arg(0)->Arg(1)->ArgName("f32")->Iterations(4500)->Unit(benchmark::kMicrosecond);
 

@@ -223,18 +223,46 @@ std::vector<study::ModelCandidate> candidates_from(const std::vector<Row>& rows,
   return c;
 }
 
-}  // namespace
 
-int main(int argc, char** argv) {
-  CLI::App app{"haptic-study: speed against accuracy, stability maps, model selector"};
-  app.require_subcommand(1);
+// The command line: the subcommand that was given and every option of every subcommand.
+struct StudyOptions {
   std::string out = "tools/study/results";
+
+  // accuracy
+  std::string nodes_s = "33,100,300,1000,3000", steps_s = "0.25,0.5,1,2,4,8", modes_s = "3,6,12,25,50,100,200,400";
+  double duration = 2.0, sample_ms = 8.0, damping = 0.0;
+
+  // energy
+  int en_nodes = 33;
+  double en_duration = 10.0;
+  std::string en_steps = "2,0.5";
+
+  // stability
+  std::string st_scales = "0.25,1,4,16,64,256", st_sizes = "33,100,300,1000,3000", st_steps = "0.25,0.5,1,2,4,8";
+  double st_duration = 2.0;
+
+  // consensus
+  std::string c_damp = "0,0.1,0.25,0.5,0.75,1,1.5", c_delay = "0.25,0.5,1,2,4,8", c_loss = "0,0.05,0.2";
+  std::string c_gains = "1000:5,5000:0.5";
+  double c_duration = 8.0;
+
+  // select
+  double accuracy = 0.05;
+  std::string from, sel_nodes = "33,100,300,1000", sel_modes = "3,6,12,25,50,100,200";
+
+  std::string command;  // the subcommand given: accuracy, energy, stability, consensus or select
+
+  // Returns -1 to go on, else the exit code (--help: 0; a usage error: CLI11's).
+  int parse(int argc, char** argv);
+};
+
+int StudyOptions::parse(int argc, char** argv) {
+  CLI::App app{"haptic-study: speed against accuracy, stability maps, model selector (issue 6)"};
+  app.require_subcommand(1);
   app.add_option("--out", out, "Output folder for CSV/JSON (default tools/study/results)");
 
   // accuracy
   auto* acc = app.add_subcommand("accuracy", "Integrators x step sizes x scene sizes x reduced models against the exact solution");
-  std::string nodes_s = "33,100,300,1000,3000", steps_s = "0.25,0.5,1,2,4,8", modes_s = "3,6,12,25,50,100,200,400";
-  double duration = 2.0, sample_ms = 8.0, damping = 0.0;
   acc->add_option("--nodes", nodes_s, "Mesh sizes (33 = paper ball, else lattice ball); the largest is the reference");
   acc->add_option("--steps-ms", steps_s, "Step sizes (ms); each must divide --sample-ms");
   acc->add_option("--modes", modes_s, "Modal truncations r of the reference mesh");
@@ -244,17 +272,12 @@ int main(int argc, char** argv) {
 
   // energy
   auto* en = app.add_subcommand("energy", "Energy drift of each integrator, free vibration, B = 0");
-  int en_nodes = 33;
-  double en_duration = 10.0;
-  std::string en_steps = "2,0.5";
   en->add_option("--nodes", en_nodes, "Mesh size (default 33, the paper ball)");
   en->add_option("--duration", en_duration, "Seconds (default 10)");
   en->add_option("--steps-ms", en_steps, "Step sizes (ms, default 2,0.5)");
 
   // stability
   auto* stab = app.add_subcommand("stability", "Where each integrator blows up: step x stiffness scale and step x scene size");
-  std::string st_scales = "0.25,1,4,16,64,256", st_sizes = "33,100,300,1000,3000", st_steps = "0.25,0.5,1,2,4,8";
-  double st_duration = 2.0;
   stab->add_option("--stiffness-scales", st_scales, "Edge stiffness multipliers on the 33-node scene");
   stab->add_option("--sizes", st_sizes, "Scene sizes");
   stab->add_option("--steps-ms", st_steps, "Step sizes (ms)");
@@ -262,9 +285,6 @@ int main(int argc, char** argv) {
 
   // consensus
   auto* con = app.add_subcommand("consensus", "4-user consensus stability over damping scale x delay scale x loss (run_simulation)");
-  std::string c_damp = "0,0.1,0.25,0.5,0.75,1,1.5", c_delay = "0.25,0.5,1,2,4,8", c_loss = "0,0.05,0.2";
-  std::string c_gains = "1000:5,5000:0.5";
-  double c_duration = 8.0;
   con->add_option("--damping-scales", c_damp, "B_i / eq. (18) value");
   con->add_option("--delay-scales", c_delay, "x the paper's delay matrix");
   con->add_option("--losses", c_loss, "Loss probabilities");
@@ -273,183 +293,225 @@ int main(int argc, char** argv) {
 
   // select
   auto* sel = app.add_subcommand("select", "Smallest model meeting a felt-force accuracy; prints the --nodes for haptic-station sim");
-  double accuracy = 0.05;
-  std::string from, sel_nodes = "33,100,300,1000", sel_modes = "3,6,12,25,50,100,200";
   sel->add_option("--accuracy", accuracy, "Requested max relative felt-force error (fraction, e.g. 0.05)")->required();
   sel->add_option("--from", from, "Read candidates from an accuracy.csv instead of computing them");
   sel->add_option("--nodes", sel_nodes, "Mesh family when computing (largest = reference)");
   sel->add_option("--modes", sel_modes, "Modal truncations of the reference when computing");
 
   CLI11_PARSE(app, argc, argv);
-  try {
-    std::filesystem::create_directories(out);
-    if (acc->parsed()) {
-      const auto t0 = std::chrono::steady_clock::now();
-      auto st = run_accuracy(study::parse_int_list(nodes_s, "--nodes"), study::parse_double_list(steps_s, "--steps-ms"),
-                             study::parse_int_list(modes_s, "--modes"), duration, sample_ms, damping, true, true);
-      write_rows_csv(out + "/accuracy.csv", st.rows);
-      st.meta["pareto_front_ref"] = rows_json(st.rows, pareto(st.rows, true));
-      st.meta["pareto_front_self"] = rows_json(st.rows, pareto(st.rows, false));
-      st.meta["wall_time_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      write_json(out + "/accuracy.json", st.meta);
-      print_front(st.rows, false, std::cout);
-      print_front(st.rows, true, std::cout);
-      std::cout << "wrote " << out << "/accuracy.csv, accuracy.json\n";
-    } else if (en->parsed()) {
-      const auto p = study::make_push_problem(study::make_ball_mesh(en_nodes, 0.05), problem_params(0));
-      std::ofstream f(out + "/energy.csv");
-      f << "integrator,step_s,t_s,energy_ratio\n";
-      json summary;
-      for (double hms : study::parse_double_list(en_steps, "--steps-ms")) {
-        const double h = hms * 1e-3;
-        const int every = std::max(1, static_cast<int>(std::lround(0.01 / h)));
-        for (auto m : study::all_integrators()) {
-          const auto tr = study::energy_trace(p, m, h, en_duration, every);
-          for (std::size_t k = 0; k < tr.t_s.size(); ++k)
-            f << study::integrator_name(m) << ',' << num(h) << ',' << num(tr.t_s[k]) << ',' << std::setprecision(16) << tr.energy_ratio[k] << '\n';
-          summary.push_back({{"integrator", study::integrator_name(m)}, {"step_s", h}, {"class", study::classify_energy(tr)},
-                             {"final_ratio", tr.energy_ratio.back()}, {"final_t_s", tr.t_s.back()},
-                             {"max_ratio", *std::max_element(tr.energy_ratio.begin(), tr.energy_ratio.end())}});
-          std::cout << std::setw(20) << study::integrator_name(m) << " h " << hms << " ms: E(" << num(tr.t_s.back())
-                    << " s)/E0 = " << num(tr.energy_ratio.back()) << " (" << study::classify_energy(tr) << ")\n";
-        }
-      }
-      write_json(out + "/energy.json", {{"nodes", p.model.nodes}, {"runs", summary},
-                                        {"initial_state", "static deformation under the full push, v = 0, no input, B = 0"}});
-    } else if (stab->parsed()) {
-      std::ofstream f(out + "/stability.csv");
-      f << "axis,value,nodes,integrator,step_s,omega_max_h,class,max_energy_ratio\n";
-      json summary = json::array();
-      auto cell = [&](const std::string& axis, double value, const study::PushProblem& p) {
-        const double wmax = std::sqrt(rt::lambda_max(rt::SpatialMatrix::isotropic(p.model.K)) / p.model.node_mass_kg);
-        for (auto m : study::all_integrators()) {
-          double first_bad = -1;
-          for (double hms : study::parse_double_list(st_steps, "--steps-ms")) {
-            const double h = hms * 1e-3;
-            const auto tr = study::energy_trace(p, m, h, st_duration, 1);
-            const auto cls = study::classify_energy(tr);
-            double mx = 0;
-            for (double r : tr.energy_ratio) mx = std::isfinite(r) ? std::max(mx, r) : INFINITY;
-            f << axis << ',' << num(value) << ',' << p.model.nodes << ',' << study::integrator_name(m) << ',' << num(h) << ','
-              << num(wmax * h) << ',' << cls << ',' << num(mx) << '\n';
-            if ((cls == "blows-up" || cls == "grows") && first_bad < 0) first_bad = h;
-          }
-          summary.push_back({{"axis", axis}, {"value", value}, {"nodes", p.model.nodes}, {"integrator", study::integrator_name(m)},
-                             {"omega_max_rad_per_s", wmax}, {"smallest_unstable_step_s", first_bad}});
-          std::cout << axis << "=" << num(value) << " " << std::setw(20) << study::integrator_name(m) << " omega_max "
-                    << num(wmax) << " rad/s: first growing/blowing step " << (first_bad < 0 ? std::string("none") : num(first_bad * 1e3) + " ms")
-                    << "\n";
-        }
-      };
-      for (double s : study::parse_double_list(st_scales, "--stiffness-scales")) {
-        auto params = problem_params(0);
-        params.reference_edge_stiffness_N_per_m *= s;
-        cell("stiffness_scale", s, study::make_push_problem(study::make_ball_mesh(33, 0.05), params));
-      }
-      for (int n : study::parse_int_list(st_sizes, "--sizes"))
-        cell("nodes", n, study::make_push_problem(study::make_ball_mesh(n, 0.05), problem_params(0)));
-      write_json(out + "/stability.json", {{"duration_s", st_duration}, {"cells", summary},
-                                           {"classes", "blows-up: max E/E0 > 100; grows: max > 1.01 and 2nd-half max > 1.1 x 1st-half max; dissipative: final < 0.99; bounded: oscillates above 1.01 without trend; stable: within 1%"}});
-    } else if (con->parsed()) {
-      const auto t0 = std::chrono::steady_clock::now();
-      std::ofstream f(out + "/consensus.csv");
-      f << "p_gain,d_gain,damping_scale,delay_scale,loss,damping_min_max,diverged,port_energy_min_J,passivity_bound_J,class,max_speed,bound_violations,edge_lost\n";
-      std::vector<std::pair<double, double>> gains;
-      {
-        std::stringstream ss(c_gains);
-        std::string it;
-        while (std::getline(ss, it, ',')) {
-          const auto colon = it.find(':');
-          if (colon == std::string::npos) throw std::invalid_argument("--gains: expected P:D pairs, got '" + it + "'");
-          gains.emplace_back(std::stod(it.substr(0, colon)), std::stod(it.substr(colon + 1)));
-        }
-      }
-      json summary = json::array();
-      for (auto [P, D] : gains) {
-        for (double loss : study::parse_double_list(c_loss, "--losses")) {
-          for (double ds : study::parse_double_list(c_delay, "--delay-scales")) {
-            for (double bs : study::parse_double_list(c_damp, "--damping-scales")) {
-              auto spec = firmware::make_scenario("paper-best");
-              spec.duration_s = c_duration;
-              spec.delay_ms = spec.delay_ms * ds;
-              spec.loss_probability = loss;
-              spec.p_gain_N_per_m = P;
-              spec.d_gain_Ns_per_m = D;
-              spec.script.kind = firmware::UserScriptSpec::Kind::kRandom;
-              spec.damping_margin = 0.0;
-              spec.edge_energy_bound_J = 0;  // the map is about eq. (18) alone: no per-edge energy bound
-              auto probe = firmware::build_scenario(spec);
-              std::vector<double> B(probe.damping_min.size());
-              for (std::size_t i = 0; i < B.size(); ++i) B[i] = bs * probe.damping_min[i];
-              spec.damping_Ns_per_m = B;
-              const auto built = firmware::build_scenario(spec);
-              const auto r = firmware::run_simulation(built, firmware::SimOptions{});
-              const auto& m = r.metrics;
-              const double port_min = m.port_energy_min_J.value_or(0.0);
-              const std::string cls = m.diverged ? "diverged"
-                                      : port_min < -r.passivity_bound_J ? "energy-generated"
-                                                                                  : "stable";
-              std::uint64_t violations = 0, lost = 0;
-              for (const auto& l : r.links) {
-                violations += l.bound_violations;
-                lost += l.lost;
-              }
-              const double bmax = *std::max_element(probe.damping_min.begin(), probe.damping_min.end());
-              f << P << ',' << D << ',' << bs << ',' << ds << ',' << loss << ',' << num(bmax) << ',' << m.diverged << ','
-                << num(port_min) << ',' << num(r.passivity_bound_J) << ',' << cls << ','
-                << num(m.max_node_speed_m_per_s.value_or(0.0)) << ',' << violations << ',' << lost << '\n';
-              f.flush();
-              summary.push_back({{"P", P}, {"D", D}, {"damping_scale", bs}, {"delay_scale", ds}, {"loss", loss},
-                                 {"damping_min", probe.damping_min}, {"class", cls}});
-            }
-            std::cerr << "P " << P << " D " << D << " loss " << loss << " delay x" << ds << " done ("
-                      << num(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()) << " s)\n";
-          }
-        }
-      }
-      write_json(out + "/consensus.json",
-                 {{"duration_s", c_duration}, {"script", "random (every user's goal wanders through random keyframes)"},
-                  {"scenario", "paper-best topology and delays, scaled"}, {"cells", summary},
-                  {"wall_time_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
-    } else if (sel->parsed()) {
-      std::vector<Row> rows;
-      if (!from.empty()) {
-        rows = read_rows_csv(from);
-      } else {
-        rows = run_accuracy(study::parse_int_list(sel_nodes, "--nodes"), {2.0}, study::parse_int_list(sel_modes, "--modes"),
-                            2.0, 8.0, 0.0, false, false)
-                   .rows;
-      }
-      const auto cands = candidates_from(rows, 0.002);
-      const auto mesh = study::select_model(cands, accuracy, {"mesh"});
-      const auto any = study::select_model(cands, accuracy, {});
-      auto describe = [](const study::ModelCandidate& c) {
-        std::ostringstream o;
-        o << c.kind << " " << c.nodes << " nodes";
-        if (c.modes) o << ", " << c.modes << " modes";
-        o << " (felt-force error " << num(c.force_error * 100) << " %, " << num(c.cost_s_per_tick * 1e6) << " us/tick)";
-        return o.str();
-      };
-      std::cerr << "requested felt-force accuracy " << num(accuracy * 100) << " % (NPMI, T = 2 ms, vs the "
-                << (mesh.reference.nodes ? std::to_string(mesh.reference.nodes) : std::string("?")) << "-node exact solution)\n";
-      if (any.found)
-        std::cerr << "  cheapest model of all kinds: " << describe(any.chosen) << ", saves x" << num(any.cost_saving_factor)
-                  << " against " << describe(any.reference) << "\n";
-      if (!mesh.found) {
-        std::cerr << "  no mesh of the family meets " << num(accuracy * 100) << " %; use the reference mesh\n";
-        std::cout << "--nodes " << mesh.reference.nodes << "\n";
-        return 2;
-      }
-      std::cerr << "  smallest mesh: " << describe(mesh.chosen) << ", saves x" << num(mesh.cost_saving_factor) << " against "
-                << describe(mesh.reference) << "\n";
-      {
-        const auto chosen = study::make_push_problem(study::make_ball_mesh(mesh.chosen.nodes, 0.05), problem_params(0));
-        std::cerr << "  the study's physics for this mesh (same ball at every resolution): node_mass_kg "
-                  << num(chosen.model.node_mass_kg) << ", edge_stiffness_N_per_m " << num(chosen.edge_stiffness_N_per_m)
-                  << " (the station's --nodes keeps 0.04 kg / 100 N/m per node/edge; see tools/study/README.md)\n";
-      }
-      std::cout << "--nodes " << mesh.chosen.nodes << "\n";
+  for (const CLI::App* sub : {acc, en, stab, con, sel})
+    if (sub->parsed()) command = sub->get_name();
+  return -1;
+}
+
+// accuracy: the table, both Pareto fronts (printed too) and the run's metadata.
+void accuracy_command(const StudyOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto st = run_accuracy(study::parse_int_list(o.nodes_s, "--nodes"), study::parse_double_list(o.steps_s, "--steps-ms"),
+                         study::parse_int_list(o.modes_s, "--modes"), o.duration, o.sample_ms, o.damping, true, true);
+  write_rows_csv(o.out + "/accuracy.csv", st.rows);
+  st.meta["pareto_front_ref"] = rows_json(st.rows, pareto(st.rows, true));
+  st.meta["pareto_front_self"] = rows_json(st.rows, pareto(st.rows, false));
+  st.meta["wall_time_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  write_json(o.out + "/accuracy.json", st.meta);
+  print_front(st.rows, false, std::cout);
+  print_front(st.rows, true, std::cout);
+  std::cout << "wrote " << o.out << "/accuracy.csv, accuracy.json\n";
+}
+
+// energy: E(t)/E0 of every integrator at every step, free vibration from the pushed shape.
+void energy_command(const StudyOptions& o) {
+  const auto p = study::make_push_problem(study::make_ball_mesh(o.en_nodes, 0.05), problem_params(0));
+  std::ofstream f(o.out + "/energy.csv");
+  f << "integrator,step_s,t_s,energy_ratio\n";
+  json summary;
+  for (double hms : study::parse_double_list(o.en_steps, "--steps-ms")) {
+    const double h = hms * 1e-3;
+    const int every = std::max(1, static_cast<int>(std::lround(0.01 / h)));
+    for (auto m : study::all_integrators()) {
+      const auto tr = study::energy_trace(p, m, h, o.en_duration, every);
+      for (std::size_t k = 0; k < tr.t_s.size(); ++k)
+        f << study::integrator_name(m) << ',' << num(h) << ',' << num(tr.t_s[k]) << ',' << std::setprecision(16) << tr.energy_ratio[k] << '\n';
+      summary.push_back({{"integrator", study::integrator_name(m)}, {"step_s", h}, {"class", study::classify_energy(tr)},
+                         {"final_ratio", tr.energy_ratio.back()}, {"final_t_s", tr.t_s.back()},
+                         {"max_ratio", *std::max_element(tr.energy_ratio.begin(), tr.energy_ratio.end())}});
+      std::cout << std::setw(20) << study::integrator_name(m) << " h " << hms << " ms: E(" << num(tr.t_s.back())
+                << " s)/E0 = " << num(tr.energy_ratio.back()) << " (" << study::classify_energy(tr) << ")\n";
     }
+  }
+  write_json(o.out + "/energy.json", {{"nodes", p.model.nodes}, {"runs", summary},
+                                      {"initial_state", "static deformation under the full push, v = 0, no input, B = 0"}});
+}
+
+// One cell of the stability map (one problem, every integrator over --steps-ms): a CSV row per
+// step, a summary entry and a printed line per integrator.
+void stability_cell(const StudyOptions& o, std::ofstream& f, json& summary, const std::string& axis, double value,
+                    const study::PushProblem& p) {
+  const double wmax = std::sqrt(rt::lambda_max(rt::SpatialMatrix::isotropic(p.model.K)) / p.model.node_mass_kg);
+  for (auto m : study::all_integrators()) {
+    double first_bad = -1;
+    for (double hms : study::parse_double_list(o.st_steps, "--steps-ms")) {
+      const double h = hms * 1e-3;
+      const auto tr = study::energy_trace(p, m, h, o.st_duration, 1);
+      const auto cls = study::classify_energy(tr);
+      double mx = 0;
+      for (double r : tr.energy_ratio) mx = std::isfinite(r) ? std::max(mx, r) : INFINITY;
+      f << axis << ',' << num(value) << ',' << p.model.nodes << ',' << study::integrator_name(m) << ',' << num(h) << ','
+        << num(wmax * h) << ',' << cls << ',' << num(mx) << '\n';
+      if ((cls == "blows-up" || cls == "grows") && first_bad < 0) first_bad = h;
+    }
+    summary.push_back({{"axis", axis}, {"value", value}, {"nodes", p.model.nodes}, {"integrator", study::integrator_name(m)},
+                       {"omega_max_rad_per_s", wmax}, {"smallest_unstable_step_s", first_bad}});
+    std::cout << axis << "=" << num(value) << " " << std::setw(20) << study::integrator_name(m) << " omega_max "
+              << num(wmax) << " rad/s: first growing/blowing step " << (first_bad < 0 ? std::string("none") : num(first_bad * 1e3) + " ms")
+              << "\n";
+  }
+}
+
+// stability: step x stiffness scale on the 33-node scene, then step x scene size.
+void stability_command(const StudyOptions& o) {
+  std::ofstream f(o.out + "/stability.csv");
+  f << "axis,value,nodes,integrator,step_s,omega_max_h,class,max_energy_ratio\n";
+  json summary = json::array();
+  for (double s : study::parse_double_list(o.st_scales, "--stiffness-scales")) {
+    auto params = problem_params(0);
+    params.reference_edge_stiffness_N_per_m *= s;
+    stability_cell(o, f, summary, "stiffness_scale", s, study::make_push_problem(study::make_ball_mesh(33, 0.05), params));
+  }
+  for (int n : study::parse_int_list(o.st_sizes, "--sizes"))
+    stability_cell(o, f, summary, "nodes", n, study::make_push_problem(study::make_ball_mesh(n, 0.05), problem_params(0)));
+  write_json(o.out + "/stability.json", {{"duration_s", o.st_duration}, {"cells", summary},
+                                         {"classes", "blows-up: max E/E0 > 100; grows: max > 1.01 and 2nd-half max > 1.1 x 1st-half max; dissipative: final < 0.99; bounded: oscillates above 1.01 without trend; stable: within 1%"}});
+}
+
+// --gains "P:D,P:D": the gain sets of the consensus map.
+std::vector<std::pair<double, double>> parse_gains(const std::string& text) {
+  std::vector<std::pair<double, double>> gains;
+  std::stringstream ss(text);
+  std::string it;
+  while (std::getline(ss, it, ',')) {
+    const auto colon = it.find(':');
+    if (colon == std::string::npos) throw std::invalid_argument("--gains: expected P:D pairs, got '" + it + "'");
+    gains.emplace_back(std::stod(it.substr(0, colon)), std::stod(it.substr(colon + 1)));
+  }
+  return gains;
+}
+
+// One cell of the consensus map: the paper-best run with gains P, D, loss, delays x ds and every
+// B_i = bs x its eq. (18) minimum; a CSV row and a summary entry.
+void consensus_cell(const StudyOptions& o, std::ofstream& f, json& summary, double P, double D, double loss, double ds, double bs) {
+  auto spec = firmware::make_scenario("paper-best");
+  spec.duration_s = o.c_duration;
+  spec.delay_ms = spec.delay_ms * ds;
+  spec.loss_probability = loss;
+  spec.p_gain_N_per_m = P;
+  spec.d_gain_Ns_per_m = D;
+  spec.script.kind = firmware::UserScriptSpec::Kind::kRandom;
+  spec.damping_margin = 0.0;
+  spec.edge_energy_bound_J = 0;  // the map is about eq. (18) alone: no per-edge energy bound
+  auto probe = firmware::build_scenario(spec);
+  std::vector<double> B(probe.damping_min.size());
+  for (std::size_t i = 0; i < B.size(); ++i) B[i] = bs * probe.damping_min[i];
+  spec.damping_Ns_per_m = B;
+  const auto built = firmware::build_scenario(spec);
+  const auto r = firmware::run_simulation(built, firmware::SimOptions{});
+  const auto& m = r.metrics;
+  const double port_min = m.port_energy_min_J.value_or(0.0);
+  const std::string cls = m.diverged ? "diverged"
+                          : port_min < -r.passivity_bound_J ? "energy-generated"
+                                                                      : "stable";
+  std::uint64_t violations = 0, lost = 0;
+  for (const auto& l : r.links) {
+    violations += l.bound_violations;
+    lost += l.lost;
+  }
+  const double bmax = *std::max_element(probe.damping_min.begin(), probe.damping_min.end());
+  f << P << ',' << D << ',' << bs << ',' << ds << ',' << loss << ',' << num(bmax) << ',' << m.diverged << ','
+    << num(port_min) << ',' << num(r.passivity_bound_J) << ',' << cls << ','
+    << num(m.max_node_speed_m_per_s.value_or(0.0)) << ',' << violations << ',' << lost << '\n';
+  f.flush();
+  summary.push_back({{"P", P}, {"D", D}, {"damping_scale", bs}, {"delay_scale", ds}, {"loss", loss},
+                     {"damping_min", probe.damping_min}, {"class", cls}});
+}
+
+// consensus: every gain set x loss x delay scale x damping scale; progress on stderr.
+void consensus_command(const StudyOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::ofstream f(o.out + "/consensus.csv");
+  f << "p_gain,d_gain,damping_scale,delay_scale,loss,damping_min_max,diverged,port_energy_min_J,passivity_bound_J,class,max_speed,bound_violations,edge_lost\n";
+  const std::vector<std::pair<double, double>> gains = parse_gains(o.c_gains);
+  json summary = json::array();
+  for (auto [P, D] : gains) {
+    for (double loss : study::parse_double_list(o.c_loss, "--losses")) {
+      for (double ds : study::parse_double_list(o.c_delay, "--delay-scales")) {
+        for (double bs : study::parse_double_list(o.c_damp, "--damping-scales")) consensus_cell(o, f, summary, P, D, loss, ds, bs);
+        std::cerr << "P " << P << " D " << D << " loss " << loss << " delay x" << ds << " done ("
+                  << num(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()) << " s)\n";
+      }
+    }
+  }
+  write_json(o.out + "/consensus.json",
+             {{"duration_s", o.c_duration}, {"script", "random (every user's goal wanders through random keyframes)"},
+              {"scenario", "paper-best topology and delays, scaled"}, {"cells", summary},
+              {"wall_time_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
+}
+
+std::string describe(const study::ModelCandidate& c) {
+  std::ostringstream o;
+  o << c.kind << " " << c.nodes << " nodes";
+  if (c.modes) o << ", " << c.modes << " modes";
+  o << " (felt-force error " << num(c.force_error * 100) << " %, " << num(c.cost_s_per_tick * 1e6) << " us/tick)";
+  return o.str();
+}
+
+// select: the smallest mesh meeting --accuracy, as "--nodes N" on stdout (the reasons on stderr).
+// Returns 0, or 2 when no mesh of the family meets it (the reference mesh is printed then).
+int select_command(const StudyOptions& o) {
+  std::vector<Row> rows;
+  if (!o.from.empty()) {
+    rows = read_rows_csv(o.from);
+  } else {
+    rows = run_accuracy(study::parse_int_list(o.sel_nodes, "--nodes"), {2.0}, study::parse_int_list(o.sel_modes, "--modes"),
+                        2.0, 8.0, 0.0, false, false)
+               .rows;
+  }
+  const auto cands = candidates_from(rows, 0.002);
+  const auto mesh = study::select_model(cands, o.accuracy, {"mesh"});
+  const auto any = study::select_model(cands, o.accuracy, {});
+  std::cerr << "requested felt-force accuracy " << num(o.accuracy * 100) << " % (NPMI, T = 2 ms, vs the "
+            << (mesh.reference.nodes ? std::to_string(mesh.reference.nodes) : std::string("?")) << "-node exact solution)\n";
+  if (any.found)
+    std::cerr << "  cheapest model of all kinds: " << describe(any.chosen) << ", saves x" << num(any.cost_saving_factor)
+              << " against " << describe(any.reference) << "\n";
+  if (!mesh.found) {
+    std::cerr << "  no mesh of the family meets " << num(o.accuracy * 100) << " %; use the reference mesh\n";
+    std::cout << "--nodes " << mesh.reference.nodes << "\n";
+    return 2;
+  }
+  std::cerr << "  smallest mesh: " << describe(mesh.chosen) << ", saves x" << num(mesh.cost_saving_factor) << " against "
+            << describe(mesh.reference) << "\n";
+  {
+    const auto chosen = study::make_push_problem(study::make_ball_mesh(mesh.chosen.nodes, 0.05), problem_params(0));
+    std::cerr << "  the study's physics for this mesh (same ball at every resolution): node_mass_kg "
+              << num(chosen.model.node_mass_kg) << ", edge_stiffness_N_per_m " << num(chosen.edge_stiffness_N_per_m)
+              << " (the station's --nodes keeps 0.04 kg / 100 N/m per node/edge; see tools/study/README.md)\n";
+  }
+  std::cout << "--nodes " << mesh.chosen.nodes << "\n";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  StudyOptions options;
+  if (const int rc = options.parse(argc, argv); rc >= 0) return rc;
+  try {
+    std::filesystem::create_directories(options.out);
+    if (options.command == "accuracy") accuracy_command(options);
+    else if (options.command == "energy") energy_command(options);
+    else if (options.command == "stability") stability_command(options);
+    else if (options.command == "consensus") consensus_command(options);
+    else if (options.command == "select") return select_command(options);
   } catch (const std::exception& e) {
     std::cerr << "haptic-study: " << e.what() << "\n";
     return 1;

@@ -153,6 +153,74 @@ void swap_schur(Eigen::MatrixXcd& t, Eigen::MatrixXcd& u, int k) {
   }
 }
 
+// A random start vector, mapped once by the operator so that it lies inside the range of J'
+// (removes the deflated direction), normalized.
+Eigen::VectorXcd arnoldi_start(const ScalarOperator& op) {
+  const int L = op.size();
+  SplitMix rng{12345};
+  Eigen::VectorXcd v0(L);
+  for (int i = 0; i < L; ++i) v0(i) = rng.next() - 0.5;
+  {
+    // start inside the range of J' (removes the deflated direction)
+    Eigen::VectorXcd y;
+    op.apply(v0, y);
+    v0 = y;
+  }
+  return v0 / v0.norm();
+}
+
+// Extends the Arnoldi factorization from column kc to m (Gram-Schmidt twice). Returns m, or the
+// size of an exact invariant subspace found on the way (its Ritz values are exact).
+int arnoldi_expand(const ScalarOperator& op, Eigen::MatrixXcd& V, Eigen::MatrixXcd& H, int kc, int m,
+                   Eigen::VectorXcd& w) {
+  for (int j = kc; j < m; ++j) {
+    op.apply(V.col(j), w);
+    const double wnorm0 = w.norm();
+    for (int pass = 0; pass < 2; ++pass) {
+      Eigen::VectorXcd h = V.leftCols(j + 1).adjoint() * w;
+      w.noalias() -= V.leftCols(j + 1) * h;
+      H.col(j).head(j + 1) += h;
+    }
+    const double beta = w.norm();
+    if (beta <= 1e-13 * std::max(1.0, wnorm0)) {  // invariant subspace: Ritz values exact
+      H(j + 1, j) = 0.0;
+      return j + 1;
+    }
+    H(j + 1, j) = beta;
+    V.col(j + 1) = w / beta;
+  }
+  return m;
+}
+
+// Krylov-Schur restart: Schur form of Hm, wanted (largest modulus) first, keep k.
+void krylov_schur_restart(const Eigen::MatrixXcd& Hm, int m, int k, Eigen::MatrixXcd& V, Eigen::MatrixXcd& H) {
+  Eigen::ComplexSchur<Eigen::MatrixXcd> schur(Hm, true);
+  Eigen::MatrixXcd T = schur.matrixT();
+  Eigen::MatrixXcd U = schur.matrixU();
+  // the k-th largest modulus sets the wanted threshold
+  std::vector<double> mods(m);
+  for (int i = 0; i < m; ++i) mods[i] = std::abs(T(i, i));
+  std::vector<double> sorted = mods;
+  std::sort(sorted.begin(), sorted.end(), std::greater<>());
+  const double thresh = sorted[k - 1];
+  int placed = 0;
+  for (int i = 0; i < m && placed < k; ++i) {
+    if (std::abs(T(i, i)) >= thresh) {
+      for (int p = i; p > placed; --p) swap_schur(T, U, p - 1);
+      ++placed;
+    }
+  }
+  const Eigen::MatrixXcd Q1 = U.leftCols(k);
+  const Eigen::MatrixXcd Vk = V.leftCols(m) * Q1;
+  const cd hm = H(m, m - 1);
+  const Eigen::RowVectorXcd b = hm * U.row(m - 1).head(k);
+  V.leftCols(k) = Vk;
+  V.col(k) = V.col(m);
+  H.setZero();
+  H.topLeftCorner(k, k) = T.topLeftCorner(k, k).triangularView<Eigen::Upper>();
+  H.row(k).head(k) = b;
+}
+
 ScalarSpectrum arnoldi_second_modulus(const ScalarOperator& op, const SpectrumOptions& opt) {
   ScalarSpectrum out;
   out.method = EigenMethod::Arnoldi;
@@ -164,38 +232,12 @@ ScalarSpectrum arnoldi_second_modulus(const ScalarOperator& op, const SpectrumOp
 
   Eigen::MatrixXcd V(L, m + 1);
   Eigen::MatrixXcd H = Eigen::MatrixXcd::Zero(m + 1, m);
-  SplitMix rng{12345};
-  Eigen::VectorXcd v0(L);
-  for (int i = 0; i < L; ++i) v0(i) = rng.next() - 0.5;
-  {
-    // start inside the range of J' (removes the deflated direction)
-    Eigen::VectorXcd y;
-    op.apply(v0, y);
-    v0 = y;
-  }
-  V.col(0) = v0 / v0.norm();
+  V.col(0) = arnoldi_start(op);
   int kc = 0;
   Eigen::VectorXcd w(L);
   for (int restart = 0; restart <= opt.arnoldi_max_restarts; ++restart) {
     out.restarts = restart;
-    int mm = m;
-    for (int j = kc; j < m; ++j) {
-      op.apply(V.col(j), w);
-      const double wnorm0 = w.norm();
-      for (int pass = 0; pass < 2; ++pass) {
-        Eigen::VectorXcd h = V.leftCols(j + 1).adjoint() * w;
-        w.noalias() -= V.leftCols(j + 1) * h;
-        H.col(j).head(j + 1) += h;
-      }
-      const double beta = w.norm();
-      if (beta <= 1e-13 * std::max(1.0, wnorm0)) {  // invariant subspace: Ritz values exact
-        mm = j + 1;
-        H(j + 1, j) = 0.0;
-        break;
-      }
-      H(j + 1, j) = beta;
-      V.col(j + 1) = w / beta;
-    }
+    const int mm = arnoldi_expand(op, V, H, kc, m, w);
     const Eigen::MatrixXcd Hm = H.topLeftCorner(mm, mm);
     Eigen::ComplexEigenSolver<Eigen::MatrixXcd> ces(Hm, true);
     const Eigen::VectorXcd theta = ces.eigenvalues();
@@ -220,32 +262,7 @@ ScalarSpectrum arnoldi_second_modulus(const ScalarOperator& op, const SpectrumOp
       out.converged = true;
       return out;
     }
-    // Krylov-Schur restart: Schur form of Hm, wanted (largest modulus) first, keep k.
-    Eigen::ComplexSchur<Eigen::MatrixXcd> schur(Hm, true);
-    Eigen::MatrixXcd T = schur.matrixT();
-    Eigen::MatrixXcd U = schur.matrixU();
-    // the k-th largest modulus sets the wanted threshold
-    std::vector<double> mods(m);
-    for (int i = 0; i < m; ++i) mods[i] = std::abs(T(i, i));
-    std::vector<double> sorted = mods;
-    std::sort(sorted.begin(), sorted.end(), std::greater<>());
-    const double thresh = sorted[k - 1];
-    int placed = 0;
-    for (int i = 0; i < m && placed < k; ++i) {
-      if (std::abs(T(i, i)) >= thresh) {
-        for (int p = i; p > placed; --p) swap_schur(T, U, p - 1);
-        ++placed;
-      }
-    }
-    const Eigen::MatrixXcd Q1 = U.leftCols(k);
-    const Eigen::MatrixXcd Vk = V.leftCols(m) * Q1;
-    const cd hm = H(m, m - 1);
-    const Eigen::RowVectorXcd b = hm * U.row(m - 1).head(k);
-    V.leftCols(k) = Vk;
-    V.col(k) = V.col(m);
-    H.setZero();
-    H.topLeftCorner(k, k) = T.topLeftCorner(k, k).triangularView<Eigen::Upper>();
-    H.row(k).head(k) = b;
+    krylov_schur_restart(Hm, m, k, V, H);
     kc = k;
   }
   out.converged = false;
@@ -730,53 +747,81 @@ void add_cheapest_links(Graph& g, const Eigen::MatrixXd& r, int links, int cap) 
   }
 }
 
-}  // namespace
+// One run of search_topology: the problem, its round trips and the result so far. Each member is
+// one step of the search (seeds, swap neighbourhood, first-improvement descent, kicks).
+class TopologySearch {
+ public:
+  TopologySearch(const Eigen::MatrixXd& mean_delay_ms, double period_s, const PolynomialGains& gains,
+                 const SpectrumOptions& spectrum, const SearchOptions& search, int links)
+      : mean_delay_ms_(mean_delay_ms), period_s_(period_s), gains_(gains), spectrum_(spectrum), search_(search),
+        n_(static_cast<int>(mean_delay_ms.rows())), links_(links), r_(round_trips(mean_delay_ms)) {}
 
-SearchResult search_topology(const Eigen::MatrixXd& mean_delay_ms, double period_s,
-                             const PolynomialGains& gains, const SpectrumOptions& spectrum,
-                             const SearchOptions& search) {
-  check_square(mean_delay_ms, "delay matrix");
-  const int n = static_cast<int>(mean_delay_ms.rows());
-  const int links = search.links > 0 ? search.links : n - 1;
-  if (links < n - 1 || links > n * (n - 1) / 2) {
-    throw std::invalid_argument("links: must be in [N-1, N(N-1)/2] = [" + std::to_string(n - 1) + ", " +
-                                std::to_string(n * (n - 1) / 2) + "]");
+  // The best of the seeds: the MST and `hub_seeds` shortest-path trees from the most central
+  // users, each degree-capped and filled up with the cheapest links.
+  void seed() {
+    std::vector<int> order(n_);
+    std::iota(order.begin(), order.end(), 0);
+    Eigen::VectorXd centrality(n_);
+    for (int i = 0; i < n_; ++i) {
+      double s = 0;
+      for (int j = 0; j < n_; ++j) s += (i == j || !std::isfinite(r_(i, j))) ? 0.0 : r_(i, j);
+      centrality(i) = s;
+    }
+    std::sort(order.begin(), order.end(), [&](int x, int y) { return centrality(x) < centrality(y); });
+    std::vector<Graph> seeds;
+    seeds.push_back(capped_tree(r_, order[0], search_.degree_cap, false));
+    for (int h = 0; h < std::min(search_.hub_seeds, n_); ++h) seeds.push_back(capped_tree(r_, order[h], search_.degree_cap, true));
+    bool have = false;
+    for (Graph s : seeds) {
+      add_cheapest_links(s, r_, links_, search_.degree_cap);
+      s = normalized(s);
+      const GraphScore sc = eval(s);
+      if (!have || sc.lambda_next_abs < res_.best_score.lambda_next_abs) {
+        res_.best = s;
+        res_.best_score = sc;
+        have = true;
+      }
+    }
+    res_.seed = res_.best;
+    res_.seed_score = res_.best_score;
+    res_.history.push_back(res_.best_score.lambda_next_abs);
   }
-  const Eigen::MatrixXd r = round_trips(mean_delay_ms);
-  SearchResult res;
-  auto eval = [&](const Graph& g) {
-    ++res.evaluations;
-    return score_graph(g, mean_delay_ms, period_s, gains, spectrum);
-  };
-  // seeds
-  std::vector<int> order(n);
-  std::iota(order.begin(), order.end(), 0);
-  Eigen::VectorXd centrality(n);
-  for (int i = 0; i < n; ++i) {
-    double s = 0;
-    for (int j = 0; j < n; ++j) s += (i == j || !std::isfinite(r(i, j))) ? 0.0 : r(i, j);
-    centrality(i) = s;
+
+  // Descends from the best graph.
+  void descend() {
+    auto [g, sc] = local_search(res_.best, res_.best_score);
+    accept(g, sc);
   }
-  std::sort(order.begin(), order.end(), [&](int x, int y) { return centrality(x) < centrality(y); });
-  std::vector<Graph> seeds;
-  seeds.push_back(capped_tree(r, order[0], search.degree_cap, false));
-  for (int h = 0; h < std::min(search.hub_seeds, n); ++h) seeds.push_back(capped_tree(r, order[h], search.degree_cap, true));
-  bool have = false;
-  for (Graph s : seeds) {
-    add_cheapest_links(s, r, links, search.degree_cap);
-    s = normalized(s);
-    const GraphScore sc = eval(s);
-    if (!have || sc.lambda_next_abs < res.best_score.lambda_next_abs) {
-      res.best = s;
-      res.best_score = sc;
-      have = true;
+
+  // Iterated local search: kick the best graph by `kick_swaps` random swaps and descend again.
+  void kick_and_descend() {
+    SplitMix rng{search_.seed};
+    for (int kick = 0; kick < search_.kicks && res_.evaluations < search_.max_evaluations; ++kick) {
+      Graph g = res_.best;
+      for (int k = 0; k < search_.kick_swaps; ++k) {
+        const int ri = static_cast<int>(rng.next() * static_cast<double>(g.size()));
+        auto [base, adds] = swap_candidates(g, ri, false);
+        if (adds.empty()) continue;
+        base.push_back(adds[static_cast<std::size_t>(rng.next() * static_cast<double>(adds.size()))]);
+        g = normalized(base);
+      }
+      const GraphScore sc = eval(g);
+      auto [lg, lsc] = local_search(g, sc);
+      accept(lg, lsc);
     }
   }
-  res.seed = res.best;
-  res.seed_score = res.best_score;
-  res.history.push_back(res.best_score.lambda_next_abs);
+
+  const SearchResult& result() const { return res_; }
+
+ private:
+  GraphScore eval(const Graph& g) {
+    ++res_.evaluations;
+    return score_graph(g, mean_delay_ms_, period_s_, gains_, spectrum_);
+  }
+
   // Swap neighbourhood of g: remove link ri, candidate links that keep g connected and capped.
-  auto swap_candidates = [&](const Graph& g, int ri, bool sorted_short_first) {
+  std::pair<Graph, std::vector<Edge>> swap_candidates(const Graph& g, int ri, bool sorted_short_first) const {
+    const int n = n_;
     Graph base = g;
     const Edge removed = base[ri];
     base.erase(base.begin() + ri);
@@ -793,31 +838,32 @@ SearchResult search_topology(const Eigen::MatrixXd& mean_delay_ms, double period
     std::vector<Edge> adds;
     for (int a = 0; a < n; ++a) {
       for (int b = a + 1; b < n; ++b) {
-        if (used(a, b) || (a == removed.a && b == removed.b) || !std::isfinite(r(a, b))) continue;
-        if (search.degree_cap > 0 && (deg[a] >= search.degree_cap || deg[b] >= search.degree_cap)) continue;
+        if (used(a, b) || (a == removed.a && b == removed.b) || !std::isfinite(r_(a, b))) continue;
+        if (search_.degree_cap > 0 && (deg[a] >= search_.degree_cap || deg[b] >= search_.degree_cap)) continue;
         if (!still_connected && uf.find(a) == uf.find(b)) continue;
         adds.push_back({a, b});
       }
     }
     if (sorted_short_first) {
-      std::sort(adds.begin(), adds.end(), [&](const Edge& x, const Edge& y) { return r(x.a, x.b) < r(y.a, y.b); });
+      std::sort(adds.begin(), adds.end(), [&](const Edge& x, const Edge& y) { return r_(x.a, x.b) < r_(y.a, y.b); });
     }
     return std::make_pair(base, adds);
-  };
+  }
+
   // First-improvement local search from (cur, cur_sc); returns the local optimum.
-  auto local_search = [&](Graph cur, GraphScore cur_sc) {
+  std::pair<Graph, GraphScore> local_search(Graph cur, GraphScore cur_sc) {
     bool improved = true;
-    while (improved && res.evaluations < search.max_evaluations) {
+    while (improved && res_.evaluations < search_.max_evaluations) {
       improved = false;
       std::vector<int> rem(cur.size());
       std::iota(rem.begin(), rem.end(), 0);
-      std::sort(rem.begin(), rem.end(), [&](int x, int y) { return r(cur[x].a, cur[x].b) > r(cur[y].a, cur[y].b); });
-      if (static_cast<int>(rem.size()) > search.remove_candidates) rem.resize(search.remove_candidates);
+      std::sort(rem.begin(), rem.end(), [&](int x, int y) { return r_(cur[x].a, cur[x].b) > r_(cur[y].a, cur[y].b); });
+      if (static_cast<int>(rem.size()) > search_.remove_candidates) rem.resize(search_.remove_candidates);
       for (int ri : rem) {
         auto [base, adds] = swap_candidates(cur, ri, true);
-        if (static_cast<int>(adds.size()) > search.add_candidates) adds.resize(search.add_candidates);
+        if (static_cast<int>(adds.size()) > search_.add_candidates) adds.resize(search_.add_candidates);
         for (const Edge& f : adds) {
-          if (res.evaluations >= search.max_evaluations) break;
+          if (res_.evaluations >= search_.max_evaluations) break;
           Graph cand = base;
           cand.push_back(f);
           cand = normalized(cand);
@@ -829,39 +875,49 @@ SearchResult search_topology(const Eigen::MatrixXd& mean_delay_ms, double period
             break;
           }
         }
-        if (improved || res.evaluations >= search.max_evaluations) break;
+        if (improved || res_.evaluations >= search_.max_evaluations) break;
       }
     }
     return std::make_pair(cur, cur_sc);
-  };
-  auto accept = [&](const Graph& g, const GraphScore& sc) {
-    if (sc.lambda_next_abs < res.best_score.lambda_next_abs - 1e-12) {
-      res.best = g;
-      res.best_score = sc;
-      ++res.improvements;
-      res.history.push_back(sc.lambda_next_abs);
-    }
-  };
-  {
-    auto [g, sc] = local_search(res.best, res.best_score);
-    accept(g, sc);
   }
-  // Iterated local search: kick the best graph by `kick_swaps` random swaps and descend again.
-  SplitMix rng{search.seed};
-  for (int kick = 0; kick < search.kicks && res.evaluations < search.max_evaluations; ++kick) {
-    Graph g = res.best;
-    for (int k = 0; k < search.kick_swaps; ++k) {
-      const int ri = static_cast<int>(rng.next() * static_cast<double>(g.size()));
-      auto [base, adds] = swap_candidates(g, ri, false);
-      if (adds.empty()) continue;
-      base.push_back(adds[static_cast<std::size_t>(rng.next() * static_cast<double>(adds.size()))]);
-      g = normalized(base);
+
+  void accept(const Graph& g, const GraphScore& sc) {
+    if (sc.lambda_next_abs < res_.best_score.lambda_next_abs - 1e-12) {
+      res_.best = g;
+      res_.best_score = sc;
+      ++res_.improvements;
+      res_.history.push_back(sc.lambda_next_abs);
     }
-    const GraphScore sc = eval(g);
-    auto [lg, lsc] = local_search(g, sc);
-    accept(lg, lsc);
   }
-  return res;
+
+  const Eigen::MatrixXd& mean_delay_ms_;
+  const double period_s_;
+  const PolynomialGains& gains_;
+  const SpectrumOptions& spectrum_;
+  const SearchOptions& search_;
+  const int n_;
+  const int links_;
+  const Eigen::MatrixXd r_;  // round trips
+  SearchResult res_;
+};
+
+}  // namespace
+
+SearchResult search_topology(const Eigen::MatrixXd& mean_delay_ms, double period_s,
+                             const PolynomialGains& gains, const SpectrumOptions& spectrum,
+                             const SearchOptions& search) {
+  check_square(mean_delay_ms, "delay matrix");
+  const int n = static_cast<int>(mean_delay_ms.rows());
+  const int links = search.links > 0 ? search.links : n - 1;
+  if (links < n - 1 || links > n * (n - 1) / 2) {
+    throw std::invalid_argument("links: must be in [N-1, N(N-1)/2] = [" + std::to_string(n - 1) + ", " +
+                                std::to_string(n * (n - 1) / 2) + "]");
+  }
+  TopologySearch run(mean_delay_ms, period_s, gains, spectrum, search, links);
+  run.seed();
+  run.descend();
+  run.kick_and_descend();
+  return run.result();
 }
 
 Eigen::MatrixXd synthetic_delays_ms(int users, const SyntheticMap& map, Eigen::MatrixXd* positions_km) {

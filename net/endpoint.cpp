@@ -532,6 +532,107 @@ bool Endpoint::RateBucket::take(std::int64_t now_ns, double rate_per_s, double b
   return true;
 }
 
+bool Endpoint::admit(int source, std::int64_t now_ns) {
+  if (source == kSourceUnchecked) return true;
+  const int pi = source >= 0 ? find_peer(static_cast<std::uint16_t>(source)) : -1;
+  RateBucket& b = pi >= 0 ? peers_[static_cast<std::size_t>(pi)]->bucket : unknown_bucket_;
+  if (b.take(now_ns, rx_rate_per_s_, rx_burst_)) return true;
+  decoder_.count_drop(DropReason::rate_limited);
+  if (pi >= 0) ++peers_[static_cast<std::size_t>(pi)]->stats.rate_limited;
+  return false;
+}
+
+DecodeLimits Endpoint::rx_limits(int source, std::int64_t now_ns) const {
+  DecodeLimits lim;
+  lim.source_station = source;
+  std::int64_t own = own_tick_.load(std::memory_order_relaxed);
+  if (own < 0 && sequence_epoch_ns_ >= 0 && tx_period_ns_ > 0)  // a common epoch: the session's tick by the clock
+    own = std::max<std::int64_t>(0, (now_ns - sequence_epoch_ns_) / tx_period_ns_);
+  if (own >= 0) lim.max_sequence = static_cast<std::uint64_t>(own) + max_sequence_ahead_;
+  if (envelope_.active()) lim.envelope = &envelope_;
+  return lim;
+}
+
+void Endpoint::receive_one(std::size_t n, int source, std::int64_t now_ns) {
+  DecodedState st;
+  const DecodeLimits lim = rx_limits(source, now_ns);
+  const std::size_t len = std::min<std::size_t>(n, rx_buf_.size());
+  if (n > rx_buf_.size()) {
+    // Larger than any legal datagram: the decoder drops it as oversized from its length.
+    decoder_.decode(rx_buf_.data(), n > max_datagram_ ? max_datagram_ + 1 : len, st, lim);
+    return;
+  }
+  const DecodeStatus ds = decoder_.decode(rx_buf_.data(), len, st, lim);
+  if (ds != DecodeStatus::complete && ds != DecodeStatus::fingerprint && ds != DecodeStatus::hello) return;
+  const int pi = find_peer(st.sender);
+  if (pi < 0) return;  // cannot happen: the decoder knows the same peers
+  PeerState& p = *peers_[static_cast<std::size_t>(pi)];
+  on_authentic(p, st.incarnation, now_ns);
+  if (ds == DecodeStatus::hello) {
+    on_hello(p, st);
+    return;
+  }
+  if (ds == DecodeStatus::fingerprint) {
+    on_fingerprint(p, st);
+    return;
+  }
+  if (st.value_count != value_count_) {  // a peer with another scene: never hand it to the tick
+    ++counters_.wrong_scene_size;
+    return;
+  }
+  p.stats.peer_safe_state = st.safe_state;
+  if (st.safe_state) {
+    // The neighbour is in its safe state: its echo still measures the round trip, but there is
+    // no state to couple to (the tick's edge goes over its bound and acts as a damper).
+    ++p.stats.safe_state_packets;
+    on_state(p, st, now_ns);
+    return;
+  }
+  on_state(p, st, now_ns);
+  deliver(st);
+}
+
+void Endpoint::on_authentic(PeerState& p, std::uint64_t incarnation, std::int64_t now_ns) {
+  on_incarnation(p, incarnation);
+  p.last_receive_ns = now_ns;
+  p.stats.last_receive_s = static_cast<double>(now_ns) * 1e-9;
+  if (!p.stats.up) {
+    p.stats.up = true;
+    ++p.stats.up_events;
+    p.stats.last_change_s = p.stats.last_up_s = static_cast<double>(now_ns) * 1e-9;
+  }
+}
+
+void Endpoint::on_fingerprint(PeerState& p, const DecodedState& st) {
+  ++counters_.fingerprints_received;
+  p.stats.has_fingerprint = true;
+  p.stats.fingerprint = st.fingerprint;
+  if (st.round_trip_bound_ns != 0) p.stats.peer_rtt_probe_bound_s = static_cast<double>(st.round_trip_bound_ns) * 1e-9;
+  if (st.loss_allowance_ticks >= 0) p.stats.peer_loss_allowance_ticks = st.loss_allowance_ticks;
+}
+
+void Endpoint::deliver(const DecodedState& st) {
+  std::uint32_t idx = 0;
+  if (!rx_free_.reader_try_pop(idx)) {
+    ++counters_.rx_ring_full;
+    return;
+  }
+  double* x = rx_store_.data() + std::size_t{idx} * 2 * value_count_;
+  st.copy_out(x, x + value_count_);
+  const SendRecord* rec = st.has_echo ? send_record(st.echo_seq) : nullptr;
+  rx_meta_[idx] = RxMeta{st.sender,      st.seq,      static_cast<double>(st.send_time_ns) * 1e-9,
+                         rec != nullptr, st.echo_seq, rec ? static_cast<double>(rec->send_ns) * 1e-9 : 0.0,
+                         monotonic_ns()};
+  rx_ready_.writer_try_push(idx);
+  // Dekker pair with wait_rx(), seq_cst on both sides (no fences: ThreadSanitizer checks
+  // this code): either the waiter's ring check sees this packet or we see the waiter.
+  rx_delivered_.fetch_add(1, std::memory_order_seq_cst);
+  if (rx_waiters_.load(std::memory_order_seq_cst) > 0) {
+    const std::uint64_t one = 1;
+    [[maybe_unused]] auto r = ::write(rx_wake_fd_, &one, sizeof one);
+  }
+}
+
 void Endpoint::handle_rx(std::int64_t now_ns) {
   for (int budget = 0; budget < 4096; ++budget) {
     if (budget > 0) {
@@ -550,91 +651,12 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
     }
     ++counters_.datagrams_received;
     // Per-source rate limit before any decoding or MAC work (a flood costs recv + this).
-    if (source != kSourceUnchecked) {
-      const int pi = source >= 0 ? find_peer(static_cast<std::uint16_t>(source)) : -1;
-      RateBucket& b = pi >= 0 ? peers_[static_cast<std::size_t>(pi)]->bucket : unknown_bucket_;
-      if (!b.take(now_ns, rx_rate_per_s_, rx_burst_)) {
-        decoder_.count_drop(DropReason::rate_limited);
-        if (pi >= 0) ++peers_[static_cast<std::size_t>(pi)]->stats.rate_limited;
-        continue;
-      }
-    }
+    if (!admit(source, now_ns)) continue;
     if (n == 0) {
       decoder_.count_drop(DropReason::zero_length);
       continue;
     }
-    DecodedState st;
-    DecodeLimits lim;
-    lim.source_station = source;
-    std::int64_t own = own_tick_.load(std::memory_order_relaxed);
-    if (own < 0 && sequence_epoch_ns_ >= 0 && tx_period_ns_ > 0)  // a common epoch: the session's tick by the clock
-      own = std::max<std::int64_t>(0, (now_ns - sequence_epoch_ns_) / tx_period_ns_);
-    if (own >= 0) lim.max_sequence = static_cast<std::uint64_t>(own) + max_sequence_ahead_;
-    if (envelope_.active()) lim.envelope = &envelope_;
-    const std::size_t len = std::min<std::size_t>(static_cast<std::size_t>(n), rx_buf_.size());
-    if (static_cast<std::size_t>(n) > rx_buf_.size()) {
-      // Larger than any legal datagram: the decoder drops it as oversized from its length.
-      decoder_.decode(rx_buf_.data(), static_cast<std::size_t>(n) > max_datagram_ ? max_datagram_ + 1 : len, st, lim);
-      continue;
-    }
-    const DecodeStatus ds = decoder_.decode(rx_buf_.data(), len, st, lim);
-    if (ds != DecodeStatus::complete && ds != DecodeStatus::fingerprint && ds != DecodeStatus::hello) continue;
-    const int pi = find_peer(st.sender);
-    if (pi < 0) continue;  // cannot happen: the decoder knows the same peers
-    PeerState& p = *peers_[static_cast<std::size_t>(pi)];
-    on_incarnation(p, st.incarnation);
-    p.last_receive_ns = now_ns;
-    p.stats.last_receive_s = static_cast<double>(now_ns) * 1e-9;
-    if (!p.stats.up) {
-      p.stats.up = true;
-      ++p.stats.up_events;
-      p.stats.last_change_s = p.stats.last_up_s = static_cast<double>(now_ns) * 1e-9;
-    }
-    if (ds == DecodeStatus::hello) {
-      on_hello(p, st);
-      continue;
-    }
-    if (ds == DecodeStatus::fingerprint) {
-      ++counters_.fingerprints_received;
-      p.stats.has_fingerprint = true;
-      p.stats.fingerprint = st.fingerprint;
-      if (st.round_trip_bound_ns != 0) p.stats.peer_rtt_probe_bound_s = static_cast<double>(st.round_trip_bound_ns) * 1e-9;
-      if (st.loss_allowance_ticks >= 0) p.stats.peer_loss_allowance_ticks = st.loss_allowance_ticks;
-      continue;
-    }
-    if (st.value_count != value_count_) {  // a peer with another scene: never hand it to the tick
-      ++counters_.wrong_scene_size;
-      continue;
-    }
-    p.stats.peer_safe_state = st.safe_state;
-    if (st.safe_state) {
-      // The neighbour is in its safe state: its echo still measures the round trip, but there is
-      // no state to couple to (the tick's edge goes over its bound and acts as a damper).
-      ++p.stats.safe_state_packets;
-      on_state(p, st, now_ns);
-      continue;
-    }
-    on_state(p, st, now_ns);
-
-    std::uint32_t idx = 0;
-    if (!rx_free_.reader_try_pop(idx)) {
-      ++counters_.rx_ring_full;
-      continue;
-    }
-    double* x = rx_store_.data() + std::size_t{idx} * 2 * value_count_;
-    st.copy_out(x, x + value_count_);
-    const SendRecord* rec = st.has_echo ? send_record(st.echo_seq) : nullptr;
-    rx_meta_[idx] = RxMeta{st.sender,      st.seq,      static_cast<double>(st.send_time_ns) * 1e-9,
-                           rec != nullptr, st.echo_seq, rec ? static_cast<double>(rec->send_ns) * 1e-9 : 0.0,
-                           monotonic_ns()};
-    rx_ready_.writer_try_push(idx);
-    // Dekker pair with wait_rx(), seq_cst on both sides (no fences: ThreadSanitizer checks
-    // this code): either the waiter's ring check sees this packet or we see the waiter.
-    rx_delivered_.fetch_add(1, std::memory_order_seq_cst);
-    if (rx_waiters_.load(std::memory_order_seq_cst) > 0) {
-      const std::uint64_t one = 1;
-      [[maybe_unused]] auto r = ::write(rx_wake_fd_, &one, sizeof one);
-    }
+    receive_one(static_cast<std::size_t>(n), source, now_ns);
   }
 }
 

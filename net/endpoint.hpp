@@ -417,6 +417,14 @@ class Endpoint {
   void on_hello(PeerState& p, const DecodedState& st);                        // nonce agreement
   void forget_keys(PeerState& p);                                             // a restarted neighbour
   void handle_rx(std::int64_t now_ns);
+  // The steps of handle_rx for one datagram: rate limit of its source (false: dropped), the
+  // decoder's limits for it, decode and dispatch, and the hand-off of a state packet to the tick.
+  bool admit(int source, std::int64_t now_ns);
+  DecodeLimits rx_limits(int source, std::int64_t now_ns) const;
+  void receive_one(std::size_t n, int source, std::int64_t now_ns);
+  void on_authentic(PeerState& p, std::uint64_t incarnation, std::int64_t now_ns);  // incarnation, up
+  void on_fingerprint(PeerState& p, const DecodedState& st);
+  void deliver(const DecodedState& st);
   void handle_tx(std::int64_t now_ns, bool caught_spinning = false);
   void release_due(std::int64_t now_ns);
   void send_now(std::uint16_t dest, const std::uint8_t* d, std::size_t len, PeerState& p);

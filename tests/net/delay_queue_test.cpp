@@ -47,6 +47,18 @@ TEST(DelayQueue, ReleasesByTimeThenQueueOrderAndNothingEarly) {
   CHECK(q.empty());
 }
 
+TEST(DelayQueue, DatagramsDueTogetherLeaveInQueueOrder) {
+  // A packet's fragments share one release time: they must leave in the order they were queued.
+  DelayQueue q(64, 16);
+  for (int i = 0; i < 40; ++i) CHECK(queue(q, i % 2 == 0 ? 50 : 60, 1, std::to_string(i)));
+  const auto out = release(q, 100);
+  CHECK_EQUAL(40u, out.size());
+  for (int i = 0; i < 20; ++i) {
+    STRCMP_EQUAL(("1:" + std::to_string(2 * i)).c_str(), out[static_cast<std::size_t>(i)].c_str());
+    STRCMP_EQUAL(("1:" + std::to_string(2 * i + 1)).c_str(), out[static_cast<std::size_t>(20 + i)].c_str());
+  }
+}
+
 TEST(DelayQueue, FullQueueRefusesAndFreedSlotsAreReused) {
   DelayQueue q(2, 16);
   CHECK(queue(q, 5, 1, "x"));

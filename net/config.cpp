@@ -60,25 +60,18 @@ void parse_keys(const toml::node_view<const toml::node>& net, const std::string&
 }
 }  // namespace
 
-NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count, const std::string& config_file) {
-  const toml::table doc = platform::config::parse_document(toml_text);
-  // The section is [net]; [network] (firmware/deploy's lab configs) is accepted as an alias,
-  // with `listen` for `bind` and peers' `station` for `id`.
-  const bool alias = !std::as_const(doc)["net"] && std::as_const(doc)["network"];
-  const std::string P = alias ? "network." : "net.";
-  const toml::node_view<const toml::node> net = std::as_const(doc)[alias ? "network" : "net"];
-  if (!net.is_table()) bad("[net]", "a table");
-  NetConfig c;
+namespace {
+// net.transport and net.session_id.
+void parse_transport(const toml::node_view<const toml::node>& net, const std::string& P, NetConfig& c) {
   EndpointConfig& e = c.endpoint;
-  e.value_count = value_count;
-  if (net["station_id"]) e.wire.station_id = integer<std::uint16_t>(net["station_id"], P + "station_id", 0, 0, 65534);
-  else e.wire.station_id = integer<std::uint16_t>(std::as_const(doc)["station"]["id"], "station.id", 0, 0, 65534);
-  const std::uint16_t self = e.wire.station_id;
-
   c.transport = text(net["transport"], P + "transport", "udp");
   if (c.transport != "udp" && c.transport != "raw") bad(P + "transport", "\"udp\" or \"raw\"");
   e.wire.session_id = integer<std::uint32_t>(net["session_id"], P + "session_id", 1, 0, 0xFFFFFFFFll);
-  parse_keys(net, P, config_file, e);
+}
+
+// Encoding, datagram size, the I/O thread, round-trip margins and receive limits.
+void parse_io_options(const toml::node_view<const toml::node>& net, const std::string& P, NetConfig& c) {
+  EndpointConfig& e = c.endpoint;
   const std::string enc = text(net["encoding"], P + "encoding", "float32");
   if (enc == "float64") e.wire.encoding = ValueEncoding::float64;
   else if (enc == "float32") e.wire.encoding = ValueEncoding::float32;
@@ -101,6 +94,10 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
       integer<std::uint64_t>(net["max_sequence_ahead_ticks"], P + "max_sequence_ahead_ticks", 50, 1, 1ll << 40);
   e.rx_rate_limit_per_s = real(net["rx_rate_limit_per_s"], P + "rx_rate_limit_per_s", 0.0, 0.0, 1e9);
   c.envelope_radii = real(net["envelope_radii"], P + "envelope_radii", 3.0, 0.0, 1e6);
+}
+
+// Where this station listens: bind (udp; never the wildcard without listen_any) or interface (raw).
+void parse_local_address(const toml::node_view<const toml::node>& net, const std::string& P, NetConfig& c) {
   const std::string bind_key = P + (net["bind"] || !net["listen"] ? "bind" : "listen");
   if (c.transport == "udp")
     c.bind = net["bind"] ? text(net["bind"], P + "bind", "") : text(net["listen"], P + "listen", "");
@@ -116,66 +113,103 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
   }
   if (c.transport == "raw") c.interface = text(net["interface"], P + "interface", "");
   if (c.transport == "raw" && c.interface.empty()) bad(P + "interface", "set for transport = \"raw\"");
+}
 
-  const auto imp = net["impairment"];
+// [net.impairment]: one model for every link this station sends on.
+struct ImpairmentSection {
   std::string preset = "none";
   std::uint64_t seed = 1;
   std::shared_ptr<const std::vector<double>> trace;
-  double bo_start = 0.0, bo_len = 0.0;
-  if (imp) {
-    if (!imp.is_table()) bad("[" + P + "impairment]", "a table");
-    preset = text(imp["preset"], P + "impairment.preset", "none");
-    LinkImpairment::preset(preset, 0.0, P + "impairment.preset");  // validates the name
-    seed = integer<std::uint64_t>(imp["seed"], P + "impairment.seed", 1, 0, (1ll << 62));
-    c.impairment_seed = seed;
-    c.impairment_seed_given = static_cast<bool>(imp["seed"]);
-    const std::string tf = text(imp["trace_file"], P + "impairment.trace_file", "");
-    if (!tf.empty()) trace = load_delay_trace(tf);
-    bo_start = real(imp["blackout_start_s"], P + "impairment.blackout_start_s", 0.0, 0.0, 1e6);
-    bo_len = real(imp["blackout_length_s"], P + "impairment.blackout_length_s", 0.0, 0.0, 1e6);
+  double blackout_start_s = 0.0, blackout_length_s = 0.0;
+  bool any() const { return preset != "none" || trace || blackout_length_s > 0.0; }
+};
+
+ImpairmentSection parse_impairment(const toml::node_view<const toml::node>& net, const std::string& P, NetConfig& c) {
+  ImpairmentSection s;
+  const auto imp = net["impairment"];
+  if (!imp) return s;
+  if (!imp.is_table()) bad("[" + P + "impairment]", "a table");
+  s.preset = text(imp["preset"], P + "impairment.preset", "none");
+  LinkImpairment::preset(s.preset, 0.0, P + "impairment.preset");  // validates the name
+  s.seed = integer<std::uint64_t>(imp["seed"], P + "impairment.seed", 1, 0, (1ll << 62));
+  c.impairment_seed = s.seed;
+  c.impairment_seed_given = static_cast<bool>(imp["seed"]);
+  const std::string tf = text(imp["trace_file"], P + "impairment.trace_file", "");
+  if (!tf.empty()) s.trace = load_delay_trace(tf);
+  s.blackout_start_s = real(imp["blackout_start_s"], P + "impairment.blackout_start_s", 0.0, 0.0, 1e6);
+  s.blackout_length_s = real(imp["blackout_length_s"], P + "impairment.blackout_length_s", 0.0, 0.0, 1e6);
+  return s;
+}
+
+// One entry of net.peers (key k, e.g. "net.peers[2]"): id, impairment of our link to it, its
+// public key, and its address on the configured transport.
+void parse_peer(const toml::node_view<const toml::node>& p, const std::string& k, const std::string& P,
+                const ImpairmentSection& imp, NetConfig& c) {
+  EndpointConfig& e = c.endpoint;
+  const std::uint16_t self = e.wire.station_id;
+  PeerLink l;
+  const char* id_key = p["id"] ? "id" : "station";
+  if (!p[id_key]) bad(k + ".id", "present");
+  l.station_id = integer<std::uint16_t>(p[id_key], k + "." + id_key, 0, 0, 65534);
+  if (l.station_id == self) bad(k + ".id", "different from this station's id " + std::to_string(self));
+  const double mean_ms = real(p["mean_delay_ms"], k + ".mean_delay_ms", 0.0, 0.0, 1e5);
+  if (imp.any()) {
+    l.impaired = true;
+    l.impairment = LinkImpairment::preset(imp.preset, mean_ms * 1e-3, P + "impairment.preset");
+    l.impairment.delay_trace = imp.trace;
+    l.impairment.blackout_start_s = imp.blackout_start_s;
+    l.impairment.blackout_length_s = imp.blackout_length_s;
+    // The simulator's seed rule (net::link_seed; wire ids are user numbers, index + 1).
+    l.seed = link_seed(imp.seed, static_cast<int>(l.station_id) - 1, static_cast<int>(self) - 1);
+    ImpairedLink check(l.impairment, l.seed);  // validates the model now, naming the key
+    (void)check;
   }
+  if (e.pairwise_keys) {
+    if (!p["public_key"]) bad(k + ".public_key", "set when " + P + "key_file is (the neighbour's public key, 64 hex digits)");
+    l.public_key = public_key_from_hex(text(p["public_key"], k + ".public_key", ""), k + ".public_key");
+    if (l.public_key == e.own_keys.public_key) bad(k + ".public_key", "the neighbour's key, not this station's own");
+  } else if (p["public_key"]) {
+    bad(k + ".public_key", "absent with " + P + "shared_session_key (public keys go with " + P + "key_file)");
+  }
+  e.peers.push_back(l);
+  if (c.transport == "udp") {
+    if (!p["address"]) bad(k + ".address", "set for transport = \"udp\"");
+    c.udp_peers.push_back({l.station_id, text(p["address"], k + ".address", "")});
+    socklen_t len = 0;
+    parse_udp_address(c.udp_peers.back().address, k + ".address", len);
+  } else {
+    if (!p["mac"]) bad(k + ".mac", "set for transport = \"raw\"");
+    c.raw_peers.push_back({l.station_id, parse_mac(text(p["mac"], k + ".mac", ""), k + ".mac")});
+  }
+}
+}  // namespace
+
+NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count, const std::string& config_file) {
+  const toml::table doc = platform::config::parse_document(toml_text);
+  // The section is [net]; [network] (firmware/deploy's lab configs) is accepted as an alias,
+  // with `listen` for `bind` and peers' `station` for `id`.
+  const bool alias = !std::as_const(doc)["net"] && std::as_const(doc)["network"];
+  const std::string P = alias ? "network." : "net.";
+  const toml::node_view<const toml::node> net = std::as_const(doc)[alias ? "network" : "net"];
+  if (!net.is_table()) bad("[net]", "a table");
+  NetConfig c;
+  EndpointConfig& e = c.endpoint;
+  e.value_count = value_count;
+  if (net["station_id"]) e.wire.station_id = integer<std::uint16_t>(net["station_id"], P + "station_id", 0, 0, 65534);
+  else e.wire.station_id = integer<std::uint16_t>(std::as_const(doc)["station"]["id"], "station.id", 0, 0, 65534);
+
+  parse_transport(net, P, c);
+  parse_keys(net, P, config_file, e);
+  parse_io_options(net, P, c);
+  parse_local_address(net, P, c);
+  const ImpairmentSection imp = parse_impairment(net, P, c);
 
   const auto peers = net["peers"];
   if (!peers.is_array() || peers.as_array()->empty()) bad(P + "peers", "an array of one or more tables");
   std::size_t idx = 0;
   for (const auto& node : *peers.as_array()) {
     if (!node.is_table()) bad(P + "peers", "an array of tables");
-    const toml::node_view<const toml::node> p{node};
-    const std::string k = P + "peers[" + std::to_string(idx++) + "]";
-    PeerLink l;
-    const char* id_key = p["id"] ? "id" : "station";
-    if (!p[id_key]) bad(k + ".id", "present");
-    l.station_id = integer<std::uint16_t>(p[id_key], k + "." + id_key, 0, 0, 65534);
-    if (l.station_id == self) bad(k + ".id", "different from this station's id " + std::to_string(self));
-    const double mean_ms = real(p["mean_delay_ms"], k + ".mean_delay_ms", 0.0, 0.0, 1e5);
-    if (preset != "none" || trace || bo_len > 0.0) {
-      l.impaired = true;
-      l.impairment = LinkImpairment::preset(preset, mean_ms * 1e-3, P + "impairment.preset");
-      l.impairment.delay_trace = trace;
-      l.impairment.blackout_start_s = bo_start;
-      l.impairment.blackout_length_s = bo_len;
-      // The simulator's seed rule (net::link_seed; wire ids are user numbers, index + 1).
-      l.seed = link_seed(seed, static_cast<int>(l.station_id) - 1, static_cast<int>(self) - 1);
-      ImpairedLink check(l.impairment, l.seed);  // validates the model now, naming the key
-      (void)check;
-    }
-    if (e.pairwise_keys) {
-      if (!p["public_key"]) bad(k + ".public_key", "set when " + P + "key_file is (the neighbour's public key, 64 hex digits)");
-      l.public_key = public_key_from_hex(text(p["public_key"], k + ".public_key", ""), k + ".public_key");
-      if (l.public_key == e.own_keys.public_key) bad(k + ".public_key", "the neighbour's key, not this station's own");
-    } else if (p["public_key"]) {
-      bad(k + ".public_key", "absent with " + P + "shared_session_key (public keys go with " + P + "key_file)");
-    }
-    e.peers.push_back(l);
-    if (c.transport == "udp") {
-      if (!p["address"]) bad(k + ".address", "set for transport = \"udp\"");
-      c.udp_peers.push_back({l.station_id, text(p["address"], k + ".address", "")});
-      socklen_t len = 0;
-      parse_udp_address(c.udp_peers.back().address, k + ".address", len);
-    } else {
-      if (!p["mac"]) bad(k + ".mac", "set for transport = \"raw\"");
-      c.raw_peers.push_back({l.station_id, parse_mac(text(p["mac"], k + ".mac", ""), k + ".mac")});
-    }
+    parse_peer(toml::node_view<const toml::node>{node}, P + "peers[" + std::to_string(idx++) + "]", P, imp, c);
   }
   e.wire.validate();
   e.rtt.validate();

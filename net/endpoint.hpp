@@ -42,18 +42,24 @@
 #include <string>
 #include <vector>
 
+#include "net/delay_queue.hpp"
 #include "net/envelope.hpp"
 #include "net/impairment.hpp"
+#include "net/io_thread.hpp"
+#include "net/key_agreement.hpp"
 #include "net/keys.hpp"
+#include "net/peer_liveness.hpp"
+#include "net/peer_stats.hpp"
+#include "net/rate_limit.hpp"
+#include "net/receive_account.hpp"
+#include "net/round_trip.hpp"
 #include "net/rtt.hpp"
+#include "net/sequence_ceiling.hpp"
+#include "net/state_channel.hpp"
+#include "net/tx_spin.hpp"
 #include "net/transport.hpp"
 #include "net/wire.hpp"
 #include "platform/snapshot_box.hpp"
-#include "platform/spsc_ring.hpp"
-
-namespace haptic::platform {
-class RtThread;
-}
 
 namespace haptic::net {
 
@@ -127,83 +133,6 @@ struct EndpointConfig {
   double envelope_max_speed_m_per_s = 0.0;
 };
 
-// Statistics of one neighbor (a copy; read from any non-RT thread).
-struct PeerStats {
-  std::uint16_t station_id = 0;
-  std::uint64_t packets_received = 0;     // complete state packets delivered
-  std::uint64_t newest_seq = 0;           // of the current incarnation
-  double newest_send_time_s = 0.0;        // the neighbour's send stamp of newest_seq (its clock)
-  std::uint64_t lowest_seq = 0;
-  double loss_fraction = 0.0;             // 1 - distinct received / (newest - lowest + 1), current incarnation
-  std::uint64_t packets_received_incarnation = 0;
-  double one_way_mean_s = 0.0;            // receive time - sender stamp (same-host clocks only)
-  double one_way_max_s = 0.0;
-  std::uint64_t packets_sent = 0, datagrams_sent = 0, impair_lost = 0, impair_duplicated = 0,
-                send_errors = 0, delay_queue_full = 0;
-  std::uint64_t bytes_sent = 0;           // UDP payload bytes of the datagrams sent (every kind)
-  std::uint64_t rtt_samples = 0;
-  std::uint64_t echoes_unmatched = 0;     // echoes naming a sequence we have no send record of
-  double rtt_last_s = 0.0, rtt_mean_s = 0.0, rtt_min_s = 0.0, rtt_max_s = 0.0, rtt_bound_s = 0.0;
-  bool rtt_probing = false, rtt_has_bound = false;
-  std::uint64_t rtt_over_bound_events = 0, rtt_bound_generation = 0;
-  // The round-trip bound our probing fixed (0 before; over-bound events do not change it) and the
-  // one the neighbour's probing fixed for the same link, from its fingerprint messages (0: none
-  // received yet): the station uses the larger, so both ends assume the same bound.
-  double rtt_probe_bound_s = 0.0, peer_rtt_probe_bound_s = 0.0;
-  // The neighbour's loss allowance for the link, from the same fingerprint messages (-1: none yet;
-  // set_loss_allowance() is ours).
-  int peer_loss_allowance_ticks = -1;
-  // Incarnation of the neighbour (0 before its first packet) and how often it changed.
-  std::uint64_t incarnation = 0, incarnation_changes = 0;
-  // Up/down: up after its first packet, down after peer_silence_s without one.
-  bool up = false;
-  std::uint64_t up_events = 0, down_events = 0;
-  double last_change_s = 0.0;             // monotonic_s() of the newest up/down change
-  double last_down_s = 0.0, last_up_s = 0.0;  // monotonic_s() of the newest down / up change
-  double last_receive_s = 0.0;
-  // Clock offset (peer clock - our clock), NTP-style from the echo (our send record t1, the
-  // peer's receipt t2 = t3 - hold, its send stamp t3, our receipt t4):
-  //   offset = ((t2 - t1) + (t3 - t4)) / 2, taken from the lowest-round-trip sample of a window
-  // of 128 samples; its error is at most half that round trip minus the hold.
-  std::uint64_t clock_offset_samples = 0;
-  double clock_offset_s = 0.0;
-  double clock_offset_rtt_s = 0.0;        // round trip (minus hold) of the sample it came from
-  bool has_fingerprint = false;
-  Fingerprint fingerprint{};              // newest received from this neighbour
-  // Safe-state packets (kFlagSafeState) received: the neighbour said it is in its safe state;
-  // never handed to the tick. peer_safe_state: the newest state packet had the flag.
-  std::uint64_t safe_state_packets = 0;
-  bool peer_safe_state = false;
-  std::uint64_t rate_limited = 0;         // datagrams from this neighbour's address over the rate limit
-  // Pairwise keys: this run's traffic keys with the neighbour are agreed; how often they were
-  // (re)agreed (a restarted neighbour brings a new nonce); hellos sent / received; state packets
-  // not sent to it because no keys were agreed yet.
-  bool keys_agreed = false;
-  std::uint64_t key_agreements = 0, hellos_sent = 0, hellos_received = 0, tx_without_keys = 0;
-};
-
-// Totals of the I/O thread (a copy).
-struct EndpointCounters {
-  DropCounters drops{};
-  std::uint64_t datagrams_received = 0, receive_errors = 0, rx_ring_full = 0;
-  std::uint64_t wrong_scene_size = 0;  // authentic packets whose 3n differs from ours (dropped)
-  std::uint64_t tx_safe_state = 0;     // packets sent with kFlagSafeState (safe state, or a non-finite state pushed)
-  std::uint64_t fingerprints_received = 0;
-  // Push -> first datagram handed to the transport (I/O thread), per state packet; caught
-  // inside a spin window; spin windows opened (net.tx_spin).
-  std::uint64_t tx_packets = 0, tx_caught_spinning = 0, tx_spin_windows = 0;
-  double tx_handoff_sum_s = 0.0, tx_handoff_max_s = 0.0;
-};
-
-// The totals (EndpointCounters) plus what only the caller's side knows.
-struct EndpointStats : EndpointCounters {
-  std::uint64_t tx_overruns = 0;
-  std::uint64_t incarnation = 0;  // ours
-  double io_thread_cpu_s = 0.0;   // CPU time the I/O thread has used (spinning included)
-  double tx_handoff_mean_s = 0.0; // push -> first datagram handed to the transport, per packet
-  std::vector<PeerStats> peers;
-};
-
 // One received state packet with its round-trip context (drain_packets()).
 struct RxPacket {
   std::uint16_t sender = 0;
@@ -245,11 +174,11 @@ class Endpoint {
   std::size_t drain(F&& on_state, std::size_t max_packets = std::numeric_limits<std::size_t>::max()) {
     std::size_t n = 0;
     std::uint32_t idx = 0;
-    while (n < max_packets && rx_ready_.reader_try_pop(idx)) {
-      const RxMeta& m = rx_meta_[idx];
-      const double* x = rx_store_.data() + std::size_t{idx} * 2 * value_count_;
+    while (n < max_packets && rx_.consumer_pop(idx)) {
+      const RxMeta& m = rx_.meta(idx);
+      const double* x = rx_.values(idx);
       on_state(m.sender, m.seq, m.send_time_s, x, x + value_count_, value_count_);
-      rx_free_.writer_try_push(idx);  // cannot fail: as many slots as buffers
+      rx_.consumer_release(idx);
       ++n;
     }
     return n;
@@ -259,8 +188,8 @@ class Endpoint {
   std::size_t drain_packets(F&& on_packet, std::size_t max_packets = std::numeric_limits<std::size_t>::max()) {
     std::size_t n = 0;
     std::uint32_t idx = 0;
-    while (n < max_packets && rx_ready_.reader_try_pop(idx)) {
-      const RxMeta& m = rx_meta_[idx];
+    while (n < max_packets && rx_.consumer_pop(idx)) {
+      const RxMeta& m = rx_.meta(idx);
       RxPacket p;
       p.sender = m.sender;
       p.seq = m.seq;
@@ -268,12 +197,12 @@ class Endpoint {
       p.has_echo = m.has_echo;
       p.echo_seq = m.echo_seq;
       p.echo_time_s = m.echo_time_s;
-      p.x_hat = rx_store_.data() + std::size_t{idx} * 2 * value_count_;
+      p.x_hat = rx_.values(idx);
       p.v_hat = p.x_hat + value_count_;
       p.count = value_count_;
       p.delivered_s = static_cast<double>(m.delivered_ns) * 1e-9;
       on_packet(static_cast<const RxPacket&>(p));
-      rx_free_.writer_try_push(idx);
+      rx_.consumer_release(idx);
       ++n;
     }
     return n;
@@ -288,7 +217,7 @@ class Endpoint {
   // The station's current tick k (the sequence numbers it pushes): from the first call on,
   // authentic datagrams with a sequence above k + max_sequence_ahead_ticks are dropped
   // (future_sequence). RT-safe (one relaxed atomic store).
-  void note_tick(std::int64_t k) { own_tick_.store(k, std::memory_order_relaxed); }
+  void note_tick(std::int64_t k) { ceiling_.note_tick(k); }
   // Per neighbor (index into config peers): the current round-trip bound in ticks of
   // period_s and its generation (bumps on every change: probing done, over-bound event).
   // RT-safe (atomics).
@@ -312,9 +241,9 @@ class Endpoint {
   EndpointStats stats() const;
   std::uint64_t incarnation() const { return incarnation_; }
   // The I/O thread's set-up warnings (e.g. SCHED_FIFO refused), after start(). Not RT-safe.
-  const std::vector<std::string>& io_setup_warnings() const { return io_warnings_; }
+  const std::vector<std::string>& io_setup_warnings() const { return io_.warnings(); }
   // "SCHED_FIFO <p>" or "SCHED_OTHER" (after start()).
-  const std::string& io_scheduling() const { return io_sched_; }
+  const std::string& io_scheduling() const { return io_.scheduling(); }
   std::size_t peer_count() const { return peers_.size(); }
   std::uint32_t value_count() const { return value_count_; }
   const Transport& transport() const { return *transport_; }
@@ -335,92 +264,48 @@ class Endpoint {
     std::int64_t push_ns;
     bool safe_state;
   };
-  // Token bucket of one source (a neighbour's address, or every unknown address together).
-  struct RateBucket {
-    double tokens = 0.0;
-    std::int64_t last_ns = -1;
-    bool take(std::int64_t now_ns, double rate_per_s, double burst);  // false: over the limit
-  };
-  struct Delayed {
-    std::int64_t release_ns;
-    std::uint64_t order;
-    std::uint16_t dest;
-    std::uint32_t len;
-    std::uint32_t slot;
-  };
+  // One neighbour, by role (each part in its own file, unit-tested alone).
   struct PeerState {
+    explicit PeerState(const RttConfig& rtt) : round_trip(rtt) {}
     PeerLink link;
-    SendImpairment impaired;
-    RttEstimator rtt;
-    // The newest packet received from this peer and the one before it, with their receive
-    // times. A state is echoed only with a packet received by its own send stamp, so the
-    // receiver's age bound (now - its own send time of the echo) never understates the age.
-    struct EchoSlot {
-      bool valid = false;
-      std::uint64_t seq = 0;
-      std::int64_t send_time_ns = 0;
-      std::int64_t receive_time_ns = 0;
-    };
-    EchoSlot echo, previous_echo;
-    const EchoSlot* echo_as_of(std::int64_t stamp_ns) const {
-      if (echo.valid && echo.receive_time_ns <= stamp_ns) return &echo;
-      if (previous_echo.valid && previous_echo.receive_time_ns <= stamp_ns) return &previous_echo;
-      return nullptr;
-    }
-    std::uint64_t last_sampled_echo = 0;
-    bool sampled_any = false;
-    bool has_incarnation = false;
-    std::int64_t last_receive_ns = 0;
-    std::uint64_t offset_window_n = 0;   // samples in the current clock-offset window
-    double offset_window_best_rtt = 0.0, offset_window_best = 0.0;
-    RateBucket bucket;                   // datagrams from this neighbour's configured address
-    // Pairwise keys (I/O thread): the pair's static keys (hellos), the newest nonce of the peer
-    // in an authentic hello (echoed back in ours), the nonce adopted for this run (only from a
-    // hello echoing OUR nonce), this run's traffic keys, and whether a hello / fingerprint is due.
-    PairKeys pair{};
-    RunNonce seen_nonce{}, agreed_nonce{};
-    SessionKey tx_traffic{}, rx_traffic{};
-    bool hello_due = false, fingerprint_due = false;
-    PeerStats stats;                     // I/O thread only; published to `box`
-    platform::SnapshotBox<PeerStats> box;
-    std::atomic<std::uint64_t> bound_ns{0};
-    std::atomic<std::uint64_t> bound_generation{0};
+    SendImpairment impaired;   // the impairment emulator's fates of our link to it
+    RoundTrip round_trip;      // echoes, round trips, clock offset, the published bound
+    ReceiveAccount received;   // incarnations, sequences, loss, one-way time
+    PeerLiveness liveness;     // silence detection
+    PairAgreement keys;        // pairwise keys (EndpointConfig::pairwise_keys)
+    PeerStats stats;           // the rest (sent counters, fingerprint, safe state); I/O thread only
+    platform::SnapshotBox<PeerStats> box;  // published copy of everything
     std::atomic<std::int32_t> own_loss_allowance{-1};  // set_loss_allowance(); sent in fingerprints
   };
-  // Our own send records (I/O thread): sequence -> our send stamp, for round trips and the
-  // age bound from the echo (a peer cannot make a round trip look shorter than it was).
-  struct SendRecord {
-    bool valid = false;
-    std::uint64_t seq = 0;
-    std::int64_t send_ns = 0;
-  };
-  static constexpr std::size_t kSendRecords = 1024;  // 2 s of 2 ms ticks
-  const SendRecord* send_record(std::uint64_t seq) const {
-    const SendRecord& r = send_records_[seq % kSendRecords];
-    return r.valid && r.seq == seq ? &r : nullptr;
-  }
 
+  // ---- I/O thread -----------------------------------------------------------------------
   void run();
-  bool spin_for_push(std::int64_t until_ns);  // I/O thread: tick-synchronous TX window
+  bool spin_for_push(std::int64_t until_ns);  // tick-synchronous TX window
   void io_step(std::int64_t now_ns, bool rx, bool caught_spinning = false);  // rx, tx, release, publish
-  void on_state(PeerState& p, const DecodedState& st, std::int64_t now_ns);  // echo, RTT, offset, stats
-  void on_incarnation(PeerState& p, std::uint64_t incarnation);
   void check_silence(std::int64_t now_ns);
   void apply_probe_command();
   void publish_stats();
-  void send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns);
-  void send_hellos(std::uint64_t seq, std::int64_t stamp_ns);                 // I/O thread: per push and timer
-  bool hellos_wanted() const;  // a neighbour without agreed keys, or one that asked for a hello
-  // I/O thread: with pairwise keys, the hellos hellos_wanted() asks for, and the hello timer
-  // restarted from now_ns (called with each push and when the timer is due).
-  void send_wanted_hellos(std::uint64_t seq, std::int64_t stamp_ns, std::int64_t now_ns);
-  void on_hello(PeerState& p, const DecodedState& st);                        // nonce agreement
-  void forget_keys(PeerState& p);                                             // a restarted neighbour
+  // Receiving: the loop, then per datagram the rate limit of its source (false: dropped), the
+  // decoder's limits for it, decode and dispatch, and the hand-off of a state packet to the tick.
   void handle_rx(std::int64_t now_ns);
+  bool admit(int source, std::int64_t now_ns);
+  DecodeLimits rx_limits(int source, std::int64_t now_ns) const;
+  void receive_one(std::size_t n, int source, std::int64_t now_ns);
+  void on_authentic(PeerState& p, std::uint64_t incarnation, std::int64_t now_ns);  // incarnation, up
+  void on_hello(PeerState& p, const DecodedState& st);                               // key agreement
+  void on_fingerprint(PeerState& p, const DecodedState& st);
+  void on_state(PeerState& p, const DecodedState& st, std::int64_t now_ns);  // echo, RTT, offset, stats
+  void deliver(const DecodedState& st);
+  // Sending: per push the wanted hellos, fingerprints and the state to every neighbour.
   void handle_tx(std::int64_t now_ns, bool caught_spinning = false);
-  void release_due(std::int64_t now_ns);
+  void send_state(PeerState& p, const OutgoingState& o, std::int64_t now_ns);  // impaired, fragmented
+  void send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns);
+  void send_hellos(std::uint64_t seq, std::int64_t stamp_ns);
+  bool hellos_wanted() const;  // a neighbour without agreed keys, or one that asked for a hello
+  // With pairwise keys, the hellos hellos_wanted() asks for, and the hello timer restarted from
+  // now_ns (called with each push and when the timer is due).
+  void send_wanted_hellos(std::uint64_t seq, std::int64_t stamp_ns, std::int64_t now_ns);
   void send_now(std::uint16_t dest, const std::uint8_t* d, std::size_t len, PeerState& p);
-  void publish_bound(PeerState& p);
   int find_peer(std::uint16_t id) const;
 
   std::uint32_t value_count_;
@@ -429,44 +314,39 @@ class Endpoint {
   Decoder decoder_;
   std::vector<std::unique_ptr<PeerState>> peers_;
   std::size_t frags_per_packet_;
-  double epoch_s_;
-  bool busy_poll_;
-  bool tx_spin_;
-  int io_cpu_;
-  std::int64_t tx_period_ns_, tx_lead_ns_, tx_tail_ns_;
+  std::uint64_t incarnation_;
+  Fingerprint fingerprint_;
+  bool pairwise_;  // EndpointConfig::pairwise_keys
 
-  platform::SpscRing<std::uint32_t, kRxBuffers> rx_ready_, rx_free_;
-  platform::SpscRing<std::uint32_t, kTxBuffers> tx_ready_, tx_free_;
-  std::vector<RxMeta> rx_meta_;
-  std::vector<double> rx_store_;
-  std::vector<TxMeta> tx_meta_;
-  std::vector<double> tx_store_;
+  // The rings to and from the RT thread, and what the RT side touches.
+  StateChannel<RxMeta, kRxBuffers> rx_;
+  StateChannel<TxMeta, kTxBuffers> tx_;
   std::atomic<std::uint64_t> tx_overruns_{0};
-  // true while the I/O thread spins on tx_ready_ (push_state() then skips the eventfd write;
+  // true while the I/O thread spins on the TX ring (push_state() then skips the wake-up;
   // seq_cst on both sides: a push is either seen by the spin or wakes the thread).
   std::atomic<bool> tx_spinning_{false};
   std::atomic<std::uint64_t> tx_pushed_{0};
+  SequenceCeiling ceiling_;
+  DeliveryWaiter rx_waiter_;  // wait_rx()
 
-  // I/O thread only.
-  std::vector<std::uint8_t> rx_buf_;
-  std::vector<std::uint8_t> tx_buf_;
-  std::vector<std::uint8_t> delay_store_;
-  std::vector<Delayed> delay_heap_;
-  std::vector<std::uint32_t> delay_free_;
-  std::uint64_t delay_order_ = 0;
-  std::size_t max_datagram_;
-  int wake_fd_ = -1;
-  int rx_wake_fd_ = -1;  // written by the I/O thread after a delivery while wait_rx() waits
-  std::atomic<int> rx_waiters_{0};
-  std::atomic<std::uint64_t> rx_delivered_{0};
-  std::atomic<bool> running_{false};
-  std::unique_ptr<platform::RtThread> thread_;
-  int io_priority_;
-  std::vector<std::string> io_warnings_;
-  std::string io_sched_ = "not started";
-  std::atomic<std::int64_t> io_clock_{-1};  // the I/O thread's CPU clock id (clockid_t), -1 before start
-  std::atomic<std::uint64_t> io_cpu_at_stop_ns_{0};
-  double io_thread_cpu_s() const;
+  // The I/O thread and what only it touches.
+  IoThread io_;
+  bool busy_poll_;
+  std::int64_t tx_period_ns_;
+  TxSpinSchedule spin_;
+  double epoch_s_;  // impairment epoch
+  std::int64_t silence_ns_;
+  std::vector<std::uint8_t> rx_buf_, tx_buf_;
+  DelayQueue delay_;
+  SendRecords send_records_;
+  SourceRateLimit rate_limit_;
+  PayloadEnvelope envelope_;
+  std::uint64_t pushes_sent_ = 0;
+  // Hellos also go out on a timer (one period, 2 ms without one) while hellos_wanted(): a station
+  // that does not push yet (probing before its k = 0) still agrees keys with a running neighbour.
+  std::int64_t hello_interval_ns_ = 2'000'000, next_hello_ns_ = 0;
+  EndpointCounters counters_{};  // published to counters_box_
+  platform::SnapshotBox<EndpointCounters> counters_box_;
 
   // Probing commands (non-RT -> I/O thread): the request number, the command, the I/O
   // thread's acknowledgement and the result of the newest finish.
@@ -475,33 +355,6 @@ class Endpoint {
   std::atomic<std::uint64_t> probe_request_{0}, probe_done_{0};
   std::atomic<bool> probe_all_bound_{false};
   bool probe_command(int command);  // posts and waits (bounded); the finish result
-
-  std::uint64_t incarnation_;
-  Fingerprint fingerprint_;
-  std::int64_t silence_ns_;
-  std::vector<SendRecord> send_records_;  // I/O thread only
-  std::atomic<std::int64_t> own_tick_{-1};  // note_tick(); -1: not yet known (no sequence ceiling)
-  std::int64_t sequence_epoch_ns_ = -1;      // config sequence_epoch_ns: the ceiling before note_tick
-  std::uint64_t max_sequence_ahead_;
-  double rx_rate_per_s_, rx_burst_;
-  RateBucket unknown_bucket_;              // datagrams from addresses no neighbour is configured at
-  PayloadEnvelope envelope_;  // I/O thread (net/envelope.hpp)
-  std::uint64_t pushes_sent_ = 0;          // I/O thread only
-  bool pairwise_;                          // EndpointConfig::pairwise_keys
-  RunNonce my_nonce_{};                    // this run's nonce (pairwise keys), fresh per Endpoint
-  // Hellos also go out on a timer (one period, 2 ms without one) while hellos_wanted(): a station
-  // that does not push yet (probing before its k = 0) still agrees keys with a running neighbour.
-  std::int64_t hello_interval_ns_ = 2'000'000, next_hello_ns_ = 0;  // I/O thread
-
-  // I/O thread only; published to counters_box_.
-  EndpointCounters counters_{};
-  platform::SnapshotBox<EndpointCounters> counters_box_;
-  std::int64_t last_push_ns_ = -1;  // I/O thread: push stamp of the newest packet sent
-  // Consecutive windows without a push; at kMaxMissedWindows the thread stops spinning until
-  // the next push (which arrives through the eventfd) re-arms it.
-  static constexpr int kMaxMissedWindows = 4;
-  int missed_windows_ = 0;
-  std::int64_t wake_late_ns_ = 0, window_late_max_ = 0;  // learned timer lateness (run())
 };
 
 }  // namespace haptic::net

@@ -461,158 +461,188 @@ void Decoder::report(DecodedState& out, const HeaderView& h, Peer& peer, bool ra
   out.send_time_ns = h.send_time_ns;
 }
 
-DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedState& out, const DecodeLimits& lim) {
-  namespace o = wire_offset;
-  if (d == nullptr || len < kHeaderBytes + kMacBytes) return drop(DropReason::truncated);
-  if (len > cfg_.max_datagram_bytes) return drop(DropReason::oversized);
-  HeaderView h;
+Decoder::Peer* Decoder::authenticate(const std::uint8_t* d, std::size_t len, HeaderView& h, const DecodeLimits& lim,
+                                     DropReason& why) {
+  why = DropReason::truncated;
+  if (d == nullptr || len < kHeaderBytes + kMacBytes) return nullptr;
+  why = DropReason::oversized;
+  if (len > cfg_.max_datagram_bytes) return nullptr;
   peek_header(d, len, h);
-  if (h.magic != kWireMagic) return drop(DropReason::garbled);
-  if (h.version != kWireVersion) return drop(DropReason::wrong_version);
-  if (h.header_len != kHeaderBytes) return drop(DropReason::garbled);
+  why = DropReason::garbled;
+  if (h.magic != kWireMagic) return nullptr;
+  why = DropReason::wrong_version;
+  if (h.version != kWireVersion) return nullptr;
+  why = DropReason::garbled;
+  if (h.header_len != kHeaderBytes) return nullptr;
   // The MAC position follows from frag_len: check it lies inside the datagram first.
   if (kHeaderBytes + std::size_t{h.frag_len} + kMacBytes != len) {
-    return drop(kHeaderBytes + std::size_t{h.frag_len} + kMacBytes > len ? DropReason::truncated
-                                                                          : DropReason::garbled);
+    why = kHeaderBytes + std::size_t{h.frag_len} + kMacBytes > len ? DropReason::truncated : DropReason::garbled;
+    return nullptr;
   }
-  if (h.session != cfg_.session_id) return drop(DropReason::wrong_session);
+  why = DropReason::wrong_session;
+  if (h.session != cfg_.session_id) return nullptr;
   const int pi = peer_index(h.sender);
-  if (pi < 0) return drop(DropReason::unknown_sender);
-  if (lim.source_station == kSourceUnknown || (lim.source_station >= 0 && lim.source_station != h.sender))
-    return drop(DropReason::wrong_source);
-  if (h.dest != cfg_.station_id) return drop(DropReason::wrong_destination);
+  why = DropReason::unknown_sender;
+  if (pi < 0) return nullptr;
+  why = DropReason::wrong_source;
+  if (lim.source_station == kSourceUnknown || (lim.source_station >= 0 && lim.source_station != h.sender)) return nullptr;
+  why = DropReason::wrong_destination;
+  if (h.dest != cfg_.station_id) return nullptr;
   Peer& peer = peers_[static_cast<std::size_t>(pi)];
   // Pairwise keys: a hello verifies with the pair's static key, everything else with this run's
   // traffic key; before the run's keys are agreed nothing but hellos can be of this run.
   const bool is_hello = h.kind == static_cast<std::uint8_t>(PayloadKind::hello);
-  if (peer.pairwise && !is_hello && !peer.has_traffic_key) return drop(DropReason::keys_not_agreed);
+  why = DropReason::keys_not_agreed;
+  if (peer.pairwise && !is_hello && !peer.has_traffic_key) return nullptr;
   const SessionKey& key = !peer.pairwise ? cfg_.key : is_hello ? peer.hello_key : peer.traffic_key;
   std::uint8_t tag[kMacBytes];
   mac(d, kHeaderBytes + h.frag_len, key, tag);
-  if (sodium_memcmp(tag, d + kHeaderBytes + h.frag_len, kMacBytes) != 0) return drop(DropReason::bad_mac);
+  why = DropReason::bad_mac;
+  if (sodium_memcmp(tag, d + kHeaderBytes + h.frag_len, kMacBytes) != 0) return nullptr;
+  return &peer;
+}
 
-  // Authenticated from here on; still validate every field before touching state.
-  if (is_hello) {
-    if (!peer.pairwise || (h.flags & ~kFlagHelloAgreed) != 0 || !single_control_fragment(h, kHelloBytes))
-      return drop(DropReason::garbled);
-    // Hellos obey the incarnation rule (a hello of an earlier process, e.g. replayed from an
-    // earlier run, is dropped once a newer one was seen) but not the replay window: they are
-    // idempotent, and the nonce they echo decides whether they count (net/endpoint.cpp).
-    bool raised = false;
-    if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
-    out = DecodedState{};
-    report(out, h, peer, raised, PayloadKind::hello);
-    std::memcpy(out.hello_nonce.data(), d + kHeaderBytes, kRunNonceBytes);
-    std::memcpy(out.hello_echo.data(), d + kHeaderBytes + kRunNonceBytes, kRunNonceBytes);
-    out.hello_agreed = (h.flags & kFlagHelloAgreed) != 0;
-    ++accepted_datagrams_;
-    return DecodeStatus::hello;
-  }
-  if (h.kind == static_cast<std::uint8_t>(PayloadKind::fingerprint)) {
-    if (h.flags != 0 || !single_control_fragment(h, kFingerprintBytes)) return drop(DropReason::garbled);
-    bool raised = false;
-    if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
-    const std::uint8_t* p = d + kHeaderBytes;
-    out = DecodedState{};
-    report(out, h, peer, raised, PayloadKind::fingerprint);
-    out.fingerprint.protocol_version = get<std::uint32_t>(p, 0);
-    out.fingerprint.scene_nodes = get<std::uint32_t>(p, 4);
-    out.fingerprint.scene_hash = get<std::uint64_t>(p, 8);
-    out.fingerprint.period_ns = get<std::uint64_t>(p, 16);
-    out.fingerprint.gains_hash = get<std::uint64_t>(p, 24);
-    out.fingerprint.consensus_law = get<std::uint8_t>(p, 44);
-    out.fingerprint.tx_predict = get<std::uint8_t>(p, 45);
-    out.fingerprint.tx_deadband_hash = get<std::uint16_t>(p, 46);
-    out.round_trip_bound_ns = get<std::uint64_t>(p, 32);
-    const std::uint32_t allowance = get<std::uint32_t>(p, 40);
-    out.loss_allowance_ticks = allowance == 0 || allowance > (1u << 30) ? -1 : static_cast<std::int32_t>(allowance - 1);
-    ++accepted_datagrams_;
-    return DecodeStatus::fingerprint;
-  }
-  if (h.kind != static_cast<std::uint8_t>(PayloadKind::state)) return drop(DropReason::garbled);
-  if ((h.flags & ~(kFlagFloat32 | kFlagHasEcho | kFlagSafeState)) != 0) return drop(DropReason::garbled);
-  const std::size_t vb = (h.flags & kFlagFloat32) ? 4 : 8;
-  if (h.value_count == 0) return drop(DropReason::garbled);
-  if (h.value_count > max_value_count_) return drop(DropReason::too_large);
-  const std::size_t total = 2ull * h.value_count * vb;
-  if (h.frag_count == 0 || h.frag_count > kMaxFragments || h.frag_index >= h.frag_count)
+DecodeStatus Decoder::decode_hello(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out) {
+  if (!peer.pairwise || (h.flags & ~kFlagHelloAgreed) != 0 || !single_control_fragment(h, kHelloBytes))
     return drop(DropReason::garbled);
-  if (h.frag_stride == 0 || h.frag_stride % vb != 0) return drop(DropReason::garbled);
-  if (std::size_t{h.frag_count} != (total + h.frag_stride - 1) / h.frag_stride) return drop(DropReason::garbled);
-  const std::size_t expect_off = std::size_t{h.frag_index} * h.frag_stride;
-  const std::size_t expect_len = std::min<std::size_t>(h.frag_stride, total - expect_off);
-  if (h.frag_offset != expect_off || h.frag_len != expect_len) return drop(DropReason::garbled);
-
-  // Beyond our own tick + slack: a forged or broken sender; before anything is touched (a far
-  // future sequence would otherwise move the replay window and make every genuine packet stale).
-  if (h.seq > lim.max_sequence) return drop(DropReason::future_sequence);
+  // Hellos obey the incarnation rule (a hello of an earlier process, e.g. replayed from an
+  // earlier run, is dropped once a newer one was seen) but not the replay window: they are
+  // idempotent, and the nonce they echo decides whether they count (net/endpoint.cpp).
   bool raised = false;
   if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
-  DropReason why{};
-  if (seen(peer, h.seq, why)) return drop(why);  // never after a raise: the window is empty
+  out = DecodedState{};
+  report(out, h, peer, raised, PayloadKind::hello);
+  std::memcpy(out.hello_nonce.data(), d + kHeaderBytes, kRunNonceBytes);
+  std::memcpy(out.hello_echo.data(), d + kHeaderBytes + kRunNonceBytes, kRunNonceBytes);
+  out.hello_agreed = (h.flags & kFlagHelloAgreed) != 0;
+  ++accepted_datagrams_;
+  return DecodeStatus::hello;
+}
 
-  auto fill = [&](const std::uint8_t* payload) {
-    report(out, h, peer, raised, PayloadKind::state);
-    out.has_echo = (h.flags & kFlagHasEcho) != 0;
-    out.echo_seq = h.echo_seq;
-    out.echo_hold_ns = h.echo_hold_ns;
-    out.value_count = h.value_count;
-    out.encoding = vb == 4 ? ValueEncoding::float32 : ValueEncoding::float64;
-    out.safe_state = (h.flags & kFlagSafeState) != 0;
-    out.payload = payload;
-  };
+DecodeStatus Decoder::decode_fingerprint(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out) {
+  if (h.flags != 0 || !single_control_fragment(h, kFingerprintBytes)) return drop(DropReason::garbled);
+  bool raised = false;
+  if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
+  const std::uint8_t* p = d + kHeaderBytes;
+  out = DecodedState{};
+  report(out, h, peer, raised, PayloadKind::fingerprint);
+  out.fingerprint.protocol_version = get<std::uint32_t>(p, 0);
+  out.fingerprint.scene_nodes = get<std::uint32_t>(p, 4);
+  out.fingerprint.scene_hash = get<std::uint64_t>(p, 8);
+  out.fingerprint.period_ns = get<std::uint64_t>(p, 16);
+  out.fingerprint.gains_hash = get<std::uint64_t>(p, 24);
+  out.fingerprint.consensus_law = get<std::uint8_t>(p, 44);
+  out.fingerprint.tx_predict = get<std::uint8_t>(p, 45);
+  out.fingerprint.tx_deadband_hash = get<std::uint16_t>(p, 46);
+  out.round_trip_bound_ns = get<std::uint64_t>(p, 32);
+  const std::uint32_t allowance = get<std::uint32_t>(p, 40);
+  out.loss_allowance_ticks = allowance == 0 || allowance > (1u << 30) ? -1 : static_cast<std::int32_t>(allowance - 1);
+  ++accepted_datagrams_;
+  return DecodeStatus::fingerprint;
+}
 
-  // Authentic junk (non-finite, outside the envelope) is dropped before mark(): it never uses up a sequence.
-  auto junk = [&](const std::uint8_t* payload, std::size_t values, DropReason& reason) {
-    reason = DropReason::non_finite;
-    if (!payload_finite(payload, values, vb)) return true;
-    reason = DropReason::out_of_envelope;
-    // Another scene size is the endpoint's to name (wrong_scene_size), not an envelope violation.
-    const bool same_scene = lim.envelope != nullptr && (lim.envelope->rest_x.empty() || lim.envelope->rest_x.size() == h.value_count);
-    return same_scene && (h.flags & kFlagSafeState) == 0 &&
-           !lim.envelope->contains(payload, h.value_count, vb == 4 ? ValueEncoding::float32 : ValueEncoding::float64);
-  };
-  if (h.frag_count == 1) {
-    if (junk(d + kHeaderBytes, h.frag_len / vb, why)) return drop(why);
-    mark(peer, h.seq);
-    ++accepted_datagrams_;
-    ++completed_;
-    fill(d + kHeaderBytes);
-    return DecodeStatus::complete;
-  }
+bool Decoder::state_layout_ok(const HeaderView& h, DropReason& why) const {
+  why = DropReason::garbled;
+  if ((h.flags & ~(kFlagFloat32 | kFlagHasEcho | kFlagSafeState)) != 0) return false;
+  const std::size_t vb = (h.flags & kFlagFloat32) ? 4 : 8;
+  if (h.value_count == 0) return false;
+  why = DropReason::too_large;
+  if (h.value_count > max_value_count_) return false;
+  why = DropReason::garbled;
+  const std::size_t total = 2ull * h.value_count * vb;
+  if (h.frag_count == 0 || h.frag_count > kMaxFragments || h.frag_index >= h.frag_count) return false;
+  if (h.frag_stride == 0 || h.frag_stride % vb != 0) return false;
+  if (std::size_t{h.frag_count} != (total + h.frag_stride - 1) / h.frag_stride) return false;
+  const std::size_t expect_off = std::size_t{h.frag_index} * h.frag_stride;
+  const std::size_t expect_len = std::min<std::size_t>(h.frag_stride, total - expect_off);
+  return h.frag_offset == expect_off && h.frag_len == expect_len;
+}
 
-  // Reassembly: find this sequence's slot, else a free one, else evict the oldest partial.
+bool Decoder::junk(const std::uint8_t* payload, std::size_t values, const HeaderView& h, const DecodeLimits& lim,
+                   DropReason& reason) {
+  const std::size_t vb = (h.flags & kFlagFloat32) ? 4 : 8;
+  reason = DropReason::non_finite;
+  if (!payload_finite(payload, values, vb)) return true;
+  reason = DropReason::out_of_envelope;
+  // Another scene size is the endpoint's to name (wrong_scene_size), not an envelope violation.
+  const bool same_scene = lim.envelope != nullptr && (lim.envelope->rest_x.empty() || lim.envelope->rest_x.size() == h.value_count);
+  return same_scene && (h.flags & kFlagSafeState) == 0 &&
+         !lim.envelope->contains(payload, h.value_count, vb == 4 ? ValueEncoding::float32 : ValueEncoding::float64);
+}
+
+void Decoder::report_state(DecodedState& out, const HeaderView& h, Peer& peer, bool raised, const std::uint8_t* payload) {
+  report(out, h, peer, raised, PayloadKind::state);
+  out.has_echo = (h.flags & kFlagHasEcho) != 0;
+  out.echo_seq = h.echo_seq;
+  out.echo_hold_ns = h.echo_hold_ns;
+  out.value_count = h.value_count;
+  out.encoding = (h.flags & kFlagFloat32) ? ValueEncoding::float32 : ValueEncoding::float64;
+  out.safe_state = (h.flags & kFlagSafeState) != 0;
+  out.payload = payload;
+}
+
+Decoder::Slot* Decoder::reassembly_slot(const HeaderView& h, Peer& peer, DropReason& why) {
+  // This sequence's slot, else a free one, else evict the oldest partial.
   Slot* slots = slots_.data() + peer.first_slot;
   Slot* slot = nullptr;
   for (std::size_t i = 0; i < slots_per_peer_; ++i)
     if (slots[i].used && slots[i].seq == h.seq) slot = &slots[i];
   if (slot != nullptr) {
+    why = DropReason::garbled;
     if (slot->frag_count != h.frag_count || slot->value_count != h.value_count || slot->stride != h.frag_stride ||
         slot->flags != h.flags)
-      return drop(DropReason::garbled);
-    if ((slot->bitmap[h.frag_index / 64] >> (h.frag_index % 64)) & 1u) return drop(DropReason::replayed);
-  } else {
-    for (std::size_t i = 0; i < slots_per_peer_ && slot == nullptr; ++i)
-      if (!slots[i].used) slot = &slots[i];
-    if (slot == nullptr) {
-      slot = &slots[0];
-      for (std::size_t i = 1; i < slots_per_peer_; ++i)
-        if (slots[i].age < slot->age) slot = &slots[i];
-      ++drops_.by_reason[static_cast<std::size_t>(DropReason::reassembly_evicted)];
-    }
-    slot->used = true;
-    slot->seq = h.seq;
-    slot->age = ++age_clock_;
-    slot->frag_count = h.frag_count;
-    slot->received = 0;
-    slot->stride = h.frag_stride;
-    slot->flags = h.flags;
-    slot->value_count = h.value_count;
-    slot->bitmap = {};
-    slot->send_time_ns = h.send_time_ns;
-    slot->echo_seq = h.echo_seq;
-    slot->echo_hold_ns = h.echo_hold_ns;
+      return nullptr;
+    why = DropReason::replayed;
+    if ((slot->bitmap[h.frag_index / 64] >> (h.frag_index % 64)) & 1u) return nullptr;
+    return slot;
   }
+  for (std::size_t i = 0; i < slots_per_peer_ && slot == nullptr; ++i)
+    if (!slots[i].used) slot = &slots[i];
+  if (slot == nullptr) {
+    slot = &slots[0];
+    for (std::size_t i = 1; i < slots_per_peer_; ++i)
+      if (slots[i].age < slot->age) slot = &slots[i];
+    ++drops_.by_reason[static_cast<std::size_t>(DropReason::reassembly_evicted)];
+  }
+  slot->used = true;
+  slot->seq = h.seq;
+  slot->age = ++age_clock_;
+  slot->frag_count = h.frag_count;
+  slot->received = 0;
+  slot->stride = h.frag_stride;
+  slot->flags = h.flags;
+  slot->value_count = h.value_count;
+  slot->bitmap = {};
+  slot->send_time_ns = h.send_time_ns;
+  slot->echo_seq = h.echo_seq;
+  slot->echo_hold_ns = h.echo_hold_ns;
+  return slot;
+}
+
+DecodeStatus Decoder::decode_state(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out,
+                                   const DecodeLimits& lim) {
+  DropReason why{};
+  if (!state_layout_ok(h, why)) return drop(why);
+  // Beyond our own tick + slack: a forged or broken sender; before anything is touched (a far
+  // future sequence would otherwise move the replay window and make every genuine packet stale).
+  if (h.seq > lim.max_sequence) return drop(DropReason::future_sequence);
+  bool raised = false;
+  if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
+  if (seen(peer, h.seq, why)) return drop(why);  // never after a raise: the window is empty
+  const std::size_t vb = (h.flags & kFlagFloat32) ? 4 : 8;
+
+  // Authentic junk (non-finite, outside the envelope) is dropped before mark(): it never uses up a sequence.
+  if (h.frag_count == 1) {
+    if (junk(d + kHeaderBytes, h.frag_len / vb, h, lim, why)) return drop(why);
+    mark(peer, h.seq);
+    ++accepted_datagrams_;
+    ++completed_;
+    report_state(out, h, peer, raised, d + kHeaderBytes);
+    return DecodeStatus::complete;
+  }
+
+  Slot* slot = reassembly_slot(h, peer, why);
+  if (slot == nullptr) return drop(why);
   std::memcpy(slot->buffer + h.frag_offset, d + kHeaderBytes, h.frag_len);
   slot->bitmap[h.frag_index / 64] |= std::uint64_t{1} << (h.frag_index % 64);
   ++slot->received;
@@ -620,15 +650,27 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
   if (slot->received < slot->frag_count) return DecodeStatus::fragment_stored;
 
   slot->used = false;
-  if (junk(slot->buffer, 2ull * h.value_count, why)) return drop(why);
+  if (junk(slot->buffer, 2ull * h.value_count, h, lim, why)) return drop(why);
   mark(peer, h.seq);
   // Report the header fields stored with the slot (from its first fragment) and its buffer.
   ++completed_;
-  fill(slot->buffer);
+  report_state(out, h, peer, raised, slot->buffer);
   out.send_time_ns = slot->send_time_ns;
   out.echo_seq = slot->echo_seq;
   out.echo_hold_ns = slot->echo_hold_ns;
   return DecodeStatus::complete;
+}
+
+DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedState& out, const DecodeLimits& lim) {
+  HeaderView h{};
+  DropReason why{};
+  Peer* peer = authenticate(d, len, h, lim, why);
+  if (peer == nullptr) return drop(why);
+  // Authenticated from here on; still validate every field before touching state.
+  if (h.kind == static_cast<std::uint8_t>(PayloadKind::hello)) return decode_hello(d, h, *peer, out);
+  if (h.kind == static_cast<std::uint8_t>(PayloadKind::fingerprint)) return decode_fingerprint(d, h, *peer, out);
+  if (h.kind != static_cast<std::uint8_t>(PayloadKind::state)) return drop(DropReason::garbled);
+  return decode_state(d, h, *peer, out, lim);
 }
 
 }  // namespace haptic::net

@@ -323,6 +323,21 @@ class Decoder {
   bool check_incarnation(Peer& p, std::uint64_t incarnation, bool& raised);  // false: drop
   // Sender, incarnation (and whether it was raised), kind, seq and send time into `out`.
   static void report(DecodedState& out, const HeaderView& h, Peer& peer, bool raised, PayloadKind kind);
+  // Framing, session, sender, source, destination and MAC (the steps of decode, in order): the
+  // sending neighbour of an authentic datagram, or nullptr and why it is dropped. Reads `h`.
+  Peer* authenticate(const std::uint8_t* d, std::size_t len, HeaderView& h, const DecodeLimits& lim, DropReason& why);
+  DecodeStatus decode_hello(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out);
+  DecodeStatus decode_fingerprint(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out);
+  DecodeStatus decode_state(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out,
+                            const DecodeLimits& lim);
+  // A state fragment's flags, value count and fragment geometry agree with each other.
+  bool state_layout_ok(const HeaderView& h, DropReason& why) const;
+  // Non-finite, or outside the envelope: authentic junk, dropped before its sequence is marked.
+  static bool junk(const std::uint8_t* payload, std::size_t values, const HeaderView& h, const DecodeLimits& lim,
+                   DropReason& reason);
+  static void report_state(DecodedState& out, const HeaderView& h, Peer& peer, bool raised, const std::uint8_t* payload);
+  // The reassembly slot of this fragment's packet (found, free or evicted), or nullptr and why.
+  Slot* reassembly_slot(const HeaderView& h, Peer& peer, DropReason& why);
 
   WireConfig cfg_;
   std::uint32_t max_value_count_;

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Before/after on a loaded machine: run two Google Benchmark binaries ALTERNATELY, round after
 round, with the same filter, and report per benchmark the median and minimum CPU time of each and
-the ratio new/old of the medians, of the minima and per round. Keeps every raw measurement in one
+the ratio new/old of the medians, of the minima and per round (--time real: real time instead,
+e.g. a latency benchmark's manual time). Keeps every raw measurement in one
 JSON file (--out) so the figures can be re-derived.
 
   tools/bench/alternate.py --old OLD_BIN --new NEW_BIN --filter 'BM_Tick/(33|3000|10000)/0$' \
@@ -19,7 +20,7 @@ import sys
 import time
 
 
-def run(binary, flt, min_time):
+def run(binary, flt, min_time, field="cpu_time"):
     out = subprocess.run([binary, f"--benchmark_filter={flt}", f"--benchmark_min_time={min_time}",
                           "--benchmark_format=json"], check=True, capture_output=True, text=True, timeout=900)
     data = json.loads(out.stdout)
@@ -28,7 +29,7 @@ def run(binary, flt, min_time):
         if b.get("error_occurred"):
             continue
         scale = {"ns": 1e-3, "us": 1.0, "ms": 1e3}[b["time_unit"]]
-        res[b["name"]] = b["cpu_time"] * scale
+        res[b["name"]] = b[field] * scale
     return res, data.get("context", {})
 
 
@@ -42,16 +43,19 @@ def main():
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--min-time", default="0.2")
     ap.add_argument("--out")
+    ap.add_argument("--time", choices=["cpu", "real"], default="cpu",
+                    help="which time to compare: cpu (default) or real (e.g. a benchmark's manual time, a latency)")
     a = ap.parse_args()
     if not 1 <= a.rounds <= 50:
         sys.exit("--rounds must be in [1, 50]")
     maps = [m.split("=", 1) for m in a.map]
     rounds = []
     for r in range(a.rounds):
-        old, ctx = run(a.old, a.old_filter or a.filter, a.min_time)
+        field = a.time + "_time"
+        old, ctx = run(a.old, a.old_filter or a.filter, a.min_time, field)
         for pat, rep in maps:
             old = {re.sub(pat, rep, k): v for k, v in old.items()}
-        new, _ = run(a.new, a.filter, a.min_time)
+        new, _ = run(a.new, a.filter, a.min_time, field)
         with open("/proc/loadavg") as f:
             load = float(f.read().split()[0])
         rounds.append({"round": r + 1, "old_us": old, "new_us": new, "load1": load, "time": time.time()})

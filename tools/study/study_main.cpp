@@ -257,7 +257,7 @@ struct StudyOptions {
 };
 
 int StudyOptions::parse(int argc, char** argv) {
-  CLI::App app{"haptic-study: speed against accuracy, stability maps, model selector (issue 6)"};
+  CLI::App app{"haptic-study: speed against accuracy, stability maps, model selector"};
   app.require_subcommand(1);
   app.add_option("--out", out, "Output folder for CSV/JSON (default tools/study/results)");
 

@@ -93,6 +93,16 @@ bool EdgeEnergyGate::update(int j, double account_J) {
   return tripped_[i] != 0;
 }
 
+void EdgeEnergyGate::record_tick(int j, double coupling_J) {
+  if (tripped_[idx(j)]) removed_[idx(j)] -= coupling_J;
+}
+
+double EdgeEnergyGate::removed_J() const {
+  double r = 0;
+  for (int j = 0; j < edges_; ++j) r += removed_[idx(j)];
+  return r;
+}
+
 std::uint64_t EdgeEnergyGate::trips() const {
   std::uint64_t t = 0;
   for (int j = 0; j < edges_; ++j) t += trips_[idx(j)];

@@ -84,17 +84,25 @@ class EdgeEnergyGate {
   // Start of a tick: updates the latch of edge j from its account; true = act as the damper this
   // tick. RT-safe.
   bool update(int j, double account_J);
+  // End of the same tick: edge j's own coupling energy of the tick (EdgeEnergyAccount::record_tick's
+  // coupling_J[j]); while the edge acted as the damper it is <= 0, and its negative is added to
+  // removed_J(j). RT-safe.
+  void record_tick(int j, double coupling_J);
   bool tripped(int j) const { return tripped_[idx(j)] != 0; }
   std::uint64_t trips(int j) const { return trips_[idx(j)]; }            // times the latch closed
   std::uint64_t gated_ticks(int j) const { return gated_ticks_[idx(j)]; }  // ticks acted as the damper
   std::uint64_t trips() const;  // over all edges
+  // The energy the damper action took out of the copy on edge j's gated ticks (>= 0): what the gate
+  // removed, so a run it held says how much (firmware's summaries: "gate").
+  double removed_J(int j) const { return removed_[idx(j)]; }
+  double removed_J() const;  // over all edges
   double bound_J(int j) const { return bound_[idx(j)]; }
   double release_J(int j) const { return release_[idx(j)]; }
 
  private:
   static std::size_t idx(int j) { return static_cast<std::size_t>(j); }
   int edges_ = 0;
-  std::array<double, kMaxEdgeAccounts> bound_{}, release_{};
+  std::array<double, kMaxEdgeAccounts> bound_{}, release_{}, removed_{};
   std::array<std::uint64_t, kMaxEdgeAccounts> trips_{}, gated_ticks_{};
   std::array<unsigned char, kMaxEdgeAccounts> tripped_{};
 };

@@ -919,6 +919,7 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
   prev_vo_J_ = energy_.vo_J;
   have_prev_energy_ = true;
   edge_energy_.record_tick(std::span<const double>(edge_tick_J_.data(), static_cast<std::size_t>(nn)), damping_J);
+  for (int j = 0; j < nn; ++j) edge_gate_.record_tick(j, edge_tick_J_[static_cast<std::size_t>(j)]);
   energy_.controller_J += ctrl_J;
 
   // --- 7. advance the state (eq. 9, eq. 21) ---

@@ -44,5 +44,15 @@ done
 echo "== no-damping (B_i = 0, D_ij = 1 I) =="
 "$BUILD"/bin/haptic-station sim --scenario paper-unstable --topology "$BEST" --damping 0,0,0,0 --d-gain 1 \
   --seed "$SEED" --delay-matrix "$DELAYS" --out "$OUT/no-damping" --trace-every 5
+# The same with the per-edge energy gate off: what the consensus law does alone (the report says
+# whether the run above was held by the gate).
+"$BUILD"/bin/haptic-station sim --scenario paper-unstable --topology "$BEST" --damping 0,0,0,0 --d-gain 1 \
+  --seed "$SEED" --delay-matrix "$DELAYS" --edge-energy-bound 0 --out "$OUT/no-damping-gate-off" --trace-every 5 --no-plots
+# B_i with the paper's loss allowance (one lost packet per direction) for the report's side-by-side table.
+for s in paper-best paper-worst; do
+  TOPO="$BEST"; [ "$s" = paper-worst ] && TOPO="$WORST"
+  "$BUILD"/bin/haptic-station sim --scenario "$s" --topology "$TOPO" --seed "$SEED" --delay-matrix "$DELAYS" --loss-allowance 1 \
+    --out "$OUT/$s-L1" --trace-every 50 --no-plots
+done
 /usr/bin/python3 tools/report/make_report.py "$OUT"
 echo "report: $OUT/report.md"

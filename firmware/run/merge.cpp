@@ -358,6 +358,22 @@ void write_merged_snapshots(const std::vector<StationFiles>& st, double T, const
   write_snapshots_json(dir + "/snapshots.json", s0["scene_surface"].get<std::vector<std::array<int, 3>>>(), contacts, snaps);
 }
 
+// What the stations' energy gates and edge-drop rules did, added up (older station files without
+// "gate": their trip and drop counts), with the merged run's worst port energy.
+GateSummary merged_gate(const std::vector<StationFiles>& st, const json& merged) {
+  GateSummary g;
+  for (const auto& f : st) {
+    const json& s = f.summary;
+    auto count = [&](const char* key) { return s.contains(key) && s[key].is_number() ? s[key].get<std::uint64_t>() : std::uint64_t{0}; };
+    GateSummary sg = s.contains("gate") ? gate_from_json(s["gate"]) : GateSummary{};
+    if (!s.contains("gate")) sg.trips = count("edge_energy_trips"), sg.edge_drop_events = count("edge_drop_events");
+    sg.port_energy_min_J.reset();  // a station's own; the run's is the merged total's below
+    g += sg;
+  }
+  if (merged.contains("port_energy_min_J") && merged["port_energy_min_J"].is_number()) g.port_energy_min_J = merged["port_energy_min_J"].get<double>();
+  return g;
+}
+
 }  // namespace
 
 json merge_run(const std::string& dir) {
@@ -389,6 +405,9 @@ json merge_run(const std::string& dir) {
   j["link_stats"] = links;
   add_windowed_sends(st, j);
   j["stations"] = station_rows(st);
+  const GateSummary gate = merged_gate(st, j);
+  j["gate"] = gate_json(gate);
+  j["verdict"] = run_verdict(j.value("diverged", false), j.value("unstable", false), gate);
   write_json_file(dir + "/summary.json", j);
   write_merged_snapshots(st, s0["dt_s"].get<double>(), dir);
   return j;
@@ -401,7 +420,9 @@ std::string merge_result_line(const json& s) {
     std::snprintf(b, sizeof b, "%.4g%s", s[k].get<double>() * scale, unit);
     return std::string(b);
   };
-  return s.value("scenario", std::string("?")) + ": " + (s.value("diverged", false) ? "DIVERGED" : "stable") + ", consensus error at end " +
+  const std::string gate = s.contains("gate") ? gate_clause(gate_from_json(s["gate"])) : std::string();
+  const std::string verdict = s.contains("verdict") ? verdict_words(s["verdict"].get<std::string>()) : s.value("diverged", false) ? "DIVERGED" : "stable";
+  return s.value("scenario", std::string("?")) + ": " + verdict + (gate.empty() ? "" : " (" + gate + ")") + ", consensus error at end " +
          num("consensus_error_m", 1e3, " mm", "n/a") + ", consensus time after release " + num("consensus_time_s", 1, " s", "never") + " (< 1 mm), " +
          num("consensus_time_10pct_s", 1, " s", "never") + " (10 %), " + num("consensus_time_1pct_s", 1, " s", "never") +
          " (1 %), hold |sum u| " + num("hold_force_sum_N", 1, " N", "n/a") + " vs mean |u_i| " + num("hold_force_mean_N", 1, " N", "n/a") +

@@ -1,6 +1,8 @@
 #include "firmware/run/summary.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <stdexcept>
 
@@ -123,7 +125,68 @@ json link_json(const LinkSummary& l) {
 EdgeEnergySummary edge_energy_summary(const rt::StationCore& core, int n) {
   const auto& a = core.edge_energy();
   const auto& g = core.edge_gate();
-  return {a.edge_J(n), a.peak_J(n), g.bound_J(n), g.trips(n), g.gated_ticks(n)};
+  return {a.edge_J(n), a.peak_J(n), g.bound_J(n), g.trips(n), g.gated_ticks(n), g.removed_J(n)};
+}
+
+GateSummary& GateSummary::operator+=(const GateSummary& o) {
+  trips += o.trips;
+  gated_ticks += o.gated_ticks;
+  removed_J += o.removed_J;
+  edge_drop_events += o.edge_drop_events;
+  if (o.port_energy_min_J) port_energy_min_J = std::min(port_energy_min_J.value_or(*o.port_energy_min_J), *o.port_energy_min_J);
+  return *this;
+}
+
+GateSummary gate_summary(const rt::StationCore& core) {
+  GateSummary g;
+  const auto& gate = core.edge_gate();
+  for (int n = 0; n < core.neighbor_count(); ++n) g.gated_ticks += gate.gated_ticks(n);
+  g.trips = gate.trips();
+  g.removed_J = gate.removed_J();
+  g.edge_drop_events = core.edge_drop_events();
+  return g;
+}
+
+json gate_json(const GateSummary& g) {
+  return {{"energy_gate_trips", g.trips},           {"energy_gate_gated_ticks", g.gated_ticks}, {"energy_gate_removed_J", g.removed_J},
+          {"edge_drop_events", g.edge_drop_events}, {"port_energy_min_J", opt(g.port_energy_min_J)},
+          {"held_by_gate", g.gate_tripped()},       {"edge_drop_rule_acted", g.edge_dropped()}};
+}
+
+GateSummary gate_from_json(const json& j) {
+  GateSummary g;
+  g.trips = j.value("energy_gate_trips", std::uint64_t{0});
+  g.gated_ticks = j.value("energy_gate_gated_ticks", std::uint64_t{0});
+  g.removed_J = j.value("energy_gate_removed_J", 0.0);
+  g.edge_drop_events = j.value("edge_drop_events", std::uint64_t{0});
+  if (j.contains("port_energy_min_J") && j["port_energy_min_J"].is_number()) g.port_energy_min_J = j["port_energy_min_J"].get<double>();
+  return g;
+}
+
+std::string run_verdict(bool diverged, bool unstable, const GateSummary& g) {
+  if (diverged) return "diverged";
+  if (unstable) return "unstable";
+  if (g.gate_tripped()) return "held_by_gate";
+  if (g.edge_dropped()) return "stable_with_edge_drops";
+  return "stable";
+}
+
+std::string verdict_words(const std::string& verdict) {
+  if (verdict == "held_by_gate") return "HELD BY THE GATE";
+  if (verdict == "stable_with_edge_drops") return "stable with EDGES DROPPED";
+  if (verdict == "diverged") return "DIVERGED";
+  return verdict;
+}
+
+std::string gate_clause(const GateSummary& g) {
+  if (!g.gate_tripped() && !g.edge_dropped()) return "";
+  char port[64] = "n/a";
+  if (g.port_energy_min_J) std::snprintf(port, sizeof port, "%.4g J", *g.port_energy_min_J);
+  char b[256];
+  std::snprintf(b, sizeof b, "%llu energy-gate trips (%llu gated ticks), %.4g J removed by the gate, %llu edge drops; worst port energy %s",
+                static_cast<unsigned long long>(g.trips), static_cast<unsigned long long>(g.gated_ticks), g.removed_J,
+                static_cast<unsigned long long>(g.edge_drop_events), port);
+  return b;
 }
 
 json edge_energy_json(const EdgeEnergySummary& e) {
@@ -131,7 +194,8 @@ json edge_energy_json(const EdgeEnergySummary& e) {
           {"peak_J", e.peak_J},
           {"bound_J", std::isfinite(e.bound_J) ? json(e.bound_J) : json(nullptr)},
           {"trips", e.trips},
-          {"gated_ticks", e.gated_ticks}};
+          {"gated_ticks", e.gated_ticks},
+          {"removed_J", e.removed_J}};
 }
 
 json packets_json(const std::vector<LinkSummary>& links) {

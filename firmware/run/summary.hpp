@@ -48,9 +48,37 @@ struct EdgeEnergySummary {
   double account_J = 0, peak_J = 0;  // energy the edge put into the receiver's copy: now, and its maximum
   double bound_J = 0;                // +inf: no bound (written as null)
   std::uint64_t trips = 0, gated_ticks = 0;
+  double removed_J = 0;              // the energy the gate's damper action took out of the copy
 };
 EdgeEnergySummary edge_energy_summary(const rt::StationCore& core, int n);
 nlohmann::json edge_energy_json(const EdgeEnergySummary& e);
+
+// What the per-edge energy gate (rt/edge_energy.hpp) and the edge-drop rule (the index-delay bound,
+// rt/station.hpp NeighborConfig) did in a run: summary.json's and station-<id>.json's "gate". A run
+// in which the gate tripped was kept bounded by the gate's bound, not by eq. (18) alone (its port
+// energy may go below -d^2); one in which an edge was dropped ran with a delay over eq. (18)'s bound
+// on that edge. Neither is reported as plain "stable" (run_verdict). Not RT-safe.
+struct GateSummary {
+  std::uint64_t trips = 0, gated_ticks = 0;  // the energy gate, over all edges
+  double removed_J = 0;                      // the energy its damper action took out (>= 0)
+  std::uint64_t edge_drop_events = 0;        // the edge-drop rule (a packet over its index-delay bound)
+  std::optional<double> port_energy_min_J;   // the worst (most negative) cumulative port energy (13)
+  bool gate_tripped() const { return trips > 0; }
+  bool edge_dropped() const { return edge_drop_events > 0; }
+  GateSummary& operator+=(const GateSummary& o);  // counts and energies add; the worst port energy is the smaller
+};
+GateSummary gate_summary(const rt::StationCore& core);  // port_energy_min_J left empty (the caller's metric)
+nlohmann::json gate_json(const GateSummary& g);
+GateSummary gate_from_json(const nlohmann::json& gate);  // a station's "gate" (absent keys: 0 / null)
+// The run's verdict, summary.json's "verdict": "diverged", "unstable", "held_by_gate" (the energy
+// gate tripped), "stable_with_edge_drops" (the edge-drop rule acted, the gate did not) or "stable".
+std::string run_verdict(bool diverged, bool unstable, const GateSummary& g);
+// The words of a verdict for the one-line results ("HELD BY THE GATE", "stable with edge drops", ...).
+std::string verdict_words(const std::string& verdict);
+// What the gate did, for the one-line results: "" when neither it nor the drop rule acted, else e.g.
+// "263 energy-gate trips (6131 gated ticks), 20.75 J removed by the gate, 0 edge drops; worst port
+// energy -0.01437 J".
+std::string gate_clause(const GateSummary& g);
 
 // One directed link, row `to` receives from column `from` (1-based), as summary.json's link_stats.
 struct LinkSummary {

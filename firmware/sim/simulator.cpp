@@ -459,6 +459,18 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
   return finish(s, m);
 }
 
+GateSummary sim_gate_summary(const SimResult& r) {
+  GateSummary g;
+  for (const auto& l : r.links) {
+    g.trips += l.edge_energy.trips;
+    g.gated_ticks += l.edge_energy.gated_ticks;
+    g.removed_J += l.edge_energy.removed_J;
+    g.edge_drop_events += l.bound_violations;
+  }
+  g.port_energy_min_J = r.metrics.port_energy_min_J;
+  return g;
+}
+
 void write_summary_json(const std::string& path, const BuiltScenario& b, const SimResult& r) {
   using nlohmann::json;
   json j = scenario_json(b);
@@ -484,9 +496,10 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["solver_residual_energy_final_J"] = r.final_solver_residual_J;
   j["solver_unconverged_ticks"] = r.solver_unconverged_ticks;
   j["edge_energy_bound_J"] = b.spec.edge_energy_bound_J > 0 ? json(b.spec.edge_energy_bound_J) : json(nullptr);
-  std::uint64_t trips = 0;
-  for (const auto& l : r.links) trips += l.edge_energy.trips;
-  j["edge_energy_trips"] = trips;
+  const GateSummary gate = sim_gate_summary(r);
+  j["edge_energy_trips"] = gate.trips;
+  j["gate"] = gate_json(gate);
+  j["verdict"] = run_verdict(r.metrics.diverged, r.metrics.unstable, gate);
   const double run_s = r.metrics.simulated_s;
   const auto& ct = r.metrics.consensus_time_s;
   const double settled_from_s = ct ? r.metrics.release_time_s + *ct : run_s;

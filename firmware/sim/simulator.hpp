@@ -69,6 +69,10 @@ SimResult run_simulation(const BuiltScenario& scenario, const SimOptions& option
 // link set-up (firmware/station/link_impairment.hpp), run packet k = the core's sequence number k.
 net::SendImpairment simulator_channel(const ScenarioSpec& spec, int receiver, int sender);
 
+// What the energy gate and the edge-drop rule did over all stations (summary.json's "gate"), with
+// the run's worst port energy. Not RT-safe.
+GateSummary sim_gate_summary(const SimResult& r);
+
 // summary.json contract (firmware/README.md, firmware/run/summary.hpp): writes path. Not RT-safe.
 void write_summary_json(const std::string& path, const BuiltScenario& b, const SimResult& r);
 

@@ -21,7 +21,14 @@ enum class PhaseStatus {
 //   started; a station never substitutes a simulated user), 4 diverged, 5 safe state latched, 6 passivity condition not met,
 //   7 no neighbour (none answered probing, or none within its bound for more than
 //     station.max_no_neighbour_fraction of the run), 3 other run-time failure,
-//   8 the run ended before the scripted release; 0 otherwise.
+//   8 the run ended before the scripted release,
+//   10 held by the gate (the per-edge energy gate tripped: the run stayed bounded by the gate's
+//      bound, not by eq. (18) alone; station-<id>.json's "gate" says how often and how much it
+//      removed); 0 otherwise.
+// A safety stop keeps its code: 10 is the last of the list, so it never replaces 4, 5 or 6.
+// The edge-drop rule (a packet over its index-delay bound) is named in the conditions
+// ("edge_drop_rule_acted", counts in "gate") without a code of its own: it is eq. (18)'s own
+// over-bound action, and a lab run may see a few drop events on an honest network.
 enum ExitCode : int {
   kExitOk = 0,
   kExitConfigError = 2,
@@ -32,6 +39,7 @@ enum ExitCode : int {
   kExitNoNeighbour = 7,
   kExitBeforeRelease = 8,
   kExitDeviceMissing = 9,
+  kExitHeldByGate = 10,
 };
 
 // One paragraph for --help and the README. Not RT-safe.

@@ -84,6 +84,12 @@ void add_run_json(const StationOutcome& o, json& j) {
   j["solver_unconverged_ticks"] = core ? json(core->solver_unconverged_ticks()) : json(nullptr);
   j["edge_drop_events"] = core ? json(core->edge_drop_events()) : json(nullptr);
   j["edge_energy_trips"] = core ? json(core->edge_gate().trips()) : json(nullptr);
+  if (core) {  // what the energy gate and the edge-drop rule did (firmware/run_summary.hpp GateSummary)
+    GateSummary g = gate_summary(*core);
+    if (ran) g.port_energy_min_J = c->port_min_J;
+    j["gate"] = gate_json(g);
+    j["verdict"] = run_verdict(c && c->diverged, false, g);
+  }
   j["safe_state_ticks"] = core ? json(core->safe_state_ticks()) : json(nullptr);
   j["steps_clamped"] = core ? json(core->step_clamped_ticks()) : json(nullptr);  // measured T_k outside period_min_s..period_max_s
 }
@@ -246,6 +252,8 @@ std::vector<std::string> RunConditions::names() const {
   if (no_neighbour) n.push_back("no_neighbour");
   if (failed) n.push_back("failed");
   if (ended_before_release) n.push_back("ended_before_release");
+  if (held_by_gate) n.push_back("held_by_gate");
+  if (edge_drop_rule_acted) n.push_back("edge_drop_rule_acted");
   return n;
 }
 
@@ -269,6 +277,9 @@ RunConditions run_conditions(const StationOutcome& o) {
   // Named when planned so, or when the run phase started and stopped early (a run that never
   // started is named by its failure).
   c.ended_before_release = sc.kind == UserScriptSpec::Kind::kPushHoldRelease && (p.ends_before_release || (o.run != nullptr && ran_s <= sc.release_s));
+  const rt::StationCore* core = o.build ? o.build->core.get() : nullptr;
+  c.held_by_gate = core && core->edge_gate().trips() > 0;
+  c.edge_drop_rule_acted = core && core->edge_drop_events() > 0;
   return c;
 }
 
@@ -280,6 +291,7 @@ int exit_code(const RunConditions& c) {
   if (c.no_neighbour) return kExitNoNeighbour;
   if (c.failed) return kExitRunFailed;
   if (c.ended_before_release) return kExitBeforeRelease;
+  if (c.held_by_gate) return kExitHeldByGate;
   return kExitOk;
 }
 

@@ -46,6 +46,8 @@ struct RunConditions {
   bool no_neighbour = false;            // none answered probing, or alone > station.max_no_neighbour_fraction
   bool ended_before_release = false;    // the run ended at or before the scripted release
   bool failed = false;                  // any other failure
+  bool held_by_gate = false;            // the per-edge energy gate tripped: bounded by its bound, not by eq. (18) alone (exit 10)
+  bool edge_drop_rule_acted = false;    // a packet over its index-delay bound dropped an edge (named; no exit code of its own)
   std::optional<double> no_neighbour_fraction;  // of the run ticks; null when none ran
   std::vector<std::string> names() const;       // the conditions that hold, as named in the summary
 };

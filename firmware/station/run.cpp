@@ -469,7 +469,9 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
     names += n;
   }
   std::cout << log.tag << ": " << (code == kExitOk ? "done" : "FAILED (" + names + ")") << ", " << pr.counters.ticks_run << " ticks, "
-            << pr.run.loop.overruns << " overruns, " << (pr.counters.diverged ? "DIVERGED" : "stable") << ", B_i "
+            << pr.run.loop.overruns << " overruns, "
+            << (pr.counters.diverged ? "DIVERGED" : c.held_by_gate ? "HELD BY THE GATE" : c.edge_drop_rule_acted ? "stable with EDGES DROPPED" : "stable")
+            << ", B_i "
             << (pr.built ? std::to_string(pr.build.bounds.damping_Ns_per_m) : std::string("none")) << " N s/m; exit " << code << "; wrote "
             << plan.base_path << ".json, -trace.csv, -state.csv\n";
   return code;
@@ -483,8 +485,10 @@ std::string exit_code_help() {
          "device.kind = \"simulated\" asks for one); "
          "4 diverged; 5 safe state latched (loop exception or device fault); 6 passivity condition not met (B_i below eq. (18) on the measured "
          "round-trip bounds); 7 no neighbour (none answered probing, or none within its bound for more than station.max_no_neighbour_fraction "
-         "of the run); 3 other run-time failure; 8 the run ended before the scripted release (e.g. --duration shorter than station.release_s). "
-         "station-<id>.json names each condition under \"conditions\".";
+         "of the run); 3 other run-time failure; 8 the run ended before the scripted release (e.g. --duration shorter than station.release_s); "
+         "10 held by the gate (the per-edge energy gate tripped: the run stayed bounded by the gate, not by eq. (18) alone). "
+         "station-<id>.json names each condition under \"conditions\" (also edge_drop_rule_acted, which has no code of its own) "
+         "and what the gate did under \"gate\".";
 }
 
 int check_station_config(const StationFile& file, const RunOverrides& overrides, std::ostream& out, std::ostream& err) {

@@ -28,6 +28,7 @@ void ViewPublisher::on_tick(const rt::StationCore& core, std::int64_t kr, double
   exec_max_ = std::max<std::int32_t>(exec_max_, static_cast<std::int32_t>(std::min<std::int64_t>(exec_ns, INT32_MAX)));
   wake_max_ = std::max<std::int32_t>(wake_max_, static_cast<std::int32_t>(std::min<std::int64_t>(wake_ns, INT32_MAX)));
   flags_ |= flags;
+  port_min_J_ = std::min(port_min_J_, core.energy().port_J);
   if (kr % every_ != 0) return;
   ViewFrame& f = box_.writer_slot();
   const int n = static_cast<int>(core.x().size() / 3);
@@ -54,6 +55,8 @@ void ViewPublisher::on_tick(const rt::StationCore& core, std::int64_t kr, double
   const auto& e = core.energy();
   f.port_J = e.port_J, f.controller_J = e.controller_J, f.vo_J = e.vo_J;
   f.exec_max_ns = exec_max_, f.wake_max_ns = wake_max_, f.flags = flags_;
+  f.gate_trips = core.edge_gate().trips(), f.gate_removed_J = core.edge_gate().removed_J();
+  f.edge_drops = core.edge_drop_events(), f.port_min_J = port_min_J_;
   f.in_contact = core.in_contact();
   box_.writer_publish_slot();
   exec_max_ = wake_max_ = 0;
@@ -101,6 +104,8 @@ nlohmann::json view_frame_json(const ViewFrame& f) {
   for (int c = 0; c < f.copies; ++c) copies.push_back(micrometres(f.copy_x[c], 3 * f.nodes));
   j["links"] = links;
   j["copies_um"] = copies;
+  j["gate"] = {{"trips", f.gate_trips}, {"removed_J", f.gate_removed_J}, {"edge_drops", f.edge_drops}, {"port_min_J", f.port_min_J},
+               {"held", f.gate_trips > 0}};
   return j;
 }
 

@@ -34,6 +34,10 @@ struct ViewFrame {
   double consensus_error_m = 0;  // max over neighbours and nodes of |x_p - x_hat_j,p| (last received copies)
   std::int32_t exec_max_ns = 0, wake_max_ns = 0;  // largest tick time / wake-up latency since the last frame
   std::uint32_t flags = 0;       // TickFlags or-ed since the last frame
+  // What the per-edge energy gate and the edge-drop rule did so far (firmware/run_summary.hpp
+  // GateSummary): trips, the energy the gate removed, drop events, and the worst port energy.
+  std::uint64_t gate_trips = 0, edge_drops = 0;
+  double gate_removed_J = 0, port_min_J = 0;
   bool in_contact = false;
 };
 
@@ -55,6 +59,7 @@ class ViewPublisher {
   std::uint64_t seq_ = 0;
   std::int32_t exec_max_ = 0, wake_max_ = 0;
   std::uint32_t flags_ = 0;
+  double port_min_J_ = 0;  // over every tick, not only the published ones
 };
 
 // The scene message (sent once per browser): rest positions, surface triangles, contact mesh,

@@ -3,8 +3,13 @@
 // (19), force balance during the hold (20); determinism of the simulator.
 #include <CppUTest/TestHarness.h>
 
+#include <unistd.h>
+
 #include <Eigen/Core>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
 
 #include "firmware/scenario.hpp"
 #include "firmware/sim/simulator.hpp"
@@ -80,6 +85,8 @@ TEST(ClosedLoop, no_index_delay_exceeds_its_bound_in_the_paper_runs) {
       CHECK_EQUAL(0u, l.bound_violations);
       CHECK_TRUE(l.max_index_delay > 0);
     }
+  // neither the gate nor the drop rule acted: the verdict is plain "stable"
+  for (const SimResult* r : {&rb, &rw}) CHECK_EQUAL(std::string("stable"), run_verdict(r->metrics.diverged, r->metrics.unstable, sim_gate_summary(*r)));
 }
 
 TEST(ClosedLoop, the_honest_paper_best_run_never_trips_the_per_edge_energy_bound) {
@@ -93,6 +100,44 @@ TEST(ClosedLoop, the_honest_paper_best_run_never_trips_the_per_edge_energy_bound
     CHECK_EQUAL(0u, l.edge_energy.gated_ticks);
     CHECK_TRUE(l.edge_energy.peak_J < 0.5 * l.edge_energy.bound_J);
   }
+  CHECK_TRUE(run_verdict(r.metrics.diverged, r.metrics.unstable, sim_gate_summary(r)) != "held_by_gate");
+}
+
+// A run the per-edge energy gate held never reads "stable" in summary.json. Fig. 10's set-up with no
+// local damping and D_ij = 1 I (main-job's no-damping run): with the gate off it diverges; with the
+// default gate (0.1 J) it stays bounded only through the gate, and the summary's verdict and "gate"
+// name the trips, the energy the gate removed (the links' figures added up) and the worst port
+// energy, which is below -d^2 (energy generated).
+TEST(ClosedLoop, a_run_the_gate_held_is_written_as_held_by_the_gate_never_as_stable) {
+  auto s = make_scenario("paper-unstable");
+  s.damping_Ns_per_m = std::vector<double>{0, 0, 0, 0};
+  s.d_gain_Ns_per_m = 1.0;
+  s.seed = 1;  // as tools/main-job.sh runs it (tools/bench/results/gate_rows.md)
+  const BuiltScenario b = build_scenario(s);
+  const SimResult r = run_simulation(b, SimOptions{});
+  const std::string path = std::filesystem::temp_directory_path() / ("haptic-gate-summary-" + std::to_string(::getpid()) + ".json");
+  write_summary_json(path, b, r);
+  const nlohmann::json j = nlohmann::json::parse(std::ifstream(path));
+  std::filesystem::remove(path);
+  std::uint64_t trips = 0, drops = 0;
+  double removed = 0;
+  for (const auto& l : r.links) trips += l.edge_energy.trips, drops += l.bound_violations, removed += l.edge_energy.removed_J;
+  CHECK_TRUE(trips > 0);
+  CHECK_TRUE(removed > 0);
+  CHECK_EQUAL(std::string("held_by_gate"), j["verdict"].get<std::string>());
+  const auto& g = j["gate"];
+  CHECK_EQUAL(trips, g["energy_gate_trips"].get<std::uint64_t>());
+  DOUBLES_EQUAL(removed, g["energy_gate_removed_J"].get<double>(), 1e-15);
+  CHECK_EQUAL(drops, g["edge_drop_events"].get<std::uint64_t>());
+  DOUBLES_EQUAL(*r.metrics.port_energy_min_J, g["port_energy_min_J"].get<double>(), 0);
+  CHECK_TRUE(g["held_by_gate"].get<bool>());
+  CHECK_FALSE(r.metrics.diverged);
+  CHECK_TRUE(*r.metrics.port_energy_min_J < -r.passivity_bound_J);
+  s.edge_energy_bound_J = 0;  // the gate off
+  const SimResult off = run_simulation(build_scenario(s), SimOptions{});
+  CHECK_EQUAL(0u, sim_gate_summary(off).trips);
+  CHECK_EQUAL(0.0, sim_gate_summary(off).removed_J);
+  CHECK_EQUAL(std::string("diverged"), run_verdict(off.metrics.diverged, off.metrics.unstable, sim_gate_summary(off)));
 }
 
 TEST(ClosedLoop, consensus_after_release_eq19) {

@@ -241,6 +241,8 @@ TEST(RunMerge, MergesStationFilesWithTheSimulatorsMetrics) {
   CHECK_EQUAL(7u, s["packets"]["sent_after_consensus"].get<unsigned>());
   CHECK_TRUE(s["passivity_condition_met"].get<bool>());
   CHECK_EQUAL(std::string("pspm"), s["consensus_passivity"].get<std::string>());  // as the simulator's summary
+  CHECK_EQUAL(std::string("stable"), s["verdict"].get<std::string>());  // station files without "gate": neither acted
+  CHECK_EQUAL(0u, s["gate"]["energy_gate_trips"].get<unsigned>());
   // each station's solver of the linear step and the energy its residual put in
   CHECK_EQUAL(std::string("iterative"), s["solver"][1].get<std::string>());
   DOUBLES_EQUAL(2e-12, s["solver_residual_energy_final_J"][1].get<double>(), 0);
@@ -261,6 +263,40 @@ TEST(RunMerge, MergesStationFilesWithTheSimulatorsMetrics) {
   rows = 0;
   while (std::getline(se, line)) ++rows;
   CHECK_EQUAL(6, rows);
+}
+
+// A run the stations' energy gates held is never merged into a plain "stable": the merged summary
+// adds up what each station's gate and edge-drop rule did, takes the merged run's worst port energy,
+// and its verdict and result line say "held by the gate"; a station file from before "gate" counts
+// its trips.
+TEST(RunMerge, ARunTheGateHeldIsMergedAsHeldWithTheStationsFigures) {
+  const std::string dir = write_two_stations("haptic-metrics-merge-gate", shrinking_gap);
+  json s1 = station_json(1, 2, 0.01), s2 = station_json(2, 2, 0.01);
+  s1["gate"] = {{"energy_gate_trips", 2}, {"energy_gate_gated_ticks", 50}, {"energy_gate_removed_J", 0.003}, {"edge_drop_events", 1},
+                {"port_energy_min_J", -0.5}};
+  s2["edge_energy_trips"] = 1;  // an older station file: no "gate"
+  std::ofstream(dir + "/station-1.json") << s1.dump();
+  std::ofstream(dir + "/station-2.json") << s2.dump();
+  const json s = merge_run(dir);
+  CHECK_EQUAL(std::string("held_by_gate"), s["verdict"].get<std::string>());
+  const json& g = s["gate"];
+  CHECK_EQUAL(3u, g["energy_gate_trips"].get<unsigned>());
+  CHECK_EQUAL(50u, g["energy_gate_gated_ticks"].get<unsigned>());
+  DOUBLES_EQUAL(0.003, g["energy_gate_removed_J"].get<double>(), 1e-15);
+  CHECK_EQUAL(1u, g["edge_drop_events"].get<unsigned>());
+  DOUBLES_EQUAL(-0.018, g["port_energy_min_J"].get<double>(), 1e-12);  // the merged run's, not a station's own
+  CHECK_TRUE(g["held_by_gate"].get<bool>());
+  const std::string line = merge_result_line(s);
+  CHECK_TEXT(line.find("HELD BY THE GATE (3 energy-gate trips (50 gated ticks), 0.003 J removed by the gate, 1 edge drops; worst port energy -0.018 J)") !=
+                 std::string::npos, line.c_str());
+  s1.erase("gate");  // edge drops only: named, not "stable"
+  s1["edge_drop_events"] = 4;
+  s2.erase("edge_energy_trips");
+  std::ofstream(dir + "/station-1.json") << s1.dump();
+  std::ofstream(dir + "/station-2.json") << s2.dump();
+  const json d = merge_run(dir);
+  CHECK_EQUAL(std::string("stable_with_edge_drops"), d["verdict"].get<std::string>());
+  CHECK_TEXT(merge_result_line(d).find("stable with EDGES DROPPED") != std::string::npos, merge_result_line(d).c_str());
 }
 
 TEST(RunMerge, AMissingOrFailedStationIsRefusedNamingIt) {

@@ -30,6 +30,9 @@ struct AttackResult {
   double one_tick_J = 0;          // largest single-tick increase of that account
   double honest_excess_J = 0;     // max over ticks of E_V + E_H - E(0) - port_V - port_H
   std::uint64_t trips = 0, gated_ticks = 0, honest_gated_ticks = 0;
+  // what the gate reports it removed from V's copy on A's edge, the honest edge, and the same
+  // recounted here: minus A's own coupling energy summed over the ticks its edge was gated
+  double removed_J = 0, honest_removed_J = 0, removed_recounted_J = 0;
   bool diverged = false;
 };
 
@@ -56,7 +59,7 @@ AttackResult run_attack(Attack attack, double bound_J, int ticks, double leak_W 
   const Eigen::Vector3d e = Eigen::Vector3d(1, 0.5, -0.3).normalized();
   const double E0 = (w.scene.energy(V.x(), V.v()) + w.scene.energy(H.x(), H.v())) / 3.0;
   AttackResult r;
-  double prev_account = 0;
+  double prev_account = 0, prev_coupling = 0;
   for (int k = 0; k < ticks; ++k) {
     const double t = k * T;
     if (k >= kDelay) {
@@ -94,6 +97,9 @@ AttackResult run_attack(Attack attack, double bound_J, int ticks, double leak_W 
     vv[s] = Eigen::Map<const Eigen::VectorXd>(V.v_hat(), dofs);
     hx[s] = Eigen::Map<const Eigen::VectorXd>(H.x_hat(), dofs);
     hv[s] = Eigen::Map<const Eigen::VectorXd>(H.v_hat(), dofs);
+    const double coupling = V.edge_energy().coupling_J(1);
+    if (V.edge_gate().tripped(1)) r.removed_recounted_J -= coupling - prev_coupling;
+    prev_coupling = coupling;
     const double acc = V.edge_energy().edge_J(1);
     r.attacker_peak_J = std::max(r.attacker_peak_J, acc);
     r.one_tick_J = std::max(r.one_tick_J, acc - prev_account);
@@ -104,6 +110,9 @@ AttackResult run_attack(Attack attack, double bound_J, int ticks, double leak_W 
   r.trips = V.edge_gate().trips(1);
   r.gated_ticks = V.edge_gate().gated_ticks(1);
   r.honest_gated_ticks = V.edge_gate().gated_ticks(0) + H.edge_gate().gated_ticks(0);
+  r.removed_J = V.edge_gate().removed_J(1);
+  r.honest_removed_J = V.edge_gate().removed_J(0) + H.edge_gate().removed_J(0);
+  CHECK_EQUAL(V.edge_gate().removed_J(0) + V.edge_gate().removed_J(1), V.edge_gate().removed_J());
   return r;
 }
 
@@ -177,6 +186,19 @@ TEST(EdgeBound, a_slowly_drifting_authenticated_peer_injects_at_most_the_bound_p
 
 TEST(EdgeBound, a_peer_tuned_to_pump_energy_injects_at_most_the_bound_plus_one_tick) {
   check_bounded(Attack::kPump, 0.05);
+}
+
+// A run the gate held says so with a figure: the energy the damper action took out of the copy on
+// the gated ticks (what the summaries report as the energy the gate removed), exactly what the edge's
+// own account lost on those ticks; nothing on an edge never gated, nothing without the bound.
+TEST(EdgeBound, the_gate_reports_the_energy_its_damper_removed_on_the_gated_ticks) {
+  const AttackResult open = run_attack(Attack::kPump, 0, 3000);
+  const AttackResult gated = run_attack(Attack::kPump, 0.05, 3000);
+  CHECK_EQUAL(0.0, open.removed_J);
+  CHECK_TRUE(gated.gated_ticks > 100);
+  CHECK_TRUE(gated.removed_recounted_J > 1e-4);  // the damper took energy out (0.6 mJ over 2990 gated ticks)
+  DOUBLES_EQUAL(gated.removed_recounted_J, gated.removed_J, 1e-12 * gated.removed_recounted_J);
+  CHECK_EQUAL(0.0, gated.honest_removed_J);
 }
 
 TEST(EdgeBound, the_leak_credits_only_energy_that_left_the_copy_at_most_its_power_and_never_below_zero) {

@@ -5,6 +5,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -211,6 +212,35 @@ TEST(RunTick, TheLiveViewHandOffAllocatesNothingInTheTickAndTheReaderGetsFrames)
   LONGS_EQUAL(r.core.config().scene->nodes, frame->nodes);
   CHECK(frame->k >= ticks - 12);
   DOUBLES_EQUAL(r.core.x()[0], frame->x[0], 1e-6);  // this copy as of the newest published frame (x settles slowly)
+}
+
+// The live view says what the gate did: each frame carries the energy gate's trips and removed
+// energy, the edge-drop events (here: the neighbours 3 and 4 of the rig never send, so their edges
+// are dropped) and the worst port energy so far, and its JSON names them ("gate").
+TEST(RunTick, TheLiveViewsFramesNameWhatTheGateAndTheDropRuleDid) {
+  const int ticks = 120;
+  OneStationRig r(ticks);
+  auto view = std::make_unique<firmware::ViewPublisher>(1);
+  r.in.view = view.get();
+  auto frame = std::make_unique<firmware::ViewFrame>();
+  double port_min = 0;
+  for (std::int64_t k = 0; k < ticks; ++k) {
+    r.step(k);
+    port_min = std::min(port_min, r.core.energy().port_J);
+  }
+  CHECK_TRUE(view->take(*frame));
+  CHECK(r.core.edge_drop_events() > 0);
+  CHECK_EQUAL(r.core.edge_drop_events(), frame->edge_drops);
+  CHECK_EQUAL(r.core.edge_gate().trips(), frame->gate_trips);
+  DOUBLES_EQUAL(r.core.edge_gate().removed_J(), frame->gate_removed_J, 0);
+  DOUBLES_EQUAL(port_min, frame->port_min_J, 0);
+  frame->gate_trips = 3, frame->gate_removed_J = 0.012, frame->port_min_J = -0.014;
+  const auto j = firmware::view_frame_json(*frame);
+  CHECK_EQUAL(3u, j["gate"]["trips"].get<std::uint64_t>());
+  CHECK_TRUE(j["gate"]["held"].get<bool>());
+  DOUBLES_EQUAL(0.012, j["gate"]["removed_J"].get<double>(), 0);
+  CHECK_EQUAL(r.core.edge_drop_events(), j["gate"]["edge_drops"].get<std::uint64_t>());
+  DOUBLES_EQUAL(-0.014, j["gate"]["port_min_J"].get<double>(), 0);
 }
 
 // With station.period_min_s/max_s the tick hands the core the measured wake-to-wake period; the

@@ -48,6 +48,12 @@ bool has(const json& list, const std::string& name) {
   return false;
 }
 
+// No condition but, perhaps, an edge drop: without an impairment the index guards are 2-3 ticks,
+// which a loaded machine's scheduling can exceed now and then (named, no exit code of its own).
+bool no_condition_but_edge_drops(const json& conditions) {
+  return conditions.empty() || (conditions.size() == 1 && conditions[0] == "edge_drop_rule_acted");
+}
+
 // The paper's star (1 is the hub): four run_station() calls on four threads with one common epoch.
 // station_extra[i] is appended to station i+1's [station] section. `before(id, text, overrides)`, if
 // given, runs on each station's thread before its run (overrides.start_at is the common epoch; it
@@ -122,7 +128,7 @@ TEST(StationPhases, FourStationsOnThreadsRunEveryPhaseAndExitZero) {
   for (int i = 1; i <= 4; ++i) {
     LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
     const json j = station_json(dir, i);
-    CHECK(j["conditions"].empty());
+    CHECK(no_condition_but_edge_drops(j["conditions"]));
     CHECK(j["passivity_condition_met"].get<bool>());
     CHECK_FALSE(j["diverged"].get<bool>());
     CHECK(number(j["ticks_run"]) > 400);  // 500 planned; an overrun may skip a few
@@ -208,7 +214,7 @@ TEST(StationPhases, ProbeOnlyMeasuresEveryLinkAndStopsBeforeCoupling) {
   for (int i = 1; i <= 4; ++i) {
     LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
     const json j = station_json(dir, i);
-    CHECK(j["conditions"].empty());
+    CHECK(no_condition_but_edge_drops(j["conditions"]));
     DOUBLES_EQUAL(0.0, number(j["ticks_run"]), 0.0);  // stopped before the run
     CHECK(j["damping_Ns_per_m"].is_null());            // and before the core was built
     CHECK(j["lifecycle"].value("probe_only", false));
@@ -376,6 +382,62 @@ TEST(StationPhases, AStationWhoseCopyDivergesExitsDivergedAndNamesIt) {
   std::filesystem::remove_all(dir);
 }
 
+// The report phase of a station whose per-edge energy gate tripped: the plan of a leaf from its
+// station file, a core with the file's bound (1 uJ, no leak) driven by a neighbour whose copy sits
+// 1 mm off (its P coupling puts energy in: the gate trips and acts as the damper). An honest run
+// does not trip the default 0.1 J (ClosedLoop.the_honest_paper_best_run_never_trips...), so the
+// gate is made to act here, deterministically, without sockets. The run is never "stable": exit 10,
+// condition held_by_gate, verdict held_by_gate, and "gate" with the trips, the energy the gate
+// removed (the links' figures added up) and the worst port energy.
+TEST(StationPhases, AStationTheEnergyGateHeldExitsHeldByTheGateAndSaysWhatTheGateDid) {
+  test::StationText s;
+  s.id = 2;
+  s.peers = {1};
+  s.out_dir = test::fresh_dir("gate");
+  s.station_extra = std::string(kShort) + "edge_energy_bound_J = 1e-6\nedge_energy_leak_W = 0\n";
+  const PlanResult pr = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  CHECK_TEXT(pr.plan != nullptr, pr.error.c_str());
+  const StationPlan& plan = *pr.plan;
+  BuildResult build;
+  build.status = PhaseStatus::kOk;
+  build.passivity_condition_met = true;
+  rt::StationConfig cfg = plan.built->station_config(plan.me);
+  for (auto& n : cfg.neighbors) n.energy_bound_J = plan.file.station.edge_energy_bound_J, n.energy_release_J = 0.5e-6, n.energy_leak_W = 0;
+  build.core = std::make_unique<rt::StationCore>(cfg);
+  rt::StationCore& core = *build.core;
+  const int dofs = plan.built->scene.dofs;
+  Eigen::VectorXd xj = plan.built->scene.x_d, vj = Eigen::VectorXd::Zero(dofs);
+  for (int p = 0; p < plan.built->scene.nodes; ++p) xj[3 * p] += 1e-3;
+  TickCounters cnt;
+  for (std::int64_t k = 0; k < 300; ++k) {
+    core.rx(0).offer(k, 0, xj.data(), vj.data(), dofs);
+    core.tick(k, plan.built->vp_start[static_cast<std::size_t>(plan.me)]);
+    cnt.port_min_J = std::min(cnt.port_min_J, core.energy().port_J);
+    ++cnt.ticks_run;
+  }
+  StationOutcome o;
+  o.plan = &plan;
+  o.build = &build;
+  o.counters = &cnt;
+  const RunConditions c = run_conditions(o);
+  CHECK_TRUE(c.held_by_gate);
+  LONGS_EQUAL(kExitHeldByGate, exit_code(c));
+  const json j = station_summary(o, c);
+  LONGS_EQUAL(kExitHeldByGate, j["exit_code"].get<int>());
+  CHECK(has(j["conditions"], "held_by_gate"));
+  STRCMP_EQUAL("held_by_gate", j["verdict"].get<std::string>().c_str());
+  const json& g = j["gate"];
+  CHECK(g["held_by_gate"].get<bool>());
+  CHECK(number(g["energy_gate_trips"]) >= 1);
+  DOUBLES_EQUAL(number(j["edge_energy_trips"]), number(g["energy_gate_trips"]), 0);
+  CHECK(number(g["energy_gate_gated_ticks"]) >= number(g["energy_gate_trips"]));
+  CHECK(number(g["energy_gate_removed_J"]) > 0);  // the damper took energy out of the copy
+  DOUBLES_EQUAL(core.edge_gate().removed_J(0), number(g["energy_gate_removed_J"]), 0);
+  DOUBLES_EQUAL(cnt.port_min_J, number(g["port_energy_min_J"]), 0);
+  DOUBLES_EQUAL(number(j["port_energy_min_J"]), number(g["port_energy_min_J"]), 0);
+  std::filesystem::remove_all(s.out_dir);
+}
+
 TEST(StationPhases, ALeafStartedAfterTheProbingPhaseRejoinsTheRunningSessionInProcess) {
   // The rejoin phase (firmware/station/rejoin.cpp) in-process: four stations start on the common epoch;
   // station 2's first run ends at run time 0.3 s (as if it had died), and it starts again with the
@@ -486,6 +548,10 @@ TEST(StationPhases, AnExceptionAtTheLoopBoundaryEntersTheSafeStateAndIsReported)
 TEST(StationPhases, ExitCodesFollowTheDocumentedOrder) {
   RunConditions c;
   LONGS_EQUAL(kExitOk, exit_code(c));
+  c.edge_drop_rule_acted = true;  // named, no code of its own
+  LONGS_EQUAL(kExitOk, exit_code(c));
+  c.held_by_gate = true;
+  LONGS_EQUAL(kExitHeldByGate, exit_code(c));
   c.ended_before_release = true;
   LONGS_EQUAL(kExitBeforeRelease, exit_code(c));
   c.failed = true;
@@ -496,11 +562,14 @@ TEST(StationPhases, ExitCodesFollowTheDocumentedOrder) {
   LONGS_EQUAL(kExitPassivityNotMet, exit_code(c));
   c.safe_state_latched = true;
   LONGS_EQUAL(kExitSafeState, exit_code(c));
+  c.passivity_not_met = c.no_neighbour = c.failed = c.ended_before_release = false;  // a safety stop is never undone by the gate's code
+  LONGS_EQUAL(kExitSafeState, exit_code(c));
+  c.passivity_not_met = c.no_neighbour = c.failed = c.ended_before_release = true;
   c.diverged = true;
   LONGS_EQUAL(kExitDiverged, exit_code(c));
   c.device_missing = true;
   LONGS_EQUAL(kExitDeviceMissing, exit_code(c));
-  LONGS_EQUAL(7u, c.names().size());
+  LONGS_EQUAL(9u, c.names().size());
 }
 
 // No silent stand-in: a configured device that cannot be started ends the run with its

@@ -187,6 +187,16 @@ function draw(f) {
   if (now - lastStatusDrawn >= 250) { lastStatusDrawn = now; status(f); }
 }
 
+// What the per-edge energy gate and the edge-drop rule did so far: a run the gate held never reads
+// as plain "stable" here either.
+function gateLine(g) {
+  if (!g) return "gate: (not reported)";
+  const J = x => x.toPrecision(3) + " J";
+  if (g.trips === 0 && g.edge_drops === 0) return "gate: not acted (worst port energy " + J(g.port_min_J) + ")";
+  return "gate: " + (g.held ? "HELD BY THE GATE — " : "EDGES DROPPED — ") + g.trips + " energy-gate trips, " + J(g.removed_J) +
+    " removed, " + g.edge_drops + " edge drops; worst port energy " + J(g.port_min_J);
+}
+
 function status(f) {
   const lines = [];
   lines.push("station " + scene.station + " (" + scene.mode + ") · t = " + f.t.toFixed(2) + " s · tick " + f.k);
@@ -195,6 +205,7 @@ function status(f) {
     pas += " vs eq. (18) minimum " + scene.damping_min_Ns_per_m.toFixed(2) + (scene.passivity_condition_met ? " — passivity condition met" : " — NOT MET");
   lines.push("passivity: " + pas);
   lines.push("safe state: " + (f.safe_state ? "YES (zero force)" : "no") + " · contact: " + (f.contact ? "yes" : "no"));
+  lines.push(gateLine(f.gate));
   const nb = f.links.map(l => {
     const up = l.up !== undefined ? l.up : l.within;
     const st = linkState[l.peer] || {up: up, since: f.t};

@@ -6,6 +6,7 @@
 #   net/      -> net/ platform/
 #   drivers/  -> drivers/ platform/ rt/
 #   firmware/ -> firmware/ net/ drivers/ platform/ rt/   (never tools/ or tests/)
+#   firmware/model/ -> firmware/model/ rt/   (the paper's model uses rt/ only; everything above calls it)
 # and no Eigen include in platform/ or net/, and their CMake targets link neither haptic_rt nor
 # Eigen. Prints every offending line; exit 1 if any.
 # Usage: check_includes.sh SOURCE_DIR
@@ -29,6 +30,7 @@ check platform 'platform'
 check net 'net|platform'
 check drivers 'drivers|platform|rt'
 check firmware 'firmware|net|drivers|platform|rt'
+check firmware/model 'firmware/model|rt'
 eigen=$(grep -HnE '#[[:space:]]*include[[:space:]]*<(Eigen|unsupported/Eigen)' platform/*.hpp platform/*.cpp platform/*.h net/*.hpp net/*.cpp 2>/dev/null || true)
 if [ -n "$eigen" ]; then
   echo "platform/ or net/ includes Eigen:"
@@ -42,5 +44,5 @@ if [ -n "$links" ]; then
   echo "$links"
   bad=1
 fi
-[ "$bad" -eq 0 ] && echo "layers: every include points downward (rt, platform, net, drivers, firmware checked)"
+[ "$bad" -eq 0 ] && echo "layers: every include points downward (rt, platform, net, drivers, firmware, firmware/model checked)"
 exit "$bad"

@@ -84,17 +84,6 @@ void set_step_bounds(BuiltScenario& b) {
   }
 }
 
-// Extra index delay (ticks) the clock model can add to N_ij^k = k_i - seq_j: a late wake of the
-// receiver (timer jitter, at most one tick more), the drift of two clocks over the run
-// (2 ppm T_run / T), and the wander of free-running tick counts (3 sigma of the difference of two
-// sums of i.i.d. steps, sqrt(2 k / 3) F ticks). Start-up only.
-int step_clock_allowance_ticks(const ScenarioSpec& s) {
-  if (!s.has_clock_model()) return 0;
-  const double ticks = s.duration_s / s.period_s;
-  const double drift = 2.0 * s.clock_drift_ppm * 1e-6 * ticks;
-  const double wander = 3.0 * std::sqrt(2.0 * ticks / 3.0) * s.step_jitter;
-  return static_cast<int>(std::ceil(s.timer_jitter_s / s.period_s + drift + wander));
-}
 }  // namespace
 
 std::vector<std::string> scenario_names() { return {"paper-best", "paper-worst", "paper-unstable"}; }
@@ -245,29 +234,26 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
     if (static_cast<int>(b.neighbors[static_cast<std::size_t>(i)].size()) > rt::kMaxNeighbors)
       bad("--topology: user " + std::to_string(i + 1) + " has more than " + std::to_string(rt::kMaxNeighbors) + " links");
   set_step_bounds(b);
-  // The sender's deadband may hold its state up to max_interval - 1 extra ticks: extra allowance;
-  // the clock model adds its own (step_clock_allowance_ticks).
-  // The loss allowance: given, or from the loss model's support (model::loss_allowance_from_loss).
-  b.loss_allowance_ticks = spec.loss_allowance_ticks >= 0
-                               ? spec.loss_allowance_ticks
-                               : model::loss_allowance_from_loss(spec.loss_probability, spec.duration_s / T, 2 * static_cast<int>(spec.topology.size()));
-  b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T,
-                                                 b.loss_allowance_ticks + spec.tx_deadband.added_index_delay_ticks() + step_clock_allowance_ticks(spec));
+  // Nbar_ij from the delay model with its allowances, B_i and the condition: the passivity budget
+  // (firmware/model/passivity_budget.hpp).
+  const model::NbarAllowances allow = model::delay_model_allowances(
+      spec.loss_allowance_ticks, spec.loss_probability, spec.duration_s, T, 2 * static_cast<int>(spec.topology.size()),
+      spec.tx_deadband.added_index_delay_ticks(), model::ClockModel{spec.timer_jitter_s, spec.step_jitter, spec.clock_drift_ppm});
+  b.loss_allowance_ticks = allow.loss_ticks;
+  b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T, allow.total());
   const Eigen::VectorXd half_sums = model::round_trip_half_sums_ms(spec.topology, b.nbar_ticks, T);
   b.round_trip_sum_ms.assign(half_sums.data(), half_sums.data() + half_sums.size());
   b.damping_min.assign(static_cast<std::size_t>(N), 0.0);
   b.damping.assign(static_cast<std::size_t>(N), 0.0);
   b.passivity_condition_met = true;
   for (int i = 0; i < N; ++i) {
-    std::vector<double> sums;
-    for (int j : b.neighbors[static_cast<std::size_t>(i)]) sums.push_back(b.nbar_ticks(i, j) + b.nbar_ticks(j, i));
-    b.damping_min[static_cast<std::size_t>(i)] = b.damping_min_eq18(i, sums);
-    const bool pspm = spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation;
-    b.damping[static_cast<std::size_t>(i)] = spec.damping_Ns_per_m ? (*spec.damping_Ns_per_m)[static_cast<std::size_t>(i)]
-                                             : pspm ? 0.0  // eq. (14) by the modulation, not by B_i
-                                                    : (1.0 + spec.damping_margin) * b.damping_min[static_cast<std::size_t>(i)];
-    if (!pspm && b.damping[static_cast<std::size_t>(i)] < b.damping_min[static_cast<std::size_t>(i)] * (1 - 1e-12))
-      b.passivity_condition_met = false;
+    std::vector<int> sums;
+    for (int j : b.neighbors[static_cast<std::size_t>(i)]) sums.push_back(model::link_bound_from_delay_model(b.nbar_ticks, i, j).assumed_sum_ticks);
+    const model::Damping d = b.damping_eq18(i, sums, spec.damping_Ns_per_m ? (*spec.damping_Ns_per_m)[static_cast<std::size_t>(i)] : -1.0,
+                                            spec.damping_margin);
+    b.damping_min[static_cast<std::size_t>(i)] = d.min_Ns_per_m;
+    b.damping[static_cast<std::size_t>(i)] = d.used_Ns_per_m;
+    b.passivity_condition_met = b.passivity_condition_met && d.condition_met;
   }
   assign_pushes(b);
   b.trace_node = spec.trace_node >= 0 ? spec.trace_node : b.contact_nodes[std::min(1, N - 1)][0];
@@ -375,15 +361,18 @@ UserScriptSpec::PushPattern parse_push_pattern(const std::string& text, const st
   bad(key + " = \"" + text + "\" must be \"spread\" or \"asymmetric\"");
 }
 
-double BuiltScenario::damping_min_eq18(int user, const std::vector<double>& round_trip_sum_ticks) const {
+model::Damping BuiltScenario::damping_eq18(int user, const std::vector<int>& round_trip_sum_ticks, double override_Ns_per_m,
+                                           double margin) const {
   const auto& edges = neighbor_edge[static_cast<std::size_t>(user)];
-  if (round_trip_sum_ticks.size() != edges.size()) throw std::invalid_argument("damping_min_eq18: one round trip per neighbour needed");
-  std::vector<rt::Eq18Neighbor> nb;
-  for (std::size_t n = 0; n < edges.size(); ++n)
-    nb.push_back({round_trip_sum_ticks[n], t_max_s[static_cast<std::size_t>(neighbors[static_cast<std::size_t>(user)][n])],
-                  &gains[static_cast<std::size_t>(edges[n])]});
-  // eq. (18) with T_j^max and T_i^min: its D_ij term 1/2 (T_j^max / T_i^min - 1) D_ij counts when steps vary
-  return rt::damping_min_eq18(t_min_s[static_cast<std::size_t>(user)], nb);
+  if (round_trip_sum_ticks.size() != edges.size()) throw std::invalid_argument("damping_eq18: one round trip per neighbour needed");
+  std::vector<double> t_max;
+  std::vector<const rt::EdgeGains*> g;
+  for (std::size_t n = 0; n < edges.size(); ++n) {
+    t_max.push_back(t_max_s[static_cast<std::size_t>(neighbors[static_cast<std::size_t>(user)][n])]);
+    g.push_back(&gains[static_cast<std::size_t>(edges[n])]);
+  }
+  return model::damping_eq18(t_min_s[static_cast<std::size_t>(user)], round_trip_sum_ticks, t_max, g, margin, override_Ns_per_m,
+                             spec.consensus_passivity);
 }
 
 rt::StationConfig BuiltScenario::station_config(int i) const {

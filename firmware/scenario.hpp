@@ -12,6 +12,8 @@
 
 #include "firmware/model/delay_model.hpp"
 #include "firmware/model/graph.hpp"
+#include "firmware/model/passivity_budget.hpp"
+#include "net/impairment.hpp"
 #include "rt/gains.hpp"
 #include "rt/scene.hpp"
 #include "rt/station.hpp"
@@ -71,10 +73,10 @@ struct ScenarioSpec {
   std::uint64_t seed = 1;
   model::Graph topology;                     // undirected links, 0-based (firmware/model/graph.hpp)
   Eigen::MatrixXd delay_ms;                  // mean one-way delay, row i receives from column j
-  double jitter_fraction = model::kPaperJitterFraction;
+  double jitter_fraction = net::kPaperJitterFraction;      // the paper's impairment (net/impairment.hpp)
   double delay_correlation = 0;              // --delay-correlation: AR(1) per packet of the delay (net::LinkImpairment), 0 = i.i.d.
-  double loss_probability = 0.05;
-  double duplicate_probability = 0.01;
+  double loss_probability = net::kPaperLossProbability;
+  double duplicate_probability = net::kPaperDuplicateProbability;
   int scene_nodes = 33;                      // 33: the paper's ball; otherwise a lattice ball
   SceneFileSpec scene_file{};                // a mesh file instead (scene_nodes then unused)
   // For a lattice ball, keep the same physical object as the paper's ball: total mass 33 x
@@ -171,9 +173,10 @@ struct BuiltScenario {
   // ~0 for kSpread, clearly > 0 for kAsymmetric; the hold-force balance is measured against it.
   double push_imbalance_ratio = 0;
 
-  // eq. (18) minimum B_i of `user` for the given Nbar_ij + Nbar_ji (ticks), one per neighbour in
-  // neighbors[user] order: the model's bounds (build_scenario) or measured ones (the station).
-  double damping_min_eq18(int user, const std::vector<double>& round_trip_sum_ticks) const;
+  // eq. (18) for `user` with the given Nbar_ij + Nbar_ji (ticks), one per neighbour in
+  // neighbors[user] order (the model's bounds, build_scenario, or measured ones, the station), and
+  // B_i by the budget's rule (model::damping_eq18: override >= 0, the pspm rule, the margin).
+  model::Damping damping_eq18(int user, const std::vector<int>& round_trip_sum_ticks, double override_Ns_per_m, double margin) const;
   rt::StationConfig station_config(int user) const;
   rt::GoalScript goal_script(int user) const;
 };

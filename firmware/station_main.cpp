@@ -496,27 +496,45 @@ int merge_command(const std::string& dir) {
 // The `scenario` subcommand: prints a built-in scenario's users, links and mean delays as JSON, so
 // tools (haptic-lab's topology.from_scenario, run4.sh) take them from the one definition in
 // firmware/scenario.cpp instead of copying them. Not RT-safe.
-CLI::App* add_scenario_options(CLI::App& app, std::string& name) {
-  auto* sc = app.add_subcommand("scenario", "Print a built-in scenario's users, links (1-based) and mean one-way delays (ms) as JSON");
+struct ScenarioQuery {
+  std::string name;
+  int users = 0;         // 0: the scenario's
+  std::string topology;  // "": the scenario's
+};
+CLI::App* add_scenario_options(CLI::App& app, ScenarioQuery& q) {
+  auto* sc = app.add_subcommand("scenario", "Print a built-in scenario's users, links (1-based), each user's neighbours and mean one-way delays (ms) as JSON");
   std::string names;
   for (const auto& n : scenario_names()) names += (names.empty() ? "" : ", ") + n;
-  sc->add_option("NAME", name, "Scenario: " + names)->required();
-  sc->footer("Exit status: 0 printed; 2 unknown scenario or usage error.");
+  sc->add_option("NAME", q.name, "Scenario: " + names)->required();
+  sc->add_option("--users", q.users, "Number of users 2..64 (the scenario's delays and links for N users, as sim --users)");
+  sc->add_option("--topology", q.topology, "Links \"1-2,1-3,1-4\" instead of the scenario's (checked: users 1..N, connected)");
+  sc->footer("Exit status: 0 printed; 2 unknown scenario, bad users or links, or usage error.");
   return sc;
 }
 
-// `haptic-station scenario NAME`: 0 printed, 2 unknown name. Not RT-safe.
-int scenario_command(const std::string& name) {
+// `haptic-station scenario NAME [--users N] [--topology LINKS]`: 0 printed, 2 unknown name or bad
+// option. "neighbours": each user's neighbours (1-based) in link order (model::adjacency), what
+// haptic-lab writes as the stations' peers. Not RT-safe.
+int scenario_command(const ScenarioQuery& q) {
   try {
-    const ScenarioSpec s = make_scenario(name);
+    ScenarioSpec s = make_scenario(q.name);
+    if (q.users != 0) set_user_count(s, q.users, "--users");
+    if (!q.topology.empty()) s.topology = haptic::model::parse_graph_1based(q.topology, s.users, "--topology");
+    haptic::model::validate_graph(s.topology, s.users, "--topology");
     nlohmann::json delays = nlohmann::json::array();
     for (int i = 0; i < s.delay_ms.rows(); ++i) {
       nlohmann::json row = nlohmann::json::array();
       for (int j = 0; j < s.delay_ms.cols(); ++j) row.push_back(s.delay_ms(i, j));
       delays.push_back(row);
     }
-    std::cout << nlohmann::json{{"name", s.name}, {"users", s.users}, {"topology", topology_json(s.topology)}, {"delay_ms", delays},
-                                {"duration_s", s.duration_s}, {"release_s", s.script.release_s}}.dump()
+    nlohmann::json neighbours = nlohmann::json::array();
+    for (const auto& nb : haptic::model::adjacency(s.topology, s.users).neighbours) {
+      nlohmann::json one = nlohmann::json::array();
+      for (int j : nb) one.push_back(j + 1);
+      neighbours.push_back(one);
+    }
+    std::cout << nlohmann::json{{"name", s.name}, {"users", s.users}, {"topology", topology_json(s.topology)}, {"neighbours", neighbours},
+                                {"delay_ms", delays}, {"duration_s", s.duration_s}, {"release_s", s.script.release_s}}.dump()
               << "\n";
     return 0;
   } catch (const std::exception& e) {
@@ -549,8 +567,8 @@ int main(int argc, char** argv) {
   for (int i = 0; i < argc; ++i) sim_args.command_line += (i ? " " : "") + std::string(argv[i]);
   std::string merge_dir;
   CLI::App* merge = add_merge_options(app, merge_dir);
-  std::string scenario_name;
-  CLI::App* scenario = add_scenario_options(app, scenario_name);
+  ScenarioQuery scenario_query;
+  CLI::App* scenario = add_scenario_options(app, scenario_query);
 
   try {
     app.parse(argc, argv);
@@ -563,6 +581,6 @@ int main(int argc, char** argv) {
   if (sim->parsed()) return sim_command(sim_args);
   if (replay->parsed()) return replay_command(replay_args);
   if (merge->parsed()) return merge_command(merge_dir);
-  if (scenario->parsed()) return scenario_command(scenario_name);
+  if (scenario->parsed()) return scenario_command(scenario_query);
   return 0;
 }

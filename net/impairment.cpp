@@ -37,6 +37,15 @@ std::uint64_t Rng::next() {
 
 double Rng::uniform01() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
 
+LinkImpairment LinkImpairment::paper(double mean_delay_s) {
+  LinkImpairment m;
+  m.mean_delay_s = mean_delay_s;
+  m.jitter_fraction = kPaperJitterFraction;
+  m.loss_probability = kPaperLossProbability;
+  m.duplicate_probability = kPaperDuplicateProbability;
+  return m;
+}
+
 LinkImpairment LinkImpairment::bursty(double mean_delay_s) {
   LinkImpairment m = paper(mean_delay_s);
   m.burst_enter_probability = 0.01;

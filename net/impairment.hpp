@@ -30,6 +30,13 @@ class Rng {
   std::uint64_t s_[4];
 };
 
+// The paper's impairment (Section V), the one definition the simulator's scenarios, the station's
+// "paper" preset and haptic-topology use: each packet's delay uniform in 50-150 % of the mean
+// (jitter fraction 0.5), 5 % loss, 1 % duplication (the duplicate draws its own delay).
+inline constexpr double kPaperJitterFraction = 0.5;
+inline constexpr double kPaperLossProbability = 0.05;
+inline constexpr double kPaperDuplicateProbability = 0.01;
+
 struct LinkImpairment {
   double mean_delay_s = 0.0;        // mean one-way delay
   double jitter_fraction = 0.5;     // delay uniform in mean*[1-j, 1+j]
@@ -54,15 +61,8 @@ struct LinkImpairment {
   // Recorded one-way delays in seconds, replayed cyclically (replaces the uniform draw).
   std::shared_ptr<const std::vector<double>> delay_trace;
 
-  // The paper's Section V model for a link of the given mean delay.
-  static LinkImpairment paper(double mean_delay_s) {
-    LinkImpairment m;
-    m.mean_delay_s = mean_delay_s;
-    m.jitter_fraction = 0.5;
-    m.loss_probability = 0.05;
-    m.duplicate_probability = 0.01;
-    return m;
-  }
+  // The paper's Section V model for a link of the given mean delay (kPaper* below).
+  static LinkImpairment paper(double mean_delay_s);
   // A perfect link (zero delay, no loss).
   static LinkImpairment none() { return LinkImpairment{}; }
   // The paper's model plus bursts of loss (mean burst 5 packets, 1% entry) and 1% reordering.

@@ -7,20 +7,27 @@
 // j's hold time, so it is conservative. Clock offsets between stations do not matter.
 //
 // Life cycle: begin_probing() -> samples -> finish_probing() fixes the bound
-//   bound = max_probe * (1 + margin_fraction) + margin_s
-// from which the station sets B_i with eq. (18) (round trip in ticks: bound_ticks(T)).
+//   bound = policy(max_probe, margin_fraction, margin_s)
+// from which the station sets B_i with eq. (18) (round trip in ticks: bound_ticks(T)). The policy
+// is not net/'s (net/ measures, it knows no physics): the station hands in its passivity budget's
+// (firmware/model/passivity_budget.hpp, model::round_trip_bound_s); without one the bound is the
+// measured maximum itself.
 // Afterwards a sample above the bound is an over-bound event: it is counted, the bound is
-// raised to cover it (with the same margin) and `generation()` increments, so the station
+// raised to cover it (by the same policy) and `generation()` increments, so the station
 // knows it must act (raise B_i or drop the edge; policy in net/README.md).
 // Not thread-safe: owned by one thread (the I/O thread); publish copies across threads.
 #include <cstdint>
 
 namespace haptic::net {
 
+// The bound a measured round trip (s) turns into, given the margins below. Called on the I/O thread.
+using RoundTripBoundPolicy = double (*)(double round_trip_s, double margin_fraction, double margin_s);
+
 struct RttConfig {
   double margin_fraction = 0.25;  // net.rtt_margin_fraction, in [0, 10]
   double margin_s = 0.004;        // net.rtt_margin_s (two 2 ms ticks), in [0, 10]
   std::uint64_t min_probe_samples = 20;  // net.rtt_min_probe_samples, >= 1
+  RoundTripBoundPolicy bound_policy = nullptr;  // the caller's (the station: model::round_trip_bound_s); null: the maximum itself
   void validate() const;  // throws std::invalid_argument naming the key and range
 };
 
@@ -55,7 +62,7 @@ class RttEstimator {
   std::uint32_t bound_ticks(double period_s) const;
 
  private:
-  double with_margin(double rtt_s) const { return rtt_s * (1.0 + cfg_.margin_fraction) + cfg_.margin_s; }
+  double with_margin(double rtt_s) const { return cfg_.bound_policy ? cfg_.bound_policy(rtt_s, cfg_.margin_fraction, cfg_.margin_s) : rtt_s; }
   RttConfig cfg_;
   bool probing_ = false;
   bool has_bound_ = false;

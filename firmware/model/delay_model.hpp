@@ -2,8 +2,8 @@
 // The delay model around the tick, one implementation for the simulator, the real station, the
 // multi-process merge and tools/topology:
 //  - the paper's mean one-way delay matrix (Section V) and a text parser for such matrices;
-//  - the index-delay bound of eq. (18): Nbar_ij = ceil(max one-way delay_ij / T) + loss
-//    allowance, with max delay = (1 + jitter fraction) x mean for the paper's uniform jitter;
+//  - the index-delay bound of eq. (18): Nbar_ij = ceil(max one-way delay_ij / T) + allowances
+//    (firmware/model/passivity_budget.hpp), with max delay = (1 + jitter fraction) x mean for a uniform jitter;
 //  - eq. (18)'s per-user sum  sum_j (Nbar_ij + Nbar_ji) T / 2;
 //  - the same bounds from a round trip R_ij a station measured itself (ticks): guard
 //    Nbar_ij = ceil(R_ij / 2), assumed Nbar_ij + Nbar_ji = 2 ceil(R_ij / 2) + agreement ticks;
@@ -16,13 +16,6 @@
 #include "firmware/model/graph.hpp"
 
 namespace haptic::model {
-
-// The paper's per-packet delay spread (Section V: uniform in 50-150 % of the mean) and the
-// fixed loss allowance of Nbar (one lost packet per direction) that haptic-topology and the real
-// station (station.loss_allowance_ticks) use; scenarios take theirs from the loss model
-// (loss_allowance_from_loss below) unless one is given.
-inline constexpr double kPaperJitterFraction = 0.5;
-inline constexpr int kDefaultLossAllowanceTicks = 1;
 
 // The loss allowance of Nbar from the loss model's support. Under independent loss with
 // probability p per packet, N_ij^k > ceil(max delay / T) + L at tick k only if the L + 1 packets

@@ -12,6 +12,8 @@
 
 #include <Eigen/Core>
 
+#include "firmware/model/metrics.hpp"
+#include "firmware/model/passivity_budget.hpp"
 #include "firmware/run/metrics.hpp"
 #include "firmware/run/summary.hpp"
 
@@ -102,12 +104,11 @@ std::vector<std::int64_t> merge_traces(const std::vector<StationFiles>& st, doub
   std::vector<Eigen::Vector3d> forces(st.size());
   static const char* names[] = {"node_x_m", "node_y_m", "node_z_m", "vp_x_m", "vp_y_m", "vp_z_m", "device_x_m", "device_y_m", "device_z_m"};
   for (std::int64_t k : ks) {
-    double port = 0, ctrl = 0;
+    model::StationTotals total;
     for (std::size_t i = 0; i < st.size(); ++i) {
       const std::size_t r = st[i].trace_row.at(k);
       forces[i] = trace_force(st[i], r);
-      port += st[i].trace.at(r, "port_energy_J");
-      ctrl += st[i].trace.at(r, "controller_energy_J");
+      total.add_energies(st[i].trace.at(r, "port_energy_J"), st[i].trace.at(r, "controller_energy_J"));
       TraceRow row;
       row.t_s = static_cast<double>(k + 1) * T;
       row.user = static_cast<int>(i) + 1;
@@ -124,13 +125,14 @@ std::vector<std::int64_t> merge_traces(const std::vector<StationFiles>& st, doub
       write_trace_row(trace, row);
     }
     m.add_forces(k, forces);
-    m.add_energies(port, ctrl);
+    m.add_energies(total.port_J, total.controller_J);
   }
   return ks;
 }
 
 // The copies at every common state tick; series.csv rows (energies and forces where all traced).
-std::vector<std::int64_t> merge_states(const std::vector<StationFiles>& st, const Eigen::VectorXd& x_d, double T, RunMetrics& m, std::FILE* series) {
+std::vector<std::int64_t> merge_states(const std::vector<StationFiles>& st, const Eigen::VectorXd& x_d, int trace_node, double T, RunMetrics& m,
+                                       std::FILE* series) {
   const std::vector<std::int64_t> ks = common_ticks(st, &StationFiles::state_row);
   std::vector<const double*> x(st.size());
   for (std::int64_t k : ks) {
@@ -138,19 +140,24 @@ std::vector<std::int64_t> merge_states(const std::vector<StationFiles>& st, cons
     const CopiesSample c = measure_copies(x, x_d);
     m.add_copies(k, c);
     SeriesRow row{static_cast<double>(k + 1) * T, c.consensus_error_m, c.deformation_m, NAN, NAN, NAN, NAN};
+    const Eigen::Vector3d node = model::mean_node_position_m(x, trace_node);
+    for (int a = 0; a < 3; ++a) row.trace_node_mean_m[a] = node[a];
     bool traced = true;
     for (const auto& s : st) traced = traced && s.trace_row.count(k) > 0;
     if (traced) {
-      Eigen::Vector3d f = Eigen::Vector3d::Zero();
-      row.port_total_J = row.ctrl_total_J = 0;
+      model::StationTotals total;
+      std::vector<Eigen::Vector3d> forces;
       for (const auto& s : st) {
         const std::size_t r = s.trace_row.at(k);
-        f += trace_force(s, r);
-        row.port_total_J += s.trace.at(r, "port_energy_J");
-        row.ctrl_total_J += s.trace.at(r, "controller_energy_J");
+        forces.push_back(trace_force(s, r));
+        total.add_force(forces.back());
+        total.add_energies(s.trace.at(r, "port_energy_J"), s.trace.at(r, "controller_energy_J"));
       }
-      row.force_sum_x_N = f[0];
-      row.force_sum_norm_N = f.norm();
+      row.port_total_J = total.port_J;
+      row.ctrl_total_J = total.controller_J;
+      row.force_sum_x_N = total.force_N[0];
+      row.force_sum_norm_N = total.force_N.norm();
+      row.set_forces(model::force_balance(forces));
     }
     write_series_row(series, row);
   }
@@ -308,6 +315,26 @@ void add_station_arrays(const std::vector<StationFiles>& st, json& j) {
 }
 
 
+// d^2 of eq. (13) as the simulator takes it (model::eq13_d2_J): the copies' energies at the first
+// common trace tick, the consensus springs of the links from the copies at the first common state
+// tick (bounded by lambda_max(P): exact while the copies agree, as they do when every station starts
+// from rest) and, under pspm, every edge end's initial reservoir.
+double merged_d2_J(const std::vector<StationFiles>& st, std::int64_t trace_k, std::int64_t state_k) {
+  const json& s0 = st[0].summary;
+  std::vector<double> copies, springs;
+  for (const auto& s : st) copies.push_back(s.trace.at(s.trace_row.at(trace_k), "vo_energy_J"));
+  const double lambda_P = s0.value("consensus_P_lambda_max_N_per_m", 0.0);
+  for (const auto& l : s0.value("topology", json::array())) {  // absent in older station files: no springs counted
+    const StationFiles& a = st[static_cast<std::size_t>(l[0].get<int>() - 1)];
+    const StationFiles& b = st[static_cast<std::size_t>(l[1].get<int>() - 1)];
+    const auto& xa = a.state.rows[a.state_row.at(state_k)];
+    const auto& xb = b.state.rows[b.state_row.at(state_k)];
+    springs.push_back(model::consensus_spring_bound_J(lambda_P, xa.data() + 1, xb.data() + 1, static_cast<int>(xa.size()) - 1));
+  }
+  const rt::ConsensusPassivity law = rt::parse_consensus_passivity(s0.value("consensus_passivity", std::string("eq18")), "consensus_passivity");
+  return model::eq13_d2_J(copies, springs, model::pspm_reservoirs_J(law, static_cast<int>(springs.size()), s0.value("pspm_reservoir0_J", 0.0)));
+}
+
 // The metrics from the stations' records (trace.csv and series.csv written on the way).
 RunMetricsResult merged_metrics(const std::vector<StationFiles>& st, const std::string& dir, double& passivity_bound_J) {
   const json& s0 = st[0].summary;
@@ -319,12 +346,10 @@ RunMetricsResult merged_metrics(const std::vector<StationFiles>& st, const std::
   write_trace_header(trace.get());
   write_series_header(series.get());
   const auto trace_ks = merge_traces(st, T, m, trace.get());
-  const auto state_ks = merge_states(st, x_d, T, m, series.get());
+  const auto state_ks = merge_states(st, x_d, s0.value("trace_node", 0), T, m, series.get());
   if (trace_ks.empty() || state_ks.empty()) throw MergeError("the stations in " + dir + " share no recorded tick");
   merge_station_flags(st, m);
-  // d^2 of eq. (13): the copies' energies after the first common tick (they start equal: phi = 0).
-  passivity_bound_J = 0;
-  for (const auto& s : st) passivity_bound_J += s.trace.at(s.trace_row.at(trace_ks.front()), "vo_energy_J");
+  passivity_bound_J = merged_d2_J(st, trace_ks.front(), state_ks.front());
   return m.result(state_ks.back() + 1);
 }
 

@@ -27,25 +27,9 @@ MetricsWindows metrics_windows(const UserScriptSpec& sc) {
 }
 
 CopiesSample measure_copies(const std::vector<const double*>& x, const Eigen::VectorXd& x_d) {
-  const auto dofs = x_d.size();
-  const auto n = static_cast<int>(dofs / 3);
   CopiesSample s;
-  double err = 0;
-  for (std::size_t i = 0; i < x.size(); ++i)
-    for (std::size_t j = i + 1; j < x.size(); ++j) {
-      const Eigen::Map<const Eigen::VectorXd> xi(x[i], dofs), xj(x[j], dofs);
-      for (int p = 0; p < n; ++p) err = std::max(err, (xi.segment<3>(3 * p) - xj.segment<3>(3 * p)).norm());
-    }
-  s.consensus_error_m = std::isfinite(err) ? err : INFINITY;
-  Eigen::VectorXd xbar = Eigen::VectorXd::Zero(dofs);
-  for (const double* xi : x) xbar += Eigen::Map<const Eigen::VectorXd>(xi, dofs);
-  xbar /= static_cast<double>(x.size());
-  Eigen::Vector3d mean_disp = Eigen::Vector3d::Zero();
-  for (int p = 0; p < n; ++p) mean_disp += xbar.segment<3>(3 * p) - x_d.segment<3>(3 * p);
-  mean_disp /= n;
-  double def2 = 0;
-  for (int p = 0; p < n; ++p) def2 += (xbar.segment<3>(3 * p) - x_d.segment<3>(3 * p) - mean_disp).squaredNorm();
-  s.deformation_m = std::sqrt(def2 / n);
+  s.consensus_error_m = model::consensus_error_m(x, static_cast<int>(x_d.size() / 3));
+  s.deformation_m = model::deformation_m(x, x_d);
   return s;
 }
 
@@ -85,15 +69,9 @@ void RunMetrics::add_copies(std::int64_t k, const CopiesSample& s) {
 void RunMetrics::add_forces(std::int64_t k, const std::vector<Eigen::Vector3d>& forces) {
   const double t = static_cast<double>(k) * T_;
   if (!(t >= w_.hold_start_s && t < w_.hold_end_s) || forces.empty()) return;
-  Eigen::Vector3d fsum = Eigen::Vector3d::Zero();
-  double fmean = 0;
-  const auto N = static_cast<double>(forces.size());
-  for (const auto& f : forces) {
-    fsum += f;
-    fmean += f.norm() / N;
-  }
-  hold_sum_ += fsum.norm();
-  hold_mean_ += fmean;
+  const model::ForceBalance b = model::force_balance(forces);
+  hold_sum_ += b.sum_norm_N;
+  hold_mean_ += b.mean_norm_N;
   ++hold_n_;
 }
 
@@ -134,7 +112,7 @@ RunMetricsResult RunMetrics::result(std::int64_t ticks_run) const {
   if (hold_n_ > 0) {
     r.hold_force_sum_N = hold_sum_ / static_cast<double>(hold_n_);
     r.hold_force_mean_N = hold_mean_ / static_cast<double>(hold_n_);
-    if (*r.hold_force_mean_N > 0) r.hold_force_balance_ratio = *r.hold_force_sum_N / *r.hold_force_mean_N;
+    if (*r.hold_force_mean_N > 0) r.hold_force_balance_ratio = model::force_balance_ratio(*r.hold_force_sum_N, *r.hold_force_mean_N);
   }
   if (deform_n_ > 0) {
     r.deformation_hold_m = deform_sum_ / static_cast<double>(deform_n_);

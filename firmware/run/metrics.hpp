@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 
 #include "firmware/model/growth_detector.hpp"
+#include "firmware/model/metrics.hpp"
 #include "firmware/scenario.hpp"
 
 namespace haptic::firmware {
@@ -30,9 +31,8 @@ MetricsWindows metrics_windows(const UserScriptSpec& script);
 // The fractions of the consensus error at release that the relative consensus times reach.
 inline constexpr double kConsensusFractions[] = {0.10, 0.01};
 
-// The copies of the object at one instant: max over pairs and nodes of |x_i - x_j| (inf when not
-// finite), and the rms shape deformation of their mean from the rest shape x_d (the mean
-// displacement removed).
+// The copies of the object at one instant: the consensus error and the deformation
+// (firmware/model/metrics.hpp).
 struct CopiesSample {
   double consensus_error_m = 0;
   double deformation_m = 0;

@@ -223,12 +223,21 @@ void write_trace_row(std::FILE* f, const TraceRow& r) {
 }
 
 void write_series_header(std::FILE* f) {
-  std::fprintf(f, "t_s,consensus_error_m,deformation_m,port_energy_total_J,controller_energy_total_J,force_sum_x_N,force_sum_norm_N\n");
+  std::fprintf(f, "t_s,consensus_error_m,deformation_m,port_energy_total_J,controller_energy_total_J,force_sum_x_N,force_sum_norm_N,"
+                  "force_sum_y_N,force_sum_z_N,force_mean_norm_N,force_balance_ratio,trace_node_mean_x_m,trace_node_mean_y_m,trace_node_mean_z_m\n");
 }
 
 void write_series_row(std::FILE* f, const SeriesRow& r) {
-  std::fprintf(f, "%.4f,%.7g,%.7g,%.7g,%.7g,%.6g,%.6g\n", r.t_s, r.consensus_error_m, r.deformation_m, r.port_total_J, r.ctrl_total_J, r.force_sum_x_N,
-               r.force_sum_norm_N);
+  std::fprintf(f, "%.4f,%.7g,%.7g,%.7g,%.7g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.9g,%.9g,%.9g\n", r.t_s, r.consensus_error_m, r.deformation_m, r.port_total_J,
+               r.ctrl_total_J, r.force_sum_x_N, r.force_sum_norm_N, r.force_sum_y_N, r.force_sum_z_N, r.force_mean_norm_N, r.force_balance_ratio,
+               r.trace_node_mean_m[0], r.trace_node_mean_m[1], r.trace_node_mean_m[2]);
+}
+
+void SeriesRow::set_forces(const model::ForceBalance& b) {
+  force_sum_y_N = b.sum_N[1];
+  force_sum_z_N = b.sum_N[2];
+  force_mean_norm_N = b.mean_norm_N;
+  force_balance_ratio = model::force_balance_ratio(b.sum_norm_N, b.mean_norm_N);
 }
 
 std::vector<double> snapshot_times_s(const ScenarioSpec& s) {
@@ -241,7 +250,12 @@ std::vector<double> snapshot_times_s(const ScenarioSpec& s) {
 void write_snapshots_json(const std::string& path, const std::vector<std::array<int, 3>>& surface,
                           const std::vector<std::vector<int>>& contact_nodes, const std::vector<Snapshot>& snapshots) {
   json snaps = json::array();
-  for (const Snapshot& sn : snapshots) snaps.push_back({{"t_s", sn.t_s}, {"x_m", sn.x_m}, {"vp_m", sn.vp_m}});
+  for (const Snapshot& sn : snapshots) {
+    std::vector<const double*> x;
+    for (const auto& c : sn.x_m) x.push_back(c.data());
+    const int nodes = sn.x_m.empty() ? 0 : static_cast<int>(sn.x_m[0].size() / 3);
+    snaps.push_back({{"t_s", sn.t_s}, {"x_m", sn.x_m}, {"vp_m", sn.vp_m}, {"distance_from_mean_shape_m", model::distance_from_mean_shape_m(x, nodes)}});
+  }
   std::ofstream f(path);
   if (!f) throw std::runtime_error("cannot write " + path);
   f << json{{"surface", surface}, {"contact_nodes", contact_nodes}, {"snapshots", snaps}}.dump() << "\n";

@@ -5,6 +5,7 @@
 // station's station-<id>.json starts with the same scenario part. Values over an empty window are
 // null. Not RT-safe.
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <memory>
@@ -102,9 +103,16 @@ struct TraceRow {
   double port_J = 0, ctrl_J = 0, vo_J = 0;
   bool contact = false;
 };
-// series.csv: the whole system at one recorded tick.
+// series.csv: the whole system at one recorded tick. Then, for readers that must not compute a
+// model quantity themselves (tools/study/hold_balance.py): the rest of sum_i u_i, eq. (20)'s force
+// balance (mean_i |u_i| and |sum_i u_i| / mean_i |u_i|, firmware/model/metrics.hpp) and the traced
+// node's position in the mean copy. NaN where the tick has no such value (the merge: forces only
+// where every station traced).
 struct SeriesRow {
   double t_s = 0, consensus_error_m = 0, deformation_m = 0, port_total_J = 0, ctrl_total_J = 0, force_sum_x_N = 0, force_sum_norm_N = 0;
+  double force_sum_y_N = NAN, force_sum_z_N = NAN, force_mean_norm_N = NAN, force_balance_ratio = NAN;
+  double trace_node_mean_m[3] = {NAN, NAN, NAN};
+  void set_forces(const model::ForceBalance& b);
 };
 void write_trace_header(std::FILE* f);
 void write_trace_row(std::FILE* f, const TraceRow& r);
@@ -114,7 +122,8 @@ void write_series_row(std::FILE* f, const SeriesRow& r);
 // The times of the snapshot figure: start, end of the push, mid-hold, release and end for a
 // push-hold-release script; otherwise start, end of the perturbation and end.
 std::vector<double> snapshot_times_s(const ScenarioSpec& s);
-// snapshots.json: every copy (x, 3n values) and every proxy at one time.
+// snapshots.json: every copy (x, 3n values) and every proxy at one time; the file adds each copy's
+// per-node distance from the mean shape (model::distance_from_mean_shape_m) for the figures.
 struct Snapshot {
   double t_s = 0;
   std::vector<std::vector<double>> x_m;

@@ -227,23 +227,17 @@ void tick_stations(Simulation& s, double t) {
   }
 }
 
-// d^2 of eq. (13) after the first tick: the copies' energies plus phi_pq(0) = |x_p - x_q|_P^2 / 4
-// (plus the modulation's reservoirs with --consensus-passivity pspm).
+// d^2 of eq. (13) after the first tick (model::eq13_d2_J): the copies' energies, the consensus
+// springs phi_pq(0) of the links and, with --consensus-passivity pspm, the modulation's reservoirs.
 double passivity_bound_J(const Simulation& s) {
-  double d2 = 0;
-  for (int i = 0; i < s.N; ++i) d2 += s.st[static_cast<std::size_t>(i)]->energy().vo_J;
+  std::vector<double> copies, springs;
+  for (int i = 0; i < s.N; ++i) copies.push_back(s.st[static_cast<std::size_t>(i)]->energy().vo_J);
   for (std::size_t e = 0; e < s.b.spec.topology.size(); ++e) {
     const auto& l = s.b.spec.topology[e];
-    Eigen::VectorXd dx = s.st[static_cast<std::size_t>(l.a)]->x() - s.st[static_cast<std::size_t>(l.b)]->x();
-    Eigen::VectorXd Pdx = Eigen::VectorXd::Zero(s.dofs);
-    s.b.gains[e].P.multiply_add(1.0, dx.data(), Pdx.data());
-    d2 += dx.dot(Pdx) / 4.0;
+    springs.push_back(model::consensus_spring_J(s.b.gains[e], s.st[static_cast<std::size_t>(l.a)]->x().data(), s.st[static_cast<std::size_t>(l.b)]->x().data()));
   }
-  // Set-position modulation lets each edge end put in at most its initial reservoir (eq. 14 with
-  // c^2 = E0 per directed edge, rt/set_position_modulation.hpp): 2 E0 per link.
-  if (s.b.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation)
-    d2 += 2.0 * static_cast<double>(s.b.spec.topology.size()) * s.b.spec.pspm_reservoir0_J;
-  return d2;
+  return model::eq13_d2_J(copies, springs,
+                          model::pspm_reservoirs_J(s.b.spec.consensus_passivity, static_cast<int>(s.b.spec.topology.size()), s.b.spec.pspm_reservoir0_J));
 }
 
 // 3. Every station sends x_hat(k), v_hat(k) to its neighbours through the impaired links.
@@ -273,19 +267,23 @@ void send_states(Simulation& s, double t) {
 SeriesRow measure(Simulation& s, std::int64_t k) {
   const CopiesSample c = measure_copies(s.copies, s.b.scene.x_d);
   s.metrics.add_copies(k, c);
-  double vmax = 0, port_total = 0, ctrl_total = 0;
-  Eigen::Vector3d fsum = Eigen::Vector3d::Zero();
+  double vmax = 0;
+  model::StationTotals total;
   for (int i = 0; i < s.N; ++i) {
     const auto& core = *s.st[static_cast<std::size_t>(i)];
     for (int p = 0; p < s.n; ++p) vmax = std::max(vmax, core.v().segment<3>(3 * p).norm());
-    fsum += s.forces[static_cast<std::size_t>(i)];
-    port_total += core.energy().port_J;
-    ctrl_total += core.energy().controller_J;
+    total.add_force(s.forces[static_cast<std::size_t>(i)]);
+    total.add_energies(core.energy().port_J, core.energy().controller_J);
   }
   s.metrics.add_speed(vmax);
   s.metrics.add_forces(k, s.forces);
-  s.metrics.add_energies(port_total, ctrl_total);
-  return SeriesRow{static_cast<double>(k + 1) * s.T, c.consensus_error_m, c.deformation_m, port_total, ctrl_total, fsum[0], fsum.norm()};
+  s.metrics.add_energies(total.port_J, total.controller_J);
+  SeriesRow row{static_cast<double>(k + 1) * s.T, c.consensus_error_m, c.deformation_m, total.port_J, total.controller_J, total.force_N[0],
+                total.force_N.norm()};
+  row.set_forces(model::force_balance(s.forces));
+  const Eigen::Vector3d node = model::mean_node_position_m(s.copies, s.b.trace_node);
+  for (int a = 0; a < 3; ++a) row.trace_node_mean_m[a] = node[a];
+  return row;
 }
 
 void write_trace(Simulation& s, std::int64_t k, const SeriesRow& row) {

@@ -161,6 +161,7 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   p->station_id = f.station.id;
   p->me = f.station.id - 1;
   p->net = net::parse_net_config(f.text, static_cast<std::uint32_t>(p->built->scene.dofs), f.path);
+  p->net.endpoint.rtt.bound_policy = &model::round_trip_bound_s;  // the passivity budget's margin rule; net/ measures
   if (p->net.endpoint.wire.station_id != f.station.id)
     bad("the wire station id (" + f.net_section + ".station_id / station.id) must be station.id = " + std::to_string(f.station.id));
   p->peers = plan_peer_table(f, *p->built, p->me, p->net);

@@ -235,21 +235,23 @@ void check_clock(const StationPlan& plan, std::int64_t epoch_ns, ProbeResult& r)
   }
 }
 
-MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const std::vector<std::uint32_t>& rtt_ticks, int allowance,
-                                       double margin, double override_B, int agreement) {
+MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const std::vector<std::uint32_t>& rtt_ticks,
+                                       const std::vector<int>& loss_allowance_ticks, double margin, double override_B, int agreement) {
   const auto& nbrs = b.neighbors[static_cast<std::size_t>(user)];
-  if (rtt_ticks.size() != nbrs.size()) throw std::invalid_argument("bounds_from_round_trips: one bound per neighbour needed");
+  if (rtt_ticks.size() != nbrs.size() || loss_allowance_ticks.size() != nbrs.size())
+    throw std::invalid_argument("bounds_from_round_trips: one bound and one loss allowance per neighbour needed");
   MeasuredBounds m;
-  std::vector<double> sums;
   for (std::size_t n = 0; n < nbrs.size(); ++n) {
-    const int R = static_cast<int>(rtt_ticks[n]) + allowance;
-    m.round_trip_ticks.push_back(R);
-    m.index_guard_ticks.push_back(model::index_guard_from_round_trip(R));
-    m.assumed_sum_ticks.push_back(model::assumed_round_trip_sum_ticks(R, agreement));
-    sums.push_back(m.assumed_sum_ticks.back());
+    const model::LinkBound l = model::link_bound_from_round_trip(static_cast<int>(rtt_ticks[n]), loss_allowance_ticks[n],
+                                                                 b.spec.tx_deadband.added_index_delay_ticks(), agreement);
+    m.round_trip_ticks.push_back(l.round_trip_ticks);
+    m.index_guard_ticks.push_back(l.guard_ticks);
+    m.assumed_sum_ticks.push_back(l.assumed_sum_ticks);
   }
-  m.damping_min_Ns_per_m = b.damping_min_eq18(user, sums);
-  m.damping_Ns_per_m = override_B >= 0 ? override_B : (1.0 + margin) * m.damping_min_Ns_per_m;
+  const model::Damping d = b.damping_eq18(user, m.assumed_sum_ticks, override_B, margin);
+  m.damping_min_Ns_per_m = d.min_Ns_per_m;
+  m.damping_Ns_per_m = d.used_Ns_per_m;
+  m.passivity_condition_met = d.condition_met;
   return m;
 }
 
@@ -259,22 +261,11 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
   const StationSection& S = plan.file.station;
   const BuiltScenario& built = *plan.built;
   try {
-    // Each link's loss allowance (both ends agreed on it while probing), and the transmission
-    // deadband (rt/tx_deadband), which may hold a state up to interval - 1 extra ticks in EACH
-    // direction: each one-way guard ceil(R/2) needs interval - 1 more, so the round trip R (and
-    // eq. 18's sum Nbar_ij + Nbar_ji, as in the simulator's bounds) grows by twice that.
-    if (probe.loss_allowance_ticks.size() != probe.rtt_bound_ticks.size()) throw std::invalid_argument("one loss allowance per neighbour needed");
-    std::vector<std::uint32_t> with_loss = probe.rtt_bound_ticks;
-    for (std::size_t n = 0; n < with_loss.size(); ++n) with_loss[n] += static_cast<std::uint32_t>(probe.loss_allowance_ticks[n]);
-    r.bounds = bounds_from_round_trips(built, plan.me, with_loss, 2 * built.spec.tx_deadband.added_index_delay_ticks(), S.damping_margin,
-                                       S.damping_Ns_per_m, S.agreement_ticks);
-    if (built.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation) {
-      // eq. (14) by the modulation (rt/set_position_modulation.hpp): B_i only if the file gives one
-      r.bounds.damping_Ns_per_m = S.damping_Ns_per_m >= 0 ? S.damping_Ns_per_m : 0.0;
-      r.passivity_condition_met = true;
-    } else {
-      r.passivity_condition_met = r.bounds.damping_Ns_per_m >= r.bounds.damping_min_Ns_per_m * (1 - 1e-12);
-    }
+    // Each link's loss allowance (both ends agreed on it while probing) and the transmission
+    // deadband's: the passivity budget (model::link_bound_from_round_trip, model::damping_eq18).
+    r.bounds = bounds_from_round_trips(built, plan.me, probe.rtt_bound_ticks, probe.loss_allowance_ticks, S.damping_margin, S.damping_Ns_per_m,
+                                       S.agreement_ticks);
+    r.passivity_condition_met = r.bounds.passivity_condition_met;
     rt::StationConfig sc = built.station_config(plan.me);
     sc.damping_Ns_per_m = r.bounds.damping_Ns_per_m;
     // the opened device's own capabilities + the [device] keys; eq. (26) again (the plan checked the published figures)

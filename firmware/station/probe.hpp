@@ -79,18 +79,21 @@ void fix_loss_allowances(const StationPlan& plan, net::Endpoint& ep, ProbeResult
 // station.clock_offset_refuse the status kFailed.
 void check_clock(const StationPlan& plan, std::int64_t epoch_ns, ProbeResult& r);
 
-// The per-neighbour bounds a station derives from its measured round trips.
+// The per-neighbour bounds a station derives from its measured round trips (the passivity budget,
+// firmware/model/passivity_budget.hpp).
 struct MeasuredBounds {
-  std::vector<int> round_trip_ticks;    // R_ij = measured bound (+ margin, net/) + loss allowance (+ deadband): Nbar_ij + Nbar_ji in eq. (18)
+  std::vector<int> round_trip_ticks;    // R_ij = measured bound (+ margin, net/) + loss allowance + 2 x deadband: Nbar_ij + Nbar_ji in eq. (18)
   std::vector<int> index_guard_ticks;   // Nbar_ij = ceil(R_ij / 2): the rt core drops data older than this
   std::vector<int> assumed_sum_ticks;   // Nbar_ij + Nbar_ji put into eq. (18): 2 Nbar_ij + agreement_ticks
                                         // (covers the peer's guard ceil(R_ji/2) while R_ji <= R_ij + 2 agreement_ticks)
   double damping_min_Ns_per_m = 0;      // eq. (18) with R_ij
-  double damping_Ns_per_m = 0;          // B_i used
+  double damping_Ns_per_m = 0;          // B_i used (override, pspm rule or margin)
+  bool passivity_condition_met = false; // B_i used >= eq. (18) (eq18); by construction (pspm)
 };
-// eq. (18) for user `user` of `b` from measured endpoint bounds (ticks, one per neighbour).
+// The budget of user `user` of `b` from measured endpoint bounds and the agreed loss allowances
+// (ticks on the round trip, one each per neighbour); override_B >= 0: B_i given.
 MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const std::vector<std::uint32_t>& rtt_bound_ticks,
-                                       int loss_allowance_ticks, double damping_margin, double damping_override,
+                                       const std::vector<int>& loss_allowance_ticks, double damping_margin, double damping_override,
                                        int agreement_ticks = 2);
 
 struct BuildResult {

@@ -32,6 +32,10 @@ json station_scenario_json(const StationPlan& p) {
   j["damping_model_Ns_per_m"] = b.damping[static_cast<std::size_t>(p.me)];
   j["damping_model_min_Ns_per_m"] = b.damping_min[static_cast<std::size_t>(p.me)];
   j["agreement_ticks"] = p.file.station.agreement_ticks;
+  // What the merge needs for d^2 of eq. (13) (model::eq13_d2_J): the reservoirs pspm starts each
+  // edge end with and lambda_max(P_ij) of the edge gains (the consensus springs, bounded).
+  j["pspm_reservoir0_J"] = b.spec.pspm_reservoir0_J;
+  j["consensus_P_lambda_max_N_per_m"] = b.gains.empty() ? 0.0 : b.gains[0].lambda_max_P;
   // the station's loss allowance: fixed, or -1 = measured per link while probing (links[].loss_allowance_ticks)
   j["loss_allowance_ticks"] = p.file.station.loss_allowance_ticks;
   j["loss_allowance_max_ticks"] = p.file.station.loss_allowance_max_ticks;

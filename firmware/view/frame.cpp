@@ -3,19 +3,11 @@
 #include <algorithm>
 #include <cmath>
 
+#include "firmware/model/metrics.hpp"
+
 namespace haptic::firmware {
 
 namespace {
-// Largest node distance between x and a neighbour's x_hat (dofs values each). RT-safe.
-double max_node_distance(const double* x, const double* y, int nodes) {
-  double m2 = 0;
-  for (int p = 0; p < nodes; ++p) {
-    const double dx = x[3 * p] - y[3 * p], dy = x[3 * p + 1] - y[3 * p + 1], dz = x[3 * p + 2] - y[3 * p + 2];
-    m2 = std::max(m2, dx * dx + dy * dy + dz * dz);
-  }
-  return std::sqrt(m2);
-}
-
 nlohmann::json micrometres(const float* x, int values) {
   std::vector<long> v(static_cast<std::size_t>(values));
   for (int i = 0; i < values; ++i) v[static_cast<std::size_t>(i)] = std::lround(static_cast<double>(x[i]) * 1e6);
@@ -40,13 +32,13 @@ void ViewPublisher::on_tick(const rt::StationCore& core, std::int64_t kr, double
   for (int i = 0; i < 3 * f.nodes; ++i) f.x[i] = static_cast<float>(x[i]);
   f.neighbours = core.neighbor_count();
   f.copies = n <= kViewCopyNodes ? std::min(f.neighbours, kViewMaxCopies) : 0;
-  f.consensus_error_m = 0;
+  f.received_copy_distance_m = 0;
   for (int j = 0; j < f.neighbours; ++j) {
     const rt::RxLink& rx = core.rx(j);
     f.peer[j] = core.neighbor(j).peer_id;
     f.index_delay[j] = kr - rx.newest_sequence();
     f.bound[j] = core.neighbor(j).index_delay_bound_ticks;
-    f.consensus_error_m = std::max(f.consensus_error_m, max_node_distance(x, rx.newest_x_hat(), n));
+    f.received_copy_distance_m = std::max(f.received_copy_distance_m, model::max_node_distance_m(x, rx.newest_x_hat(), n));
     if (j < f.copies)
       for (int i = 0; i < 3 * n; ++i) f.copy_x[j][i] = static_cast<float>(rx.newest_x_hat()[i]);
   }
@@ -92,7 +84,7 @@ nlohmann::json view_frame_json(const ViewFrame& f) {
                       {"port_J", f.port_J},
                       {"controller_J", f.controller_J},
                       {"vo_J", f.vo_J},
-                      {"consensus_error_m", f.consensus_error_m},
+                      {"received_copy_distance_m", f.received_copy_distance_m},
                       {"exec_max_us", f.exec_max_ns * 1e-3},
                       {"wake_max_us", f.wake_max_ns * 1e-3},
                       {"flags", f.flags},

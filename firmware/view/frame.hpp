@@ -31,7 +31,9 @@ struct ViewFrame {
   float copy_x[kViewMaxCopies][3 * kViewCopyNodes] = {};  // their last received x_hat_j
   double vp[3] = {}, device[3] = {}, force[3] = {};
   double port_J = 0, controller_J = 0, vo_J = 0;
-  double consensus_error_m = 0;  // max over neighbours and nodes of |x_p - x_hat_j,p| (last received copies)
+  // max over neighbours and nodes of |x_p - x_hat_j,p| (last received copies; model::max_node_distance_m):
+  // not the run's consensus error, which compares all copies at one instant
+  double received_copy_distance_m = 0;
   std::int32_t exec_max_ns = 0, wake_max_ns = 0;  // largest tick time / wake-up latency since the last frame
   std::uint32_t flags = 0;       // TickFlags or-ed since the last frame
   // What the per-edge energy gate and the edge-drop rule did so far (firmware/run_summary.hpp

@@ -38,11 +38,11 @@ struct Player {
 
 // The plots' values of every kept frame (sent once in the scene message, so the page plots the
 // whole recording and moves a cursor: a paused or sought timeline still shows the curves).
-// Row: t, force x/y/z, port, controller, VO energies, consensus error (mm), tick time and
+// Row: t, force x/y/z, port, controller, VO energies, received-copy distance (mm), tick time and
 // wake-up latency (us), then index delay and bound per link, then delay (ms) and loss (%) per link.
 nlohmann::json history_row(const nlohmann::json& f) {
   nlohmann::json row = {f["t"], f["force"][0], f["force"][1], f["force"][2], f["port_J"], f["controller_J"], f["vo_J"],
-                        f["consensus_error_m"].get<double>() * 1e3, f["exec_max_us"], f["wake_max_us"]};
+                        f["received_copy_distance_m"].get<double>() * 1e3, f["exec_max_us"], f["wake_max_us"]};
   for (const auto& l : f["links"]) row.push_back(l["index_delay"]), row.push_back(l["bound"]);
   for (const auto& l : f["links"]) row.push_back(l.value("delay_ms", 0.0)), row.push_back(100 * l.value("loss", 0.0));
   return row;

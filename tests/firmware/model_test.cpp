@@ -1,5 +1,6 @@
-// firmware/model: the one graph parser and delay model (Nbar, eq. 18 sums, bounds from measured
-// round trips) that the simulator, the station and haptic-topology share.
+// firmware/model: the one graph parser, delay model (Nbar, eq. 18 sums, bounds from measured round
+// trips), passivity budget and run-metric quantities that the simulator, the station, the merge and
+// haptic-topology share.
 #include <CppUTest/TestHarness.h>
 
 #include <cmath>
@@ -8,6 +9,8 @@
 
 #include "firmware/model/delay_model.hpp"
 #include "firmware/model/graph.hpp"
+#include "firmware/model/metrics.hpp"
+#include "firmware/model/passivity_budget.hpp"
 #include "firmware/model/probe_loss.hpp"
 #include "firmware/scenario.hpp"
 #include "tests/support/error_of.hpp"
@@ -125,4 +128,99 @@ TEST(Model, delay_matrix_parser_checks_the_shape_and_reads_inf) {
   const Eigen::MatrixXi steps = model::mean_delay_steps(m, 0.002);
   CHECK_EQUAL(-1, steps(0, 2));
   CHECK_EQUAL(40, steps(1, 2));
+}
+
+// The passivity budget (firmware/model/passivity_budget.hpp): the one rule for Nbar's allowances,
+// the guard, B_i and the condition, used by the scenario and the station alike.
+TEST(Model, the_delay_models_allowances_are_the_loss_models_plus_the_deadbands_plus_the_clocks) {
+  // paper-best: 5 % loss over 20 s (10000 ticks) on 6 directed links -> 5 ticks (0.05^6 x 60000 <= 1 %)
+  const model::NbarAllowances a = model::delay_model_allowances(-1, 0.05, 20.0, 0.002, 6, 0, {});
+  CHECK_EQUAL(5, a.loss_ticks);
+  CHECK_EQUAL(5, a.total());
+  CHECK_EQUAL(2, model::delay_model_allowances(2, 0.05, 20.0, 0.002, 6, 0, {}).loss_ticks);  // given
+  const model::NbarAllowances d = model::delay_model_allowances(0, 0.0, 20.0, 0.002, 6, 3, model::ClockModel{0.0005, 0, 0});
+  CHECK_EQUAL(3, d.deadband_ticks);
+  CHECK_EQUAL(1, d.clock_ticks);  // a late wake: at most one tick more
+  CHECK_EQUAL(4, d.total());
+  CHECK_EQUAL(0, model::clock_allowance_ticks({}, 20.0, 0.002));
+  // drift: 2 x 75 ppm x 10000 ticks = 1.5 -> 2 ticks
+  CHECK_EQUAL(2, model::clock_allowance_ticks(model::ClockModel{0, 0, 75}, 20.0, 0.002));
+}
+
+TEST(Model, a_link_bound_from_a_measured_round_trip_adds_the_loss_and_twice_the_deadband) {
+  const model::LinkBound l = model::link_bound_from_round_trip(10, 4, 2, 2);  // R = 10 + 4 + 2 x 2
+  CHECK_EQUAL(18, l.round_trip_ticks);
+  CHECK_EQUAL(9, l.guard_ticks);
+  CHECK_EQUAL(20, l.assumed_sum_ticks);
+  CHECK_EQUAL(10, model::link_bound_from_round_trip(19, 0, 0, 0).guard_ticks);  // ceil(19 / 2)
+  Eigen::MatrixXi nbar(2, 2);
+  nbar << 0, 7, 3, 0;
+  const model::LinkBound m = model::link_bound_from_delay_model(nbar, 0, 1);
+  CHECK_EQUAL(7, m.guard_ticks);
+  CHECK_EQUAL(10, m.assumed_sum_ticks);
+  DOUBLES_EQUAL(0.020 * 1.25 + 0.004, model::round_trip_bound_s(0.020, 0.25, 0.004), 1e-15);
+}
+
+TEST(Model, b_i_is_the_margin_over_eq18_unless_given_and_zero_under_pspm_and_the_condition_says_which) {
+  const rt::EdgeGains g = rt::scalar_edge_gains(1, 1000.0, 5.0);
+  const rt::EdgeGains* gains[] = {&g, &g};
+  const int sums[] = {10, 20};
+  const double tmax[] = {0.002, 0.002};
+  const auto eq18 = rt::ConsensusPassivity::kEq18Damping, pspm = rt::ConsensusPassivity::kSetPositionModulation;
+  const model::Damping d = model::damping_eq18(0.002, sums, tmax, gains, 0.05, -1, eq18);
+  DOUBLES_EQUAL((10 + 20) / 2.0 * 0.002 * 1000.0, d.min_Ns_per_m, 1e-9);  // eq. (18), T^max = T^min
+  DOUBLES_EQUAL(1.05 * d.min_Ns_per_m, d.used_Ns_per_m, 1e-12);
+  CHECK_TRUE(d.condition_met);
+  const model::Damping low = model::damping_eq18(0.002, sums, tmax, gains, 0.05, 0.5 * d.min_Ns_per_m, eq18);
+  DOUBLES_EQUAL(0.5 * d.min_Ns_per_m, low.used_Ns_per_m, 0);
+  CHECK_FALSE(low.condition_met);
+  // exactly the minimum, rounded a little below: still met (the 1e-12 check)
+  CHECK_TRUE(model::damping_eq18(0.002, sums, tmax, gains, 0, d.min_Ns_per_m * (1 - 1e-14), eq18).condition_met);
+  const model::Damping p = model::damping_eq18(0.002, sums, tmax, gains, 0.05, -1, pspm);
+  DOUBLES_EQUAL(0.0, p.used_Ns_per_m, 0);
+  DOUBLES_EQUAL(d.min_Ns_per_m, p.min_Ns_per_m, 1e-12);  // what eq. (18) would have asked for
+  CHECK_TRUE(p.condition_met);                            // eq. (14) by the modulation
+  DOUBLES_EQUAL(3.0, model::damping_eq18(0.002, sums, tmax, gains, 0.05, 3.0, pspm).used_Ns_per_m, 0);
+}
+
+TEST(Model, d2_of_eq13_counts_the_copies_the_consensus_springs_and_under_pspm_the_reservoirs) {
+  const rt::EdgeGains g = rt::scalar_edge_gains(2, 100.0, 5.0);  // P = 100 I on 6 dofs
+  const double a[6] = {0, 0, 0, 0, 0, 0}, b[6] = {0.1, 0, 0, 0, 0.2, 0};
+  DOUBLES_EQUAL(100.0 * (0.01 + 0.04) / 4.0, model::consensus_spring_J(g, a, b), 1e-12);
+  DOUBLES_EQUAL(model::consensus_spring_J(g, a, b), model::consensus_spring_bound_J(g.lambda_max_P, a, b, 6), 1e-12);  // P = p I: equal
+  DOUBLES_EQUAL(0.0, model::pspm_reservoirs_J(rt::ConsensusPassivity::kEq18Damping, 3, 0.002), 0);
+  DOUBLES_EQUAL(2 * 3 * 0.002, model::pspm_reservoirs_J(rt::ConsensusPassivity::kSetPositionModulation, 3, 0.002), 1e-15);
+  const double copies[] = {0.5, 0.25}, springs[] = {0.125};
+  DOUBLES_EQUAL(0.5 + 0.25 + 0.125 + 0.012, model::eq13_d2_J(copies, springs, 0.012), 1e-15);
+}
+
+// The run metrics' quantities (firmware/model/metrics.hpp), one definition each.
+TEST(Model, the_consensus_error_is_the_largest_pairwise_node_distance_and_differs_from_the_distance_to_the_mean_shape) {
+  const double x0[6] = {0, 0, 0, 1, 0, 0}, x1[6] = {0, 0, 0, 1, 0, 0}, x2[6] = {0, 0, 0.3, 1, 0, 0};
+  const double* copies[] = {x0, x1, x2};
+  DOUBLES_EQUAL(0.3, model::consensus_error_m(copies, 2), 1e-15);
+  DOUBLES_EQUAL(0.3, model::max_node_distance_m(x0, x2, 2), 1e-15);
+  const auto d = model::distance_from_mean_shape_m(copies, 2);
+  DOUBLES_EQUAL(0.1, d[0][0], 1e-15);  // the mean is at z = 0.1
+  DOUBLES_EQUAL(0.2, d[2][0], 1e-15);
+  DOUBLES_EQUAL(0.0, d[2][1], 1e-15);
+  const Eigen::Vector3d m = model::mean_node_position_m(copies, 0);
+  DOUBLES_EQUAL(0.1, m.z(), 1e-15);
+  const double far[6] = {INFINITY, 0, 0, 0, 0, 0};
+  const double* with_inf[] = {x0, far};
+  CHECK_TRUE(std::isinf(model::consensus_error_m(with_inf, 2)));
+}
+
+TEST(Model, the_force_balance_is_the_norm_of_the_sum_and_the_mean_of_the_norms) {
+  const Eigen::Vector3d f[] = {Eigen::Vector3d(3, 0, 0), Eigen::Vector3d(-1, 0, 0), Eigen::Vector3d(0, 4, 0)};
+  const model::ForceBalance b = model::force_balance(f);
+  DOUBLES_EQUAL(std::sqrt(4.0 + 16.0), b.sum_norm_N, 1e-12);
+  DOUBLES_EQUAL((3 + 1 + 4) / 3.0, b.mean_norm_N, 1e-12);
+  DOUBLES_EQUAL(b.sum_norm_N / b.mean_norm_N, model::force_balance_ratio(b.sum_norm_N, b.mean_norm_N), 0);
+  CHECK_TRUE(std::isnan(model::force_balance_ratio(1.0, 0.0)));
+  model::StationTotals t;
+  for (const auto& v : f) t.add_force(v), t.add_energies(1.0, -0.5);
+  DOUBLES_EQUAL(2.0, t.force_N.x(), 0);
+  DOUBLES_EQUAL(3.0, t.port_J, 0);
+  DOUBLES_EQUAL(-1.5, t.controller_J, 0);
 }

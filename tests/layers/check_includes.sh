@@ -9,7 +9,7 @@
 #   firmware/scene/     -> firmware/scene/ rt/
 #   firmware/scenario.* -> firmware/{scenario,model,scene} net/ platform/ rt/
 #   firmware/session/   -> firmware/session/ platform/ rt/
-#   firmware/view/      -> firmware/{view,session} platform/ rt/
+#   firmware/view/      -> firmware/{view,session,model} platform/ rt/
 #   firmware/run/       -> firmware/{run,scenario,model,scene} platform/ rt/
 #   firmware/station/   -> firmware/ but sim/, net/ drivers/ platform/ rt/
 #   firmware/sim/, firmware/*_main.cpp -> firmware/ net/ drivers/ platform/ rt/   (never tools/ or tests/)
@@ -41,7 +41,7 @@ check $fw/model/ "$fw/model|rt" $fw/model
 check $fw/scene/ "$fw/scene|rt" $fw/scene
 check $fw/scenario "$fw/scenario|$fw/model|$fw/scene|net|platform|rt" $fw/scenario.hpp $fw/scenario.cpp
 check $fw/session/ "$fw/session|platform|rt" $fw/session
-check $fw/view/ "$fw/view|$fw/session|platform|rt" $fw/view
+check $fw/view/ "$fw/view|$fw/session|$fw/model|platform|rt" $fw/view
 check $fw/run/ "$fw/run|$fw/scenario|$fw/model|$fw/scene|platform|rt" $fw/run
 check $fw/station/ "$fw/station|$fw/run|$fw/view|$fw/session|$fw/scenario|$fw/model|$fw/scene|net|drivers|platform|rt" $fw/station
 check $fw/ "$fw|net|drivers|platform|rt" $fw

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 
+#include "firmware/model/passivity_budget.hpp"
 #include "net/rtt.hpp"
 
 using namespace haptic::net;
@@ -16,6 +17,7 @@ TEST_GROUP(Rtt){};
 
 TEST(Rtt, ProbingSetsTheBoundFromTheMaximumWithMargin) {
   RttConfig c;
+  c.bound_policy = &haptic::model::round_trip_bound_s;  // the station's (firmware/model)
   c.margin_fraction = 0.25;
   c.margin_s = 0.004;
   c.min_probe_samples = 5;
@@ -36,6 +38,7 @@ TEST(Rtt, ProbingSetsTheBoundFromTheMaximumWithMargin) {
 
 TEST(Rtt, OverBoundSampleIsCountedAndRaisesTheBound) {
   RttConfig c;
+  c.bound_policy = &haptic::model::round_trip_bound_s;
   c.min_probe_samples = 1;
   c.margin_fraction = 0.0;
   c.margin_s = 0.001;
@@ -49,6 +52,19 @@ TEST(Rtt, OverBoundSampleIsCountedAndRaisesTheBound) {
   DOUBLES_EQUAL(0.016, e.bound_s(), 1e-12);
   CHECK_EQUAL(2u, e.generation());
   CHECK_FALSE(e.add_sample(0.0155));
+}
+
+TEST(Rtt, WithoutAPolicyTheBoundIsTheMeasuredMaximum) {
+  // net/ measures; the margin is the caller's policy (net/ knows no physics)
+  RttConfig c;
+  c.min_probe_samples = 1;
+  RttEstimator e(c);
+  e.begin_probing();
+  for (double s : {0.010, 0.014}) e.add_sample(s);
+  CHECK(e.finish_probing());
+  DOUBLES_EQUAL(0.014, e.bound_s(), 0);
+  CHECK(e.add_sample(0.015));
+  DOUBLES_EQUAL(0.015, e.bound_s(), 0);
 }
 
 TEST(Rtt, NonsenseSamplesAreIgnored) {

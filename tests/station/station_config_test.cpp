@@ -134,7 +134,7 @@ TEST(StationConfig, DampingFromMeasuredRoundTripsIsEq18WithTheSymmetricGuardAndA
   ScenarioSpec spec = make_scenario("paper-best");
   const BuiltScenario b = build_scenario(spec);
   // user 1 (0-based 0) has three neighbours
-  const MeasuredBounds m = bounds_from_round_trips(b, 0, {10, 15, 3}, 1, 0.05, -1);
+  const MeasuredBounds m = bounds_from_round_trips(b, 0, {10, 15, 3}, {1, 1, 1}, 0.05, -1);
   LONGS_EQUAL(11, m.round_trip_ticks[0]);
   LONGS_EQUAL(6, m.index_guard_ticks[0]);  // ceil(11/2)
   LONGS_EQUAL(8, m.index_guard_ticks[1]);
@@ -146,9 +146,9 @@ TEST(StationConfig, DampingFromMeasuredRoundTripsIsEq18WithTheSymmetricGuardAndA
   DOUBLES_EQUAL(haptic::rt::damping_min_eq18(spec.period_s, nb), m.damping_min_Ns_per_m, 1e-12);
   DOUBLES_EQUAL(1.05 * m.damping_min_Ns_per_m, m.damping_Ns_per_m, 1e-12);
   // larger measured round trips need more damping; an override is taken as is
-  CHECK(bounds_from_round_trips(b, 0, {20, 25, 13}, 1, 0.05, -1).damping_min_Ns_per_m > m.damping_min_Ns_per_m);
-  DOUBLES_EQUAL(4.0, bounds_from_round_trips(b, 0, {10, 15, 3}, 1, 0.05, 4.0).damping_Ns_per_m, 0);
-  CHECK_THROWS(std::invalid_argument, bounds_from_round_trips(b, 0, {10}, 1, 0.05, -1));
+  CHECK(bounds_from_round_trips(b, 0, {20, 25, 13}, {1, 1, 1}, 0.05, -1).damping_min_Ns_per_m > m.damping_min_Ns_per_m);
+  DOUBLES_EQUAL(4.0, bounds_from_round_trips(b, 0, {10, 15, 3}, {1, 1, 1}, 0.05, 4.0).damping_Ns_per_m, 0);
+  CHECK_THROWS(std::invalid_argument, bounds_from_round_trips(b, 0, {10}, {1}, 0.05, -1));
 }
 
 TEST(StationConfig, TheLabConfigsParse) {
@@ -175,13 +175,13 @@ TEST(StationConfig, TheLabConfigsParse) {
 TEST(StationConfig, AgreementTickCoversAPeerWhoseRoundTripIsTwoTicksLonger) {
   const BuiltScenario b = build_scenario(make_scenario("paper-best"));
   // station 1 measured R = 14 to station 2 (after the allowance), station 2 measured R = 16 back
-  const MeasuredBounds at1 = bounds_from_round_trips(b, 0, {13, 5, 5}, 1, 0.05, -1, 1);
-  const MeasuredBounds at2 = bounds_from_round_trips(b, 1, {15}, 1, 0.05, -1, 1);
+  const MeasuredBounds at1 = bounds_from_round_trips(b, 0, {13, 5, 5}, {1, 1, 1}, 0.05, -1, 1);
+  const MeasuredBounds at2 = bounds_from_round_trips(b, 1, {15}, {1}, 0.05, -1, 1);
   const int enforced = at1.index_guard_ticks[0] + at2.index_guard_ticks[0];  // 7 + 8
   CHECK(enforced <= at1.assumed_sum_ticks[0]);
   CHECK(enforced <= at2.assumed_sum_ticks[0]);
   // without the agreement tick station 1's eq. (18) would assume less than is enforced
-  CHECK(enforced > bounds_from_round_trips(b, 0, {13, 5, 5}, 1, 0.05, -1, 0).assumed_sum_ticks[0]);
+  CHECK(enforced > bounds_from_round_trips(b, 0, {13, 5, 5}, {1, 1, 1}, 0.05, -1, 0).assumed_sum_ticks[0]);
 }
 
 TEST(StationConfig, AViewBindThatIsNotAnIPv4AddressIsRejectedNamingTheKey) {

@@ -17,6 +17,9 @@
 
 #include "drivers/device_factory.hpp"
 #include "drivers/simulated_device.hpp"
+#include "firmware/run/merge.hpp"
+#include "firmware/sim/simulator.hpp"
+#include "firmware/station/plan.hpp"
 #include "firmware/station/run.hpp"
 #include "firmware/station/tick.hpp"
 #include "platform/clock.hpp"
@@ -161,6 +164,29 @@ TEST(StationPhases, FourStationsUnderSetPositionModulationRunWithoutDampingAndRe
     CHECK_EQUAL(static_cast<std::size_t>(i == 1 ? 3 : 1), j["pspm_edges"].size());
     for (const auto& e : j["pspm_edges"]) CHECK(number(e["edge_energy_peak_J"]) <= 0.002 + 1e-12);
   }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, UnderSetPositionModulationTheMergedRunAndTheSimulatorReportTheSameD2OfEq13) {
+  // d^2 of eq. (13) (model::eq13_d2_J): the copies' energies, the consensus springs and, under pspm,
+  // 2 E0 per link. The merge of four in-process stations' files and the simulator of the same plan
+  // must report the same bound (the merge used to count the copies' energies only).
+  const std::string dir = test::fresh_dir("pspm-d2");
+  const std::string pspm = std::string(kShort) + "consensus_passivity = \"pspm\"\npspm_reservoir_J = 0.002\n";
+  const std::vector<int> codes = run_four(dir, 113, {pspm, pspm, pspm, pspm});
+  for (int c : codes) LONGS_EQUAL(kExitOk, c);
+  const json merged = merge_run(dir);
+  test::StationText st;
+  st.id = 1;
+  st.peers = {2, 3, 4};
+  st.out_dir = dir;
+  st.station_extra = pspm;
+  const PlanResult plan = plan_station(parse_station_file(st.text()), RunOverrides{}, read_clocks());
+  LONGS_EQUAL(static_cast<int>(PhaseStatus::kOk), static_cast<int>(plan.status));
+  const SimResult sim = run_simulation(*plan.plan->built, SimOptions{});
+  const double links = static_cast<double>(plan.plan->built->spec.topology.size());
+  CHECK(sim.passivity_bound_J >= 2 * links * 0.002);  // the reservoirs are in it
+  DOUBLES_EQUAL(sim.passivity_bound_J, number(merged["passivity_bound_J"]), 1e-9);
   std::filesystem::remove_all(dir);
 }
 

@@ -9,8 +9,8 @@ usage: /usr/bin/python3 tools/plots/check_figures.py RUN_DIR
   1e3 (node_x - rest_x) of trace.csv per user, not its position;
 - the release and push-end lines and the consensus threshold carry text labels;
 - the snapshot figure has axes ticks in mm, a colour bar, and colours each surface triangle by the
-  mean distance of its corners from the consensus shape (the mean of ALL copies, recomputed here
-  from snapshots.json), on one scale for the whole figure.
+  mean distance of its corners from the mean shape of ALL copies (snapshots.json's
+  distance_from_mean_shape_m, written by the run), on one scale for the whole figure.
 Exit 0 when all hold, 1 with every failure listed.
 """
 import json
@@ -61,10 +61,7 @@ def expected_face_colours(sn, users, cols):
     import matplotlib.pyplot as plt
     from matplotlib import colors
     surf = np.array(sn["surface"])
-    dist = []
-    for s in sn["snapshots"]:
-        x = np.array(s["x_m"], dtype=float).reshape(users, -1, 3)
-        dist.append(1e3 * np.linalg.norm(x - x.mean(axis=0), axis=2))
+    dist = [plot_run.mean_shape_distance_mm(s) for s in sn["snapshots"]]  # the run's own values (C++)
     norm = colors.Normalize(0, max(max(d.max() for d in dist), 1e-12))
     cmap = plt.get_cmap("viridis")
     return [[cmap(norm(d[u][surf].mean(axis=1)), alpha=0.85) for u in range(cols)] for d in dist]
@@ -79,9 +76,9 @@ def check_snapshots(fig, summary, sn, fail):
         return
     if not any("mm" in ax.get_xlabel() for ax in panels) or not all(len(ax.get_xticks()) >= 2 for ax in panels):
         fail.append("snapshot figure: no axes in mm")
-    bars = [ax for ax in fig.axes if not hasattr(ax, "get_zlim") and "consensus" in ax.get_ylabel()]
+    bars = [ax for ax in fig.axes if not hasattr(ax, "get_zlim") and "mean shape" in ax.get_ylabel()]
     if not bars:
-        fail.append("snapshot figure: no colour bar labelled with the consensus distance")
+        fail.append("snapshot figure: no colour bar labelled with the distance from the mean shape")
     want = expected_face_colours(sn, users, cols)
     for i, ax in enumerate(panels):
         r, u = divmod(i, cols)
@@ -90,7 +87,7 @@ def check_snapshots(fig, summary, sn, fail):
         exp = np.asarray(want[r][u])
         # the drawn order is by depth: compare the colours as sorted sets
         if got.shape != exp.shape or not np.allclose(np.array(sorted(map(tuple, got))), np.array(sorted(map(tuple, exp))), atol=1e-6):
-            fail.append("snapshot figure: t = %.2f s user %d: face colours are not the distance from the consensus shape" % (
+            fail.append("snapshot figure: t = %.2f s user %d: face colours are not the distance from the mean shape" % (
                 sn["snapshots"][r]["t_s"], u + 1))
 
 
@@ -111,7 +108,7 @@ def main(run):
     if fail:
         print("FAILED (%s):\n  %s" % (run, "\n  ".join(fail)))
         return 1
-    print("figures ok (%s): %s; node %d displacement, labelled events, snapshot colours = distance from the consensus shape" % (
+    print("figures ok (%s): %s; node %d displacement, labelled events, snapshot colours = distance from the mean shape" % (
         summary.get("mode", "sim"), ", ".join(sorted(figs)), summary["trace_node"]))
     return 0
 

@@ -7,7 +7,7 @@ Reads RUN_DIR/trace.csv, series.csv, summary.json and (if present) snapshots.jso
 `haptic-station sim` and by `haptic-station merge` after a real (multi-process) run, and writes
 fig_node_position.png (the traced node's displacement from rest), fig_device_force.png,
 fig_energy.png, fig_consensus.png and fig_snapshots.png (the copies coloured by their distance
-from the consensus shape) into RUN_DIR.
+from the mean shape) into RUN_DIR.
 """
 import json
 import os
@@ -21,7 +21,7 @@ import numpy as np  # noqa: E402
 from matplotlib import cm, colors  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
-MAX_COPIES_DRAWN = 8  # a 64-user run: the snapshot figure draws users 1-8 (the consensus shape uses all)
+MAX_COPIES_DRAWN = 8  # a 64-user run: the snapshot figure draws users 1-8 (the mean shape uses all)
 
 
 def load_csv(path):
@@ -161,10 +161,10 @@ def fig_consensus(summary, se):
     return fig
 
 
-def consensus_distance_mm(copies):
-    """Per copy and node: distance (mm) from the consensus shape, the mean of all copies."""
-    x = np.asarray(copies, dtype=float).reshape(len(copies), -1, 3)
-    return 1e3 * np.linalg.norm(x - x.mean(axis=0), axis=2)
+def mean_shape_distance_mm(snapshot):
+    """Per copy and node: distance (mm) from the mean shape of all copies, as the run wrote it
+    (snapshots.json distance_from_mean_shape_m, firmware/model/metrics.hpp)."""
+    return 1e3 * np.asarray(snapshot["distance_from_mean_shape_m"], dtype=float)
 
 
 def nice_factor(v):
@@ -192,7 +192,7 @@ def fig_snapshots(summary, sn):
     snaps, surf, contacts = sn["snapshots"], np.array(sn["surface"]), sn["contact_nodes"]
     users = int(summary["users"])
     ref_c, radius, defo, factor = snapshot_geometry(sn)
-    dist = [consensus_distance_mm(s["x_m"]) for s in snaps]
+    dist = [mean_shape_distance_mm(s) for s in snaps]
     vmax = max(max(d.max() for d in dist), 1e-12)
     norm = colors.Normalize(0, vmax)
     cmap = plt.get_cmap("viridis")
@@ -229,9 +229,9 @@ def fig_snapshots(summary, sn):
     fig.subplots_adjust(left=0.06, right=0.86, bottom=0.03, top=0.92, wspace=0.05, hspace=0.12)
     cax = fig.add_axes([0.89, 0.15, 0.02, 0.7])
     cb = fig.colorbar(cm.ScalarMappable(norm=norm, cmap=cmap), cax=cax)
-    cb.set_label("distance from the consensus shape\n(mean of the %d copies), mm" % users, fontsize=7)
+    cb.set_label("distance from the mean shape\n(of the %d copies), mm" % users, fontsize=7)
     cb.ax.tick_params(labelsize=6)
-    fig.suptitle("%s\ncopies about their centroids (mm), deformation x%d; colour: distance from the consensus shape;"
+    fig.suptitle("%s\ncopies about their centroids (mm), deformation x%d; colour: distance from the mean shape;"
                  " VP red, contact nodes black" % (run_title(summary), factor), fontsize=8)
     return fig
 

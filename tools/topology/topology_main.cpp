@@ -17,6 +17,8 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "firmware/model/passivity_budget.hpp"
+#include "net/impairment.hpp"
 #include "platform/install_paths.hpp"
 #include "rt/mesh.hpp"
 #include "rt/scene.hpp"
@@ -34,6 +36,7 @@ struct Row {
   topo::GraphScore score;
   Eigen::VectorXd eq18_ms;
   std::string label;
+  int loss_allowance = 0;  // eq. (18)'s Nbar allowance for lost packets (steps per direction)
 };
 
 json matrix_json(const Eigen::MatrixXd& m) {
@@ -61,6 +64,7 @@ json row_json(const Row& r, int rank, double period_ms) {
                                        ? json(time_constant_ms(r.score.lambda_next_abs, period_ms)) : json(nullptr)},
               {"eq18_round_trip_sum_ms", eq18},
               {"nbar", r.score.nbar},
+              {"loss_allowance_steps", r.loss_allowance},
               {"lifted_size", r.score.lifted_size},
               {"modes_evaluated", r.score.modes_evaluated},
               {"worst_mode_value", r.score.worst_mode_value},
@@ -107,8 +111,11 @@ int main(int argc, char** argv) {
   double gain_a = 500.0, gain_b = 500.0;
   std::vector<double> mode_values;
   // eq. (18) defaults: the simulator's (firmware/model/delay_model.hpp).
-  double self_weight = 0.0, jitter_factor = 1.0 + haptic::model::kPaperJitterFraction;
-  int loss_allowance = haptic::model::kDefaultLossAllowanceTicks;
+  // eq. (18) defaults: the paper's impairment (net/impairment.hpp) over the paper-best run's 20 s, the
+  // simulator's delay model and passivity budget (firmware/model/passivity_budget.hpp).
+  double self_weight = 0.0, jitter_factor = 1.0 + haptic::net::kPaperJitterFraction;
+  double loss_probability = haptic::net::kPaperLossProbability, run_s = 20.0;
+  int loss_allowance = -1;
   std::string method = "auto";
   topo::SyntheticMap map;
 
@@ -147,7 +154,11 @@ int main(int argc, char** argv) {
   app.add_option("--self-weight", self_weight, "s in [0,1): p_i(k+1) = s p_i(k) + (1-s) mix; 0 = paper")->capture_default_str();
   app.add_option("--method", method, "eigenvalue method: auto|dense|power|arnoldi")->capture_default_str();
   app.add_option("--jitter-factor", jitter_factor, "eq. (18): Nbar_ij = ceil(factor mean / T) + loss allowance")->capture_default_str();
-  app.add_option("--loss-allowance", loss_allowance, "eq. (18): extra steps per direction for lost packets")->capture_default_str();
+  app.add_option("--loss-allowance", loss_allowance,
+                 "eq. (18): extra steps per direction for lost packets; -1: from the loss model (--loss, --run-s), as the simulator")
+      ->capture_default_str();
+  app.add_option("--loss", loss_probability, "eq. (18), --loss-allowance -1: loss probability per packet (the paper's 5 %)")->capture_default_str();
+  app.add_option("--run-s", run_s, "eq. (18), --loss-allowance -1: run length the allowance covers (s; paper-best's 20 s)")->capture_default_str();
   app.add_option("--top", top, "rows printed at each end of the ranked table")->capture_default_str();
   app.add_option("--json", json_out, "write the ranked table as JSON");
   app.add_option("--png", png_out, "draw the best and worst graphs (runs /usr/bin/python3 plot_topology.py)");
@@ -158,7 +169,9 @@ int main(int argc, char** argv) {
     if (!(period_ms > 0)) throw std::invalid_argument("--period-ms: must be > 0");
     const double period_s = period_ms * 1e-3;
     if (!(jitter_factor >= 1.0)) throw std::invalid_argument("--jitter-factor: must be >= 1");
-    if (loss_allowance < 0) throw std::invalid_argument("--loss-allowance: must be >= 0");
+    if (loss_allowance < -1) throw std::invalid_argument("--loss-allowance: must be >= 0 (-1: from the loss model)");
+    if (!(loss_probability >= 0 && loss_probability < 1)) throw std::invalid_argument("--loss: must be in [0, 1)");
+    if (!(run_s > 0)) throw std::invalid_argument("--run-s: must be > 0");
     if (degree_cap < 0) throw std::invalid_argument("--degree-cap: must be >= 0");
     topo::EigenMethod em = topo::EigenMethod::Auto;
     if (method == "dense") em = topo::EigenMethod::Dense;
@@ -261,7 +274,7 @@ int main(int argc, char** argv) {
       std::string one;
       while (std::getline(gs, one, ';')) {
         if (one.find_first_not_of(" \t") == std::string::npos) continue;
-        rows.push_back({topo::parse_graph_1based(one, n), {}, {}, ""});
+        rows.push_back({topo::parse_graph_1based(one, n), {}, {}, "", 0});
       }
       feasible = "listed set of " + std::to_string(rows.size()) + " graphs";
       mode = "evaluate listed";
@@ -270,7 +283,7 @@ int main(int argc, char** argv) {
       for (int k = 1; k <= links && combos <= 1e18; ++k) combos = combos * (available_pairs - links + k) / k;
       if (!force_search && dense_gains == false && combos > static_cast<double>(max_enumerate)) force_search = true;
       if (!force_search || dense_gains) {
-        for (auto& g : topo::enumerate_connected_graphs(n, links, degree_cap, max_enumerate, allowed)) rows.push_back({g, {}, {}, ""});
+        for (auto& g : topo::enumerate_connected_graphs(n, links, degree_cap, max_enumerate, allowed)) rows.push_back({g, {}, {}, "", 0});
         feasible = "all connected graphs with " + std::to_string(links) + " links" +
                    (degree_cap > 0 ? ", degree <= " + std::to_string(degree_cap) : "") + " (" + std::to_string(rows.size()) + ")";
         mode = "enumeration";
@@ -281,8 +294,8 @@ int main(int argc, char** argv) {
         opt.max_evaluations = max_evaluations;
         sr = topo::search_topology(rank_delay, period_s, poly, so, opt);
         searched = true;
-        rows.push_back({sr.best, sr.best_score, {}, "best after local search"});
-        rows.push_back({sr.seed, sr.seed_score, {}, "greedy seed"});
+        rows.push_back({sr.best, sr.best_score, {}, "best after local search", 0});
+        rows.push_back({sr.seed, sr.seed_score, {}, "greedy seed", 0});
         feasible = "connected graphs with " + std::to_string(links) + " links" +
                    (degree_cap > 0 ? ", degree <= " + std::to_string(degree_cap) : "") +
                    " (C(" + std::to_string(available_pairs) + "," + std::to_string(links) + ") ~ " +
@@ -297,8 +310,13 @@ int main(int argc, char** argv) {
       for (auto& r : rows) r.score = score(r.graph);
     }
     // eq. (18) sums with the simulator's and the station's delay model (firmware/model).
-    const Eigen::MatrixXi nbar = haptic::model::index_delay_bounds_ticks(eq18_delay, eq18_factor - 1.0, period_s, loss_allowance);
-    for (auto& r : rows) r.eq18_ms = haptic::model::round_trip_half_sums_ms(r.graph, nbar, period_s);
+    // The loss allowance covers each graph's own directed links (model::delay_model_allowances).
+    for (auto& r : rows) {
+      r.loss_allowance = haptic::model::delay_model_allowances(loss_allowance, loss_probability, run_s, period_s,
+                                                               2 * static_cast<int>(r.graph.size()), 0, {}).loss_ticks;
+      const Eigen::MatrixXi nbar = haptic::model::index_delay_bounds_ticks(eq18_delay, eq18_factor - 1.0, period_s, r.loss_allowance);
+      r.eq18_ms = haptic::model::round_trip_half_sums_ms(r.graph, nbar, period_s);
+    }
     // rank: |lambda_{n+1}| ascending; ties (periodic graphs all at 1) by the largest eq. (18) sum
     if (!searched) {
       std::stable_sort(rows.begin(), rows.end(), [](const Row& x, const Row& y) {
@@ -329,8 +347,10 @@ int main(int argc, char** argv) {
     std::printf("mixing model: self weight s = %g%s\n", self_weight,
                 self_weight == 0.0 ? " (paper-literal; graphs whose delay cycles share a common factor are periodic, |lambda| = 1)" : "");
     std::printf("tau = -T / ln|lambda_n+1|: time constant of the non-consensus residual of the mixing model\n");
-    std::printf("eq. (18) sums: sum_j (Nbar_ij + Nbar_ji) T/2 per user, Nbar = ceil(%g x %s / T) + %d\n", eq18_factor,
-                summary_file.empty() ? "mean" : "measured max", loss_allowance);
+    std::printf("eq. (18) sums: sum_j (Nbar_ij + Nbar_ji) T/2 per user, Nbar = ceil(%g x %s / T) + %d (the best's loss allowance, ",
+                eq18_factor, summary_file.empty() ? "mean" : "measured max", rows.front().loss_allowance);
+    if (loss_allowance >= 0) std::printf("given)\n");
+    else std::printf("from %g loss over %g s)\n", loss_probability, run_s);
     std::printf("time: %.3f s (%zu graphs scored%s)\n\n", elapsed, searched ? static_cast<std::size_t>(sr.evaluations) : rows.size(),
                 searched ? " in the search" : "");
     std::printf("rank  links (1-based)               |lambda_n+1|  tau (ms)   method  eq.(18) round-trip sum per user, ms\n");
@@ -353,7 +373,7 @@ int main(int argc, char** argv) {
       out["mean_delay_ms"] = matrix_json(rank_delay);
       out["eq18_delay_ms"] = matrix_json(eq18_delay);
       out["eq18_factor"] = eq18_factor;
-      out["loss_allowance_steps"] = loss_allowance;
+      out["loss_allowance_steps"] = rows.front().loss_allowance;  // the best's (each row: its own)
       out["self_weight"] = self_weight;
       out["feasible_set"] = feasible;
       out["mode"] = mode;

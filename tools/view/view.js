@@ -74,7 +74,7 @@ function chart(id, title, names, ylabel) {
 function setupCharts(s) {
   charts.force = chart("p_force", "device force u_i", ["x", "y", "z"], "N");
   charts.energy = chart("p_energy", "energies (13) port, (14) controller, VO", ["port (13)", "controller (14)", "VO"], "J");
-  charts.cons = chart("p_cons", "consensus error (vs last received copies)", ["max |x - x_j|"], "mm");
+  charts.cons = chart("p_cons", "distance to the last received copies (not the run's consensus error)", ["max |x - x_hat_j|"], "mm");
   const ln = [];
   s.neighbours.forEach(p => { ln.push("N_" + s.station + p); ln.push("Nbar_" + s.station + p); });
   charts.links = chart("p_links", "index delay N_ij vs bound Nbar_ij", ln, "ticks");
@@ -154,7 +154,7 @@ function addPoints(f) {
   const t = f.t;
   for (let a = 0; a < 3; ++a) push(charts.force, a, t, f.force[a]);
   push(charts.energy, 0, t, f.port_J); push(charts.energy, 1, t, f.controller_J); push(charts.energy, 2, t, f.vo_J);
-  push(charts.cons, 0, t, f.consensus_error_m * 1e3);
+  push(charts.cons, 0, t, f.received_copy_distance_m * 1e3);
   f.links.forEach((l, j) => {
     push(charts.links, 2 * j, t, l.index_delay); push(charts.links, 2 * j + 1, t, l.bound);
     if (l.delay_ms !== undefined) { push(charts.delay, 2 * j, t, l.delay_ms); push(charts.delay, 2 * j + 1, t, 100 * l.loss); }

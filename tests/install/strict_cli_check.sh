@@ -4,8 +4,9 @@
 #             exit 0, all with the same git describe and build id (one implementation, platform/version.hpp);
 #   strict:   a negative or out-of-range number is refused (exit 2, or haptic-devices' 2) naming the
 #             option; an unknown option or subcommand is named with "did you mean" the nearest one;
-#             haptic-keygen never creates a file named like an option.
-# Nothing here runs a station or sends a packet (parse and plan errors only; ~30 s).
+#             haptic-keygen never creates a file named like an option; haptic-lab plan refuses a
+#             disconnected topology before writing anything (no run folder, not even --run-dir's).
+# Nothing here runs a station or sends a packet (parse and plan errors only; ~10 s).
 # Usage: strict_cli_check.sh BUILD_DIR version|strict
 set -uo pipefail
 build="$1"; mode="$2"
@@ -63,6 +64,8 @@ printf '[station]\nid = 2\nduration_s = 1\nout_dir = "%s"\n[device]\nkind = "sim
 expect run_check_ok 0 "config ok: station 2" -- haptic-station run --config "$work/station.toml" --check-config
 expect run_duration_negative 2 "--duration: Value -5 must be > 0" -- haptic-station run --config "$work/station.toml" --duration -5 --check-config
 expect run_start_at_negative 2 "--start-at: Value -5 must be >= 0" -- haptic-station run --config "$work/station.toml" --start-at -5 --check-config
+sed 's/^bind = "127.0.0.1:/bind = "198.51.100.7:/' "$work/station.toml" >"$work/foreign-bind.toml"
+expect run_bind_not_owned 2 "net\.bind = \"198\.51\.100\.7:50990\" is not an address of this machine" -- haptic-station run --config "$work/foreign-bind.toml" --check-config
 
 expect topology_seed_negative 2 "--seed: Value -1 must be >= 0" -- haptic-topology --users 4 --seed -1
 expect topology_users_negative 2 "--users: Value -5 not in range" -- haptic-topology --users -5
@@ -80,4 +83,10 @@ expect lab_unknown_subcommand 2 "invalid choice: 'plna'.*did you mean plan\?" --
 expect lab_unknown_option 2 "--runs-dirr: did you mean --runs-dir\?" -- haptic-lab plan lab.toml --runs-dirr x
 expect lab_timeout_negative 2 "argument --timeout: -5 must be > 0 s" -- haptic-lab run lab.toml --timeout -5
 
+printf '[lab]\nusers = 4\n[topology]\nlinks = "1-2,3-4"\n' >"$work/split.toml"
+expect lab_plan_disconnected 2 "topology\.links = '1-2,3-4' is not connected: station\(s\) 3, 4 cannot reach station 1" -- \
+  haptic-lab plan "$work/split.toml" --runs-dir "$work/runs"
+[ ! -e "$work/runs" ] || bad "the refused plan left $(ls -A "$work/runs" | wc -l) entries in $work/runs"
+expect lab_plan_disconnected_run_dir 2 "is not connected" -- haptic-lab plan "$work/split.toml" --run-dir "$work/exact"
+[ ! -e "$work/exact" ] || bad "the refused plan created --run-dir $work/exact"
 exit $fail

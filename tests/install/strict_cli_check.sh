@@ -53,6 +53,7 @@ expect sim_jitter_sentinel 2 "--jitter: Value -1 not in range" -- "${sim[@]}" --
 expect sim_node_mass_negative 2 "--node-mass-kg: Value -1 must be > 0" -- "${sim[@]}" --node-mass-kg -1
 expect sim_trace_node_negative 2 "--trace-node: Value -5 must be >= 0" -- "${sim[@]}" --trace-node -5
 expect sim_edge_bound_sentinel 2 "--edge-energy-bound: Value -1 must be >= 0" -- "${sim[@]}" --edge-energy-bound -1
+expect sim_push_end_before_start 2 "--push-end \(0\.500000 s\) must lie after the push start" -- "${sim[@]}" --push-end 0.5 --release 1
 expect sim_view_station_zero 2 "--view-station: Value 0 not in range" -- "${sim[@]}" --view-station 0
 expect sim_unknown_option 2 "unknown option --scenaro \(did you mean --scenario\?\)" -- haptic-station sim --scenaro paper-best --out "$work/sim"
 expect station_unknown_subcommand 2 "unknown subcommand simm \(did you mean sim\?\)" -- haptic-station simm

@@ -3,7 +3,8 @@
 // program that links CLI11::CLI11):
 //   add_version_flag(app, "haptic-x")   --version prints platform::version_line (build id, git describe)
 //   parse_command_line(app, argc, argv, usage_exit)
-//                                       CLI11's parse; an unknown option or subcommand is named with
+//                                       CLI11's parse; every usage error starts "haptic-x sub: error:";
+//                                       an unknown option or subcommand is named with
 //                                       "did you mean" the nearest one (also when CLI11 would first
 //                                       have complained about a missing required option)
 //   kNonNegativeInteger                 validator for unsigned options: "-1" is an error naming the
@@ -62,7 +63,8 @@ inline void add_version_flag(CLI::App& app, const std::string& program) {
 }
 
 // The first argument of argv[1..] that `app` does not know, with its nearest known name: an option
-// of the (sub)command it follows, or a subcommand where one is expected. {"", ""} when all are known.
+// of the (sub)command it follows, or a subcommand where one is expected. When all are known,
+// `argument` is empty and `where` names the last (sub)command given ("haptic-x sim").
 struct UnknownArgument {
   std::string what, where, argument, suggestion;  // what: "option" or "subcommand"; where: "haptic-x sim"
 };
@@ -115,7 +117,7 @@ inline UnknownArgument find_unknown_argument(CLI::App& app, int argc, char** arg
     if (!subs.empty()) return {"subcommand", where, tok, nearest(tok, subs)};
     return {"argument", where, tok, ""};
   }
-  return {};
+  return {"", where, "", ""};
 }
 
 // app.parse with our error messages. Returns -1 when the program should go on, else its exit
@@ -135,7 +137,7 @@ inline int parse_command_line(CLI::App& app, int argc, char** argv, int usage_ex
       std::cerr << "\nRun with --help for more information.\n";
       return usage_exit;
     }
-    app.exit(e);
+    std::cerr << u.where << ": error: " << e.what() << "\nRun with --help for more information.\n";
     return usage_exit;
   }
 }

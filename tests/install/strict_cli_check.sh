@@ -45,7 +45,7 @@ expect() {  # expect NAME WANT_RC REGEX -- command...   (the regex is matched ag
 }
 cd "$work"
 sim=(haptic-station sim --scenario paper-best --out "$work/sim" --no-plots --quiet)
-expect sim_duration_negative 2 "--duration: Value -5 must be > 0" -- "${sim[@]}" --duration -5
+expect sim_duration_negative 2 "haptic-station sim: error: --duration: Value -5 must be > 0" -- "${sim[@]}" --duration -5
 expect sim_duration_zero 2 "--duration: Value 0 must be > 0" -- "${sim[@]}" --duration 0
 expect sim_seed_negative 2 "--seed: Value -1 must be >= 0" -- "${sim[@]}" --seed -1
 expect sim_push_seed_negative 2 "--push-seed: Value -1 must be >= 0" -- "${sim[@]}" --push-seed -1
@@ -69,7 +69,7 @@ sed 's/^bind = "127.0.0.1:/bind = "198.51.100.7:/' "$work/station.toml" >"$work/
 expect run_bind_not_owned 2 "net\.bind = \"198\.51\.100\.7:50990\" is not an address of this machine" -- haptic-station run --config "$work/foreign-bind.toml" --check-config
 
 expect topology_seed_negative 2 "--seed: Value -1 must be >= 0" -- haptic-topology --users 4 --seed -1
-expect topology_users_negative 2 "--users: Value -5 not in range" -- haptic-topology --users -5
+expect topology_users_negative 2 "haptic-topology: error: --users: Value -5 not in range" -- haptic-topology --users -5
 expect topology_unknown_option 2 "unknown option --delayz \(did you mean --delays\?\)" -- haptic-topology --delayz "0,4;8,0"
 expect devices_unknown_option 2 "unknown option --al \(did you mean --all\?\)" -- haptic-devices --al
 expect devices_unknown_subcommand 2 "unknown subcommand diagg \(did you mean diag\?\)" -- haptic-devices diagg

@@ -121,6 +121,9 @@ void ScenarioSpec::validate() const {
   if (users < 2 || users > 64) bad("users must be in [2, 64]");
   if (!(period_s >= 1e-4 && period_s <= 0.05)) bad("period_s must be in [0.0001, 0.05]");
   if (!(duration_s > 0 && duration_s <= 3600)) bad("--duration must be in (0, 3600] s");
+  if (script.kind == UserScriptSpec::Kind::kPushHoldRelease && !(script.push_start_s < script.push_end_s && script.push_end_s < script.release_s))
+    bad("--push-end (" + std::to_string(script.push_end_s) + " s) must lie after the push start (" + std::to_string(script.push_start_s) +
+        " s) and before --release (" + std::to_string(script.release_s) + " s)");
   if (delay_ms.rows() != users || delay_ms.cols() != users) bad("--delay-matrix must be users x users");
   for (int i = 0; i < users; ++i)
     for (int j = 0; j < users; ++j)

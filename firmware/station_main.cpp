@@ -20,6 +20,7 @@
 #include "firmware/station/config.hpp"
 #include "firmware/station/phase.hpp"
 #include "firmware/station/run.hpp"
+#include "platform/command_line.hpp"
 #include "platform/install_paths.hpp"
 
 namespace fs = std::filesystem;
@@ -27,18 +28,12 @@ using namespace haptic::firmware;
 
 namespace {
 
-// A number >= 0 (CLI::NonNegativeNumber's message prints the largest double as the range's end). The
-// `sim` options whose -1 default means "the scenario's" check it, so that a negative value is an error
-// naming the option, never silently the default.
-const CLI::Validator kNonNegative(
-    [](std::string& s) {
-      try {
-        return std::stod(s) >= 0 ? std::string() : "Value " + s + " must be >= 0";
-      } catch (const std::exception&) {
-        return "Value " + s + " is not a number";
-      }
-    },
-    "NONNEGATIVE");
+// Numbers >= 0, > 0 and unsigned integers (platform/command_line.hpp). The `sim` options whose -1
+// default means "the scenario's" check them, so that a negative value is an error naming the
+// option, never silently the default.
+using haptic::platform::kNonNegative;
+using haptic::platform::kNonNegativeInteger;
+using haptic::platform::kPositive;
 
 // Runs the matplotlib figure script on a run directory; explains plainly when it cannot.
 bool make_plots(const std::string& dir) {
@@ -163,13 +158,14 @@ void add_scene_options(CLI::App& sim, SimArgs& a, CLI::Option* nodes) {
 // live view, session logs) into `a`. Not RT-safe.
 void add_sim_output_options(CLI::App* sim, SimArgs& a) {
   sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
-  sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)");
+  sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)")
+      ->check(kNonNegative);
   sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)")->check(kNonNegative);
   sim->add_option("--release", a.release, "Push-hold-release script: release time in s (default: the scenario's, 12 for paper-best)")
       ->check(kNonNegative);
   sim->add_flag("--no-plots", a.no_plots, "Do not draw the PNG figures");
   add_view_options(sim, a.view_port, a.view_bind, a.view_for);
-  sim->add_option("--view-station", a.view_station, "Station (1-based) the view shows (default 1; needs --record)");
+  sim->add_option("--view-station", a.view_station, "Station (1-based) the view shows (default 1; needs --record)")->check(CLI::Range(1, 64));
   sim->add_flag("--record", a.record, "Write each station's session log OUT/station-<i>.h5 (HDF5; `haptic-station replay` re-runs it bit-exactly)");
   sim->add_option("--record-deflate", a.record_deflate, "With --record: HDF5 shuffle + deflate of the packet values at this level (1-9; 0 none, the "
                                                         "default; as station.record_deflate; lossless, the replay stays bit-exact)")
@@ -197,11 +193,11 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   sim->add_option("--pushes", a.pushes,
                   "spread: push directions summing to zero by construction; asymmetric: each tilted by up to 30 deg and its depth "
                   "scaled in [0.5, 1.5] (seeded by --push-seed), so hold-force balance is measured (default spread)");
-  sim->add_option("--push-seed", a.push_seed, "Seed of the asymmetric pushes (default 1)");
+  sim->add_option("--push-seed", a.push_seed, "Seed of the asymmetric pushes (default 1)")->check(kNonNegativeInteger);
   sim->add_option("--topology", a.topology, "Links overriding the scenario's, users from 1, e.g. 1-2,1-3,1-4");
   sim->add_option("--damping", a.damping, "Local damping B_i in N s/m, one per user, e.g. 14,5,4,5 (default: eq. (18) plus the margin)");
-  sim->add_option("--duration", a.duration, "Simulated time in s (default: the scenario's: 20, 80 or 10)");
-  sim->add_option("--seed", a.seed, "Seed of the network impairment (default 1)");
+  sim->add_option("--duration", a.duration, "Simulated time in s (default: the scenario's: 20, 80 or 10)")->check(kPositive);
+  sim->add_option("--seed", a.seed, "Seed of the network impairment (default 1)")->check(kNonNegativeInteger);
   sim->add_option("--delay-matrix", a.delay_matrix,
                   "Mean one-way delays in ms, row i receives from column j, rows separated by ';' "
                   "(default: the paper's 0,4,4,4;8,0,80,200;4,100,0,200;6,240,200,0)");
@@ -231,18 +227,21 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
                 "without --tx-deadband-mm every state is sent and receivers extrapolate only the states held for lost packets");
   sim->add_option("--edge-energy-bound", a.edge_energy_bound,
                   "Per-edge damage bound in J: an edge whose energy account (eq. 14 split per edge) exceeds it acts as a damper "
-                  "until the account has fallen to half of it; 0 = off (default " + std::to_string(haptic::rt::kDefaultEdgeEnergyBoundJ) + ")");
+                  "until the account has fallen to half of it; 0 = off (default " + std::to_string(haptic::rt::kDefaultEdgeEnergyBoundJ) + ")")
+      ->check(kNonNegative);
   sim->add_option("--edge-energy-leak-W", a.edge_energy_leak,
                   "Energy that left a station's copy (to its user, its object's damping) is taken off each edge's energy account up "
                   "to this power, W, so a station that only receives does not fill its accounts; 0 = no leak (default " +
-                      std::to_string(haptic::rt::kDefaultEdgeEnergyLeakW) + ")");
+                      std::to_string(haptic::rt::kDefaultEdgeEnergyLeakW) + ")")
+      ->check(kNonNegative);
   sim->add_option("--receive-rule", a.receive_rule,
                   "Which packet a tick uses: newest (by sequence number) or paper (the most recently received, Fig. 4; late data used) (default newest)");
-  sim->add_option("--jitter", a.jitter, "Delay jitter: each delay in mean x [1 - this, 1 + this], in [0, 1] (default 0.5, the paper's)");
+  sim->add_option("--jitter", a.jitter, "Delay jitter: each delay in mean x [1 - this, 1 + this], in [0, 1] (default 0.5, the paper's)")
+      ->check(CLI::Range(0.0, 1.0));
   sim->add_option("--delay-correlation", a.delay_correlation,
                   "Time-correlated delays: AR(1) coefficient per packet of a latent Gaussian mapped onto the same uniform support "
                   "(net::LinkImpairment), in [0, 1); 0 = i.i.d. (default 0)");
-  sim->add_option("--node-mass-kg", a.node_mass_kg, "Mass of each of the ball's nodes in kg (default: the paper ball's 0.04)");
+  sim->add_option("--node-mass-kg", a.node_mass_kg, "Mass of each of the ball's nodes in kg (default: the paper ball's 0.04)")->check(kPositive);
   sim->add_option("--timer-jitter-ms", a.timer_jitter_ms,
                   "Each station's wake is late by a uniform draw in [0, this] ms after its grid time; the core integrates each tick over "
                   "the wake-to-wake step T_k (rt/README.md, Variable steps), in [0, T/2) (default 0)");
@@ -263,9 +262,10 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
 CLI::App* add_run_options(CLI::App& app, RunArgs& a) {
   auto* run = app.add_subcommand("run", "One station in real time: its device, its neighbours over UDP or raw Ethernet (see firmware/README.md)");
   run->add_option("--config", a.config, "Station file (TOML): [station], [device], [net], [rt], [loop], [gpio], [telemetry]")->required();
-  run->add_option("--start-at", a.start_at, "Common epoch of tick k = 0 in seconds on station.start_clock (default: station.start_at, else now + start_delay_s)");
+  run->add_option("--start-at", a.start_at, "Common epoch of tick k = 0 in seconds on station.start_clock (default: station.start_at, else now + start_delay_s)")
+      ->check(kNonNegative);
   run->add_option("--out", a.out, "Output directory for station-<id>.json/-trace.csv/-state.csv (default: station.out_dir)");
-  run->add_option("--duration", a.duration, "Run time in s after probing (default: station.duration_s, else the scenario's)");
+  run->add_option("--duration", a.duration, "Run time in s after probing (default: station.duration_s, else the scenario's)")->check(kPositive);
   run->add_flag("--check-config", a.check,
                 "Run every check `run` makes before it opens a socket (the plan phase), print a summary and exit: 0 valid, 2 configuration error");
   run->add_flag("--probe-only", a.probe_only,
@@ -555,6 +555,7 @@ int main(int argc, char** argv) {
       "  merge  merge the outputs of N run processes into the simulator's summary.json, trace.csv, series.csv, snapshots.json\n"
       "  scenario  print a built-in scenario's users, links and delays as JSON"};
   app.require_subcommand(1);
+  haptic::platform::add_version_flag(app, "haptic-station");
   app.footer("Exit status: 0 done; 2 bad options or configuration. `run` also: " + exit_code_help() +
              " `replay`: see `replay --help`.");
 
@@ -570,12 +571,8 @@ int main(int argc, char** argv) {
   ScenarioQuery scenario_query;
   CLI::App* scenario = add_scenario_options(app, scenario_query);
 
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);  // prints help, or the usage error
-    return rc == 0 ? 0 : kExitConfigError;
-  }
+  // --help/--version: 0; a usage error (an unknown option or subcommand with "did you mean"): 2.
+  if (const int rc = haptic::platform::parse_command_line(app, argc, argv, kExitConfigError); rc >= 0) return rc;
 
   if (run->parsed()) return run_command(run_args);
   if (sim->parsed()) return sim_command(sim_args);

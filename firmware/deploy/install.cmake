@@ -33,10 +33,15 @@ foreach(_kind BINDIR DOCDIR)
     set(_haptic_${_kind} "\${CMAKE_INSTALL_PREFIX}/${CMAKE_INSTALL_${_kind}}")
   endif()
 endforeach()
+# An install to the prefix /usr (a distribution package: tools/package/build-deb.sh) reads its
+# configuration from /etc/haptic, as GNUInstallDirs puts SYSCONFDIR for /usr.
 install(CODE "
   set(HAPTIC_INSTALL_BINDIR \"${_haptic_BINDIR}\")
   set(HAPTIC_INSTALL_DOCDIR \"${_haptic_DOCDIR}\")
   set(HAPTIC_INSTALL_CONFDIR \"${_haptic_CONFDIR}\")
+  if(CMAKE_INSTALL_PREFIX STREQUAL \"/usr\")
+    set(HAPTIC_INSTALL_CONFDIR \"/etc/haptic\")
+  endif()
   configure_file(\"${_deploy}/haptic-station@.service.in\" \"${PROJECT_BINARY_DIR}/deploy/haptic-station@.service\" @ONLY)
 " COMPONENT deploy)
 install(FILES "${PROJECT_BINARY_DIR}/deploy/haptic-station@.service" DESTINATION "${HAPTIC_SYSTEMD_UNIT_DIR}" COMPONENT deploy)

@@ -42,6 +42,12 @@ enum ExitCode : int {
   kExitHeldByGate = 10,
 };
 
+// Safety stops: the exits after which force output stays off until the operator has looked (only
+// the operator re-arms, drivers/README.md "Safe state"). The systemd unit lists them in
+// RestartPreventExitStatus; tests/install/unit_check.sh reads this list and fails if the installed
+// unit would restart any of them.
+inline constexpr int kSafetyStopExitCodes[] = {kExitDiverged, kExitSafeState, kExitPassivityNotMet};
+
 // One paragraph for --help and the README. Not RT-safe.
 std::string exit_code_help();
 

@@ -167,6 +167,7 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   p->peers = plan_peer_table(f, *p->built, p->me, p->net);
   check_address_families(f, p->net);
   check_peer_networks(f, p->net);
+  check_bind_address(f, p->net);
   check_io_cpu(f, p->net);
   check_tx_spin(f, p->net);
   apply_station_impairments(f, spec, p->net);  // the simulator's link set-up and seed rule
@@ -415,6 +416,40 @@ std::string address_text(const sockaddr* sa) {
   return buf;
 }
 }  // namespace
+
+void check_bind_address(const StationFile& f, const net::NetConfig& nc) {
+  if (nc.transport != "udp") return;
+  const std::string key = f.net_section + ".bind";
+  socklen_t len = 0;
+  const sockaddr_storage bind = net::parse_udp_address(nc.bind, key, len);
+  const unsigned char* a = nullptr;
+  std::size_t n = 0;
+  if (bind.ss_family == AF_INET) {
+    a = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in*>(&bind)->sin_addr);
+    n = 4;
+    if (a[0] == 127) return;  // Linux: the loopback interface owns all of 127.0.0.0/8
+  } else if (bind.ss_family == AF_INET6) {
+    a = reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in6*>(&bind)->sin6_addr);
+    n = 16;
+  } else {
+    return;
+  }
+  if (std::all_of(a, a + n, [](unsigned char c) { return c == 0; })) return;  // the wildcard: net.listen_any decides
+  ifaddrs* list = nullptr;
+  if (getifaddrs(&list) != 0) bad(std::string("cannot list this machine's interfaces (getifaddrs: ") + std::strerror(errno) + ") to check " + key);
+  std::unique_ptr<ifaddrs, void (*)(ifaddrs*)> guard(list, freeifaddrs);
+  std::string addrs;
+  for (const ifaddrs* it = list; it; it = it->ifa_next) {
+    if (!it->ifa_addr || it->ifa_addr->sa_family != bind.ss_family) continue;
+    const unsigned char* b = bind.ss_family == AF_INET
+                                 ? reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in*>(it->ifa_addr)->sin_addr)
+                                 : reinterpret_cast<const unsigned char*>(&reinterpret_cast<const sockaddr_in6*>(it->ifa_addr)->sin6_addr);
+    if (std::equal(a, a + n, b)) return;
+    addrs += std::string(addrs.empty() ? "" : ", ") + it->ifa_name + " " + address_text(it->ifa_addr);
+  }
+  bad(key + " = \"" + nc.bind + "\" is not an address of this machine (its addresses: " + (addrs.empty() ? std::string("none") : addrs) +
+      "): a station binds its own address (is this the lab PC the file was written for?)");
+}
 
 void check_peer_networks(const StationFile& f, const net::NetConfig& nc) {
   if (nc.transport != "udp" || f.station.allow_routed_peers) return;

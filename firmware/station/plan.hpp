@@ -119,6 +119,10 @@ void check_address_families(const StationFile& file, const net::NetConfig& net);
 // would otherwise send packets out of its default route. Throws naming the peer's key and listing
 // this machine's interface addresses. Not RT-safe (getifaddrs).
 void check_peer_networks(const StationFile& file, const net::NetConfig& net);
+// A UDP station binds an address of this machine: net.bind's address must be one of its interfaces'
+// addresses (any 127.x.y.z, which Linux's loopback owns, and the wildcard, which net.listen_any
+// governs, pass). Throws naming the key as written and listing this machine's addresses. Not RT-safe (getifaddrs).
+void check_bind_address(const StationFile& file, const net::NetConfig& net);
 void check_io_cpu(const StationFile& file, const net::NetConfig& net);
 void check_tx_spin(const StationFile& file, const net::NetConfig& net);
 void check_out_dir_creatable(const std::string& dir, const std::string& key);

@@ -484,7 +484,7 @@ std::string exit_code_help() {
          "9 device missing (device.kind names a device that could not be started; a station never substitutes a simulated user: "
          "device.kind = \"simulated\" asks for one); "
          "4 diverged; 5 safe state latched (loop exception or device fault); 6 passivity condition not met (B_i below eq. (18) on the measured "
-         "round-trip bounds); 7 no neighbour (none answered probing, or none within its bound for more than station.max_no_neighbour_fraction "
+         "round-trip bounds); 4, 5 and 6 are safety stops: the systemd unit does not restart them, the operator re-arms; 7 no neighbour (none answered probing, or none within its bound for more than station.max_no_neighbour_fraction "
          "of the run); 3 other run-time failure; 8 the run ended before the scripted release (e.g. --duration shorter than station.release_s); "
          "10 held by the gate (the per-edge energy gate tripped: the run stayed bounded by the gate, not by eq. (18) alone). "
          "station-<id>.json names each condition under \"conditions\" (also edge_drop_rule_acted, which has no code of its own) "

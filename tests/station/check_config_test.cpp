@@ -93,6 +93,26 @@ TEST(CheckConfig, AnIPv6PeerOfAnIPv4BindIsRejectedNamingTheAddressKey) {
   rejected_with_key(t, "net.peers[1].address = \"[::1]:50003\" must be the same address family");
 }
 
+// 198.51.100.0/24 is TEST-NET-2 (RFC 5737): documentation only, assigned to no real machine.
+TEST(CheckConfig, ABindAddressThisMachineDoesNotOwnIsRejectedNamingTheKey) {
+  std::string t = hub().text();
+  const auto at = t.find("bind = \"127.0.0.1:");
+  CHECK(at != std::string::npos);
+  t.replace(at, std::string("bind = \"127.0.0.1:").size(), "bind = \"198.51.100.7:");
+  rejected_with_key(t, "net.bind = \"198.51.100.7:");
+  CHECK(contains(check(t).err, "is not an address of this machine"));
+}
+
+// Linux's loopback interface owns all of 127.0.0.0/8 (getifaddrs lists only 127.0.0.1).
+TEST(CheckConfig, AnyLoopbackBindAddressIsAccepted) {
+  std::string t = hub().text();
+  const auto at = t.find("bind = \"127.0.0.1:");
+  CHECK(at != std::string::npos);
+  t.replace(at, std::string("bind = \"127.0.0.1:").size(), "bind = \"127.0.0.2:");
+  const Checked c = check(t);
+  if (c.code != kExitOk) FAIL(c.err.c_str());
+}
+
 TEST(CheckConfig, AnIoCpuThisProcessCannotUseIsRejected) {
   test::StationText s = hub();
   s.net_extra = "io_cpu = 1000\n";

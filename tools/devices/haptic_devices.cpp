@@ -8,6 +8,7 @@
 #include "drivers/tty_devices.hpp"
 #include "drivers/usb_ids.hpp"
 #include "drivers/usb_monitor.hpp"
+#include "platform/command_line.hpp"
 #include "tools/devices/device_session.hpp"
 
 #include <CLI/CLI.hpp>
@@ -359,14 +360,9 @@ int main(int argc, char** argv) {
   map_cmd->add_option("--still-mm", map.still_mm, "how still: within this distance")->capture_default_str();
   map_cmd->add_option("--timeout-s", map.timeout_s, "give up after this long (exit 3)")->capture_default_str();
 
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    app.exit(e);
-    return haptic::tools::kExitBadOption;
-  }
+  haptic::platform::add_version_flag(app, "haptic-devices");
+  // --help/--version: 0; a usage error (an unknown option or subcommand with "did you mean"): kExitBadOption.
+  if (const int rc = haptic::platform::parse_command_line(app, argc, argv, haptic::tools::kExitBadOption); rc >= 0) return rc;
 
   if (*diag_cmd) {
     diag.axis = axis[0] - 'x';

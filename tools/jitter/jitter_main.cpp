@@ -18,6 +18,7 @@
 #include "platform/trace.hpp"
 #include "tools/jitter/jitter.hpp"
 #include "tools/jitter/station_workload.hpp"
+#include "platform/command_line.hpp"
 
 namespace {
 std::atomic<bool> g_stop{false};  // set by SIGINT/SIGTERM (lock-free atomic: async-signal-safe)
@@ -106,10 +107,10 @@ int JitterOptions::parse(int argc, char** argv) {
   app.add_option("-i,--period-us", periods_us, "loop periods to measure, microseconds")->default_str("1000 2000")->check(CLI::Range(10.0, 1e6));
   app.add_option("-w,--workload-us", workloads_us, "busy-loop workload per tick, microseconds (0 = none)")->default_str("0 500")->check(CLI::Range(0.0, 1e6));
   app.add_option("-D,--duration-s", duration_s, "duration of each run, seconds (ticks = duration / period)")->capture_default_str()->check(CLI::Range(0.001, 86400.0));
-  app.add_option("-l,--loops", loops, "ticks per run; overrides --duration-s (0 = use --duration-s)")->capture_default_str();
-  app.add_option("--overrun-every", overrun_every, "make every Nth tick's workload last 1.5 periods to provoke overruns (0 = never)")->capture_default_str();
+  app.add_option("-l,--loops", loops, "ticks per run; overrides --duration-s (0 = use --duration-s)")->capture_default_str()->check(haptic::platform::kNonNegativeInteger);
+  app.add_option("--overrun-every", overrun_every, "make every Nth tick's workload last 1.5 periods to provoke overruns (0 = never)")->capture_default_str()->check(haptic::platform::kNonNegativeInteger);
   app.add_option("-p,--priority", rt.priority, "SCHED_FIFO priority, 1..98")->capture_default_str()->check(CLI::Range(1, 98));
-  app.add_option("-a,--cpu", rt.cpu, "CPU to pin the measuring thread to (-1 = don't pin)")->capture_default_str();
+  app.add_option("-a,--cpu", rt.cpu, "CPU to pin the measuring thread to (-1 = don't pin)")->capture_default_str()->check(CLI::Range(-1, 4095));
   app.add_flag("--station", station_workload,
                "also measure each period with the real station tick as the workload (paper-best scene, user 1: 33 nodes, "
                "3 neighbours fed synthetic packets, simulated device)");
@@ -131,7 +132,9 @@ int JitterOptions::parse(int argc, char** argv) {
                  "order, then the on/off ratios (recording must not change the tick's timing); the other runs are skipped")
       ->check(CLI::Range(1, 1000));
   app.add_option("--record-file", record_file, "the session log the recording blocks write (HDF5, overwritten)")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  platform::add_version_flag(app, "haptic-jitter");
+  // --help/--version: 0; a usage error (an unknown option with "did you mean"): 2, like a failed set-up below.
+  if (const int rc = platform::parse_command_line(app, argc, argv, 2); rc >= 0) return rc;
   if (record_blocks > 0) station_workload = true;
   rt.lock_memory = !no_mlock;
   rt.isolate_cpu = !no_isolate;

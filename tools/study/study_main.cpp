@@ -16,6 +16,7 @@
 #include "firmware/sim/simulator.hpp"
 #include "rt/spatial_matrix.hpp"
 #include "tools/study/study.hpp"
+#include "platform/command_line.hpp"
 
 using namespace haptic;
 using json = nlohmann::json;
@@ -266,14 +267,14 @@ int StudyOptions::parse(int argc, char** argv) {
   acc->add_option("--nodes", nodes_s, "Mesh sizes (33 = paper ball, else lattice ball); the largest is the reference");
   acc->add_option("--steps-ms", steps_s, "Step sizes (ms); each must divide --sample-ms");
   acc->add_option("--modes", modes_s, "Modal truncations r of the reference mesh");
-  acc->add_option("--duration", duration, "Simulated seconds (default 2)");
-  acc->add_option("--sample-ms", sample_ms, "Error sampling interval (ms, default 8)");
-  acc->add_option("--damping-per-s", damping, "b/m of the VO (default 0: the paper's B = 0)");
+  acc->add_option("--duration", duration, "Simulated seconds (default 2)")->check(haptic::platform::kPositive);
+  acc->add_option("--sample-ms", sample_ms, "Error sampling interval (ms, default 8)")->check(haptic::platform::kPositive);
+  acc->add_option("--damping-per-s", damping, "b/m of the VO (default 0: the paper's B = 0)")->check(haptic::platform::kNonNegative);
 
   // energy
   auto* en = app.add_subcommand("energy", "Energy drift of each integrator, free vibration, B = 0");
-  en->add_option("--nodes", en_nodes, "Mesh size (default 33, the paper ball)");
-  en->add_option("--duration", en_duration, "Seconds (default 10)");
+  en->add_option("--nodes", en_nodes, "Mesh size (default 33, the paper ball)")->check(CLI::Range(7, 20000));
+  en->add_option("--duration", en_duration, "Seconds (default 10)")->check(haptic::platform::kPositive);
   en->add_option("--steps-ms", en_steps, "Step sizes (ms, default 2,0.5)");
 
   // stability
@@ -281,7 +282,7 @@ int StudyOptions::parse(int argc, char** argv) {
   stab->add_option("--stiffness-scales", st_scales, "Edge stiffness multipliers on the 33-node scene");
   stab->add_option("--sizes", st_sizes, "Scene sizes");
   stab->add_option("--steps-ms", st_steps, "Step sizes (ms)");
-  stab->add_option("--duration", st_duration, "Free-vibration seconds per cell (default 2)");
+  stab->add_option("--duration", st_duration, "Free-vibration seconds per cell (default 2)")->check(haptic::platform::kPositive);
 
   // consensus
   auto* con = app.add_subcommand("consensus", "4-user consensus stability over damping scale x delay scale x loss (run_simulation)");
@@ -289,16 +290,18 @@ int StudyOptions::parse(int argc, char** argv) {
   con->add_option("--delay-scales", c_delay, "x the paper's delay matrix");
   con->add_option("--losses", c_loss, "Loss probabilities");
   con->add_option("--gains", c_gains, "P:D gain sets (N/m : N s/m), comma-separated");
-  con->add_option("--duration", c_duration, "Seconds per run (default 8)");
+  con->add_option("--duration", c_duration, "Seconds per run (default 8)")->check(haptic::platform::kPositive);
 
   // select
   auto* sel = app.add_subcommand("select", "Smallest model meeting a felt-force accuracy; prints the --nodes for haptic-station sim");
-  sel->add_option("--accuracy", accuracy, "Requested max relative felt-force error (fraction, e.g. 0.05)")->required();
+  sel->add_option("--accuracy", accuracy, "Requested max relative felt-force error (fraction, e.g. 0.05)")->required()->check(haptic::platform::kPositive);
   sel->add_option("--from", from, "Read candidates from an accuracy.csv instead of computing them");
   sel->add_option("--nodes", sel_nodes, "Mesh family when computing (largest = reference)");
   sel->add_option("--modes", sel_modes, "Modal truncations of the reference when computing");
 
-  CLI11_PARSE(app, argc, argv);
+  haptic::platform::add_version_flag(app, "haptic-study");
+  // --help/--version: 0; a usage error (an unknown option or subcommand with "did you mean"): 2.
+  if (const int rc = haptic::platform::parse_command_line(app, argc, argv, 2); rc >= 0) return rc;
   for (const CLI::App* sub : {acc, en, stab, con, sel})
     if (sub->parsed()) command = sub->get_name();
   return -1;

@@ -24,6 +24,7 @@
 #include "rt/scene.hpp"
 #include "tools/topology/topology.hpp"
 #include "tools/topology/topology_io.hpp"
+#include "platform/command_line.hpp"
 
 namespace topo = haptic::topology;
 namespace tio = haptic::tools::topology;
@@ -122,28 +123,28 @@ int main(int argc, char** argv) {
   app.add_flag("--paper", paper, "the paper's Section V delay matrix (default links 3)");
   app.add_option("--delays", delays_text, "mean one-way delay matrix, ms: \"0,4;8,0\" (row i receives from j; inf = no link)");
   app.add_option("--delays-file", delays_file, "JSON N x N array or {\"mean_delay_ms\": [[..]]} (null = no link)");
-  app.add_option("--users", users, "synthetic delays for N users on a seeded map (N >= 2)");
-  app.add_option("--seed", seed, "seed of the synthetic map")->capture_default_str();
-  app.add_option("--map-width-km", map.width_km, "synthetic map width")->capture_default_str();
-  app.add_option("--map-height-km", map.height_km, "synthetic map height")->capture_default_str();
-  app.add_option("--base-ms", map.base_ms, "synthetic delay = (base + distance / speed) x asymmetry")->capture_default_str();
-  app.add_option("--speed-km-per-ms", map.speed_km_per_ms, "synthetic propagation speed")->capture_default_str();
+  app.add_option("--users", users, "synthetic delays for N users on a seeded map (N >= 2)")->check(CLI::Range(2, 100000));
+  app.add_option("--seed", seed, "seed of the synthetic map")->capture_default_str()->check(haptic::platform::kNonNegativeInteger);
+  app.add_option("--map-width-km", map.width_km, "synthetic map width")->capture_default_str()->check(haptic::platform::kPositive);
+  app.add_option("--map-height-km", map.height_km, "synthetic map height")->capture_default_str()->check(haptic::platform::kPositive);
+  app.add_option("--base-ms", map.base_ms, "synthetic delay = (base + distance / speed) x asymmetry")->capture_default_str()->check(haptic::platform::kNonNegative);
+  app.add_option("--speed-km-per-ms", map.speed_km_per_ms, "synthetic propagation speed")->capture_default_str()->check(haptic::platform::kPositive);
   app.add_option("--from-summary", summary_file,
                  "rank with the measured link_stats of a run (run/summary.json); nominal delays, if given, fill unmeasured pairs");
   app.add_option("--period-ms", period_ms, "integration step T, ms (> 0)")->capture_default_str();
-  app.add_option("--links", links, "undirected links in every feasible graph (default N-1; paper: 3)");
+  app.add_option("--links", links, "undirected links in every feasible graph (default N-1; paper: 3)")->check(haptic::platform::kNonNegative);
   app.add_option("--degree-cap", degree_cap, "max links per user (0 = none)")->capture_default_str();
   app.add_option("--graphs", graphs_text, "listed feasible set: \"1-2,1-3,1-4;1-2,2-4,3-4\"");
   app.add_flag("--search", force_search, "heuristic search even if enumeration is possible");
-  app.add_option("--max-enumerate", max_enumerate, "enumerate when C(pairs, links) <= this, else search")->capture_default_str();
-  app.add_option("--max-evaluations", max_evaluations, "search budget of eq. (27) evaluations")->capture_default_str();
+  app.add_option("--max-enumerate", max_enumerate, "enumerate when C(pairs, links) <= this, else search")->capture_default_str()->check(haptic::platform::kNonNegativeInteger);
+  app.add_option("--max-evaluations", max_evaluations, "search budget of eq. (27) evaluations")->capture_default_str()->check(haptic::platform::kPositive);
   topo::SearchOptions search_opt;
-  app.add_option("--hub-seeds", search_opt.hub_seeds, "search: shortest-path-tree seeds from the most central users")->capture_default_str();
-  app.add_option("--remove-candidates", search_opt.remove_candidates, "search: links tried for removal per pass")->capture_default_str();
-  app.add_option("--add-candidates", search_opt.add_candidates, "search: reconnecting links tried per removal")->capture_default_str();
-  app.add_option("--kicks", search_opt.kicks, "search: iterated-local-search restarts from the best")->capture_default_str();
-  app.add_option("--kick-swaps", search_opt.kick_swaps, "search: random swaps per kick")->capture_default_str();
-  app.add_option("--search-seed", search_opt.seed, "search: seed of the kicks")->capture_default_str();
+  app.add_option("--hub-seeds", search_opt.hub_seeds, "search: shortest-path-tree seeds from the most central users")->capture_default_str()->check(haptic::platform::kNonNegative);
+  app.add_option("--remove-candidates", search_opt.remove_candidates, "search: links tried for removal per pass")->capture_default_str()->check(haptic::platform::kNonNegative);
+  app.add_option("--add-candidates", search_opt.add_candidates, "search: reconnecting links tried per removal")->capture_default_str()->check(haptic::platform::kNonNegative);
+  app.add_option("--kicks", search_opt.kicks, "search: iterated-local-search restarts from the best")->capture_default_str()->check(haptic::platform::kNonNegative);
+  app.add_option("--kick-swaps", search_opt.kick_swaps, "search: random swaps per kick")->capture_default_str()->check(haptic::platform::kNonNegative);
+  app.add_option("--search-seed", search_opt.seed, "search: seed of the kicks")->capture_default_str()->check(haptic::platform::kNonNegativeInteger);
   app.add_option("--gain-a", gain_a, "uniform P_ij = a I + b K_hat: a")->capture_default_str();
   app.add_option("--gain-b", gain_b, "uniform P_ij = a I + b K_hat: b")->capture_default_str();
   app.add_option("--mode-values", mode_values, "eigenvalues of K_hat (e.g. K_int / lambda_max)")->delimiter(',');
@@ -151,18 +152,20 @@ int main(int argc, char** argv) {
   app.add_flag("--paper-scene", paper_scene,
                "mode values = eigenvalues of K_int / lambda_max(K_int) of the paper's 33-node ball (rt/scene.hpp), n = 99");
   app.add_option("--gains-file", gains_file, "per-edge gains JSON (polynomial a, b, mode_values; or dense blocks)");
-  app.add_option("--self-weight", self_weight, "s in [0,1): p_i(k+1) = s p_i(k) + (1-s) mix; 0 = paper")->capture_default_str();
+  app.add_option("--self-weight", self_weight, "s in [0,1): p_i(k+1) = s p_i(k) + (1-s) mix; 0 = paper")->capture_default_str()->check(CLI::Range(0.0, 1.0));
   app.add_option("--method", method, "eigenvalue method: auto|dense|power|arnoldi")->capture_default_str();
   app.add_option("--jitter-factor", jitter_factor, "eq. (18): Nbar_ij = ceil(factor mean / T) + loss allowance")->capture_default_str();
   app.add_option("--loss-allowance", loss_allowance,
                  "eq. (18): extra steps per direction for lost packets; -1: from the loss model (--loss, --run-s), as the simulator")
       ->capture_default_str();
-  app.add_option("--loss", loss_probability, "eq. (18), --loss-allowance -1: loss probability per packet (the paper's 5 %)")->capture_default_str();
-  app.add_option("--run-s", run_s, "eq. (18), --loss-allowance -1: run length the allowance covers (s; paper-best's 20 s)")->capture_default_str();
-  app.add_option("--top", top, "rows printed at each end of the ranked table")->capture_default_str();
+  app.add_option("--loss", loss_probability, "eq. (18), --loss-allowance -1: loss probability per packet (the paper's 5 %)")->capture_default_str()->check(CLI::Range(0.0, 0.999));
+  app.add_option("--run-s", run_s, "eq. (18), --loss-allowance -1: run length the allowance covers (s; paper-best's 20 s)")->capture_default_str()->check(haptic::platform::kPositive);
+  app.add_option("--top", top, "rows printed at each end of the ranked table")->capture_default_str()->check(haptic::platform::kNonNegative);
   app.add_option("--json", json_out, "write the ranked table as JSON");
   app.add_option("--png", png_out, "draw the best and worst graphs (runs /usr/bin/python3 plot_topology.py)");
-  CLI11_PARSE(app, argc, argv);
+  haptic::platform::add_version_flag(app, "haptic-topology");
+  // --help/--version: 0; a usage error (an unknown option with "did you mean"): 2, like a bad value below.
+  if (const int rc = haptic::platform::parse_command_line(app, argc, argv, 2); rc >= 0) return rc;
 
   try {
     const auto t_start = std::chrono::steady_clock::now();

@@ -79,6 +79,19 @@ JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance
   const double need = relative_tolerance / (2 * std::sqrt(kappa_a_));
   cap_ = rho <= 0 ? 1 : std::max(1, static_cast<int>(std::ceil(std::log(need) / std::log(rho))));
 
+  store_rows(R, band, upper_entries);
+  use_avx(true);
+  const auto w = static_cast<Index>(n_) * 3;
+  p_.assign(w, 0.0);
+  q_.assign(w, 0.0);
+}
+
+// Start-up: A's rows as the diagonal + strict upper triangle with 16-bit offsets when the band fits,
+// else the full rows (rp, ci, av: R's compressed rows).
+void JacobiCg::store_rows(const SparseRowMajor& R, int band, long upper_entries) {
+  const int* rp = R.outerIndexPtr();
+  const int* ci = R.innerIndexPtr();
+  const double* av = R.valuePtr();
   upper_ = band <= std::numeric_limits<std::uint16_t>::max();
   if (upper_) {
     band_ = band;
@@ -104,10 +117,6 @@ JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance
     colidx_.assign(ci, ci + R.nonZeros());
     val_.assign(av, av + R.nonZeros());
   }
-  use_avx(true);
-  const auto w = static_cast<Index>(n_) * 3;
-  p_.assign(w, 0.0);
-  q_.assign(w, 0.0);
 }
 
 bool JacobiCg::use_avx(bool allow) {

@@ -53,6 +53,7 @@ class JacobiCg {
   void multiply(const double* x, double* y, int width) const;
 
  private:
+  void store_rows(const SparseRowMajor& R, int band, long upper_entries);  // start-up
   template <int W, class RowDone>
   RowDone pass(const double* x, double* partial, unsigned mask, RowDone row_done) const;
   template <int W>

@@ -14,7 +14,7 @@ namespace {
 
 using Index = std::size_t;
 
-// max |a_ij - a_ji| <= 1e-12 max |a_ij|: CG needs a symmetric A, and the upper storage uses a_ij
+// max |a_ij - a_ji| <= 1e-12 max |a_ij|: CG needs a symmetric A, and the compact storage uses a_ij
 // (i < j) for both.
 void require_symmetric(const SparseColMajor& A, const SparseRowMajor& R) {
   const SparseRowMajor At(A.transpose());
@@ -41,14 +41,10 @@ JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance
   diag_.assign(static_cast<Index>(n_), 0.0);
   dinv_.assign(static_cast<Index>(n_), 0.0);
   int band = 0;
-  long upper_entries = 0;
   for (int i = 0; i < n_; ++i)
     for (int p = rp[i]; p < rp[i + 1]; ++p) {
       if (ci[p] == i) diag_[static_cast<Index>(i)] += av[p];
-      if (ci[p] > i) {
-        band = std::max(band, ci[p] - i);
-        ++upper_entries;
-      }
+      if (ci[p] > i) band = std::max(band, ci[p] - i);
     }
   for (int i = 0; i < n_; ++i) {
     if (!(diag_[static_cast<Index>(i)] > 0)) throw std::invalid_argument("JacobiCg: non-positive diagonal");
@@ -79,43 +75,41 @@ JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance
   const double need = relative_tolerance / (2 * std::sqrt(kappa_a_));
   cap_ = rho <= 0 ? 1 : std::max(1, static_cast<int>(std::ceil(std::log(need) / std::log(rho))));
 
-  store_rows(R, band, upper_entries);
+  store_rows(R, band);
   use_avx(true);
   const auto w = static_cast<Index>(n_) * 3;
   p_.assign(w, 0.0);
   q_.assign(w, 0.0);
 }
 
-// Start-up: A's rows as the diagonal + strict upper triangle with 16-bit offsets when the band fits,
-// else the full rows (rp, ci, av: R's compressed rows).
-void JacobiCg::store_rows(const SparseRowMajor& R, int band, long upper_entries) {
+// Start-up: A's full rows with 16-bit signed column offsets when the band fits, else with 32-bit
+// columns.
+void JacobiCg::store_rows(const SparseRowMajor& R, int band) {
   const int* rp = R.outerIndexPtr();
   const int* ci = R.innerIndexPtr();
   const double* av = R.valuePtr();
-  upper_ = band <= std::numeric_limits<std::uint16_t>::max();
-  if (upper_) {
-    band_ = band;
-    rowptr_.assign(static_cast<Index>(n_) + 1, 0);
-    offset_.reserve(static_cast<Index>(upper_entries));
-    val_.reserve(static_cast<Index>(upper_entries));
-    for (int i = 0; i < n_; ++i) {
-      for (int p = rp[i]; p < rp[i + 1]; ++p)
-        if (ci[p] > i) {
-          offset_.push_back(static_cast<std::uint16_t>(ci[p] - i));
-          val_.push_back(av[p]);
-        }
-      rowptr_[static_cast<Index>(i) + 1] = static_cast<int>(val_.size());
-    }
-    unsigned slots = 1;
-    while (slots <= static_cast<unsigned>(band)) slots *= 2;  // > band: rows i..i+band live at once
-    ring_mask_ = slots - 1;
-    ring_.assign(static_cast<Index>(slots) * 4, 0.0);  // 4 doubles a row (W <= 3; aligned lanes)
-    diag_.shrink_to_fit();
-  } else {
-    diag_ = {};
+  diag_ = {};
+  compact_ = band <= std::numeric_limits<std::int16_t>::max();
+  if (!compact_) {
     rowptr_.assign(rp, rp + n_ + 1);
     colidx_.assign(ci, ci + R.nonZeros());
     val_.assign(av, av + R.nonZeros());
+    return;
+  }
+  band_ = band;
+  // The upper triangle (diagonal included) and its mirror: row i's entries ascending, a_ji (j < i)
+  // taken from row j.
+  const SparseRowMajor U = R.triangularView<Eigen::Upper>();
+  const SparseRowMajor F = U + SparseRowMajor(SparseRowMajor(U.triangularView<Eigen::StrictlyUpper>()).transpose());
+  rowptr_.assign(static_cast<Index>(n_) + 1, 0);
+  offset_.reserve(static_cast<Index>(F.nonZeros()));
+  val_.reserve(static_cast<Index>(F.nonZeros()));
+  for (int i = 0; i < n_; ++i) {
+    for (SparseRowMajor::InnerIterator it(F, i); it; ++it) {
+      offset_.push_back(static_cast<std::int16_t>(it.col() - i));
+      val_.push_back(it.value());
+    }
+    rowptr_[static_cast<Index>(i) + 1] = static_cast<int>(val_.size());
   }
 }
 
@@ -125,27 +119,25 @@ bool JacobiCg::use_avx(bool allow) {
 }
 
 long JacobiCg::stored_doubles() const {
-  return static_cast<long>(val_.size() + diag_.size() + dinv_.size() + ring_.size() + p_.size() + q_.size()) +
+  return static_cast<long>(val_.size() + dinv_.size() + p_.size() + q_.size()) +
          static_cast<long>(rowptr_.size() + colidx_.size()) / 2 + static_cast<long>(offset_.size()) / 4;
 }
 
 // One matrix pass: row_done(i, acc) receives acc = (A x)_i (W columns) for i = 0, 1, ..., n-1 in
-// order. Upper storage: acc = partial_i + a_ii x_i + sum_{j>i} a_ij x_j, where partial_i (S
-// doubles per row, the first W used) collected a_ki x_k from the rows k < i in ascending k: the
-// same terms in the same order as the full row's sum, so the two storages give the same bits for an
-// exactly symmetric A. partial is indexed by (row & mask), must be zero on entry and is left zero.
-// Wide (W = 3, S = 4): a row's columns in 4-lane vectors (the 4th lane reads the next node and is
+// order, each row's terms added in ascending column order from 0. Offset storage: the full rows with
+// 16-bit signed offsets j - i, the entries below the diagonal mirrored from the upper ones (so the
+// products are those of an exactly symmetric A, as one stored triangle would give).
+// Wide (W = 3): a row's columns in 4-lane vectors (the 4th lane reads the next node and is
 // dropped; rows that reach the last node stay scalar), each lane the same multiply and add in the
 // same order as the scalar loop (no FMA), so the results are identical bit for bit (rt/lanes.hpp).
 
 namespace {
 
-struct UpperRows {
+struct OffsetRows {
   int n;
   const int* rowptr;
-  const std::uint16_t* offset;
+  const std::int16_t* offset;
   const double* val;
-  const double* diag;
 };
 
 template <int W, class RowDone>
@@ -162,101 +154,79 @@ template <int W, class RowDone>
   return row_done;
 }
 
-template <int W, int S, bool Wide, class RowDone>
-[[gnu::always_inline]] inline RowDone upper_rows(const UpperRows& m, const double* __restrict x, double* __restrict partial,
-                                                 unsigned mask, RowDone row_done) {
+template <int W, bool Wide, class RowDone>
+[[gnu::always_inline]] inline RowDone offset_rows(const OffsetRows& m, const double* __restrict x, RowDone row_done) {
   const int n = m.n;
   const int* rp = m.rowptr;
-  const std::uint16_t* off = m.offset;
+  const std::int16_t* off = m.offset;
   const double* v = m.val;
   for (int i = 0; i < n; ++i) {
     const int e0 = rp[i], e1 = rp[i + 1];
-    double* own = partial + static_cast<long>(static_cast<unsigned>(i) & mask) * S;
-    const double* xi = x + static_cast<long>(i) * W;
-    double acc[W];
     if constexpr (Wide) {
-      static_assert(W == 3 && S == 4);
-      if (i < n - 1 && (e1 == e0 || i + off[e1 - 1] < n - 1)) {  // offsets ascend: the last is the largest
-        Lanes4 xv, o;
-        __builtin_memcpy(&xv, xi, sizeof xv);
-        xv[3] = 0;
-        __builtin_memcpy(&o, own, sizeof o);
-        const double di = m.diag[i];
-        Lanes4 a4 = o + Lanes4{di, di, di, di} * xv;
-        const Lanes4 zero = {};
-        __builtin_memcpy(own, &zero, sizeof zero);
+      static_assert(W == 3);
+      if (i + off[e1 - 1] < n - 1) {  // offsets ascend (a row holds its diagonal): the last is the largest
+        Lanes4 a4 = {};
+        const double* xr = x + 3L * i;
         for (int e = e0; e < e1; ++e) {
           const double a = v[e];
-          const Lanes4 av = {a, a, a, a};
-          const unsigned j = static_cast<unsigned>(i) + off[e];
-          Lanes4 xj, pj;
-          __builtin_memcpy(&xj, x + static_cast<long>(j) * 3, sizeof xj);
-          double* pp = partial + static_cast<long>(j & mask) * 4;
-          __builtin_memcpy(&pj, pp, sizeof pj);
-          a4 += av * xj;
-          pj += av * xv;
-          __builtin_memcpy(pp, &pj, sizeof pj);
+          Lanes4 xj;
+          __builtin_memcpy(&xj, xr + 3L * off[e], sizeof xj);
+          a4 += Lanes4{a, a, a, a} * xj;
         }
         row_done.wide(i, a4);
         continue;
       }
     }
-    double xl[W];
-    for (int c = 0; c < W; ++c) {
-      xl[c] = xi[c];
-      acc[c] = own[c] + m.diag[i] * xl[c];
-    }
-    for (int c = 0; c < S; ++c) own[c] = 0;
+    double acc[W] = {};
     for (int e = e0; e < e1; ++e) {
       const double a = v[e];
-      const unsigned j = static_cast<unsigned>(i) + off[e];
-      const double* xj = x + static_cast<long>(j) * W;
-      double* pj = partial + static_cast<long>(j & mask) * S;
-      for (int c = 0; c < W; ++c) {
-        acc[c] += a * xj[c];
-        pj[c] += a * xl[c];
-      }
+      const double* xj = x + (static_cast<long>(i) + off[e]) * W;
+      for (int c = 0; c < W; ++c) acc[c] += a * xj[c];
     }
     row_done(i, acc);
   }
   return row_done;
 }
 
+template <int W, class RowDone>
+[[gnu::noinline]] void offset_rows_base(const OffsetRows& m, const double* x, RowDone& row_done) {
+  row_done = offset_rows<W, W == 3>(m, x, row_done);
+}
 #if defined(__x86_64__)
 template <int W, class RowDone>
-__attribute__((target("avx"))) void upper_rows_avx(const UpperRows& m, const double* x, double* partial, unsigned mask,
-                                                   RowDone& row_done) {  // by reference: AVX-sized members
-  row_done = upper_rows<W, 4, W == 3>(m, x, partial, mask, row_done);
+[[gnu::noinline]] __attribute__((target("avx"))) void offset_rows_avx(const OffsetRows& m, const double* x,
+                                                                     RowDone& row_done) {  // by reference: AVX-sized members
+  row_done = offset_rows<W, W == 3>(m, x, row_done);
 }
 #endif
 
 }  // namespace
 
 template <int W, class RowDone>
-RowDone JacobiCg::pass(const double* x, double* partial, unsigned mask, RowDone row_done) const {
-  if (!upper_) return full_rows<W>(n_, rowptr_.data(), colidx_.data(), val_.data(), x, row_done);
-  const UpperRows m{n_, rowptr_.data(), offset_.data(), val_.data(), diag_.data()};
+RowDone JacobiCg::pass(const double* x, RowDone row_done) const {
+  if (!compact_) return full_rows<W>(n_, rowptr_.data(), colidx_.data(), val_.data(), x, row_done);
+  const OffsetRows m{n_, rowptr_.data(), offset_.data(), val_.data()};
 #if defined(__x86_64__)
   if (avx_) {
-    upper_rows_avx<W>(m, x, partial, mask, row_done);
+    offset_rows_avx<W>(m, x, row_done);
     return row_done;
   }
 #endif
-  return upper_rows<W, 4, false>(m, x, partial, mask, row_done);
+  offset_rows_base<W>(m, x, row_done);
+  return row_done;
 }
 
-// Scalar; y itself collects the partial sums (stride W, mask: every row its own slot).
+// Scalar.
 template <int W>
 void JacobiCg::multiply_fixed(const double* x, double* y) const {
   const auto done = [y](int i, const double* acc) {
     for (int c = 0; c < W; ++c) y[static_cast<long>(i) * W + c] = acc[c];
   };
-  if (!upper_) {
+  if (!compact_) {
     full_rows<W>(n_, rowptr_.data(), colidx_.data(), val_.data(), x, done);
     return;
   }
-  for (long k = 0; k < static_cast<long>(n_) * W; ++k) y[k] = 0;
-  upper_rows<W, W, false>(UpperRows{n_, rowptr_.data(), offset_.data(), val_.data(), diag_.data()}, x, y, ~0u, done);
+  offset_rows<W, false>(OffsetRows{n_, rowptr_.data(), offset_.data(), val_.data()}, x, done);
 }
 
 void JacobiCg::multiply(const double* x, double* y, int width) const {
@@ -330,6 +300,108 @@ struct DirectionRows {
 
 }  // namespace
 
+namespace {
+
+// The CG's vector updates, W = 3 in 4 lanes a node (lane 3 never stored or summed; the last node's
+// lane 3 reads 0): each lane the scalar loop's operations in the same order, so the baseline
+// (SSE2 pairs) and AVX builds give the scalar loop's bits.
+struct XrRows {
+  int n;
+  double *x, *r;
+  const double *p, *q, *dinv;
+  Lanes4 alpha;
+};
+struct XrSums {
+  Lanes4 rz, rr;
+};
+[[gnu::always_inline]] inline XrSums xr_body(const XrRows& a) {
+  Lanes4 rz = {}, rr = {};
+  for (int i = 0; i < a.n; ++i) {
+    const bool last = i == a.n - 1;
+    const Lanes4 xv = HAPTIC_NODE_LANES(a.x, i, last) + a.alpha * HAPTIC_NODE_LANES(a.p, i, last);
+    const Lanes4 rv = HAPTIC_NODE_LANES(a.r, i, last) - a.alpha * HAPTIC_NODE_LANES(a.q, i, last);
+    HAPTIC_STORE_NODE(a.x, i, xv);
+    HAPTIC_STORE_NODE(a.r, i, rv);
+    const Lanes4 r2 = rv * rv;
+    rz += r2 * a.dinv[i];
+    rr += r2;
+  }
+  return {rz, rr};
+}
+struct PRows {
+  int n;
+  double* p;
+  const double *r, *dinv;
+  Lanes4 beta;
+};
+[[gnu::always_inline]] inline void p_body(const PRows& a) {
+  for (int i = 0; i < a.n; ++i) {
+    const bool last = i == a.n - 1;
+    const Lanes4 pv = a.dinv[i] * HAPTIC_NODE_LANES(a.r, i, last) + a.beta * HAPTIC_NODE_LANES(a.p, i, last);
+    HAPTIC_STORE_NODE(a.p, i, pv);
+  }
+}
+[[gnu::noinline]] XrSums xr_rows(const XrRows& a) { return xr_body(a); }
+[[gnu::noinline]] void p_rows(const PRows& a) { p_body(a); }
+#if defined(__x86_64__)
+[[gnu::noinline]] __attribute__((target("avx"))) XrSums xr_rows_avx(const XrRows& a) { return xr_body(a); }
+[[gnu::noinline]] __attribute__((target("avx"))) void p_rows_avx(const PRows& a) { p_body(a); }
+#endif
+
+}  // namespace
+
+// x += alpha p, r -= alpha q, and per column sum r^2 D^{-1} (rz_new) and sum r^2 (rrc).
+template <int W>
+void JacobiCg::update_xr(double* x, double* r, const double* alpha, double* rz_new, double* rrc) const {
+  const double* p = p_.data();
+  const double* q = q_.data();
+  const double* dinv = dinv_.data();
+  if constexpr (W == 3) {
+    const XrRows a{n_, x, r, p, q, dinv, Lanes4{alpha[0], alpha[1], alpha[2], 0.0}};
+#if defined(__x86_64__)
+    const XrSums s = avx_ ? xr_rows_avx(a) : xr_rows(a);
+#else
+    const XrSums s = xr_rows(a);
+#endif
+    for (int c = 0; c < 3; ++c) {
+      rz_new[c] = s.rz[c];
+      rrc[c] = s.rr[c];
+    }
+    return;
+  }
+  for (int i = 0; i < n_; ++i)
+    for (int c = 0; c < W; ++c) {
+      const long k = static_cast<long>(i) * W + c;
+      x[k] += alpha[c] * p[k];
+      r[k] -= alpha[c] * q[k];
+      rz_new[c] += r[k] * r[k] * dinv[i];
+      rrc[c] += r[k] * r[k];
+    }
+}
+
+// p := D^{-1} r + beta p per column.
+template <int W>
+void JacobiCg::update_p(const double* r, const double* beta) {
+  double* p = p_.data();
+  const double* dinv = dinv_.data();
+  if constexpr (W == 3) {
+    const PRows a{n_, p, r, dinv, Lanes4{beta[0], beta[1], beta[2], 0.0}};
+#if defined(__x86_64__)
+    if (avx_) {
+      p_rows_avx(a);
+      return;
+    }
+#endif
+    p_rows(a);
+    return;
+  }
+  for (int i = 0; i < n_; ++i)
+    for (int c = 0; c < W; ++c) {
+      const long k = static_cast<long>(i) * W + c;
+      p[k] = dinv[i] * r[k] + beta[c] * p[k];
+    }
+}
+
 // Preconditioned CG (Saad, Alg. 9.1) run on W independent systems; one matrix pass per iteration
 // with the p.q products accumulated in it, z = D^{-1} r never stored (three vector passes); the
 // initial residual is formed in the initial matvec's pass.
@@ -337,10 +409,9 @@ template <int W>
 int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int max_iterations) {
   double* p = p_.data();
   double* q = q_.data();
-  double* ring = ring_.data();
   const double* dinv = dinv_.data();
   // r = b - A x, p = z = D^{-1} r and the products, in the initial matvec's pass (row-local).
-  const InitialRows<W> init = pass<W>(x, ring, ring_mask_, InitialRows<W>{b, r, p, dinv});
+  const InitialRows<W> init = pass<W>(x, InitialRows<W>{b, r, p, dinv});
   double rr = lane_sum<W>(init.rr);
   double rz[W];
   for (int c = 0; c < W; ++c) rz[c] = init.rz[c];
@@ -349,19 +420,12 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
   while (rr > threshold) {
     if (it == max_iterations) return max_iterations + 1;
     ++it;
-    const DirectionRows<W> dir = pass<W>(p, ring, ring_mask_, DirectionRows<W>{p, q});
+    const DirectionRows<W> dir = pass<W>(p, DirectionRows<W>{p, q});
     const Lanes4 pq = dir.pq;
     double alpha[W];
     for (int c = 0; c < W; ++c) alpha[c] = pq[c] > 0 ? rz[c] / pq[c] : 0.0;
     double rz_new[W] = {}, rrc[W] = {};
-    for (int i = 0; i < n_; ++i)
-      for (int c = 0; c < W; ++c) {
-        const long k = static_cast<long>(i) * W + c;
-        x[k] += alpha[c] * p[k];
-        r[k] -= alpha[c] * q[k];
-        rz_new[c] += r[k] * r[k] * dinv[i];
-        rrc[c] += r[k] * r[k];
-      }
+    update_xr<W>(x, r, alpha, rz_new, rrc);
     rr = rrc[0];
     for (int c = 1; c < W; ++c) rr += rrc[c];
     if (rr <= threshold) break;  // converged: the next direction is not needed
@@ -370,11 +434,7 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
       beta[c] = rz[c] > 0 ? rz_new[c] / rz[c] : 0.0;
       rz[c] = rz_new[c];
     }
-    for (int i = 0; i < n_; ++i)
-      for (int c = 0; c < W; ++c) {
-        const long k = static_cast<long>(i) * W + c;
-        p[k] = dinv[i] * r[k] + beta[c] * p[k];
-      }
+    update_p<W>(r, beta);
   }
   return it;
 }

@@ -188,6 +188,23 @@ void StationCore::init_edges() {
   }
 }
 
+long StationCore::tick_bytes() const {
+  const StepLevel& level = *step_;
+  long doubles = level.solver->stored_doubles() + rhs_op_.stored_doubles();
+  const bool iterative = !level.solver->exact();
+  if (!iterative || level.alpha.empty()) doubles += dp_op_.stored_doubles() + tmp_.size() + tmp2_.size();  // the [D, P] pass
+  const Eigen::VectorXd* used[] = {&x_, &v_, &x_hat_, &v_hat_, &rhs_, &resid_};
+  for (const auto* vec : used) doubles += vec->size();
+  if (iterative) {
+    const Eigen::VectorXd* kept[] = {&y0_, &y0_prev_, &rhs_prev_, &rhs_prev2_, &resid_prev_};
+    for (const auto* vec : kept) doubles += vec->size();
+    doubles += static_cast<long>(level.alpha.size() + d0_diag_.size());
+  }
+  doubles += level.Z.size();
+  doubles += 4L * dofs_ * neighbor_count();  // x_hat_j, v_hat_j held and landing
+  return 8 * doubles;
+}
+
 void StationCore::build_level(StepLevel& level, double T, bool iso) {
   level.T = T;
   const double N = cfg_.users;
@@ -837,6 +854,8 @@ void StationCore::solve_vo() {
     y0_level_[0] = step_;
   }
   solver_last_iterations_ = rep.iterations;
+  solver_iterations_total_ += static_cast<std::uint64_t>(rep.iterations);
+  ++solver_ticks_;
   if (!rep.converged) ++solver_unconverged_ticks_;
 }
 

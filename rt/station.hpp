@@ -219,7 +219,16 @@ class StationCore {
     for (const auto& l : steps_) total += l.solver->stored_doubles();
     return total;
   }
+  // Bytes of the arrays one tick at the nominal step reads or writes, each counted once: this
+  // level's solver data (A, its diagonals, work vectors), the right-hand side's operator, the state
+  // and scratch vectors the tick uses, the contact data Z, each neighbour's receive buffers (held
+  // and landing). What BM_TickFloor streams (tools/bench). Not RT-relevant.
+  long tick_bytes() const;
   int solver_last_iterations() const { return solver_last_iterations_; }
+  // Iterations of the linear step's solver per tick over the ticks so far (0 for the direct solve).
+  double solver_iterations_mean() const {
+    return solver_ticks_ > 0 ? static_cast<double>(solver_iterations_total_) / static_cast<double>(solver_ticks_) : 0.0;
+  }
   std::uint64_t solver_unconverged_ticks() const { return solver_unconverged_ticks_; }
   // Start-up / tests: overwrite the state (allocates nothing; sizes must match).
   void set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v);
@@ -318,6 +327,7 @@ class StationCore {
   StepLevel* step_ = nullptr;     // this tick's
   std::uint64_t step_clamped_ticks_ = 0;
   int solver_last_iterations_ = 0;
+  std::uint64_t solver_iterations_total_ = 0, solver_ticks_ = 0;
   std::uint64_t solver_unconverged_ticks_ = 0;
   std::vector<RxLink> rx_;
 

@@ -14,7 +14,7 @@ namespace {
 
 using Index = std::size_t;
 
-// max |a_ij - a_ji| <= 1e-12 max |a_ij|: CG needs a symmetric A, and the compact storage uses a_ij
+// max |a_ij - a_ji| <= 1e-12 max |a_ij|: CG needs a symmetric A, and the upper storage uses a_ij
 // (i < j) for both.
 void require_symmetric(const SparseColMajor& A, const SparseRowMajor& R) {
   const SparseRowMajor At(A.transpose());
@@ -41,10 +41,14 @@ JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance
   diag_.assign(static_cast<Index>(n_), 0.0);
   dinv_.assign(static_cast<Index>(n_), 0.0);
   int band = 0;
+  long upper_entries = 0;
   for (int i = 0; i < n_; ++i)
     for (int p = rp[i]; p < rp[i + 1]; ++p) {
       if (ci[p] == i) diag_[static_cast<Index>(i)] += av[p];
-      if (ci[p] > i) band = std::max(band, ci[p] - i);
+      if (ci[p] > i) {
+        band = std::max(band, ci[p] - i);
+        ++upper_entries;
+      }
     }
   for (int i = 0; i < n_; ++i) {
     if (!(diag_[static_cast<Index>(i)] > 0)) throw std::invalid_argument("JacobiCg: non-positive diagonal");
@@ -75,41 +79,43 @@ JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance
   const double need = relative_tolerance / (2 * std::sqrt(kappa_a_));
   cap_ = rho <= 0 ? 1 : std::max(1, static_cast<int>(std::ceil(std::log(need) / std::log(rho))));
 
-  store_rows(R, band);
+  store_rows(R, band, upper_entries);
   use_avx(true);
   const auto w = static_cast<Index>(n_) * 3;
   p_.assign(w, 0.0);
   q_.assign(w, 0.0);
 }
 
-// Start-up: A's full rows with 16-bit signed column offsets when the band fits, else with 32-bit
-// columns.
-void JacobiCg::store_rows(const SparseRowMajor& R, int band) {
+// Start-up: A's rows as the diagonal + strict upper triangle with 16-bit offsets when the band fits,
+// else the full rows (rp, ci, av: R's compressed rows).
+void JacobiCg::store_rows(const SparseRowMajor& R, int band, long upper_entries) {
   const int* rp = R.outerIndexPtr();
   const int* ci = R.innerIndexPtr();
   const double* av = R.valuePtr();
-  diag_ = {};
-  compact_ = band <= std::numeric_limits<std::int16_t>::max();
-  if (!compact_) {
+  upper_ = band <= std::numeric_limits<std::uint16_t>::max();
+  if (upper_) {
+    band_ = band;
+    rowptr_.assign(static_cast<Index>(n_) + 1, 0);
+    offset_.reserve(static_cast<Index>(upper_entries));
+    val_.reserve(static_cast<Index>(upper_entries));
+    for (int i = 0; i < n_; ++i) {
+      for (int p = rp[i]; p < rp[i + 1]; ++p)
+        if (ci[p] > i) {
+          offset_.push_back(static_cast<std::uint16_t>(ci[p] - i));
+          val_.push_back(av[p]);
+        }
+      rowptr_[static_cast<Index>(i) + 1] = static_cast<int>(val_.size());
+    }
+    unsigned slots = 1;
+    while (slots <= static_cast<unsigned>(band)) slots *= 2;  // > band: rows i..i+band live at once
+    ring_mask_ = slots - 1;
+    ring_.assign(static_cast<Index>(slots) * 4, 0.0);  // 4 doubles a row (W <= 3; aligned lanes)
+    diag_.shrink_to_fit();
+  } else {
+    diag_ = {};
     rowptr_.assign(rp, rp + n_ + 1);
     colidx_.assign(ci, ci + R.nonZeros());
     val_.assign(av, av + R.nonZeros());
-    return;
-  }
-  band_ = band;
-  // The upper triangle (diagonal included) and its mirror: row i's entries ascending, a_ji (j < i)
-  // taken from row j.
-  const SparseRowMajor U = R.triangularView<Eigen::Upper>();
-  const SparseRowMajor F = U + SparseRowMajor(SparseRowMajor(U.triangularView<Eigen::StrictlyUpper>()).transpose());
-  rowptr_.assign(static_cast<Index>(n_) + 1, 0);
-  offset_.reserve(static_cast<Index>(F.nonZeros()));
-  val_.reserve(static_cast<Index>(F.nonZeros()));
-  for (int i = 0; i < n_; ++i) {
-    for (SparseRowMajor::InnerIterator it(F, i); it; ++it) {
-      offset_.push_back(static_cast<std::int16_t>(it.col() - i));
-      val_.push_back(it.value());
-    }
-    rowptr_[static_cast<Index>(i) + 1] = static_cast<int>(val_.size());
   }
 }
 
@@ -119,25 +125,27 @@ bool JacobiCg::use_avx(bool allow) {
 }
 
 long JacobiCg::stored_doubles() const {
-  return static_cast<long>(val_.size() + dinv_.size() + p_.size() + q_.size()) +
+  return static_cast<long>(val_.size() + diag_.size() + dinv_.size() + ring_.size() + p_.size() + q_.size()) +
          static_cast<long>(rowptr_.size() + colidx_.size()) / 2 + static_cast<long>(offset_.size()) / 4;
 }
 
 // One matrix pass: row_done(i, acc) receives acc = (A x)_i (W columns) for i = 0, 1, ..., n-1 in
-// order, each row's terms added in ascending column order from 0. Offset storage: the full rows with
-// 16-bit signed offsets j - i, the entries below the diagonal mirrored from the upper ones (so the
-// products are those of an exactly symmetric A, as one stored triangle would give).
-// Wide (W = 3): a row's columns in 4-lane vectors (the 4th lane reads the next node and is
+// order. Upper storage: acc = partial_i + a_ii x_i + sum_{j>i} a_ij x_j, where partial_i (S
+// doubles per row, the first W used) collected a_ki x_k from the rows k < i in ascending k: the
+// same terms in the same order as the full row's sum, so the two storages give the same bits for an
+// exactly symmetric A. partial is indexed by (row & mask), must be zero on entry and is left zero.
+// Wide (W = 3, S = 4): a row's columns in 4-lane vectors (the 4th lane reads the next node and is
 // dropped; rows that reach the last node stay scalar), each lane the same multiply and add in the
 // same order as the scalar loop (no FMA), so the results are identical bit for bit (rt/lanes.hpp).
 
 namespace {
 
-struct OffsetRows {
+struct UpperRows {
   int n;
   const int* rowptr;
-  const std::int16_t* offset;
+  const std::uint16_t* offset;
   const double* val;
+  const double* diag;
 };
 
 template <int W, class RowDone>
@@ -154,79 +162,101 @@ template <int W, class RowDone>
   return row_done;
 }
 
-template <int W, bool Wide, class RowDone>
-[[gnu::always_inline]] inline RowDone offset_rows(const OffsetRows& m, const double* __restrict x, RowDone row_done) {
+template <int W, int S, bool Wide, class RowDone>
+[[gnu::always_inline]] inline RowDone upper_rows(const UpperRows& m, const double* __restrict x, double* __restrict partial,
+                                                 unsigned mask, RowDone row_done) {
   const int n = m.n;
   const int* rp = m.rowptr;
-  const std::int16_t* off = m.offset;
+  const std::uint16_t* off = m.offset;
   const double* v = m.val;
   for (int i = 0; i < n; ++i) {
     const int e0 = rp[i], e1 = rp[i + 1];
+    double* own = partial + static_cast<long>(static_cast<unsigned>(i) & mask) * S;
+    const double* xi = x + static_cast<long>(i) * W;
+    double acc[W];
     if constexpr (Wide) {
-      static_assert(W == 3);
-      if (i + off[e1 - 1] < n - 1) {  // offsets ascend (a row holds its diagonal): the last is the largest
-        Lanes4 a4 = {};
-        const double* xr = x + 3L * i;
+      static_assert(W == 3 && S == 4);
+      if (i < n - 1 && (e1 == e0 || i + off[e1 - 1] < n - 1)) {  // offsets ascend: the last is the largest
+        Lanes4 xv, o;
+        __builtin_memcpy(&xv, xi, sizeof xv);
+        xv[3] = 0;
+        __builtin_memcpy(&o, own, sizeof o);
+        const double di = m.diag[i];
+        Lanes4 a4 = o + Lanes4{di, di, di, di} * xv;
+        const Lanes4 zero = {};
+        __builtin_memcpy(own, &zero, sizeof zero);
         for (int e = e0; e < e1; ++e) {
           const double a = v[e];
-          Lanes4 xj;
-          __builtin_memcpy(&xj, xr + 3L * off[e], sizeof xj);
-          a4 += Lanes4{a, a, a, a} * xj;
+          const Lanes4 av = {a, a, a, a};
+          const unsigned j = static_cast<unsigned>(i) + off[e];
+          Lanes4 xj, pj;
+          __builtin_memcpy(&xj, x + static_cast<long>(j) * 3, sizeof xj);
+          double* pp = partial + static_cast<long>(j & mask) * 4;
+          __builtin_memcpy(&pj, pp, sizeof pj);
+          a4 += av * xj;
+          pj += av * xv;
+          __builtin_memcpy(pp, &pj, sizeof pj);
         }
         row_done.wide(i, a4);
         continue;
       }
     }
-    double acc[W] = {};
+    double xl[W];
+    for (int c = 0; c < W; ++c) {
+      xl[c] = xi[c];
+      acc[c] = own[c] + m.diag[i] * xl[c];
+    }
+    for (int c = 0; c < S; ++c) own[c] = 0;
     for (int e = e0; e < e1; ++e) {
       const double a = v[e];
-      const double* xj = x + (static_cast<long>(i) + off[e]) * W;
-      for (int c = 0; c < W; ++c) acc[c] += a * xj[c];
+      const unsigned j = static_cast<unsigned>(i) + off[e];
+      const double* xj = x + static_cast<long>(j) * W;
+      double* pj = partial + static_cast<long>(j & mask) * S;
+      for (int c = 0; c < W; ++c) {
+        acc[c] += a * xj[c];
+        pj[c] += a * xl[c];
+      }
     }
     row_done(i, acc);
   }
   return row_done;
 }
 
-template <int W, class RowDone>
-[[gnu::noinline]] void offset_rows_base(const OffsetRows& m, const double* x, RowDone& row_done) {
-  row_done = offset_rows<W, W == 3>(m, x, row_done);
-}
 #if defined(__x86_64__)
 template <int W, class RowDone>
-[[gnu::noinline]] __attribute__((target("avx"))) void offset_rows_avx(const OffsetRows& m, const double* x,
-                                                                     RowDone& row_done) {  // by reference: AVX-sized members
-  row_done = offset_rows<W, W == 3>(m, x, row_done);
+__attribute__((target("avx"))) void upper_rows_avx(const UpperRows& m, const double* x, double* partial, unsigned mask,
+                                                   RowDone& row_done) {  // by reference: AVX-sized members
+  row_done = upper_rows<W, 4, W == 3>(m, x, partial, mask, row_done);
 }
 #endif
 
 }  // namespace
 
 template <int W, class RowDone>
-RowDone JacobiCg::pass(const double* x, RowDone row_done) const {
-  if (!compact_) return full_rows<W>(n_, rowptr_.data(), colidx_.data(), val_.data(), x, row_done);
-  const OffsetRows m{n_, rowptr_.data(), offset_.data(), val_.data()};
+RowDone JacobiCg::pass(const double* x, double* partial, unsigned mask, RowDone row_done) const {
+  if (!upper_) return full_rows<W>(n_, rowptr_.data(), colidx_.data(), val_.data(), x, row_done);
+  const UpperRows m{n_, rowptr_.data(), offset_.data(), val_.data(), diag_.data()};
 #if defined(__x86_64__)
   if (avx_) {
-    offset_rows_avx<W>(m, x, row_done);
+    upper_rows_avx<W>(m, x, partial, mask, row_done);
     return row_done;
   }
 #endif
-  offset_rows_base<W>(m, x, row_done);
-  return row_done;
+  return upper_rows<W, 4, false>(m, x, partial, mask, row_done);
 }
 
-// Scalar.
+// Scalar; y itself collects the partial sums (stride W, mask: every row its own slot).
 template <int W>
 void JacobiCg::multiply_fixed(const double* x, double* y) const {
   const auto done = [y](int i, const double* acc) {
     for (int c = 0; c < W; ++c) y[static_cast<long>(i) * W + c] = acc[c];
   };
-  if (!compact_) {
+  if (!upper_) {
     full_rows<W>(n_, rowptr_.data(), colidx_.data(), val_.data(), x, done);
     return;
   }
-  offset_rows<W, false>(OffsetRows{n_, rowptr_.data(), offset_.data(), val_.data()}, x, done);
+  for (long k = 0; k < static_cast<long>(n_) * W; ++k) y[k] = 0;
+  upper_rows<W, W, false>(UpperRows{n_, rowptr_.data(), offset_.data(), val_.data(), diag_.data()}, x, y, ~0u, done);
 }
 
 void JacobiCg::multiply(const double* x, double* y, int width) const {
@@ -409,9 +439,10 @@ template <int W>
 int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int max_iterations) {
   double* p = p_.data();
   double* q = q_.data();
+  double* ring = ring_.data();
   const double* dinv = dinv_.data();
   // r = b - A x, p = z = D^{-1} r and the products, in the initial matvec's pass (row-local).
-  const InitialRows<W> init = pass<W>(x, InitialRows<W>{b, r, p, dinv});
+  const InitialRows<W> init = pass<W>(x, ring, ring_mask_, InitialRows<W>{b, r, p, dinv});
   double rr = lane_sum<W>(init.rr);
   double rz[W];
   for (int c = 0; c < W; ++c) rz[c] = init.rz[c];
@@ -420,7 +451,7 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
   while (rr > threshold) {
     if (it == max_iterations) return max_iterations + 1;
     ++it;
-    const DirectionRows<W> dir = pass<W>(p, DirectionRows<W>{p, q});
+    const DirectionRows<W> dir = pass<W>(p, ring, ring_mask_, DirectionRows<W>{p, q});
     const Lanes4 pq = dir.pq;
     double alpha[W];
     for (int c = 0; c < W; ++c) alpha[c] = pq[c] > 0 ? rz[c] / pq[c] : 0.0;

@@ -3,13 +3,14 @@
 // with `width` (1 or 3) interleaved right-hand sides solved as independent systems sharing each
 // sparse matrix pass. Allocation-free after construction.
 //
-// Storage: A's full rows with 16-bit signed column offsets j - i (value 8 B + offset 2 B per
-// entry), the entries below the diagonal mirrored from the upper triangle (an exactly symmetric A).
-// Row i of a pass gathers its terms in ascending column order, a node's three columns in one 4-lane
-// vector, so (A x)_i is final when row i is done and row-local work (r, p, dot products) fuses into
-// the pass. (It replaced a strict-upper-triangle storage that scattered a_ij x_i into a ring of
-// partial sums: half the bytes, but the scatter cost more than the bytes saved, and the sums are the
-// same bits.) When an offset does not fit in 16 bits the full rows with 32-bit columns are used.
+// Storage: A's diagonal plus its STRICT UPPER triangle in compressed rows with 16-bit column
+// offsets j - i (value 8 B + offset 2 B per stored entry; at 9915 nodes 0.75 MB a pass instead of
+// the full rows' 1.67 MB). Row i of a pass gathers sum_{j>i} a_ij x_j and scatters a_ij x_i into a
+// small ring of partial sums for the rows j - i <= band ahead (a window that stays in cache), so
+// (A x)_i is final when row i is done and row-local work (r, p, dot products) fuses into the pass.
+// A pass adds row i's terms in ascending column order, as the full rows do: for an exactly
+// symmetric A the results are the full product's bits. When an offset does not fit in 16 bits the
+// full rows with 32-bit columns are kept and used instead.
 //
 // Iteration cap: with the Jacobi-scaled matrix's eigenvalues in [lo, hi] (Gershgorin discs,
 // computed at construction), kappa = hi/lo and rho = (sqrt(kappa)-1)/(sqrt(kappa)+1), PCG's error
@@ -35,11 +36,12 @@ class JacobiCg {
   double condition_bound() const { return kappa_scaled_; }  // Gershgorin bound after Jacobi scaling
   int iteration_cap() const { return cap_; }
   long stored_doubles() const;
-  // True when A's rows are stored with 16-bit offsets; band() is then the largest j - i of an entry.
-  bool compact_storage() const { return compact_; }
+  // True when A is stored as diagonal + strict upper triangle with 16-bit offsets; band() is then
+  // the largest j - i of a stored entry.
+  bool upper_storage() const { return upper_; }
   int band() const { return band_; }
   const double* inverse_diagonal() const { return dinv_.data(); }  // 1 / A_ii, size()
-  // The compact storage's passes run an AVX build (4 lanes a row) when the CPU has AVX; it gives the
+  // The upper storage's passes run an AVX build (4 lanes a row) when the CPU has AVX; it gives the
   // same results bit for bit. Tests: false forces the scalar build; returns whether AVX is used.
   bool use_avx(bool allow);
   // x (guess in, solution out), residual := b - A x. Stops when sum_c |r_c|^2 <= tol^2 |b|^2 or
@@ -51,9 +53,9 @@ class JacobiCg {
   void multiply(const double* x, double* y, int width) const;
 
  private:
-  void store_rows(const SparseRowMajor& R, int band);  // start-up
+  void store_rows(const SparseRowMajor& R, int band, long upper_entries);  // start-up
   template <int W, class RowDone>
-  RowDone pass(const double* x, RowDone row_done) const;
+  RowDone pass(const double* x, double* partial, unsigned mask, RowDone row_done) const;
   template <int W>
   void multiply_fixed(const double* x, double* y) const;
   template <int W>
@@ -63,13 +65,15 @@ class JacobiCg {
   template <int W>
   int solve_fixed(const double* b, double* x, double* r, double tol, int max_iterations);
   int n_ = 0;
-  bool compact_ = false;
+  bool upper_ = false;
   bool avx_ = false;
   int band_ = 0;
-  std::vector<int> rowptr_;
-  std::vector<std::int16_t> offset_;        // compact: j - i
-  std::vector<int> colidx_;                 // 32-bit columns only
-  std::vector<double> val_, diag_, dinv_;   // diag_: start-up only
+  std::vector<int> rowptr_;                 // upper: strict-upper rows; else full rows
+  std::vector<std::uint16_t> offset_;       // upper: j - i
+  std::vector<int> colidx_;                 // full rows only
+  std::vector<double> val_, diag_, dinv_;   // diag_ used by the upper storage only
+  std::vector<double> ring_;                // upper: partial sums of the rows ahead, (mask + 1) * 4
+  unsigned ring_mask_ = 0;
   std::vector<double> p_, q_;  // work vectors, n * 3
   double kappa_scaled_ = 1, kappa_a_ = 1;
   int cap_ = 1;

@@ -740,7 +740,7 @@ double StationCore::advance_state() {
   return nonfinite == 0.0 ? vmax : std::nan("");
 }
 
-void StationCore::select_step(double step_s) {
+[[gnu::always_inline]] inline void StationCore::select_step(double step_s) {
   double want = step_s;
   if (!(want >= cfg_.t_min() * (1 - 1e-9) && want <= cfg_.t_max() * (1 + 1e-9))) {
     ++step_clamped_ticks_;
@@ -754,7 +754,7 @@ void StationCore::select_step(double step_s) {
   T_ = best->T;
 }
 
-Vec3 StationCore::device_force(const Vec3& q, Vec3& qk, Vec3& vq, std::uint32_t& flags) {
+[[gnu::always_inline]] inline Vec3 StationCore::device_force(const Vec3& q, Vec3& qk, Vec3& vq, std::uint32_t& flags) {
   const auto& g = cfg_.vp.coupling;
   qk = q;
   if (!qk.allFinite()) {
@@ -774,7 +774,7 @@ Vec3 StationCore::device_force(const Vec3& q, Vec3& qk, Vec3& vq, std::uint32_t&
   return f_dev;
 }
 
-void StationCore::read_neighbours(std::int64_t k, std::uint32_t& flags) {
+[[gnu::always_inline]] inline void StationCore::read_neighbours(std::int64_t k, std::uint32_t& flags) {
   // Over the delay bound or the energy bound: x_hat_j := x(k), delta_ij = 0 (the edge acts as the
   // damper D_ij + T/2 P_ij).
   for (int j = 0; j < neighbor_count(); ++j) {
@@ -803,7 +803,7 @@ void StationCore::read_neighbours(std::int64_t k, std::uint32_t& flags) {
   }
 }
 
-void StationCore::update_contact_set(std::uint32_t& flags) {
+[[gnu::always_inline]] inline void StationCore::update_contact_set(std::uint32_t& flags) {
   const ContactFace face = contact_face(x_, cfg_.contact_nodes);
   const Vec3& xc = face.centroid;
   Vec3 nrm = normal_sign_ * face.normal;
@@ -822,7 +822,7 @@ void StationCore::update_contact_set(std::uint32_t& flags) {
   }
 }
 
-Vec3 StationCore::build_step_rhs(const Vec3& qk, const Vec3& vq) {
+[[gnu::always_inline]] inline Vec3 StationCore::build_step_rhs(const Vec3& qk, const Vec3& vq) {
   // b = (1/N)((2M/T) v - K(x - x_d)) + sum_j delta_ij D_ij v_hat_j - sum_j P_ij (x - x_hat_j)
   const auto& g = cfg_.vp.coupling;
   const double kc = cfg_.vp.contact_stiffness_N_per_m;
@@ -839,7 +839,7 @@ Vec3 StationCore::build_step_rhs(const Vec3& qk, const Vec3& vq) {
   return bw;
 }
 
-void StationCore::solve_vo() {
+[[gnu::always_inline]] inline void StationCore::solve_vo() {
   StepSolver::Report rep;
   if (step_->solver->exact()) {
     rep = step_->solver->solve(rhs_.data(), v_hat_.data(), resid_.data(), w_);
@@ -859,7 +859,7 @@ void StationCore::solve_vo() {
   if (!rep.converged) ++solver_unconverged_ticks_;
 }
 
-Vec3 StationCore::solve_contact(const Vec3& bw, double c) {
+[[gnu::always_inline]] inline Vec3 StationCore::solve_contact(const Vec3& bw, double c) {
   contact_coef_set_ = false;
   if (!in_contact_) return bw / step_->a_w;
   const int m = m_units_;
@@ -886,7 +886,7 @@ Vec3 StationCore::solve_contact(const Vec3& bw, double c) {
   return w_hat;
 }
 
-double StationCore::contact_port_power(const Vec3& w_hat) {
+[[gnu::always_inline]] inline double StationCore::contact_port_power(const Vec3& w_hat) {
   const double kc = cfg_.vp.contact_stiffness_N_per_m, bc = cfg_.vp.contact_damping_Ns_per_m;
   const auto& cn = cfg_.contact_nodes;
   const Vec3 y_hat = y_ + (T_ / 2.0) * w_hat;
@@ -903,7 +903,7 @@ double StationCore::contact_port_power(const Vec3& w_hat) {
   return port_power;
 }
 
-void StationCore::further_groups_energy(double& ctrl_J) {
+[[gnu::always_inline]] inline void StationCore::further_groups_energy(double& ctrl_J) {
   const int nn = neighbor_count();
   for (std::size_t gi = 1; gi < group_leaders_.size(); ++gi) {  // D v_hat and P v_hat by matvecs
     const int j = group_leaders_[gi];
@@ -927,7 +927,7 @@ void StationCore::further_groups_energy(double& ctrl_J) {
   }
 }
 
-double StationCore::account_energies(const Vec3& w_hat) {
+[[gnu::always_inline]] inline double StationCore::account_energies(const Vec3& w_hat) {
   // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)   (eq. 15),
   // with x_hat_j := x(k), delta_ij = 0 for an over-bound edge. Split per edge (rt/edge_energy.hpp):
   // D_ij, P_ij are symmetric, so v_hat^T D u = (D v_hat)^T u: one D v_hat and one P v_hat per gain

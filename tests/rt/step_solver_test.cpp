@@ -70,14 +70,14 @@ void check_full_product_bits(const SparseColMajor& As, JacobiCg& cg, int width, 
 
 }  // namespace
 
-// The CG stores A's full rows with 16-bit column offsets, the entries below the diagonal mirrored
-// from the upper ones, and runs each row as a 4-lane gather (a node's three columns in one vector).
-// A pass adds row i's terms in ascending column order as Eigen's product does, so A x keeps the
-// full product's bits: checked against Eigen's A x through the initial residual b - A x and
-// multiply(), for widths 3 and 1, in the AVX and the baseline build, on the 2945-node ball (rows
-// reaching the last node run scalar); a whole solve gives the same bits in both builds.
-// A band past 16 bits keeps the full rows with 32-bit columns (a 70,000-row chain closed by a corner entry).
-TEST(StepSolver, the_16_bit_offset_rows_give_the_full_products_bits_and_32_bit_columns_serve_past_16_bit_offsets) {
+// The CG stores A as its diagonal plus strict upper triangle with 16-bit column offsets (0.45 of
+// the full rows' bytes). A pass adds row i's terms in ascending column order, the lower ones through
+// the ring of partial sums, as the full rows do, so A x keeps the full product's bits: checked
+// against Eigen's A x through the initial residual b - A x and multiply(), for widths 3 and 1, in
+// the AVX and the scalar build, on the 2945-node ball (rows reaching the last node run scalar);
+// a whole solve gives the same bits in both builds.
+// A band past 16 bits keeps the full rows (a 70,000-row chain closed by a corner entry).
+TEST(StepSolver, the_upper_triangle_storage_gives_the_full_products_bits_and_keeps_the_full_rows_past_16_bit_offsets) {
   const Scene s = build_scene(make_lattice_ball(3000, 0.05), SceneParams{});
   const EdgeGains g = paper_edge_gains(s);
   const SpatialMatrix I = SpatialMatrix::identity(s.nodes);
@@ -86,7 +86,7 @@ TEST(StepSolver, the_16_bit_offset_rows_give_the_full_products_bits_and_32_bit_c
   for (int width : {3, 1})
     for (bool avx : {true, false}) {
       JacobiCg cg(As, width, 1e-8);
-      CHECK_TRUE(cg.compact_storage());
+      CHECK_TRUE(cg.upper_storage());
       CHECK_TRUE(cg.band() > 0 && cg.band() < s.nodes);
       if (cg.use_avx(avx) != avx) {
         printf("\n  SKIPPED: this CPU has no AVX, only the scalar build runs\n");
@@ -123,7 +123,7 @@ TEST(StepSolver, the_16_bit_offset_rows_give_the_full_products_bits_and_32_bit_c
   SparseColMajor chain(n, n);
   chain.setFromTriplets(t.begin(), t.end());
   JacobiCg wide(chain, 3, 1e-10);
-  CHECK_FALSE(wide.compact_storage());
+  CHECK_FALSE(wide.upper_storage());
   check_full_product_bits(chain, wide, 3, 7);
   std::vector<double> b(static_cast<std::size_t>(n) * 3, 1.0), x(b.size(), 0.0), r(b.size());
   CHECK_TRUE(wide.solve(b.data(), x.data(), r.data(), 3, 1e-10, wide.iteration_cap()) <= wide.iteration_cap());

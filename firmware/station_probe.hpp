@@ -13,6 +13,7 @@
 
 #include "firmware/device_coupling.hpp"
 #include "firmware/probe_loss.hpp"
+#include "firmware/solver_choice.hpp"
 #include "firmware/station_neighbours.hpp"
 #include "firmware/station_phase.hpp"
 #include "firmware/station_plan.hpp"
@@ -108,6 +109,7 @@ struct BuildResult {
   Eigen::Vector3d proxy_start_m = Eigen::Vector3d::Zero();  // where the virtual proxy starts
   bool proxy_from_device = false;         // placed at the mapped device position (else the scenario's start)
   bool proxy_projected = false;           // that position was inside the object: projected onto the contact face
+  SolverChoice solver_choice;             // station.solver = "auto": the start-up measurement (solver_choice.hpp)
 };
 
 // B_i from eq. (18) on the measured bounds (station.damping_Ns_per_m overrides it: then the

@@ -79,6 +79,19 @@ JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance
   const double need = relative_tolerance / (2 * std::sqrt(kappa_a_));
   cap_ = rho <= 0 ? 1 : std::max(1, static_cast<int>(std::ceil(std::log(need) / std::log(rho))));
 
+  store_rows(R, band, upper_entries);
+  use_avx(true);
+  const auto w = static_cast<Index>(n_) * 3;
+  p_.assign(w, 0.0);
+  q_.assign(w, 0.0);
+}
+
+// Start-up: A's rows as the diagonal + strict upper triangle with 16-bit offsets when the band fits,
+// else the full rows (rp, ci, av: R's compressed rows).
+void JacobiCg::store_rows(const SparseRowMajor& R, int band, long upper_entries) {
+  const int* rp = R.outerIndexPtr();
+  const int* ci = R.innerIndexPtr();
+  const double* av = R.valuePtr();
   upper_ = band <= std::numeric_limits<std::uint16_t>::max();
   if (upper_) {
     band_ = band;
@@ -104,10 +117,6 @@ JacobiCg::JacobiCg(const SparseColMajor& A, int width, double relative_tolerance
     colidx_.assign(ci, ci + R.nonZeros());
     val_.assign(av, av + R.nonZeros());
   }
-  use_avx(true);
-  const auto w = static_cast<Index>(n_) * 3;
-  p_.assign(w, 0.0);
-  q_.assign(w, 0.0);
 }
 
 bool JacobiCg::use_avx(bool allow) {
@@ -321,6 +330,108 @@ struct DirectionRows {
 
 }  // namespace
 
+namespace {
+
+// The CG's vector updates, W = 3 in 4 lanes a node (lane 3 never stored or summed; the last node's
+// lane 3 reads 0): each lane the scalar loop's operations in the same order, so the baseline
+// (SSE2 pairs) and AVX builds give the scalar loop's bits.
+struct XrRows {
+  int n;
+  double *x, *r;
+  const double *p, *q, *dinv;
+  Lanes4 alpha;
+};
+struct XrSums {
+  Lanes4 rz, rr;
+};
+[[gnu::always_inline]] inline XrSums xr_body(const XrRows& a) {
+  Lanes4 rz = {}, rr = {};
+  for (int i = 0; i < a.n; ++i) {
+    const bool last = i == a.n - 1;
+    const Lanes4 xv = HAPTIC_NODE_LANES(a.x, i, last) + a.alpha * HAPTIC_NODE_LANES(a.p, i, last);
+    const Lanes4 rv = HAPTIC_NODE_LANES(a.r, i, last) - a.alpha * HAPTIC_NODE_LANES(a.q, i, last);
+    HAPTIC_STORE_NODE(a.x, i, xv);
+    HAPTIC_STORE_NODE(a.r, i, rv);
+    const Lanes4 r2 = rv * rv;
+    rz += r2 * a.dinv[i];
+    rr += r2;
+  }
+  return {rz, rr};
+}
+struct PRows {
+  int n;
+  double* p;
+  const double *r, *dinv;
+  Lanes4 beta;
+};
+[[gnu::always_inline]] inline void p_body(const PRows& a) {
+  for (int i = 0; i < a.n; ++i) {
+    const bool last = i == a.n - 1;
+    const Lanes4 pv = a.dinv[i] * HAPTIC_NODE_LANES(a.r, i, last) + a.beta * HAPTIC_NODE_LANES(a.p, i, last);
+    HAPTIC_STORE_NODE(a.p, i, pv);
+  }
+}
+[[gnu::noinline]] XrSums xr_rows(const XrRows& a) { return xr_body(a); }
+[[gnu::noinline]] void p_rows(const PRows& a) { p_body(a); }
+#if defined(__x86_64__)
+[[gnu::noinline]] __attribute__((target("avx"))) XrSums xr_rows_avx(const XrRows& a) { return xr_body(a); }
+[[gnu::noinline]] __attribute__((target("avx"))) void p_rows_avx(const PRows& a) { p_body(a); }
+#endif
+
+}  // namespace
+
+// x += alpha p, r -= alpha q, and per column sum r^2 D^{-1} (rz_new) and sum r^2 (rrc).
+template <int W>
+void JacobiCg::update_xr(double* x, double* r, const double* alpha, double* rz_new, double* rrc) const {
+  const double* p = p_.data();
+  const double* q = q_.data();
+  const double* dinv = dinv_.data();
+  if constexpr (W == 3) {
+    const XrRows a{n_, x, r, p, q, dinv, Lanes4{alpha[0], alpha[1], alpha[2], 0.0}};
+#if defined(__x86_64__)
+    const XrSums s = avx_ ? xr_rows_avx(a) : xr_rows(a);
+#else
+    const XrSums s = xr_rows(a);
+#endif
+    for (int c = 0; c < 3; ++c) {
+      rz_new[c] = s.rz[c];
+      rrc[c] = s.rr[c];
+    }
+    return;
+  }
+  for (int i = 0; i < n_; ++i)
+    for (int c = 0; c < W; ++c) {
+      const long k = static_cast<long>(i) * W + c;
+      x[k] += alpha[c] * p[k];
+      r[k] -= alpha[c] * q[k];
+      rz_new[c] += r[k] * r[k] * dinv[i];
+      rrc[c] += r[k] * r[k];
+    }
+}
+
+// p := D^{-1} r + beta p per column.
+template <int W>
+void JacobiCg::update_p(const double* r, const double* beta) {
+  double* p = p_.data();
+  const double* dinv = dinv_.data();
+  if constexpr (W == 3) {
+    const PRows a{n_, p, r, dinv, Lanes4{beta[0], beta[1], beta[2], 0.0}};
+#if defined(__x86_64__)
+    if (avx_) {
+      p_rows_avx(a);
+      return;
+    }
+#endif
+    p_rows(a);
+    return;
+  }
+  for (int i = 0; i < n_; ++i)
+    for (int c = 0; c < W; ++c) {
+      const long k = static_cast<long>(i) * W + c;
+      p[k] = dinv[i] * r[k] + beta[c] * p[k];
+    }
+}
+
 // Preconditioned CG (Saad, Alg. 9.1) run on W independent systems; one matrix pass per iteration
 // with the p.q products accumulated in it, z = D^{-1} r never stored (three vector passes); the
 // initial residual is formed in the initial matvec's pass.
@@ -345,14 +456,7 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
     double alpha[W];
     for (int c = 0; c < W; ++c) alpha[c] = pq[c] > 0 ? rz[c] / pq[c] : 0.0;
     double rz_new[W] = {}, rrc[W] = {};
-    for (int i = 0; i < n_; ++i)
-      for (int c = 0; c < W; ++c) {
-        const long k = static_cast<long>(i) * W + c;
-        x[k] += alpha[c] * p[k];
-        r[k] -= alpha[c] * q[k];
-        rz_new[c] += r[k] * r[k] * dinv[i];
-        rrc[c] += r[k] * r[k];
-      }
+    update_xr<W>(x, r, alpha, rz_new, rrc);
     rr = rrc[0];
     for (int c = 1; c < W; ++c) rr += rrc[c];
     if (rr <= threshold) break;  // converged: the next direction is not needed
@@ -361,11 +465,7 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
       beta[c] = rz[c] > 0 ? rz_new[c] / rz[c] : 0.0;
       rz[c] = rz_new[c];
     }
-    for (int i = 0; i < n_; ++i)
-      for (int c = 0; c < W; ++c) {
-        const long k = static_cast<long>(i) * W + c;
-        p[k] = dinv[i] * r[k] + beta[c] * p[k];
-      }
+    update_p<W>(r, beta);
   }
   return it;
 }

@@ -53,10 +53,15 @@ class JacobiCg {
   void multiply(const double* x, double* y, int width) const;
 
  private:
+  void store_rows(const SparseRowMajor& R, int band, long upper_entries);  // start-up
   template <int W, class RowDone>
   RowDone pass(const double* x, double* partial, unsigned mask, RowDone row_done) const;
   template <int W>
   void multiply_fixed(const double* x, double* y) const;
+  template <int W>
+  void update_xr(double* x, double* r, const double* alpha, double* rz_new, double* rrc) const;
+  template <int W>
+  void update_p(const double* r, const double* beta);
   template <int W>
   int solve_fixed(const double* b, double* x, double* r, double tol, int max_iterations);
   int n_ = 0;

@@ -71,6 +71,10 @@ MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& te
     }
     rowptr_[static_cast<std::size_t>(r) + 1] = static_cast<int>(col_.size());
   }
+  prepare_consensus_ring();
+}
+
+void MultiTermOperator::prepare_consensus_ring() {
   // apply_consensus: terms [M, K, P, D] with off-diagonal entries in K and P only, shared values,
   // isotropic; the ring holds the band of columns rows read (bounded: 4096 nodes, three copies of
   // 64 bytes each: 768 KB).

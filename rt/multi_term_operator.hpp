@@ -64,6 +64,8 @@ class MultiTermOperator {
   int ring_nodes() const { return ring_mask_ + 1; }
 
  private:
+  // Start-up: apply_consensus's ring of input columns, when the terms are [M, K, P, D] as it needs.
+  void prepare_consensus_ring();
   template <int W>
   void apply_w(const double* const* u, const double* to_y, const double* to_h, double* y, double* h, double* quad) const;
   int rows_ = 0, width_ = 3, terms_ = 0, off_terms_ = 0;

@@ -123,34 +123,7 @@ StationCore::StationCore(const StationConfig& config)
   rhs_prev_ = Eigen::VectorXd::Zero(dofs_);
   rhs_prev2_ = Eigen::VectorXd::Zero(dofs_);
   resid_prev_ = Eigen::VectorXd::Zero(dofs_);
-  rx_.resize(static_cast<std::size_t>(nn));
-  for (auto& r : rx_) r.init(dofs_, x_.data(), v_.data(), -1, cfg_.rx_rule);
-  views_.resize(static_cast<std::size_t>(nn));
-  active_.assign(static_cast<std::size_t>(nn), 0);
-  edge_was_dropped_.assign(static_cast<std::size_t>(nn), 0);
-  edge_drops_.assign(static_cast<std::size_t>(nn), 0);
-  if (cfg_.consensus_passivity == ConsensusPassivity::kSetPositionModulation) {
-    pspm_.resize(static_cast<std::size_t>(nn));
-    for (auto& m : pspm_) m.init(dofs_, x_.data(), cfg_.pspm_reservoir0_J);
-    pspm_scratch_ = Eigen::VectorXd::Zero(2 * dofs_);  // SetPositionModulator::update's d and P d
-    if (cfg_.predict_held_state) {
-      predicted_ = Eigen::VectorXd::Zero(dofs_);
-      held_since_.assign(static_cast<std::size_t>(nn), 0);
-    }
-  }
-  {
-    std::vector<double> shares;
-    for (const auto& nb : cfg_.neighbors) shares.push_back(nb.damping_share);
-    edge_energy_.init(nn, shares);
-    std::vector<double> bounds, releases, leaks;
-    for (const auto& nb : cfg_.neighbors) {
-      bounds.push_back(nb.energy_bound_J);
-      releases.push_back(nb.energy_release_J);
-      leaks.push_back(nb.energy_leak_W);
-    }
-    edge_gate_.init(nn, bounds, releases);
-    edge_energy_.set_leak(leaks);
-  }
+  init_edges();
   y_ = cfg_.vp_initial_position_m;
   q_prev_ = y_;
   anchor_.assign(cfg_.contact_nodes.size(), Vec3::Zero());
@@ -181,6 +154,55 @@ StationCore::StationCore(const StationConfig& config)
   step_ = &steps_[0];
   for (auto& l : steps_)
     if (std::abs(l.T - cfg_.period_s) < std::abs(step_->T - cfg_.period_s)) step_ = &l;
+}
+
+void StationCore::init_edges() {
+  const int nn = neighbor_count();
+  rx_.resize(static_cast<std::size_t>(nn));
+  for (auto& r : rx_) r.init(dofs_, x_.data(), v_.data(), -1, cfg_.rx_rule);
+  views_.resize(static_cast<std::size_t>(nn));
+  active_.assign(static_cast<std::size_t>(nn), 0);
+  edge_was_dropped_.assign(static_cast<std::size_t>(nn), 0);
+  edge_drops_.assign(static_cast<std::size_t>(nn), 0);
+  if (cfg_.consensus_passivity == ConsensusPassivity::kSetPositionModulation) {
+    pspm_.resize(static_cast<std::size_t>(nn));
+    for (auto& m : pspm_) m.init(dofs_, x_.data(), cfg_.pspm_reservoir0_J);
+    pspm_scratch_ = Eigen::VectorXd::Zero(2 * dofs_);  // SetPositionModulator::update's d and P d
+    if (cfg_.predict_held_state) {
+      predicted_ = Eigen::VectorXd::Zero(dofs_);
+      held_since_.assign(static_cast<std::size_t>(nn), 0);
+    }
+  }
+  {
+    std::vector<double> shares;
+    for (const auto& nb : cfg_.neighbors) shares.push_back(nb.damping_share);
+    edge_energy_.init(nn, shares);
+    std::vector<double> bounds, releases, leaks;
+    for (const auto& nb : cfg_.neighbors) {
+      bounds.push_back(nb.energy_bound_J);
+      releases.push_back(nb.energy_release_J);
+      leaks.push_back(nb.energy_leak_W);
+    }
+    edge_gate_.init(nn, bounds, releases);
+    edge_energy_.set_leak(leaks);
+  }
+}
+
+long StationCore::tick_bytes() const {
+  const StepLevel& level = *step_;
+  long doubles = level.solver->stored_doubles() + rhs_op_.stored_doubles();
+  const bool iterative = !level.solver->exact();
+  if (!iterative || level.alpha.empty()) doubles += dp_op_.stored_doubles() + tmp_.size() + tmp2_.size();  // the [D, P] pass
+  const Eigen::VectorXd* used[] = {&x_, &v_, &x_hat_, &v_hat_, &rhs_, &resid_};
+  for (const auto* vec : used) doubles += vec->size();
+  if (iterative) {
+    const Eigen::VectorXd* kept[] = {&y0_, &y0_prev_, &rhs_prev_, &rhs_prev2_, &resid_prev_};
+    for (const auto* vec : kept) doubles += vec->size();
+    doubles += static_cast<long>(level.alpha.size() + d0_diag_.size());
+  }
+  doubles += level.Z.size();
+  doubles += 4L * dofs_ * neighbor_count();  // x_hat_j, v_hat_j held and landing
+  return 8 * doubles;
 }
 
 void StationCore::build_level(StepLevel& level, double T, bool iso) {
@@ -718,49 +740,44 @@ double StationCore::advance_state() {
   return nonfinite == 0.0 ? vmax : std::nan("");
 }
 
-StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double step_s) {
-  TickOutput out;
-  // --- 0. this tick's step T_k: clamped to [T^min, T^max], the nearest prefactored one ---
-  {
-    double want = step_s;
-    if (!(want >= cfg_.t_min() * (1 - 1e-9) && want <= cfg_.t_max() * (1 + 1e-9))) {
-      ++step_clamped_ticks_;
-      want = std::isfinite(want) ? std::clamp(want, cfg_.t_min(), cfg_.t_max()) : cfg_.period_s;
-    }
-    StepLevel* best = &steps_[0];
-    for (auto& l : steps_)
-      if (std::abs(l.T - want) < std::abs(best->T - want)) best = &l;
-    step_ = best;
-    if (stepped_) T_prev_ = T_;
-    T_ = best->T;
+[[gnu::always_inline]] inline void StationCore::select_step(double step_s) {
+  double want = step_s;
+  if (!(want >= cfg_.t_min() * (1 - 1e-9) && want <= cfg_.t_max() * (1 + 1e-9))) {
+    ++step_clamped_ticks_;
+    want = std::isfinite(want) ? std::clamp(want, cfg_.t_min(), cfg_.t_max()) : cfg_.period_s;
   }
-  const auto& g = cfg_.vp.coupling;
-  const double kc = cfg_.vp.contact_stiffness_N_per_m, bc = cfg_.vp.contact_damping_Ns_per_m;
-  const double c = bc + kc * T_ / 2.0;
-  const int nn = neighbor_count();
-  const auto& cn = cfg_.contact_nodes;
+  StepLevel* best = &steps_[0];
+  for (auto& l : steps_)
+    if (std::abs(l.T - want) < std::abs(best->T - want)) best = &l;
+  step_ = best;
+  if (stepped_) T_prev_ = T_;
+  T_ = best->T;
+}
 
-  // --- 1. device sample and the device force u_i(t) (Section III-C) ---
-  Vec3 qk = q;
+[[gnu::always_inline]] inline Vec3 StationCore::device_force(const Vec3& q, Vec3& qk, Vec3& vq, std::uint32_t& flags) {
+  const auto& g = cfg_.vp.coupling;
+  qk = q;
   if (!qk.allFinite()) {
-    out.flags |= kBadDeviceSample | kSafeState;
+    flags |= kBadDeviceSample | kSafeState;
     qk = q_prev_;
   }
   // v_hat_q(k-1) = (q_k - q_{k-1}) / T_{k-1} (Section III-C)
-  const Vec3 vq = !stepped_ ? Vec3::Zero() : Vec3((qk - q_prev_) / T_prev_);
+  vq = !stepped_ ? Vec3::Zero() : Vec3((qk - q_prev_) / T_prev_);
   Vec3 f_dev = -g.B_vc_Ns_per_m * (vq - w_hat_prev_) - g.K_vc_N_per_m * (qk - y_);
   // Energy the station put into the device over the last hold interval: F(k-1) . (q_k - q_{k-1}).
   if (stepped_) energy_.device_port_J += f_dev_prev_.dot(qk - q_prev_);
   const double fn = f_dev.norm();
   if (fn > cfg_.max_device_force_N) {
     f_dev *= cfg_.max_device_force_N / fn;
-    out.flags |= kForceClamped;
+    flags |= kForceClamped;
   }
+  return f_dev;
+}
 
-  // --- 2. neighbours: newest packet, indexing delay, duplication avoidance, delay bound ---
+[[gnu::always_inline]] inline void StationCore::read_neighbours(std::int64_t k, std::uint32_t& flags) {
   // Over the delay bound or the energy bound: x_hat_j := x(k), delta_ij = 0 (the edge acts as the
   // damper D_ij + T/2 P_ij).
-  for (int j = 0; j < nn; ++j) {
+  for (int j = 0; j < neighbor_count(); ++j) {
     views_[j] = rx_[j].begin_tick(k);
     if (!pspm_.empty()) {  // set-position modulation: passive for any delay, no bound, no drop
       auto& m = pspm_[static_cast<std::size_t>(j)];
@@ -774,39 +791,42 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
     const bool ok = views_[j].index_delay >= 0 && views_[j].index_delay <= cfg_.neighbors[j].index_delay_bound_ticks;
     // The per-edge damage bound: an edge whose account is over its bound takes the same action.
     const bool gated = edge_gate_.update(j, edge_energy_.edge_J(j));
-    if (gated) out.flags |= kEdgeEnergyGated;
+    if (gated) flags |= kEdgeEnergyGated;
     active_[j] = (ok && !gated) ? 1 : 0;
     if (ok) {
       edge_was_dropped_[j] = 0;
     } else {
-      out.flags |= kEdgeDropped;
+      flags |= kEdgeDropped;
       if (!edge_was_dropped_[j]) ++edge_drops_[j];
       edge_was_dropped_[j] = 1;
     }
   }
+}
 
-  // --- 3. contact set (decided from the state at the start of the tick) ---
-  {
-    const ContactFace face = contact_face(x_, cn);
-    const Vec3& xc = face.centroid;
-    Vec3 nrm = normal_sign_ * face.normal;
-    const double len = nrm.norm();
-    if (len > 0) nrm /= len;
-    if (in_contact_) {
-      // Release when the contact pulls the VP into the object (tension): a passive switch,
-      // it only removes the stored contact-spring energy.
-      if (f_contact_vp_.dot(nrm) < 0.0) {
-        in_contact_ = false;
-        out.flags |= kContactRelease;
-      }
-    } else if (nrm.dot(y_ - xc) <= 0.0) {
-      engage_contact();  // anchored at the current offsets: zero force, zero energy at onset
-      out.flags |= kContactOnset;
+[[gnu::always_inline]] inline void StationCore::update_contact_set(std::uint32_t& flags) {
+  const ContactFace face = contact_face(x_, cfg_.contact_nodes);
+  const Vec3& xc = face.centroid;
+  Vec3 nrm = normal_sign_ * face.normal;
+  const double len = nrm.norm();
+  if (len > 0) nrm /= len;
+  if (in_contact_) {
+    // Release when the contact pulls the VP into the object (tension): a passive switch,
+    // it only removes the stored contact-spring energy.
+    if (f_contact_vp_.dot(nrm) < 0.0) {
+      in_contact_ = false;
+      flags |= kContactRelease;
     }
+  } else if (nrm.dot(y_ - xc) <= 0.0) {
+    engage_contact();  // anchored at the current offsets: zero force, zero energy at onset
+    flags |= kContactOnset;
   }
+}
 
-  // --- 4. right-hand side b (DESIGN.md) ---
+[[gnu::always_inline]] inline Vec3 StationCore::build_step_rhs(const Vec3& qk, const Vec3& vq) {
   // b = (1/N)((2M/T) v - K(x - x_d)) + sum_j delta_ij D_ij v_hat_j - sum_j P_ij (x - x_hat_j)
+  const auto& g = cfg_.vp.coupling;
+  const double kc = cfg_.vp.contact_stiffness_N_per_m;
+  const auto& cn = cfg_.contact_nodes;
   build_rhs();
   Vec3 bw = (2.0 * cfg_.vp.mass_kg / T_) * w_vp_ + g.B_vc_Ns_per_m * vq - g.K_vc_N_per_m * (y_ - qk);
   if (in_contact_) {
@@ -816,61 +836,59 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
       bw -= s;
     }
   }
+  return bw;
+}
 
-  // --- 5. solve: A y0 = b, then the contact/VP Schur complement ---
-  {
-    StepSolver::Report rep;
-    if (step_->solver->exact()) {
-      rep = step_->solver->solve(rhs_.data(), v_hat_.data(), resid_.data(), w_);
-    } else {
-      warm_start_y0();
-      resid_prev_.swap(resid_);  // r(k-1) kept; the solve writes r(k) (swaps: no allocation)
-      rep = step_->solver->solve(rhs_.data(), y0_.data(), resid_.data(), w_);
-      if (!in_contact_) v_hat_ = y0_;  // same size: a copy, no allocation (in contact: below)
-      rhs_prev2_.swap(rhs_prev_);  // b(k-1), b(k) kept; rhs_ is rebuilt next tick
-      rhs_prev_.swap(rhs_);
-      y0_level_[1] = y0_level_[0];
-      y0_level_[0] = step_;
+[[gnu::always_inline]] inline void StationCore::solve_vo() {
+  StepSolver::Report rep;
+  if (step_->solver->exact()) {
+    rep = step_->solver->solve(rhs_.data(), v_hat_.data(), resid_.data(), w_);
+  } else {
+    warm_start_y0();
+    resid_prev_.swap(resid_);  // r(k-1) kept; the solve writes r(k) (swaps: no allocation)
+    rep = step_->solver->solve(rhs_.data(), y0_.data(), resid_.data(), w_);
+    if (!in_contact_) v_hat_ = y0_;  // same size: a copy, no allocation (in contact: below)
+    rhs_prev2_.swap(rhs_prev_);  // b(k-1), b(k) kept; rhs_ is rebuilt next tick
+    rhs_prev_.swap(rhs_);
+    y0_level_[1] = y0_level_[0];
+    y0_level_[0] = step_;
+  }
+  solver_last_iterations_ = rep.iterations;
+  solver_iterations_total_ += static_cast<std::uint64_t>(rep.iterations);
+  ++solver_ticks_;
+  if (!rep.converged) ++solver_unconverged_ticks_;
+}
+
+[[gnu::always_inline]] inline Vec3 StationCore::solve_contact(const Vec3& bw, double c) {
+  contact_coef_set_ = false;
+  if (!in_contact_) return bw / step_->a_w;
+  const int m = m_units_;
+  const double* y0 = step_->solver->exact() ? v_hat_.data() : y0_.data();  // A^{-1} b
+  for (int a = 0; a < m; ++a)
+    for (int col = 0; col < w_; ++col) R_(a, col) = y0[unit_row_[a] * w_ + col];
+  for (int e = 0; e < vp_units_; ++e)
+    for (int col = 0; col < w_; ++col) R_(m + e, col) = (w_ == 3) ? bw[col] : bw[e];
+  X_.noalias() = step_->lu.solve(R_);
+  if (step_->solver->exact()) {
+    for (int a = 0; a < m; ++a) {
+      const double* za = step_->Z.col(a).data();
+      for (int col = 0; col < w_; ++col) {
+        const double coef = c * (X_(m + unit_vp_[a], col) - X_(a, col));
+        if (coef == 0.0) continue;
+        for (int r = 0; r < nf_; ++r) v_hat_[r * w_ + col] += za[r] * coef;
+      }
     }
-    solver_last_iterations_ = rep.iterations;
-    if (!rep.converged) ++solver_unconverged_ticks_;
+  } else {
+    contact_correction(y0_.data(), c);  // v_hat = y0 + Z coef in one pass (large scenes)
   }
   Vec3 w_hat;
-  contact_coef_set_ = false;
-  if (in_contact_) {
-    const int m = m_units_;
-    const double* y0 = step_->solver->exact() ? v_hat_.data() : y0_.data();  // A^{-1} b
-    for (int a = 0; a < m; ++a)
-      for (int col = 0; col < w_; ++col) R_(a, col) = y0[unit_row_[a] * w_ + col];
-    for (int e = 0; e < vp_units_; ++e)
-      for (int col = 0; col < w_; ++col) R_(m + e, col) = (w_ == 3) ? bw[col] : bw[e];
-    X_.noalias() = step_->lu.solve(R_);
-    if (step_->solver->exact()) {
-      for (int a = 0; a < m; ++a) {
-        const double* za = step_->Z.col(a).data();
-        for (int col = 0; col < w_; ++col) {
-          const double coef = c * (X_(m + unit_vp_[a], col) - X_(a, col));
-          if (coef == 0.0) continue;
-          for (int r = 0; r < nf_; ++r) v_hat_[r * w_ + col] += za[r] * coef;
-        }
-      }
-    } else {
-      contact_correction(y0_.data(), c);  // v_hat = y0 + Z coef in one pass (large scenes)
-    }
-    for (int d = 0; d < 3; ++d) w_hat[d] = (w_ == 3) ? X_(m, d) : X_(m + d, 0);
-  } else {
-    w_hat = bw / step_->a_w;
-  }
+  for (int d = 0; d < 3; ++d) w_hat[d] = (w_ == 3) ? X_(m, d) : X_(m + d, 0);
+  return w_hat;
+}
 
-  // --- 6. predicted states, energies (13), (14) and (one gain group) step 7's state advance ---
-  // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)   (eq. 15),
-  // with x_hat_j := x(k), delta_ij = 0 for an over-bound edge. Split per edge (rt/edge_energy.hpp):
-  // D_ij, P_ij are symmetric, so v_hat^T D u = (D v_hat)^T u: one D v_hat and one P v_hat per gain
-  // set, then two dot products per edge, fused with x_hat and the advance in one pass
-  // (post_solve_pass). Further gain groups (rare) read x(k): then the advance is a pass of its own.
-  const bool one_group = group_leaders_.size() <= 1;
-  const PostSolveSums sums = post_solve_pass(one_group);
-  const double vv = sums.vv;
+[[gnu::always_inline]] inline double StationCore::contact_port_power(const Vec3& w_hat) {
+  const double kc = cfg_.vp.contact_stiffness_N_per_m, bc = cfg_.vp.contact_damping_Ns_per_m;
+  const auto& cn = cfg_.contact_nodes;
   const Vec3 y_hat = y_ + (T_ / 2.0) * w_hat;
   double port_power = 0;
   f_contact_vp_.setZero();
@@ -882,16 +900,12 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
       f_contact_vp_ -= f;
     }
   }
-  energy_.port_J += port_power * T_;
-  const double damping_J = -cfg_.damping_Ns_per_m * vv * T_;
-  double ctrl_J = damping_J;
-  for (int j = 0; j < nn; ++j) {
-    if (cfg_.neighbors[j].gains != cfg_.neighbors[0].gains) continue;
-    ctrl_J += edge_tick_J_[static_cast<std::size_t>(j)];
-    // pspm: T v_hat^T D v_hat, what each edge of this gain group dissipated (D on the local velocity)
-    if (!pspm_.empty()) pspm_[static_cast<std::size_t>(j)].credit(sums.dissipated_J);
-  }
-  for (std::size_t gi = 1; gi < group_leaders_.size(); ++gi) {  // further gain groups: D v_hat and P v_hat by matvecs
+  return port_power;
+}
+
+[[gnu::always_inline]] inline void StationCore::further_groups_energy(double& ctrl_J) {
+  const int nn = neighbor_count();
+  for (std::size_t gi = 1; gi < group_leaders_.size(); ++gi) {  // D v_hat and P v_hat by matvecs
     const int j = group_leaders_[gi];
     const EdgeGains* eg = cfg_.neighbors[j].gains;
     tmp_.setZero();   // D v_hat
@@ -911,6 +925,27 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
       if (!pspm_.empty()) pspm_[static_cast<std::size_t>(i2)].credit(dissipated_J);
     }
   }
+}
+
+[[gnu::always_inline]] inline double StationCore::account_energies(const Vec3& w_hat) {
+  // tau = -B_i v_hat - sum_j D_ij (v_hat - delta v_hat_j) - P_ij (x_hat - x_hat_j)   (eq. 15),
+  // with x_hat_j := x(k), delta_ij = 0 for an over-bound edge. Split per edge (rt/edge_energy.hpp):
+  // D_ij, P_ij are symmetric, so v_hat^T D u = (D v_hat)^T u: one D v_hat and one P v_hat per gain
+  // set, then two dot products per edge, fused with x_hat and the advance in one pass
+  // (post_solve_pass). Further gain groups (rare) read x(k): then the advance is a pass of its own.
+  const int nn = neighbor_count();
+  const bool one_group = group_leaders_.size() <= 1;
+  const PostSolveSums sums = post_solve_pass(one_group);
+  energy_.port_J += contact_port_power(w_hat) * T_;
+  const double damping_J = -cfg_.damping_Ns_per_m * sums.vv * T_;
+  double ctrl_J = damping_J;
+  for (int j = 0; j < nn; ++j) {
+    if (cfg_.neighbors[j].gains != cfg_.neighbors[0].gains) continue;
+    ctrl_J += edge_tick_J_[static_cast<std::size_t>(j)];
+    // pspm: T v_hat^T D v_hat, what each edge of this gain group dissipated (D on the local velocity)
+    if (!pspm_.empty()) pspm_[static_cast<std::size_t>(j)].credit(sums.dissipated_J);
+  }
+  further_groups_energy(ctrl_J);
   // The previous tick's outflow: its controller energy minus the copy's energy change (E(k) is this
   // tick's energy_.vo_J): what left through the contact port, the object's damping or the solver.
   if (have_prev_energy_) edge_energy_.credit_outflow(prev_ctrl_J_ - (energy_.vo_J - prev_vo_J_), prev_T_);
@@ -921,16 +956,35 @@ StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double 
   edge_energy_.record_tick(std::span<const double>(edge_tick_J_.data(), static_cast<std::size_t>(nn)), damping_J);
   for (int j = 0; j < nn; ++j) edge_gate_.record_tick(j, edge_tick_J_[static_cast<std::size_t>(j)]);
   energy_.controller_J += ctrl_J;
+  return one_group ? sums.vmax : advance_state();
+}
 
+StationCore::TickOutput StationCore::tick(std::int64_t k, const Vec3& q, double step_s) {
+  TickOutput out;
+  // --- 0. this tick's step T_k: clamped to [T^min, T^max], the nearest prefactored one ---
+  select_step(step_s);
+  const double c = cfg_.vp.contact_damping_Ns_per_m + cfg_.vp.contact_stiffness_N_per_m * T_ / 2.0;
+  // --- 1. device sample and the device force u_i(t) (Section III-C) ---
+  Vec3 qk, vq;
+  Vec3 f_dev = device_force(q, qk, vq, out.flags);
+  // --- 2. neighbours: newest packet, indexing delay, duplication avoidance, delay bound ---
+  read_neighbours(k, out.flags);
+  // --- 3. contact set (decided from the state at the start of the tick) ---
+  update_contact_set(out.flags);
+  // --- 4. right-hand side b (DESIGN.md) ---
+  const Vec3 bw = build_step_rhs(qk, vq);
+  // --- 5. solve: A y0 = b, then the contact/VP Schur complement ---
+  solve_vo();
+  const Vec3 w_hat = solve_contact(bw, c);
+  // --- 6. predicted states, energies (13), (14) and (one gain group) step 7's state advance ---
+  const double vmax_seen = account_energies(w_hat);
   // --- 7. advance the state (eq. 9, eq. 21) ---
-  const double vmax_seen = one_group ? sums.vmax : advance_state();
   y_ += T_ * w_hat;
   w_vp_ = 2.0 * w_hat - w_vp_;
   w_hat_prev_ = w_hat;
   q_prev_ = qk;
   k_ = k + 1;
   stepped_ = true;
-
   // --- 8. safety: divergence -> safe state (zero force), reported through flags ---
   if (!(vmax_seen <= cfg_.divergence_speed_m_per_s) || !y_.allFinite()) safe_state_ = true;
   if (safe_state_) out.flags |= kDiverged | kSafeState;

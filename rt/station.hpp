@@ -219,7 +219,16 @@ class StationCore {
     for (const auto& l : steps_) total += l.solver->stored_doubles();
     return total;
   }
+  // Bytes of the arrays one tick at the nominal step reads or writes, each counted once: this
+  // level's solver data (A, its diagonals, work vectors), the right-hand side's operator, the state
+  // and scratch vectors the tick uses, the contact data Z, each neighbour's receive buffers (held
+  // and landing). What BM_TickFloor streams (tools/bench). Not RT-relevant.
+  long tick_bytes() const;
   int solver_last_iterations() const { return solver_last_iterations_; }
+  // Iterations of the linear step's solver per tick over the ticks so far (0 for the direct solve).
+  double solver_iterations_mean() const {
+    return solver_ticks_ > 0 ? static_cast<double>(solver_iterations_total_) / static_cast<double>(solver_ticks_) : 0.0;
+  }
   std::uint64_t solver_unconverged_ticks() const { return solver_unconverged_ticks_; }
   // Start-up / tests: overwrite the state (allocates nothing; sizes must match).
   void set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v);
@@ -244,6 +253,7 @@ class StationCore {
     double rho = 0;
     std::vector<double> alpha;  // per node
   };
+  void init_edges();  // start-up: receive links, views, drop counters, pspm, energy accounts and gates
   void build_level(StepLevel& level, double T, bool iso);  // start-up: A(T)'s solver, contact data
   void prepare_contact_solve(StepLevel& level);  // start-up: Z, G and its LU
   void p_from_a(StepLevel& level, const SparseRowMajor& A);  // start-up: StepLevel::rho, alpha if they apply
@@ -258,6 +268,27 @@ class StationCore {
   // with A g = 2 (b(k-1) - r(k-1)) - (b(k-2) - r(k-2)) from the kept right-hand sides and
   // residuals (no matvec). RT-safe: one pass, no allocation.
   void warm_start_y0();
+  // The steps of tick(), in order (each RT-safe):
+  // 0. this tick's step T_k: the request clamped to [T^min, T^max] (counted), the nearest level.
+  void select_step(double step_s);
+  // 1. the device sample qk (the previous one if not finite: flags), its velocity vq over T_{k-1}
+  // and the virtual coupling's force u_i(t) (Section III-C), limited; the device port's energy.
+  Vec3 device_force(const Vec3& q, Vec3& qk, Vec3& vq, std::uint32_t& flags);
+  // 2. each neighbour's newest packet (views_), the delay and energy bounds (active_), pspm targets.
+  void read_neighbours(std::int64_t k, std::uint32_t& flags);
+  // 3. contact onset / release, decided from the state at the start of the tick.
+  void update_contact_set(std::uint32_t& flags);
+  // 4. b (rhs_) and the VP row's right-hand side (returned), contact springs included.
+  Vec3 build_step_rhs(const Vec3& qk, const Vec3& vq);
+  // 5. A y0 = b (direct: into v_hat_; iterative: warm-started y0_, the kept b, r rotated), then
+  // the contact/VP Schur complement: v_hat_ corrected, the VP's w_hat returned.
+  void solve_vo();
+  Vec3 solve_contact(const Vec3& bw, double c);
+  // 6. x_hat, the port (13) and controller (14) energies, per edge; the state advance of step 7
+  // (fused for one gain group). Returns max |v| after the advance (NaN: not finite).
+  double account_energies(const Vec3& w_hat);
+  double contact_port_power(const Vec3& w_hat);  // v_hat^T f on the contact nodes; sets f_contact_vp_
+  void further_groups_energy(double& ctrl_J);    // gain groups after the first: matvecs, per edge
   // Iterative solver in contact: v_hat = y0 + Z coef from the Schur solution X_ (Z = A^{-1} U of
   // this tick's step) in one pass over the rows, instead of the copy and one column pass per unit
   // and column. RT-safe.
@@ -296,6 +327,7 @@ class StationCore {
   StepLevel* step_ = nullptr;     // this tick's
   std::uint64_t step_clamped_ticks_ = 0;
   int solver_last_iterations_ = 0;
+  std::uint64_t solver_iterations_total_ = 0, solver_ticks_ = 0;
   std::uint64_t solver_unconverged_ticks_ = 0;
   std::vector<RxLink> rx_;
 

@@ -384,6 +384,7 @@ SimResult finish(Simulation& s, std::int64_t ticks_run) {
     r.solver.emplace_back(core->solver_name());
     r.final_solver_residual_J.push_back(core->energy().solver_residual_J);
     r.solver_unconverged_ticks.push_back(core->solver_unconverged_ticks());
+    r.solver_iterations_mean.push_back(core->solver_iterations_mean());
     r.final_x.push_back(core->x());
   }
   for (auto& recorder : s.rec) recorder->finish();
@@ -493,6 +494,7 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["solver"] = r.solver;
   j["solver_residual_energy_final_J"] = r.final_solver_residual_J;
   j["solver_unconverged_ticks"] = r.solver_unconverged_ticks;
+  j["solver_iterations_mean"] = r.solver_iterations_mean;
   j["edge_energy_bound_J"] = b.spec.edge_energy_bound_J > 0 ? json(b.spec.edge_energy_bound_J) : json(nullptr);
   const GateSummary gate = sim_gate_summary(r);
   j["edge_energy_trips"] = gate.trips;

@@ -47,6 +47,7 @@ struct SimResult {
   std::vector<std::string> solver;
   std::vector<double> final_solver_residual_J;
   std::vector<std::uint64_t> solver_unconverged_ticks;
+  std::vector<double> solver_iterations_mean;  // CG iterations per tick (0: direct)
   std::vector<Eigen::VectorXd> final_x;  // every copy's configuration at the end
 };
 

@@ -73,7 +73,8 @@ void parse_station_section(View root, StationFile& f) {
   s.edge_energy_bound_J = real(st["edge_energy_bound_J"], "station.edge_energy_bound_J", rt::kDefaultEdgeEnergyBoundJ, 0.0, 1e6, " (0 = off)");
   s.edge_energy_leak_W = real(st["edge_energy_leak_W"], "station.edge_energy_leak_W", rt::kDefaultEdgeEnergyLeakW, 0.0, 1.0, " (0 = no leak)");
   s.solver = text(st["solver"], "station.solver", "auto");
-  if (s.solver != "auto" && s.solver != "direct" && s.solver != "iterative") bad("station.solver", "\"auto\", \"direct\" or \"iterative\"");
+  if (s.solver != "auto" && s.solver != "auto-fixed" && s.solver != "direct" && s.solver != "iterative")
+    bad("station.solver", "\"auto\", \"auto-fixed\", \"direct\" or \"iterative\"");
   s.tx_deadband_mm = real(st["tx_deadband_mm"], "station.tx_deadband_mm", 0.0, 0.0, 99.999);
   s.tx_max_interval_ticks = static_cast<int>(integer(st["tx_max_interval_ticks"], "station.tx_max_interval_ticks", 1, 1, 1000));
   if (st["tx_max_interval_ticks"] && s.tx_deadband_mm == 0)  // like sim's --tx-max-interval: nothing to hold without a band

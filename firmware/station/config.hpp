@@ -55,9 +55,11 @@
 //   edge_energy_leak_W = 0.001       # energy that left the copy (to the user, the object's damping) is taken off
 //                                    # each edge's account up to this power, so a station that only receives does
 //                                    # not fill its accounts in a long session (rt/README.md), [0, 1]; 0 = no leak
-//   solver = "auto"                  # linear step: "auto" (direct LDL^T below 600 factor rows: nodes, or 3 per
-//                                    # node when a matrix is not isotropic; Jacobi-PCG above), "direct" or
-//                                    # "iterative" (rt/step_solver; station-<id>.json "solver")
+//   solver = "auto"                  # linear step: "auto" (150-2400 factor rows: both ticks timed at start-up on
+//                                    # this machine, the faster used, station-<id>.json "solver_choice"; outside:
+//                                    # as "auto-fixed"), "auto-fixed" (direct LDL^T below 600 factor rows: nodes, or
+//                                    # 3 per node when a matrix is not isotropic; Jacobi-PCG above: no timing, the
+//                                    # simulator's rule), "direct" or "iterative" (rt/step_solver; "solver")
 //   tx_deadband_mm = 0               # > 0: send a state only when some node moved more than this since the
 //                                    # last one sent (rt/tx_deadband), [0, 100); 0 = every tick
 //   tx_max_interval_ticks = 1        # with tx_deadband_mm: a state at least every this many ticks; the

@@ -281,8 +281,13 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
       r.proxy_from_device = true;
     }
     r.proxy_start_m = sc.vp_initial_position_m;
-    sc.solver.kind = rt::parse_step_solver_kind(S.solver);
     for (std::size_t n = 0; n < sc.neighbors.size(); ++n) sc.neighbors[n].index_delay_bound_ticks = r.bounds.index_guard_ticks[n];
+    // "auto": measured on this machine (firmware/station/solver_choice.hpp); "auto-fixed": rt's size rule
+    sc.solver.kind = rt::parse_step_solver_kind(S.solver == "auto-fixed" ? "auto" : S.solver);
+    if (S.solver == "auto") {
+      r.solver_choice = measure_solver_choice(sc);
+      sc.solver.kind = r.solver_choice.kind;
+    }
     r.core = std::make_unique<rt::StationCore>(sc);
     // Sequence sanity in the receive links too (run indices: beyond our tick + the net's slack).
     for (int n = 0; n < r.core->neighbor_count(); ++n)

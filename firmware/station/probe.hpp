@@ -16,6 +16,7 @@
 #include "firmware/station/neighbours.hpp"
 #include "firmware/station/phase.hpp"
 #include "firmware/station/plan.hpp"
+#include "firmware/station/solver_choice.hpp"
 #include "net/endpoint.hpp"
 #include "rt/station.hpp"
 #include "rt/tx_deadband.hpp"
@@ -111,6 +112,7 @@ struct BuildResult {
   Eigen::Vector3d proxy_start_m = Eigen::Vector3d::Zero();  // where the virtual proxy starts
   bool proxy_from_device = false;         // placed at the mapped device position (else the scenario's start)
   bool proxy_projected = false;           // that position was inside the object: projected onto the contact face
+  SolverChoice solver_choice;             // station.solver = "auto": the start-up measurement (solver_choice.hpp)
 };
 
 // B_i from eq. (18) on the measured bounds (station.damping_Ns_per_m overrides it: then the

@@ -84,6 +84,10 @@ void add_run_json(const StationOutcome& o, json& j) {
   j["port_energy_final_J"] = core && ran ? json(core->energy().port_J) : json(nullptr);
   j["controller_energy_final_J"] = core && ran ? json(core->energy().controller_J) : json(nullptr);
   j["solver"] = core ? json(core->solver_name()) : json(nullptr);  // the linear step's (rt/step_solver)
+  if (o.build && o.build->solver_choice.measured)  // station.solver = "auto": what start-up measured (firmware/station/solver_choice.hpp)
+    j["solver_choice"] = {{"direct_tick_us", o.build->solver_choice.direct_tick_us},
+                          {"iterative_tick_us", o.build->solver_choice.iterative_tick_us},
+                          {"timed_ticks", o.build->solver_choice.timed_ticks}};
   j["solver_residual_energy_final_J"] = core && ran ? json(core->energy().solver_residual_J) : json(nullptr);
   j["solver_unconverged_ticks"] = core ? json(core->solver_unconverged_ticks()) : json(nullptr);
   j["edge_drop_events"] = core ? json(core->edge_drop_events()) : json(nullptr);

@@ -7,6 +7,7 @@
 #include <thread>
 #include <vector>
 
+#include "firmware/model/passivity_budget.hpp"
 #include "net/endpoint.hpp"
 
 namespace haptic::net::test {
@@ -27,6 +28,7 @@ inline EndpointConfig exchange_config(std::uint16_t self, std::uint16_t peer, st
   l.station_id = peer;
   c.peers.push_back(l);
   c.rtt.min_probe_samples = 5;
+  c.rtt.bound_policy = &haptic::model::round_trip_bound_s;  // the station's margin rule (net/ alone: the maximum)
   return c;
 }
 

@@ -9,6 +9,8 @@ export DEBIAN_FRONTEND=noninteractive
 PKGS=(
   # build
   build-essential cmake ninja-build pkg-config git
+  # compiler cache: the mutation suite's lean build reuses the main build's objects (tools/test.sh)
+  ccache
   # core libraries
   libeigen3-dev libtomlplusplus-dev libcli11-dev libsodium-dev
   # devices

@@ -255,6 +255,37 @@ TEST(Theorem1, under_varying_steps_eq18s_D_term_is_needed_for_controller_passivi
   CHECK_TEXT(no_d > 1e-6 && no_d > 1e3 * diss_no_d, ("without the D term: generated " + std::to_string(no_d) + " J").c_str());
 }
 
+// eq. (18)'s P term under varying steps, (Nbar_ij + Nbar_ji)/2 T_j^max P_ij: a held neighbour state is
+// N ticks old, and each of those ticks may have lasted T^max, so the delayed P-coupling generates up to
+// about N T^max lambda_max(P) |v|^2 per second. Hub and leaves integrate over different steps (2.4 and
+// 1.6 ms), the paper's P_ij, D_ij = 0 (the tight case), every packet at its bound, the drives of
+// for_each_drive with either side at T^max. Returns the worst generated energy over the dissipation.
+namespace {
+double worst_varying_step_P(double factor, int leaves, int n_in, int n_out) {
+  double worst = -1;
+  for (bool hub_slow : {true, false})
+    for_each_drive(n_in, n_out, [&](Drive d, int ticks) {
+      d.hub_step_s = hub_slow ? 0.0024 : 0.0016;
+      d.leaf_step_s = hub_slow ? 0.0016 : 0.0024;
+      worst = std::max(worst, worst_generated_energy(factor, leaves, n_in, n_out, d, ticks));
+    });
+  return worst;
+}
+}  // namespace
+
+TEST(Theorem1, under_varying_steps_the_controller_is_passive_eq14_at_eq18_with_the_P_term_at_T_max) {
+  // eq. (18) takes T_j^max in its P term: B_i = 20/2 x 2.4 ms x 1000 N/m = 24 N s/m on one edge with
+  // 10 + 10 ticks; with T_i^min instead (16 N s/m) the same drives generate energy (below).
+  CHECK_TRUE(worst_varying_step_P(1.0, 1, 10, 10) <= 1e-9);
+  CHECK_TRUE(worst_varying_step_P(1.0, 1, 3, 17) <= 1e-9);
+  CHECK_TRUE(worst_varying_step_P(1.0, 3, 5, 5) <= 1e-9);
+}
+
+TEST(Theorem1, under_varying_steps_the_P_term_at_T_min_lets_the_controller_generate_energy_so_the_test_can_fail) {
+  // B_i = 1.6 / 2.4 of eq. (18) (what T^min in the P term gives when the D term is 0)
+  CHECK_TRUE(worst_varying_step_P(1.6 / 2.4, 1, 10, 10) > 0.05);
+}
+
 // Passive set-position modulation (rt/set_position_modulation.hpp) with B_i = 0: the same adversarial
 // drives, and delays far beyond any bound eq. (18) would need, cannot make the controller ports put
 // more than the reservoirs' E0 into the copies (eq. 14 with c^2 = E0 per edge end), while without it

@@ -23,8 +23,8 @@ _RULE_LATE = "test_firmware:ReceiveRule.the_papers_rule_uses_late_data_so_index_
 _VC_PASSIVE = "test_rt:VirtualCoupling.passive_eq25_at_the_largest_gains_eq26_accepts_under_adversarial_hand_motion"
 _RT_NPMI_BALANCE = "test_rt:VariableStep.npmi_energy_balance_eq12_holds_with_a_different_step_every_tick"
 
-# The scenario-level records target firmware/scenario.cpp as it is before the model/ move
-# (N-bar, the loss allowance and eq. 18's round-trip sums are computed in build_scenario).
+# The scenario-level records target build_scenario (firmware/scenario.cpp) and the passivity budget it
+# calls (firmware/model/passivity_budget.*: N-bar's allowances and eq. 18's round-trip sums).
 MUTANTS = [
     dict(name="eq18_x0.5", what="eq. (18) at 0.5x", file="rt/gains.cpp",
          old="  return std::max(0.0, lambda_max(acc));\n}",
@@ -73,7 +73,7 @@ MUTANTS = [
          old="    if (rule_ == RxRule::kNewestBySequence) return RxVerdict::kStale;",
          new="    if (rule_ == RxRule::kMostRecentlyReceived) return RxVerdict::kStale;",
          tests=[_CL_BOUND, _RULE_LATE]),
-    # --- scenario level: firmware/scenario.cpp (code the model/ move re-homes; re-point after it) ---
+    # --- scenario level: firmware/scenario.cpp and firmware/model/passivity_budget.* ---
     dict(name="rx_rule_swapped_scenario", what="receive rule: the scenario hands the cores the other rule",
          file="firmware/scenario.cpp",
          old="  c.rx_rule = spec.receive_rule;",
@@ -85,13 +85,13 @@ MUTANTS = [
          new="b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, 0.0, T,",
          tests=[_SC_BOUND, _SC_PASSIVE, _CL_BOUND]),
     dict(name="nbar_minus_1_eq18", what="eq. (18) with N-bar_ij - 1 and N-bar_ji - 1 (the guard keeps N-bar)",
-         file="firmware/scenario.cpp",
-         old="sums.push_back(b.nbar_ticks(i, j) + b.nbar_ticks(j, i));",
-         new="sums.push_back(b.nbar_ticks(i, j) - 1 + b.nbar_ticks(j, i) - 1);",
+         file="firmware/model/passivity_budget.cpp",
+         old="  b.assumed_sum_ticks = b.round_trip_ticks;\n",
+         new="  b.assumed_sum_ticks = b.round_trip_ticks - 2;\n",
          tests=[_SC_PASSIVE]),
     dict(name="loss_allowance_minus_1", what="loss allowance one tick smaller (guard and eq. 18)",
-         file="firmware/scenario.cpp",
-         old="b.loss_allowance_ticks + spec.tx_deadband.added_index_delay_ticks()",
-         new="b.loss_allowance_ticks - 1 + spec.tx_deadband.added_index_delay_ticks()",
+         file="firmware/model/passivity_budget.hpp",
+         old="int total() const { return loss_ticks + deadband_ticks + clock_ticks; }",
+         new="int total() const { return loss_ticks - 1 + deadband_ticks + clock_ticks; }",
          tests=[_SC_BOUND, _SC_PASSIVE, _CL_BOUND]),
 ]

@@ -11,6 +11,8 @@ PKGS=(
   build-essential cmake ninja-build pkg-config git
   # compiler cache: the mutation suite's lean build reuses the main build's objects (tools/test.sh)
   ccache
+  # the Debian package and its checks (tools/package, tests/install/deb_check.sh): lintian, systemd-analyze
+  lintian systemd
   # core libraries
   libeigen3-dev libtomlplusplus-dev libcli11-dev libsodium-dev
   # devices

@@ -243,7 +243,7 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
       spec.loss_allowance_ticks, spec.loss_probability, spec.duration_s, T, 2 * static_cast<int>(spec.topology.size()),
       spec.tx_deadband.added_index_delay_ticks(), model::ClockModel{spec.timer_jitter_s, spec.step_jitter, spec.clock_drift_ppm});
   b.loss_allowance_ticks = allow.loss_ticks;
-  b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T, allow.total());
+  b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T, allow.total(), spec.receive_rule);
   const Eigen::VectorXd half_sums = model::round_trip_half_sums_ms(spec.topology, b.nbar_ticks, T);
   b.round_trip_sum_ms.assign(half_sums.data(), half_sums.data() + half_sums.size());
   b.damping_min.assign(static_cast<std::size_t>(N), 0.0);

@@ -96,15 +96,25 @@ int loss_allowance_from_measured_loss(long long lost, long long expected, double
   return loss_allowance_from_loss(p, ticks, directed_links, per_run);
 }
 
+int receive_rule_ticks(rt::RxRule rule, double min_delay_ms, double max_delay_ms, double period_s) {
+  if (rule == rt::RxRule::kNewestBySequence) return 0;
+  if (!(period_s > 0)) bad("period: T must be > 0 s");
+  if (!(min_delay_ms >= 0 && min_delay_ms <= max_delay_ms) || !std::isfinite(max_delay_ms))
+    bad("delay: a link's delays must satisfy 0 <= min <= max < inf");
+  return static_cast<int>(std::ceil((max_delay_ms - min_delay_ms) * 1e-3 / period_s - 1e-9)) + 1;
+}
+
 Eigen::MatrixXi index_delay_bounds_ticks(const Eigen::MatrixXd& mean_delay_ms, double jitter_fraction, double period_s,
-                                         int loss_allowance_ticks) {
+                                         int loss_allowance_ticks, rt::RxRule rule) {
   check_square(mean_delay_ms, "delay matrix");
   const auto n = mean_delay_ms.rows();
   Eigen::MatrixXi nbar = Eigen::MatrixXi::Zero(n, n);
   for (Eigen::Index i = 0; i < n; ++i)
     for (Eigen::Index j = 0; j < n; ++j)
       if (i != j && std::isfinite(mean_delay_ms(i, j)))
-        nbar(i, j) = index_delay_bound_ticks((1.0 + jitter_fraction) * mean_delay_ms(i, j), period_s, loss_allowance_ticks);
+        nbar(i, j) = index_delay_bound_ticks((1.0 + jitter_fraction) * mean_delay_ms(i, j), period_s, loss_allowance_ticks) +
+                     receive_rule_ticks(rule, (1.0 - jitter_fraction) * mean_delay_ms(i, j), (1.0 + jitter_fraction) * mean_delay_ms(i, j),
+                                        period_s);
   return nbar;
 }
 

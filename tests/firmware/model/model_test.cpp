@@ -44,6 +44,20 @@ TEST(Model, nbar_is_the_ceiling_of_the_largest_delay_in_ticks_plus_the_loss_allo
   CHECK_EQUAL(3, model::index_delay_bound_ticks(6.0, 0.002, 0));
 }
 
+TEST(Model, under_the_papers_receive_rule_nbar_adds_the_delay_spread) {
+  // Independently: delays uniform in mean [0.5, 1.5] (jitter 0.5); the paper's rule adds
+  // ceil((max - min) / T) + 1 = ceil(mean / T) + 1 ticks; newest-by-sequence adds nothing.
+  const Eigen::MatrixXd mean = model::paper_delay_matrix_ms();
+  const Eigen::MatrixXi newest = model::index_delay_bounds_ticks(mean, 0.5, 0.002, 1);
+  const Eigen::MatrixXi paper = model::index_delay_bounds_ticks(mean, 0.5, 0.002, 1, rt::RxRule::kMostRecentlyReceived);
+  CHECK_EQUAL(0, model::receive_rule_ticks(rt::RxRule::kNewestBySequence, 50, 150, 0.002));
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j)
+      if (i != j) CHECK_EQUAL(newest(i, j) + static_cast<int>(std::ceil(mean(i, j) / 2.0 - 1e-9)) + 1, paper(i, j));
+  CHECK_EQUAL(1, model::receive_rule_ticks(rt::RxRule::kMostRecentlyReceived, 10, 10, 0.002));  // constant delay
+  CHECK_THROWS(std::invalid_argument, model::receive_rule_ticks(rt::RxRule::kMostRecentlyReceived, 20, 10, 0.002));
+}
+
 TEST(Model, eq18_sums_of_the_paper_star_are_what_the_simulator_builds) {
   const auto built = firmware::build_scenario(firmware::make_scenario("paper-best"));
   // (Nbar_ij + Nbar_ji) T/2 per link of the star with the loss model's allowance of 5 ticks each way

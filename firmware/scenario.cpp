@@ -140,6 +140,9 @@ void ScenarioSpec::validate() const {
   if (!(delay_correlation >= 0 && delay_correlation < 1)) bad("--delay-correlation must be in [0, 1)");
   if (!(scene.node_mass_kg > 0 && std::isfinite(scene.node_mass_kg))) bad("--node-mass-kg must be > 0");
   if (!(loss_probability >= 0 && loss_probability < 1)) bad("loss_probability must be in [0, 1)");
+  if (!(burst_enter_probability >= 0 && burst_enter_probability <= 1)) bad("--burst-enter must be in [0, 1] (a probability per packet)");
+  if (!(burst_mean_packets >= 1 && std::isfinite(burst_mean_packets))) bad("--burst-length must be >= 1 (packets)");
+  if (!(burst_loss_probability >= 0 && burst_loss_probability <= 1)) bad("--burst-loss must be in [0, 1]");
   if (!(duplicate_probability >= 0 && duplicate_probability <= 1)) bad("duplicate_probability must be in [0, 1]");
   if (scene_nodes < 7 || scene_nodes > 20000) bad("--nodes must be in [7, 20000]");
   if (!scene_file.path.empty()) {
@@ -240,7 +243,7 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
   // Nbar_ij from the delay model with its allowances, B_i and the condition: the passivity budget
   // (firmware/model/passivity_budget.hpp).
   const model::NbarAllowances allow = model::delay_model_allowances(
-      spec.loss_allowance_ticks, spec.loss_probability, spec.duration_s, T, 2 * static_cast<int>(spec.topology.size()),
+      spec.loss_allowance_ticks, spec.loss_model(), spec.duration_s, T, 2 * static_cast<int>(spec.topology.size()),
       spec.tx_deadband.added_index_delay_ticks(), model::ClockModel{spec.timer_jitter_s, spec.step_jitter, spec.clock_drift_ppm});
   b.loss_allowance_ticks = allow.loss_ticks;
   b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T, allow.total(), spec.receive_rule);

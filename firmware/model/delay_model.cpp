@@ -81,6 +81,34 @@ int loss_allowance_from_loss(double p, double ticks, int directed_links, double 
   return L;
 }
 
+double consecutive_loss_probability(const LossModel& m, int n) {
+  if (!(m.p >= 0 && m.p < 1)) bad("loss probability must be in [0, 1)");
+  if (!m.bursty()) return std::pow(m.p, n);
+  if (!(m.burst_enter > 0 && m.burst_enter <= 1)) bad("burst entry probability must be in (0, 1]");
+  if (!(m.burst_exit > 0 && m.burst_exit <= 1)) bad("burst exit probability must be in (0, 1]");
+  if (!(m.burst_loss >= 0 && m.burst_loss <= 1)) bad("loss probability in a burst must be in [0, 1]");
+  // a(s) = P(the packets so far all lost, chain now in s), from the stationary distribution; each
+  // further packet steps the chain, then is lost with its state's probability.
+  const double pi_bad = m.burst_enter / (m.burst_enter + m.burst_exit);
+  double good = (1 - pi_bad) * m.p, bad_state = pi_bad * m.burst_loss;
+  for (int k = 1; k < n; ++k) {
+    const double g = (good * (1 - m.burst_enter) + bad_state * m.burst_exit) * m.p;
+    const double b = (good * m.burst_enter + bad_state * (1 - m.burst_exit)) * m.burst_loss;
+    good = g;
+    bad_state = b;
+  }
+  return n <= 0 ? 1.0 : good + bad_state;
+}
+
+int loss_allowance_from_loss(const LossModel& m, double ticks, int directed_links, double per_run) {
+  if (!m.bursty()) return loss_allowance_from_loss(m.p, ticks, directed_links, per_run);
+  if (!(per_run > 0 && per_run < 1)) bad("over-bound chance per run must be in (0, 1)");
+  const double events = std::max(1.0, ticks) * std::max(1, directed_links);
+  int L = 0;
+  while (L < 1000 && consecutive_loss_probability(m, L + 1) * events > per_run) ++L;
+  return L;
+}
+
 double loss_upper_bound(long long lost, long long expected, double z) {
   if (expected <= 0) bad("measured loss: no packet expected (the probe was too short)");
   if (lost < 0 || lost > expected) bad("measured loss: lost must be in [0, expected]");

@@ -27,6 +27,24 @@ namespace haptic::model {
 inline constexpr double kOverBoundChancePerRun = 0.01;
 int loss_allowance_from_loss(double loss_probability, double ticks, int directed_links, double per_run = kOverBoundChancePerRun);
 
+// A link's loss: independent with probability p per packet, optionally under Gilbert-Elliott
+// bursts (net::LinkImpairment's chain, stepped once per packet: good -> bad with burst_enter, bad ->
+// good with burst_exit, loss burst_loss in the bad state and p in the good one; off when
+// burst_enter = 0).
+struct LossModel {
+  double p = 0;
+  double burst_enter = 0;
+  double burst_exit = 1;
+  double burst_loss = 1;
+  bool bursty() const { return burst_enter > 0; }
+};
+// The chance that n given consecutive packets are all lost, with the chain in its stationary state
+// (p^n without bursts). Throws std::invalid_argument for probabilities outside their ranges.
+double consecutive_loss_probability(const LossModel& loss, int n);
+// The allowance as above for any LossModel: the smallest L with ticks x directed_links x
+// consecutive_loss_probability(L + 1) <= per_run (= loss_allowance_from_loss without bursts).
+int loss_allowance_from_loss(const LossModel& loss, double ticks, int directed_links, double per_run = kOverBoundChancePerRun);
+
 // The same allowance from a measured loss: `lost` of `expected` packets (a station's probing). The
 // loss probability put in is the upper end of the Wilson score interval at z = 1.96 (97.5 %
 // one-sided), so a short probe with no loss still gets an allowance (0 of 100 lost: p <= 0.037),

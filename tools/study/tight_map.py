@@ -34,6 +34,9 @@ AXES = [
     ("timer jitter T_k", "ms", [0.0, 0.2, 0.35, 0.5], lambda v: ["--timer-jitter-ms", repr(v)]),
     ("D_ij", "N s/m", [0.0, 1.0, 5.0], lambda v: ["--d-gain", repr(v)]),
     ("node mass", "kg", [0.01, 0.04, 0.16], lambda v: ["--node-mass-kg", repr(v)]),
+    # Gilbert-Elliott bursts (5 packets mean, all lost inside) on top of no loss; the allowance from the burst chain
+    ("burst entry probability", "per packet", [0.0, 0.01, 0.05],
+     lambda v: ["--burst-enter", repr(v), "--burst-length", "5", "--loss-allowance", None] if v > 0 else []),
 ]
 DEFAULT_DELAY = ["--delay-matrix", delay_matrix(1.33)]
 
@@ -53,7 +56,8 @@ def merged(args):
                 i += 2
     out = sorted(set(flags))
     for k, v in opts.items():
-        out += [k, v]
+        if v is not None:  # None removes the tight case's value (the simulator's default applies)
+            out += [k, v]
     return out
 
 
@@ -100,14 +104,19 @@ def main():
     ap.add_argument("--correlation", type=float, default=0.99, help="AR(1) coefficient of the correlated model (default 0.99)")
     ap.add_argument("--quick", action="store_true", help="two values per axis, 4 bisection steps")
     ap.add_argument("--out", default="tools/study/results")
+    ap.add_argument("--only", help="only the axes whose name contains this text; writes tight_map-<text>.{json,png}")
     a = ap.parse_args()
+    axes = [ax for ax in AXES if a.only is None or a.only in ax[0]]
+    if not axes:
+        ap.error("--only %r matches no axis (axes: %s)" % (a.only, ", ".join(ax[0] for ax in AXES)))
+    stem = "tight_map" if a.only is None else "tight_map-" + a.only.replace(" ", "_")
     tmp = tempfile.mkdtemp(prefix="tight-map-")
     models = [("i.i.d.", []), ("correlated rho=%g" % a.correlation, ["--delay-correlation", repr(a.correlation)])]
     res = {"tight_case": " ".join(TIGHT + DEFAULT_DELAY), "duration_s": a.duration, "axes": []}
     t0 = time.time()
-    total = sum(len(ax[2][:2] if a.quick else ax[2]) for ax in AXES) * len(models)
+    total = sum(len(ax[2][:2] if a.quick else ax[2]) for ax in axes) * len(models)
     done = 0
-    for name, unit, values, fn in AXES:
+    for name, unit, values, fn in axes:
         if a.quick:
             values = values[:2]
         axis = {"name": name, "unit": unit, "values": values, "models": {}}
@@ -123,10 +132,10 @@ def main():
             axis["models"][mname] = pts
         res["axes"].append(axis)
     os.makedirs(a.out, exist_ok=True)
-    with open(os.path.join(a.out, "tight_map.json"), "w") as f:
+    with open(os.path.join(a.out, stem + ".json"), "w") as f:
         json.dump(res, f, indent=1)
-    plot(res, os.path.join(a.out, "tight_map.png"))
-    print("wrote %s/tight_map.json, tight_map.png" % a.out)
+    plot(res, os.path.join(a.out, stem + ".png"))
+    print("wrote %s/%s.json, %s.png" % (a.out, stem, stem))
 
 
 def plot(res, path):

@@ -58,6 +58,20 @@ TEST(Model, under_the_papers_receive_rule_nbar_adds_the_delay_spread) {
   CHECK_THROWS(std::invalid_argument, model::receive_rule_ticks(rt::RxRule::kMostRecentlyReceived, 20, 10, 0.002));
 }
 
+TEST(Model, burst_loss_allowance_comes_from_the_chance_of_a_run_of_losses_in_the_burst_chain) {
+  // Independently, for no loss outside bursts and total loss inside: n packets in a row are all lost
+  // only inside one burst: pi_bad (1 - exit)^(n - 1), pi_bad = enter / (enter + exit).
+  const model::LossModel m{0.0, 0.01, 0.2, 1.0};
+  const double pi_bad = 0.01 / 0.21;
+  for (int n : {1, 2, 5, 20}) DOUBLES_EQUAL(pi_bad * std::pow(0.8, n - 1), model::consecutive_loss_probability(m, n), 1e-15);
+  DOUBLES_EQUAL(std::pow(0.05, 4), model::consecutive_loss_probability(model::LossModel{0.05}, 4), 1e-18);  // i.i.d.
+  // the allowance: smallest L with 10000 ticks x 6 links x pi_bad 0.8^L <= 1 %: L = ceil(log(1e-2 / 6e4 / pi_bad) / log 0.8)
+  const int expected = static_cast<int>(std::ceil(std::log(1e-2 / 6e4 / pi_bad) / std::log(0.8) - 1e-12));
+  CHECK_EQUAL(expected, model::loss_allowance_from_loss(m, 10000, 6));
+  CHECK_TRUE(expected > model::loss_allowance_from_loss(0.05, 10000, 6));  // bursts need far more than the same mean loss i.i.d.
+  CHECK_THROWS(std::invalid_argument, model::consecutive_loss_probability(model::LossModel{0.0, 0.01, 0.0, 1.0}, 2));
+}
+
 TEST(Model, eq18_sums_of_the_paper_star_are_what_the_simulator_builds) {
   const auto built = firmware::build_scenario(firmware::make_scenario("paper-best"));
   // (Nbar_ij + Nbar_ji) T/2 per link of the star with the loss model's allowance of 5 ticks each way
@@ -148,11 +162,11 @@ TEST(Model, delay_matrix_parser_checks_the_shape_and_reads_inf) {
 // the guard, B_i and the condition, used by the scenario and the station alike.
 TEST(Model, the_delay_models_allowances_are_the_loss_models_plus_the_deadbands_plus_the_clocks) {
   // paper-best: 5 % loss over 20 s (10000 ticks) on 6 directed links -> 5 ticks (0.05^6 x 60000 <= 1 %)
-  const model::NbarAllowances a = model::delay_model_allowances(-1, 0.05, 20.0, 0.002, 6, 0, {});
+  const model::NbarAllowances a = model::delay_model_allowances(-1, model::LossModel{0.05}, 20.0, 0.002, 6, 0, {});
   CHECK_EQUAL(5, a.loss_ticks);
   CHECK_EQUAL(5, a.total());
-  CHECK_EQUAL(2, model::delay_model_allowances(2, 0.05, 20.0, 0.002, 6, 0, {}).loss_ticks);  // given
-  const model::NbarAllowances d = model::delay_model_allowances(0, 0.0, 20.0, 0.002, 6, 3, model::ClockModel{0.0005, 0, 0});
+  CHECK_EQUAL(2, model::delay_model_allowances(2, model::LossModel{0.05}, 20.0, 0.002, 6, 0, {}).loss_ticks);  // given
+  const model::NbarAllowances d = model::delay_model_allowances(0, model::LossModel{0.0}, 20.0, 0.002, 6, 3, model::ClockModel{0.0005, 0, 0});
   CHECK_EQUAL(3, d.deadband_ticks);
   CHECK_EQUAL(1, d.clock_ticks);  // a late wake: at most one tick more
   CHECK_EQUAL(4, d.total());

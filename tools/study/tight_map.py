@@ -76,7 +76,7 @@ def unstable(s):
 
 def critical_scale(station, args, duration, out, lo=0.02, hi=2.0, steps=6):
     """Smallest f in [lo, hi] (log bisection) with a stable run at B = f x eq. (18)."""
-    base = run(station, args, 0.01, out)
+    base = run(station, args, duration, out)  # eq. (18) of a run this long: the loss allowance grows with the run
     b18 = base["damping_min_Ns_per_m"]
     def stable_at(f):
         s = run(station, args + ["--damping", ",".join(repr(f * b) for b in b18)], duration, out)
@@ -104,6 +104,7 @@ def main():
     ap.add_argument("--correlation", type=float, default=0.99, help="AR(1) coefficient of the correlated model (default 0.99)")
     ap.add_argument("--quick", action="store_true", help="two values per axis, 4 bisection steps")
     ap.add_argument("--out", default="tools/study/results")
+    ap.add_argument("--lo", type=float, default=0.02, help="smallest scale of eq. (18) tried (default 0.02)")
     ap.add_argument("--only", help="only the axes whose name contains this text; writes tight_map-<text>.{json,png}")
     a = ap.parse_args()
     axes = [ax for ax in AXES if a.only is None or a.only in ax[0]]
@@ -112,7 +113,7 @@ def main():
     stem = "tight_map" if a.only is None else "tight_map-" + a.only.replace(" ", "_")
     tmp = tempfile.mkdtemp(prefix="tight-map-")
     models = [("i.i.d.", []), ("correlated rho=%g" % a.correlation, ["--delay-correlation", repr(a.correlation)])]
-    res = {"tight_case": " ".join(TIGHT + DEFAULT_DELAY), "duration_s": a.duration, "axes": []}
+    res = {"tight_case": " ".join(TIGHT + DEFAULT_DELAY), "duration_s": a.duration, "lowest_scale_tried": a.lo, "axes": []}
     t0 = time.time()
     total = sum(len(ax[2][:2] if a.quick else ax[2]) for ax in axes) * len(models)
     done = 0
@@ -123,7 +124,7 @@ def main():
         for mname, margs in models:
             pts = []
             for v in values:
-                r = critical_scale(a.station, fn(v) + margs, a.duration, tmp, steps=4 if a.quick else 6)
+                r = critical_scale(a.station, fn(v) + margs, a.duration, tmp, lo=a.lo, steps=4 if a.quick else 6)
                 r["value"] = v
                 pts.append(r)
                 done += 1
@@ -143,12 +144,20 @@ def plot(res, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     axes = res["axes"]
-    fig, axs = plt.subplots(2, 3, figsize=(13, 7.5))
+    cols = min(3, len(axes))
+    rows = (len(axes) + cols - 1) // cols
+    fig, axs = plt.subplots(rows, cols, figsize=(max(4.4 * cols, 10.0), 3.75 * rows + 0.8), squeeze=False)
+    for ax in list(axs.flat)[len(axes):]:
+        ax.set_visible(False)
     for ax, axis in zip(axs.flat, axes):
         for mname, pts in axis["models"].items():
             xs = [p["value"] for p in pts if p["critical_scale"] is not None]
             ys = [p["critical_scale"] for p in pts if p["critical_scale"] is not None]
             ax.plot(xs, ys, "o-", label="stability boundary, " + mname)
+            # stable at the smallest scale tried: the boundary is at or below it (an upper bound)
+            low = [(p["value"], p["critical_scale"]) for p in pts if "upper bound" in p.get("note", "")]
+            if low:
+                ax.plot([v for v, _ in low], [c for _, c in low], "v", color="0.3", ms=9)
         ax.axhline(1.0, color="k", ls="--", label="eq. (18)")
         ax.set_yscale("log")
         ax.set_xlabel(axis["name"] + (" (%s)" % axis["unit"] if axis["unit"] else ""))

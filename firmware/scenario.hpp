@@ -76,6 +76,9 @@ struct ScenarioSpec {
   double jitter_fraction = net::kPaperJitterFraction;      // the paper's impairment (net/impairment.hpp)
   double delay_correlation = 0;              // --delay-correlation: AR(1) per packet of the delay (net::LinkImpairment), 0 = i.i.d.
   double loss_probability = net::kPaperLossProbability;
+  // --delay-trace: recorded one-way delays (s) every link replays in place of the uniform draw
+  // (net::LinkImpairment::delay_trace; Nbar then from the trace's range); empty: the delay model.
+  std::shared_ptr<const std::vector<double>> delay_trace;
   // Gilbert-Elliott burst loss on every link (net::LinkImpairment; off when burst_enter_probability = 0):
   // --burst-enter (good -> bad per packet), --burst-length (mean packets in the bad state), --burst-loss.
   double burst_enter_probability = 0;

@@ -98,6 +98,7 @@ struct SimArgs {
   double timer_jitter_ms = 0, step_jitter = 0, clock_drift_ppm = 0;  // station clocks (variable steps T_k)
   double jitter = -1, delay_correlation = 0, node_mass_kg = -1;     // delay model and object (stability maps)
   double burst_enter = 0, burst_length = 5, burst_loss = 1;         // Gilbert-Elliott burst loss (off at 0)
+  std::string delay_trace;                                          // recorded one-way delays (ms per line)
   std::optional<int> users;  // unset: the scenario's (or --topology-file's) user count
   std::uint64_t push_seed = 1;
   double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1, push_end = -1, release = -1;
@@ -187,6 +188,10 @@ void add_sim_network_options(CLI::App* sim, SimArgs& a) {
   sim->add_option("--delay-correlation", a.delay_correlation,
                   "Time-correlated delays: AR(1) coefficient per packet of a latent Gaussian mapped onto the same uniform support "
                   "(net::LinkImpairment), in [0, 1); 0 = i.i.d. (default 0)");
+  sim->add_option("--delay-trace", a.delay_trace,
+                  "Recorded one-way delays, one per line in ms ('#' comments), replayed by every link in place of the uniform draw "
+                  "(Nbar from the trace's smallest and largest delay)")
+      ->check(CLI::ExistingFile);
   sim->add_option("--burst-enter", a.burst_enter,
                   "Gilbert-Elliott burst loss on every link: probability per packet of entering a burst, in [0, 1]; the loss "
                   "allowance then comes from the burst model (default 0: off)")
@@ -422,6 +427,7 @@ ScenarioSpec sim_scenario_spec(const SimArgs& a) {
   spec.solver = haptic::rt::parse_step_solver_kind(a.solver);
   if (a.jitter != -1) spec.jitter_fraction = a.jitter;
   spec.delay_correlation = a.delay_correlation;
+  if (!a.delay_trace.empty()) spec.delay_trace = haptic::net::load_delay_trace(a.delay_trace);
   spec.burst_enter_probability = a.burst_enter;
   spec.burst_mean_packets = a.burst_length;
   spec.burst_loss_probability = a.burst_loss;

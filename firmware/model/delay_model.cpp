@@ -146,6 +146,17 @@ Eigen::MatrixXi index_delay_bounds_ticks(const Eigen::MatrixXd& mean_delay_ms, d
   return nbar;
 }
 
+Eigen::MatrixXi index_delay_bounds_ticks_from_range(const Eigen::MatrixXd& links, double min_delay_ms, double max_delay_ms, double period_s,
+                                                    int loss_allowance_ticks, rt::RxRule rule) {
+  check_square(links, "delay matrix");
+  const int one = index_delay_bound_ticks(max_delay_ms, period_s, loss_allowance_ticks) + receive_rule_ticks(rule, min_delay_ms, max_delay_ms, period_s);
+  Eigen::MatrixXi nbar = Eigen::MatrixXi::Zero(links.rows(), links.cols());
+  for (Eigen::Index i = 0; i < links.rows(); ++i)
+    for (Eigen::Index j = 0; j < links.cols(); ++j)
+      if (i != j && std::isfinite(links(i, j))) nbar(i, j) = one;
+  return nbar;
+}
+
 Eigen::VectorXd round_trip_half_sums_ms(const Graph& g, const Eigen::MatrixXi& nbar_ticks, double period_s) {
   Eigen::VectorXd s = Eigen::VectorXd::Zero(nbar_ticks.rows());
   for (const Link& l : g) {

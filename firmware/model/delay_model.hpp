@@ -77,6 +77,11 @@ int receive_rule_ticks(rt::RxRule rule, double min_delay_ms, double max_delay_ms
 // mean [1 - jitter_fraction, 1 + jitter_fraction]) under the receive rule in force; diagonal 0.
 Eigen::MatrixXi index_delay_bounds_ticks(const Eigen::MatrixXd& mean_delay_ms, double jitter_fraction, double period_s,
                                          int loss_allowance_ticks, rt::RxRule rule = rt::RxRule::kNewestBySequence);
+// The same for links whose every delay lies in [min_delay_ms, max_delay_ms] (a recorded delay trace
+// replayed on every link): each ordered pair with a finite entry of `links` (a delay matrix; its
+// values unused) gets the bound of that range; diagonal 0.
+Eigen::MatrixXi index_delay_bounds_ticks_from_range(const Eigen::MatrixXd& links, double min_delay_ms, double max_delay_ms, double period_s,
+                                                    int loss_allowance_ticks, rt::RxRule rule = rt::RxRule::kNewestBySequence);
 // eq. (18) bookkeeping: per user sum over its links of (Nbar_ij + Nbar_ji) T / 2, in ms.
 Eigen::VectorXd round_trip_half_sums_ms(const Graph& g, const Eigen::MatrixXi& nbar_ticks, double period_s);
 

@@ -14,6 +14,7 @@ LinkSetup scenario_link(const ScenarioSpec& spec, int receiver, int sender, std:
     s.model.burst_loss_probability = spec.burst_loss_probability;
   }
   s.model.delay_correlation = spec.delay_correlation;  // the one delay model, i.i.d. or time-correlated
+  s.model.delay_trace = spec.delay_trace;              // or a recorded trace, replayed
   s.seed = net::link_seed(run_seed, receiver, sender);
   return s;
 }

@@ -7,6 +7,8 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <algorithm>
+#include <memory>
 #include <optional>
 
 #include "firmware/scenario.hpp"
@@ -152,4 +154,34 @@ TEST(BurstLoss, the_burst_models_allowance_keeps_every_index_delay_within_nbar_a
   over = 0;
   for (const auto& l : iid.links) over += l.bound_violations;
   CHECK_TRUE(over > 0);
+}
+
+TEST_GROUP(DelayTrace){};
+
+TEST(DelayTrace, a_recorded_trace_replayed_on_every_link_sets_nbar_from_its_range_and_stays_within_it) {
+  // A trace with spikes far beyond the paper's uniform support (5 ms most of the time, 60 ms every
+  // 50th packet): Nbar = ceil(60 ms / T) + L under newest-by-sequence, + ceil((60 - 5) ms / T) + 1
+  // under the paper's rule (computed here), and neither run has an over-bound event.
+  auto trace = std::make_shared<std::vector<double>>();
+  for (int k = 0; k < 500; ++k) trace->push_back(k % 50 == 0 ? 0.060 : 0.005);
+  for (auto rule : {haptic::rt::RxRule::kNewestBySequence, haptic::rt::RxRule::kMostRecentlyReceived}) {
+    ScenarioSpec s = make_scenario("paper-best");
+    s.duration_s = 6.0;
+    s.delay_trace = trace;
+    s.receive_rule = rule;
+    const BuiltScenario b = build_scenario(s);
+    const int expected = 30 + b.loss_allowance_ticks + (rule == haptic::rt::RxRule::kNewestBySequence ? 0 : 28 + 1);
+    CHECK_EQUAL(expected, b.nbar_ticks(0, 1));
+    CHECK_EQUAL(expected, b.nbar_ticks(3, 0));
+    const SimResult r = run_simulation(b, SimOptions{});
+    std::int64_t longest = 0;
+    for (const auto& l : r.links) {
+      CHECK_EQUAL(0u, l.bound_violations);
+      DOUBLES_EQUAL(0.060, l.delay_max_s, 1e-12);  // the trace, not the paper's delays
+      longest = std::max(longest, l.max_index_delay);
+    }
+    // the paper's rule uses the late 60 ms packets (N reaches 30 ticks); newest-by-sequence drops them as stale
+    if (rule == haptic::rt::RxRule::kMostRecentlyReceived) CHECK_TRUE(longest >= 30);
+    else CHECK_TRUE(longest < 30);
+  }
 }

@@ -24,21 +24,18 @@ struct LoopOutcome {
 void loop_body(const StationPlan& plan, drivers::HapticDevice* device, const RunTickFn& tick, platform::PeriodicLoop<>& loop,
                std::atomic<bool>& stop, LoopOutcome& out) {
   const StationTimes& t = plan.times;
-  const std::int64_t run_epoch = t.run_epoch_ns();
   try {
     // First deadline one period on: kr = 0, or for a station past the run start (rejoining) the
     // next tick of the session's grid.
-    std::int64_t first = run_epoch;
-    const std::int64_t now = loop.clock().now_ns();
-    if (now > run_epoch - t.period_ns) first = run_epoch + ((now - run_epoch) / t.period_ns + 2) * t.period_ns;
-    loop.clock().sleep_until_ns(first - t.period_ns);
+    loop.clock().sleep_until_ns(t.loop_start_ns(t.run_k0, loop.clock().now_ns()));
     loop.run(
         [&](const platform::TickInfo& info) -> bool {
-          const std::int64_t kr = (info.scheduled_ns - run_epoch + t.period_ns / 2) / t.period_ns;  // = info.cycle when on time
-          if (kr >= t.run_ticks) return false;
-          if (out.first_run_k < 0) out.first_run_k = t.run_k0 + kr;
+          const std::int64_t k = t.tick_at(info.scheduled_ns);  // kr = info.cycle when on time
+          if (t.phase_of(k) == TickPhase::kAfter) return false;
+          const std::int64_t kr = k - t.run_k0;
+          if (out.first_run_k < 0) out.first_run_k = k;
           out.last_kr = kr;
-          tick(t.run_k0 + kr, kr, info);
+          tick(k, kr, info);
           return !stop.load(std::memory_order_acquire);
         },
         stop);

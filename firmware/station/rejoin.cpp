@@ -20,10 +20,12 @@ void provisional_probes(const StationPlan& plan, net::Endpoint& ep, const std::a
   const Eigen::VectorXd& x0 = b.scene.x_d;  // the rest state
   const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(b.scene.dofs);
   const double T = b.spec.period_s;
-  const std::int64_t period = plan.times.period_ns;
-  const std::int64_t start = net::monotonic_ns();
+  // The session's epoch is not known yet: the provisional ticks i = 0, 1, ... run on a timeline of
+  // their own that starts now (the same time-to-tick rule as probe and run).
+  Timeline own;
+  own.epoch_ns = net::monotonic_ns();
+  own.period_ns = plan.times.period_ns;
   const auto ticks = static_cast<std::int64_t>(std::llround(plan.file.station.rejoin_probe_s / T));
-  std::int64_t next = start;
   for (std::int64_t i = 0; i < ticks && !stop.load(std::memory_order_acquire); ++i) {
     ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
       r.probe.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, T);
@@ -33,8 +35,7 @@ void provisional_probes(const StationPlan& plan, net::Endpoint& ep, const std::a
     if (static_cast<std::int64_t>(r.provisional_pushes) < plan.times.run_k0 - 1 &&
         ep.push_state(r.provisional_pushes, net::monotonic_s(), x0.data(), v0.data()))
       ++r.provisional_pushes;
-    next += period;
-    platform::sleep_until_monotonic_ns(next);
+    platform::sleep_until_monotonic_ns(own.time_of(i + 1));
   }
   r.probe.loop_ticks = r.provisional_pushes;
 }

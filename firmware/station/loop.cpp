@@ -5,6 +5,7 @@
 #include <exception>
 #include <semaphore>
 
+#include "firmware/station/phase_loop.hpp"
 #include "platform/rt_thread.hpp"
 
 namespace haptic::firmware {
@@ -25,13 +26,11 @@ void loop_body(const StationPlan& plan, drivers::HapticDevice* device, const Run
                std::atomic<bool>& stop, LoopOutcome& out) {
   const StationTimes& t = plan.times;
   try {
-    // First deadline one period on: kr = 0, or for a station past the run start (rejoining) the
-    // next tick of the session's grid.
-    loop.clock().sleep_until_ns(t.loop_start_ns(t.run_k0, loop.clock().now_ns()));
-    loop.run(
-        [&](const platform::TickInfo& info) -> bool {
-          const std::int64_t k = t.tick_at(info.scheduled_ns);  // kr = info.cycle when on time
-          if (t.phase_of(k) == TickPhase::kAfter) return false;
+    // From kr = 0, or for a station past the run start (rejoining) the next tick of the session's
+    // grid, to the end of the run.
+    run_phase(
+        t, TickPhase::kRun, t.run_k0, loop,
+        [&](std::int64_t k, const platform::TickInfo& info) -> bool {
           const std::int64_t kr = k - t.run_k0;
           if (out.first_run_k < 0) out.first_run_k = k;
           out.last_kr = kr;

@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "platform/clock.hpp"
+#include "firmware/station/phase_loop.hpp"
 #include "platform/periodic_loop.hpp"
 #include "rt/gains.hpp"
 
@@ -53,12 +54,10 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
   platform::LoopConfig lc = plan.file.loop;
   platform::PeriodicLoop<> loop(lc);
   bool frozen = false;
-  // The loop's first deadline is one period on: k = 0 (started late: the next tick of the grid).
-  loop.clock().sleep_until_ns(t.loop_start_ns(0, loop.clock().now_ns()));
-  loop.run(
-      [&](const platform::TickInfo& info) {
-        const std::int64_t k = t.tick_at(info.scheduled_ns);
-        if (t.phase_of(k) > TickPhase::kProbe) return false;
+  // From k = 0 (started late: the next tick of the grid) to the end of probing.
+  run_phase(
+      t, TickPhase::kProbe, 0, loop,
+      [&](std::int64_t k, const platform::TickInfo&) {
         if (r.first_probe_k < 0) r.first_probe_k = k;
         if (k >= probe_freeze_tick(t.probe_ticks) && !frozen) {  // the bounds freeze; the last third exchanges them
           frozen = true;

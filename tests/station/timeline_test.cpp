@@ -1,10 +1,17 @@
 // The station's one timeline (firmware/station/timeline.hpp): the time-to-tick rule probe, rejoin
-// and run share, the phases on the common tick index, and where a periodic loop starts.
+// and run share, the phases on the common tick index, where a periodic loop starts, and the loop
+// each phase runs on.
 #include <CppUTest/TestHarness.h>
 
+#include <atomic>
+#include <vector>
+
+#include "firmware/station/phase_loop.hpp"
 #include "firmware/station/timeline.hpp"
+#include "platform/clock.hpp"
 
 using namespace haptic::firmware;
+namespace platform = haptic::platform;
 
 namespace {
 Timeline paper_timeline() {
@@ -62,4 +69,32 @@ TEST(Timeline, a_loop_started_in_time_runs_its_phase_from_the_first_tick_and_a_l
     CHECK(t.time_of(k) < now + 3 * P);
     LONGS_EQUAL(t.time_of(k - 1), t.loop_start_ns(t.run_k0, now));
   }
+}
+
+TEST(Timeline, a_phase_loop_ticks_its_phase_on_the_grid_and_ends_with_it) {
+  Timeline t;
+  t.period_ns = 5'000'000;
+  t.epoch_ns = platform::MonotonicClock().now_ns() + 4 * t.period_ns;
+  t.probe_ticks = 4;
+  t.run_k0 = 6;
+  t.run_ticks = 8;
+  platform::LoopConfig lc;
+  lc.period_ns = t.period_ns;
+  platform::PeriodicLoop<> loop(lc);
+  std::atomic<bool> stop{false};
+  std::vector<std::int64_t> ks;
+  ks.reserve(64);
+  run_phase(
+      t, TickPhase::kRun, t.run_k0, loop,
+      [&](std::int64_t k, const platform::TickInfo& info) {
+        ks.push_back(k);
+        LONGS_EQUAL(k, t.tick_at(info.scheduled_ns));
+        return k < 40;  // a bound for a loop that would not end with its phase
+      },
+      stop);
+  CHECK(!ks.empty());
+  CHECK(ks.front() >= t.run_k0);  // no probe or set-up tick runs the run phase's function
+  for (std::size_t i = 1; i < ks.size(); ++i) CHECK(ks[i] > ks[i - 1]);
+  CHECK(ks.back() < t.run_end_k());       // nothing after the run (the loop ended with its phase)
+  CHECK(ks.back() >= t.run_end_k() - 3);  // and it ran to its end (a loaded machine may skip a period)
 }

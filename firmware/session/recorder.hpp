@@ -16,6 +16,7 @@
 
 #include "firmware/session/log.hpp"
 #include "platform/spsc_ring.hpp"
+#include "rt/tick_driver.hpp"
 
 namespace haptic::firmware {
 
@@ -98,6 +99,17 @@ class SessionRecorder {
   std::thread thread_;
   bool finished_ = false;
   RecorderStats final_{};
+};
+
+// rt::drive_tick's observer that records every packet offered to tick k, as offered (recorder null:
+// records nothing). RT-safe.
+struct RecordOffered {
+  SessionRecorder* recorder = nullptr;
+  std::int64_t k = 0;
+  void offered(const rt::ReceivedState& p, std::int64_t index, rt::RxVerdict) {
+    if (recorder) recorder->rt_packet(k, p.link, index, p.send_time_s, p.x_hat, p.v_hat);
+  }
+  void stepping() {}
 };
 
 }  // namespace haptic::firmware

@@ -9,6 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "rt/tick_driver.hpp"
+
 namespace haptic::firmware {
 
 namespace {
@@ -193,14 +195,17 @@ ReplayResult replay_session(const std::string& path, const ReplayOptions& opt, c
       res.stopped_at_to = true;
       break;
     }
-    for (; p < pk.size() && pk.tick(p) <= r.k; ++p) {
-      const int n = pk.neighbour(p);
-      if (n < 0 || n >= core.neighbor_count()) throw std::runtime_error("log: packet " + std::to_string(p) + " names neighbour " + std::to_string(n));
-      core.rx(n).offer(pk.seq(p), pk.send_time(p), pk.x(p), pk.v(p), dofs);
-    }
-    // the recorded step T_k, as the station or the simulator handed it to the core (0: the nominal one)
-    const rt::Vec3 q(r.q[0], r.q[1], r.q[2]);
-    const auto out = r.step_s > 0 ? core.tick(r.k, q, r.step_s) : core.tick(r.k, q);
+    // the recorded packets of tick r.k re-offered (their sequence numbers are recorded as the
+    // core's indices), the recorded device sample and step T_k, as the station or the simulator
+    // handed it to the core (0: the nominal one)
+    const rt::TickDrive drive{r.k, 0, rt::Vec3(r.q[0], r.q[1], r.q[2]), r.step_s > 0 ? r.step_s : core.config().period_s};
+    const auto out = rt::drive_tick(core, drive, [&](auto&& offer) {
+      for (; p < pk.size() && pk.tick(p) <= r.k; ++p) {
+        const int n = pk.neighbour(p);
+        if (n < 0 || n >= core.neighbor_count()) throw std::runtime_error("log: packet " + std::to_string(p) + " names neighbour " + std::to_string(n));
+        offer(rt::ReceivedState{n, pk.seq(p), pk.send_time(p), pk.x(p), pk.v(p), dofs});
+      }
+    });
     t_s += core.last_step_s();
     const std::uint64_t hash = state_hash(core, out);
     const bool match = hash == r.hash;

@@ -16,6 +16,7 @@
 #include "firmware/station/plan.hpp"
 #include "net/impairment.hpp"
 #include "net/wire.hpp"
+#include "rt/tick_driver.hpp"
 #include "rt/tx_deadband.hpp"
 
 namespace haptic::firmware {
@@ -120,6 +121,7 @@ struct Simulation {
   std::vector<StationClock> clk;  // per station (ScenarioSpec's clock model)
   std::vector<unsigned char> due; // stations waking at the current event time
   std::vector<std::vector<int>> out_channels;  // channels each station sends on
+  std::vector<std::vector<int>> in_channels;   // channels each station receives on, by receive link
   std::vector<Eigen::Vector3d> forces;
   std::vector<const double*> copies;
   std::vector<std::unique_ptr<SessionRecorder>> rec;  // session logs (opt.record)
@@ -137,6 +139,7 @@ struct Simulation {
 // Directed channels: one per (receiver i, sender j) on every link; seeds derived from the run seed.
 void make_channels(Simulation& s) {
   s.out_channels.assign(static_cast<std::size_t>(s.N), {});
+  s.in_channels.assign(static_cast<std::size_t>(s.N), {});
   for (int i = 0; i < s.N; ++i)
     for (std::size_t r = 0; r < s.b.neighbors[static_cast<std::size_t>(i)].size(); ++r) {
       Channel c;
@@ -149,6 +152,7 @@ void make_channels(Simulation& s) {
       c.stats.sent_ticks.reserve(static_cast<std::size_t>(s.ticks));
       s.ch.push_back(std::move(c));
       s.out_channels[static_cast<std::size_t>(s.ch.back().from)].push_back(static_cast<int>(s.ch.size()) - 1);
+      s.in_channels[static_cast<std::size_t>(i)].push_back(static_cast<int>(s.ch.size()) - 1);
     }
 }
 
@@ -187,12 +191,12 @@ Simulation::Simulation(const BuiltScenario& built, const SimOptions& options)
   std::sort(snap_times.begin(), snap_times.end());
 }
 
-// 1. Every packet that has arrived by t reaches its receive link.
-void deliver_packets(Simulation& s, double t) {
-  for (auto& c : s.ch) {
-    if (!s.due[static_cast<std::size_t>(c.to)]) continue;
-    const std::int64_t k = s.clk[static_cast<std::size_t>(c.to)].k;
-    auto& rx = s.st[static_cast<std::size_t>(c.to)]->rx(c.rx_index);
+// 1. The packets that have arrived on station i's channels by t, each channel's in arrival order
+// (rt::drive_tick's source for station i's tick).
+template <class Offer>
+void arrived_packets(Simulation& s, int i, double t, Offer&& offer) {
+  for (int ci : s.in_channels[static_cast<std::size_t>(i)]) {
+    auto& c = s.ch[static_cast<std::size_t>(ci)];
     while (!c.queue.empty() && c.queue.top().arrive_s <= t + 1e-12) {
       const InFlight p = c.queue.top();
       c.queue.pop();
@@ -202,13 +206,13 @@ void deliver_packets(Simulation& s, double t) {
       c.stats.delay_max_s = std::max(c.stats.delay_max_s, d);
       if (p.seq < c.max_seq_delivered) ++c.stats.reordered;
       c.max_seq_delivered = std::max(c.max_seq_delivered, p.seq);
-      rx.offer(p.seq, p.send_s, p.payload->data(), p.payload->data() + s.dofs, s.dofs);
-      if (!s.rec.empty()) s.rec[static_cast<std::size_t>(c.to)]->rt_packet(k, c.rx_index, p.seq, p.send_s, p.payload->data(), p.payload->data() + s.dofs);
+      offer(rt::ReceivedState{c.rx_index, p.seq, p.send_s, p.payload->data(), p.payload->data() + s.dofs, s.dofs});
     }
   }
 }
 
-// 2. Every station waking at t ticks with its device sampled at t and its step T_k.
+// 2. Every station waking at t ticks: the packets arrived by t (1.) reach its receive links, then
+// the step with its device sampled at t and its step T_k.
 void tick_stations(Simulation& s, double t) {
   for (int i = 0; i < s.N; ++i) {
     if (!s.due[static_cast<std::size_t>(i)]) continue;
@@ -217,8 +221,10 @@ void tick_stations(Simulation& s, double t) {
     auto& core = *s.st[static_cast<std::size_t>(i)];
     const auto& q = s.users[static_cast<std::size_t>(i)].position_m();
     const double step_s = ck.step();
-    const auto out = core.tick(k, q, step_s);
-    if (!s.rec.empty()) s.rec[static_cast<std::size_t>(i)]->rt_tick(make_tick_record(core, k, q, out, step_s));
+    SessionRecorder* recorder = s.rec.empty() ? nullptr : s.rec[static_cast<std::size_t>(i)].get();
+    const auto out = rt::drive_tick(core, rt::TickDrive{k, 0, q, step_s}, [&](auto&& offer) { arrived_packets(s, i, t, offer); },
+                                    RecordOffered{recorder, k});
+    if (recorder) recorder->rt_tick(make_tick_record(core, k, q, out, step_s));
     s.forces[static_cast<std::size_t>(i)] = out.device_force_N;
     if ((out.flags & rt::kDiverged) && !s.diverged_at_s) {
       s.diverged_at_s = t;
@@ -339,7 +345,6 @@ void report_progress(Simulation& s, std::int64_t k, double t_next, double err) {
 // move their users over their steps T_k, advance their clocks.
 void wake_stations(Simulation& s, double t) {
   for (int i = 0; i < s.N; ++i) s.due[static_cast<std::size_t>(i)] = s.clk[static_cast<std::size_t>(i)].wake == t ? 1 : 0;
-  deliver_packets(s, t);
   tick_stations(s, t);
   send_states(s, t);
   // 4. the users' devices move under the commanded force until their station's next wake

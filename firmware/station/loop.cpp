@@ -5,6 +5,7 @@
 #include <exception>
 #include <semaphore>
 
+#include "firmware/station/phase_loop.hpp"
 #include "platform/rt_thread.hpp"
 
 namespace haptic::firmware {
@@ -24,21 +25,16 @@ struct LoopOutcome {
 void loop_body(const StationPlan& plan, drivers::HapticDevice* device, const RunTickFn& tick, platform::PeriodicLoop<>& loop,
                std::atomic<bool>& stop, LoopOutcome& out) {
   const StationTimes& t = plan.times;
-  const std::int64_t run_epoch = t.run_epoch_ns();
   try {
-    // First deadline one period on: kr = 0, or for a station past the run start (rejoining) the
-    // next tick of the session's grid.
-    std::int64_t first = run_epoch;
-    const std::int64_t now = loop.clock().now_ns();
-    if (now > run_epoch - t.period_ns) first = run_epoch + ((now - run_epoch) / t.period_ns + 2) * t.period_ns;
-    loop.clock().sleep_until_ns(first - t.period_ns);
-    loop.run(
-        [&](const platform::TickInfo& info) -> bool {
-          const std::int64_t kr = (info.scheduled_ns - run_epoch + t.period_ns / 2) / t.period_ns;  // = info.cycle when on time
-          if (kr >= t.run_ticks) return false;
-          if (out.first_run_k < 0) out.first_run_k = t.run_k0 + kr;
+    // From kr = 0, or for a station past the run start (rejoining) the next tick of the session's
+    // grid, to the end of the run.
+    run_phase(
+        t, TickPhase::kRun, t.run_k0, loop,
+        [&](std::int64_t k, const platform::TickInfo& info) -> bool {
+          const std::int64_t kr = k - t.run_k0;
+          if (out.first_run_k < 0) out.first_run_k = k;
           out.last_kr = kr;
-          tick(t.run_k0 + kr, kr, info);
+          tick(k, kr, info);
           return !stop.load(std::memory_order_acquire);
         },
         stop);

@@ -539,8 +539,8 @@ StationTimes plan_times(const StationFile& f, const RunOverrides& o, const Scena
   t.epoch_in_s = static_cast<double>(t.epoch_ns - mono) * 1e-9;
   // Started after half the probing phase: the session runs without us; rejoin it (a restart).
   // After the session's planned end there is nothing to rejoin.
-  t.rejoin = mono > t.epoch_ns + (t.probe_ticks / 2) * t.period_ns;
-  if (mono > t.epoch_ns + (t.run_k0 + t.run_ticks) * t.period_ns)
+  t.rejoin = mono > t.time_of(t.probe_ticks / 2);
+  if (mono > t.time_of(t.run_end_k()))
     bad(std::string(o.start_at >= 0 ? "--start-at" : "station.start_at") + ": started " + std::to_string(-t.epoch_in_s) +
         " s after the common epoch, after the planned end of that session: nothing to rejoin; start earlier");
   return t;

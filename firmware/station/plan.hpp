@@ -17,6 +17,7 @@
 #include "firmware/scenario.hpp"
 #include "firmware/station/config.hpp"
 #include "firmware/station/phase.hpp"
+#include "firmware/station/timeline.hpp"
 #include "net/config.hpp"
 
 namespace haptic::firmware {
@@ -50,18 +51,14 @@ struct ClockReading {
 ClockReading read_clocks();
 
 // The phases on the common tick index k (k = 0 at the epoch, the same on every station).
-struct StationTimes {
-  std::int64_t epoch_ns = 0;     // CLOCK_MONOTONIC time of k = 0 (probing starts)
-  std::int64_t period_ns = 0;
-  std::int64_t probe_ticks = 0;  // k in [0, probe_ticks): probing
-  std::int64_t run_k0 = 0;       // first run tick (probe_ticks + the set-up gap)
-  std::int64_t run_ticks = 0;    // planned run length
+// The timeline (firmware/station/timeline.hpp: epoch, period, phase lengths, the time-to-tick rule)
+// and what planning found out about it.
+struct StationTimes : Timeline {
   double epoch_in_s = 0;         // epoch - now at planning
   // Started after the first half of its probing phase: the session is running, so the station
   // rejoins it (station/rejoin.hpp: learns the epoch from its neighbours, adopts a neighbour's
   // object state, then couples) instead of probing from k = 0.
   bool rejoin = false;
-  std::int64_t run_epoch_ns() const { return epoch_ns + run_k0 * period_ns; }
 };
 
 // Which configured peer is which neighbour of the scenario's topology.

@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "platform/clock.hpp"
+#include "firmware/station/phase_loop.hpp"
 #include "platform/periodic_loop.hpp"
 #include "rt/gains.hpp"
 
@@ -35,7 +36,7 @@ void take_neighbour_packets(const StationPlan& plan, net::Endpoint& ep, ProbeRes
 
 // Until the epoch: watches for a neighbour that already runs the session. True when one does.
 bool session_already_running(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, ProbeResult& r) {
-  const std::int64_t until = plan.times.epoch_ns - plan.times.period_ns;
+  const std::int64_t until = plan.times.time_of(-1);
   while (!stop.load(std::memory_order_acquire) && net::monotonic_ns() < until) {
     take_neighbour_packets(plan, ep, r);
     if (r.running_session_from != 0) return true;
@@ -53,11 +54,10 @@ void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<b
   platform::LoopConfig lc = plan.file.loop;
   platform::PeriodicLoop<> loop(lc);
   bool frozen = false;
-  loop.clock().sleep_until_ns(t.epoch_ns - t.period_ns);  // the loop's first deadline is one period on: k = 0
-  loop.run(
-      [&](const platform::TickInfo& info) {
-        const std::int64_t k = (info.scheduled_ns - t.epoch_ns + t.period_ns / 2) / t.period_ns;
-        if (k >= t.probe_ticks) return false;
+  // From k = 0 (started late: the next tick of the grid) to the end of probing.
+  run_phase(
+      t, TickPhase::kProbe, 0, loop,
+      [&](std::int64_t k, const platform::TickInfo&) {
         if (r.first_probe_k < 0) r.first_probe_k = k;
         if (k >= probe_freeze_tick(t.probe_ticks) && !frozen) {  // the bounds freeze; the last third exchanges them
           frozen = true;

@@ -7,36 +7,43 @@
 
 #include <Eigen/Core>
 
-#include "platform/clock.hpp"
+#include "firmware/station/phase_loop.hpp"
 
 namespace haptic::firmware {
 
 namespace {
 
 
-// Step 1's loop: provisional pushes every period, neighbours' packets into the grid.
+// Step 1's loop: provisional pushes every period, neighbours' packets into the grid. The session's
+// epoch is not known yet: the provisional ticks run on a timeline of their own, its tick 0 one
+// period from now, on the same loop and rule as probe and run (phase_loop.hpp).
 void provisional_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, RejoinResult& r) {
   const BuiltScenario& b = *plan.built;
   const Eigen::VectorXd& x0 = b.scene.x_d;  // the rest state
   const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(b.scene.dofs);
   const double T = b.spec.period_s;
-  const std::int64_t period = plan.times.period_ns;
-  const std::int64_t start = net::monotonic_ns();
-  const auto ticks = static_cast<std::int64_t>(std::llround(plan.file.station.rejoin_probe_s / T));
-  std::int64_t next = start;
-  for (std::int64_t i = 0; i < ticks && !stop.load(std::memory_order_acquire); ++i) {
-    ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
-      r.probe.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, T);
-      r.probe.loss_counter.add(plan.peers.sender_to_nbr[sender], seq);
-    });
-    // Provisional sequence numbers stay below the session's run_k0: the neighbours' ticks ignore them.
-    if (static_cast<std::int64_t>(r.provisional_pushes) < plan.times.run_k0 - 1 &&
-        ep.push_state(r.provisional_pushes, net::monotonic_s(), x0.data(), v0.data()))
-      ++r.provisional_pushes;
-    next += period;
-    platform::sleep_until_monotonic_ns(next);
-  }
+  Timeline own;
+  own.period_ns = plan.times.period_ns;
+  own.epoch_ns = net::monotonic_ns() + own.period_ns;
+  own.probe_ticks = std::llround(plan.file.station.rejoin_probe_s / T);
+  platform::PeriodicLoop<> loop(plan.file.loop);
+  run_phase(
+      own, TickPhase::kProbe, 0, loop,
+      [&](std::int64_t, const platform::TickInfo&) {
+        ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
+          r.probe.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, T);
+          r.probe.loss_counter.add(plan.peers.sender_to_nbr[sender], seq);
+        });
+        // Provisional sequence numbers stay below the session's run_k0: the neighbours' ticks ignore them.
+        if (static_cast<std::int64_t>(r.provisional_pushes) < plan.times.run_k0 - 1 &&
+            ep.push_state(r.provisional_pushes, net::monotonic_s(), x0.data(), v0.data()))
+          ++r.provisional_pushes;
+        return true;
+      },
+      stop);
   r.probe.loop_ticks = r.provisional_pushes;
+  r.probe.loop_overruns = loop.stats().overruns;
+  r.probe.loop_missed_cycles = loop.stats().missed_cycles;
 }
 
 // Step 1's result: the session epoch from the neighbour with the most certain clock offset.

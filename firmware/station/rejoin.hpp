@@ -3,9 +3,9 @@
 // SIGKILL; StationTimes::rejoin) joins the running session instead of probing from k = 0
 // (DESIGN.md "The station process"). Its new incarnation (net/) makes its
 // neighbours accept it afresh. In order, on the calling (non-RT) thread, before the RT thread:
-//   1. rejoin_probe(): for station.rejoin_probe_s it sends its rest state every period with
-//      provisional sequence numbers 0, 1, ... below the session's run_k0 (the neighbours' ticks
-//      ignore them, their endpoints echo them), measures the round trips from its own send records
+//   1. rejoin_probe(): for station.rejoin_probe_s it sends its rest state every period (a phase
+//      loop on a timeline of its own, phase_loop.hpp) with provisional sequence numbers 0, 1, ...
+//      below the session's run_k0 (the neighbours' ticks ignore them, their endpoints echo them), measures the round trips from its own send records
 //      and the clock offset to each neighbour, and learns the session's epoch from the neighbours'
 //      packets: epoch = min(send stamp - seq T) - clock offset, from the neighbour whose clock
 //      offset is the most certain (smallest round trip) -- not from its own start time.

@@ -318,7 +318,7 @@ bool adopt_state(const StationPlan& plan, StationResources& res, PhaseResults& p
     pr.fail(PhaseStatus::kFailed, pr.adopted.message);
     return false;
   }
-  const std::int64_t k_now = (read_clocks().monotonic_ns - plan.times.epoch_ns) / plan.times.period_ns;
+  const std::int64_t k_now = plan.times.tick_at(read_clocks().monotonic_ns);
   log.say("rejoining: took over station " + std::to_string(pr.adopted.from_station) + "'s object state of tick " + std::to_string(pr.adopted.seq) +
           " (now tick " + std::to_string(k_now) + "; refreshed at the first run tick); coupling");
   return true;

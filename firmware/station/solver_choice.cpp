@@ -6,6 +6,8 @@
 #include <memory>
 #include <vector>
 
+#include "rt/tick_driver.hpp"
+
 namespace haptic::firmware {
 
 namespace {
@@ -21,8 +23,9 @@ double timed_tick(rt::StationCore& core, std::int64_t k, double T, const Eigen::
   }
   const int dofs = static_cast<int>(x.size());
   const auto t0 = std::chrono::steady_clock::now();
-  for (int n = 0; n < core.neighbor_count(); ++n) core.rx(n).offer(k, 0, x.data(), v.data(), dofs);
-  core.tick(k, device);
+  rt::drive_tick(core, rt::TickDrive{k, 0, device, core.config().period_s}, [&](auto&& offer) {
+    for (int n = 0; n < core.neighbor_count(); ++n) offer(rt::ReceivedState{n, k, 0, x.data(), v.data(), dofs});
+  });
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 

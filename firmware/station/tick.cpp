@@ -6,6 +6,7 @@
 
 #include "firmware/station/device_coupling.hpp"
 #include "platform/trace.hpp"
+#include "rt/tick_driver.hpp"
 
 namespace haptic::firmware {
 
@@ -14,10 +15,12 @@ namespace {
 using platform::trace::Stage;
 using platform::trace::StageScope;
 
-// Drains the RX ring into the receive links; sequence numbers become run indices (seq - run_k0).
-// The age guard: a packet whose echo-based age bound (now - our own send stamp of the sequence it
-// echoes) exceeds the neighbour's limit, or that echoes none of our sends, is refused. RT-safe.
-void drain_rx(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
+// This tick's packets (rt::drive_tick's source): the RX ring drained, every packet of a
+// neighbour's run (sequence number >= run_k0) handed to `offer`. The age guard: a packet whose
+// echo-based age bound (now - our own send stamp of the sequence it echoes) exceeds the
+// neighbour's limit, or that echoes none of our sends, is refused. RT-safe.
+template <class Offer>
+void drain_rx(const TickInputs& in, TickCounters& cnt, Offer&& offer) {
   StageScope stage(Stage::rx_drain);
   const double now_s = in.max_age_s ? net::monotonic_s() : 0.0;
   in.ep->drain_packets([&](const net::RxPacket& p) {
@@ -41,15 +44,25 @@ void drain_rx(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
       }
     }
     platform::trace::packet_rx(static_cast<std::uint32_t>(p.sender), p.seq, static_cast<std::uint32_t>(p.count));
-    const rt::RxVerdict v = in.core->rx(n).offer(static_cast<std::int64_t>(p.seq) - in.run_k0, p.send_time_s, p.x_hat, p.v_hat,
-                                                 static_cast<int>(p.count));
-    if (v != rt::RxVerdict::kAccepted) ++cnt.rx_refused;
-    // Recorded as offered (the replay re-offers them), except what the sanity checks refused.
-    if (in.recorder && static_cast<int>(p.count) == in.dofs && v != rt::RxVerdict::kFuture && v != rt::RxVerdict::kNonFinite)
-      in.recorder->rt_packet(kr, n, static_cast<std::int64_t>(p.seq) - in.run_k0, p.send_time_s, p.x_hat, p.v_hat);
-    ++cnt.rx_offered;
+    offer(rt::ReceivedState{n, static_cast<std::int64_t>(p.seq), p.send_time_s, p.x_hat, p.v_hat, static_cast<int>(p.count)});
   });
 }
+
+// What run tick kr does with each packet's verdict (rt::drive_tick's observer): refusals counted;
+// with a recorder every offered packet recorded with kr and its run index (the replay re-offers
+// them), except what the sanity checks refused. The solve's trace stage starts after the last. RT-safe.
+struct RunTickObserver {
+  const TickInputs& in;
+  TickCounters& cnt;
+  std::int64_t kr;
+  void offered(const rt::ReceivedState& p, std::int64_t index, rt::RxVerdict v) {
+    if (v != rt::RxVerdict::kAccepted) ++cnt.rx_refused;
+    if (in.recorder && p.count == in.dofs && v != rt::RxVerdict::kFuture && v != rt::RxVerdict::kNonFinite)
+      in.recorder->rt_packet(kr, p.link, index, p.send_time_s, p.x_hat, p.v_hat);
+    ++cnt.rx_offered;
+  }
+  void stepping() { platform::trace::solve_begin(); }
+};
 
 // Largest node speed of the core's state (inf when not finite). RT-safe.
 double max_node_speed(const TickInputs& in) {
@@ -177,15 +190,16 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   in.ep->note_tick(k);                 // the sequence ceiling of the I/O thread's decoder
   const rt::Vec3 q = read_device(in, cnt);
   if (in.recorder && cnt.ticks_run == 0) in.recorder->rt_initial_state(in.core->x().data(), in.core->v().data());
-  drain_rx(in, cnt, kr);
-  platform::trace::solve_begin();
   // T_k: the measured wake-to-wake period (the first tick: the nominal one); the core clamps it to
   // station.period_min_s..period_max_s and counts it when outside (rt/README.md "Variable steps")
   // (a fixed-step configuration, period_min_s = period_max_s, integrates over the nominal period)
   const bool variable = in.core->config().t_max() > in.core->config().t_min();
   const double step_s = variable && cnt.ticks_run > 0 ? static_cast<double>(info.wake_ns - cnt.last_wake_ns) * 1e-9 : in.period_s;
   cnt.last_wake_ns = info.wake_ns;
-  const auto out = in.core->tick(kr, q, step_s);  // the coupled VO + VP step at run cycle kr
+  // RX drained into the receive links (sequence numbers become run indices, seq - run_k0), then
+  // the coupled VO + VP step at run cycle kr
+  const auto out = rt::drive_tick(*in.core, rt::TickDrive{kr, in.run_k0, q, step_s}, [&](auto&& offer) { drain_rx(in, cnt, offer); },
+                                  RunTickObserver{in, cnt, kr});
   platform::trace::solve_end();
   // The force the device is told, in the object frame (ramp-in applied): what the trace, the
   // telemetry and the checks on them see.

@@ -94,7 +94,8 @@ rt::Vec3 read_device(const TickInputs& in, TickCounters& cnt);
 // One run tick at epoch index k, run index kr = k - run_k0 (the index the core and the receive
 // links use, so a packet's sequence number seq becomes seq - run_k0 and nothing else). In the order
 // of DESIGN.md: GPIO high, newest device sample (none: NaN, the core's safe state for the tick),
-// drain RX into rx(n).offer, core.tick(kr), command force (+ service() of a simulated device),
+// drain RX and step the core (rt::drive_tick: each packet offered at seq - run_k0, then
+// core.tick(kr, q, T_k)), command force (+ service() of a simulated device),
 // push_state(k, t, x_hat, v_hat), monitor, records, telemetry, GPIO low. With a recorder, the
 // first tick hands it the core's initial state, every offered packet is recorded with kr, and
 // every tick its row (device sample, force, flags, state hash; firmware/session/log.hpp). Returns the core's

@@ -27,6 +27,7 @@
 #include "rt/scene.hpp"
 #include "rt/station.hpp"
 #include "rt/step_solver.hpp"
+#include "rt/tick_driver.hpp"
 
 #ifdef HAPTIC_HAVE_CHOLMOD
 #include <suitesparse/cholmod.h>
@@ -232,6 +233,24 @@ struct World {
   }
 };
 
+// One tick at k as every caller drives a core (rt::drive_tick): neighbour n's packet of tick k (the
+// state x, v) offered for every n < links (and for the last one too when last_too), then the step
+// with the device at q over the nominal period.
+StationCore::TickOutput drive(StationCore& st, std::int64_t k, const Eigen::Vector3d& q, const std::vector<double>& x, const std::vector<double>& v,
+                              int links, bool last_too = true) {
+  const int dofs = static_cast<int>(x.size());
+  return drive_tick(st, TickDrive{k, 0, q, st.config().period_s}, [&](auto&& offer) {
+    for (int n = 0; n < links; ++n)
+      if (n + 1 < links || last_too) offer(ReceivedState{n, k, 0, x.data(), v.data(), dofs});
+  });
+}
+// The strawman is no StationCore: the same packets by hand, then its tick.
+Eigen::Vector3d drive(DenseStationReference& st, std::int64_t k, const Eigen::Vector3d& q, const std::vector<double>& x, const std::vector<double>& v,
+                      int links) {
+  for (int n = 0; n < links; ++n) st.rx(n).offer(k, 0, x.data(), v.data(), static_cast<int>(x.size()));
+  return st.tick(q);
+}
+
 // Ticks in contact with the moving device (World::device_at). Counters: iterations_mean (CG
 // iterations per measured tick) and contact_fraction (measured ticks in contact).
 template <class Station>
@@ -242,14 +261,12 @@ void run_ticks(benchmark::State& state, Station& st, const World& w) {
   std::int64_t seq = 0;
   // settle into contact first
   for (int k = 0; k < 50; ++k) {
-    for (int n = 0; n < nn; ++n) st.rx(n).offer(seq, 0, x.data(), v.data(), dofs);
-    st.tick(w.device_at(seq));
+    drive(st, seq, w.device_at(seq), x, v, nn);
     ++seq;
   }
   double iterations = 0, contact = 0, ticks = 0;
   for (auto _ : state) {
-    for (int n = 0; n < nn; ++n) st.rx(n).offer(seq, 0, x.data(), v.data(), dofs);
-    auto out = st.tick(w.device_at(seq));
+    auto out = drive(st, seq, w.device_at(seq), x, v, nn);
     ++seq;
     benchmark::DoNotOptimize(out);
     if constexpr (requires { st.solver_last_iterations(); }) iterations += st.solver_last_iterations();
@@ -334,8 +351,8 @@ void BM_TickTolerance(benchmark::State& state) {
   std::vector<double> x(w.scene.x_d.data(), w.scene.x_d.data() + dofs), v(static_cast<std::size_t>(dofs), 1e-4);
   std::int64_t seq = 0;
   auto one = [&] {
-    for (int n = 0; n < nn; ++n) st.rx(n).offer(seq, 0, x.data(), v.data(), dofs);
-    return st.tick(w.device_at(seq++));
+    const std::int64_t k = seq++;
+    return drive(st, k, w.device_at(k), x, v, nn);
   };
   for (int k = 0; k < 50; ++k) one();
   const double res0 = st.energy().solver_residual_J, ctrl0 = st.energy().controller_J;
@@ -379,9 +396,9 @@ void BM_TickWorstCase(benchmark::State& state) {
   std::int64_t k = 0;
   std::uint64_t drops = 0;
   auto one = [&] {
-    for (int n = 0; n < 2; ++n) st.rx(n).offer(k, 0, x.data(), v.data(), dofs);
-    if (k % 2 == 0) st.rx(2).offer(k, 0, x.data(), v.data(), dofs);
-    return st.tick(w.device_at(k++));
+    const auto out = drive(st, k, w.device_at(k), x, v, 3, k % 2 == 0);  // neighbour 2 every other tick
+    ++k;
+    return out;
   };
   for (int i = 0; i < 50; ++i) one();
   double iterations = 0, contact = 0, ticks = 0;
@@ -406,7 +423,7 @@ void BM_StartupToFirstTick(benchmark::State& state) {
   for (auto _ : state) {
     World w(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
     StationCore st(w.cfg);
-    auto out = st.tick(w.push_to);
+    auto out = drive_tick(st, TickDrive{0, 0, w.push_to, st.config().period_s}, [](auto&&) {});
     benchmark::DoNotOptimize(out);
     state.counters["nodes"] = w.scene.nodes;
     state.SetLabel(st.solver_name());
@@ -417,10 +434,7 @@ void run_ticks_child(StationCore& st, const World& w) {
   const int dofs = w.scene.dofs;
   const int nn = static_cast<int>(w.cfg.neighbors.size());
   std::vector<double> x(w.scene.x_d.data(), w.scene.x_d.data() + dofs), v(static_cast<std::size_t>(dofs), 1e-4);
-  for (std::int64_t k = 0; k < 100; ++k) {
-    for (int n = 0; n < nn; ++n) st.rx(n).offer(k, 0, x.data(), v.data(), dofs);
-    st.tick(w.push_to);
-  }
+  for (std::int64_t k = 0; k < 100; ++k) drive(st, k, w.push_to, x, v, nn);
 }
 
 long hwm_kB() {  // peak resident set since the last clear_refs "5"

@@ -53,16 +53,18 @@ struct Rig {
         v0(static_cast<std::size_t>(built.scene.dofs), 0.0) {
     user.reset(built.vp_start[0]);
   }
-  // One station tick with the optional recorder and view hand-off. RT-safe.
+  // One station tick (rt::drive_tick) with the optional recorder and view hand-off. RT-safe.
   void tick(firmware::SessionRecorder* rec, firmware::ViewPublisher* view) {
     const double T = built.spec.period_s;
-    for (int n = 0; n < core.neighbor_count(); ++n) {
-      core.rx(n).offer(k - 3, static_cast<double>(k - 3) * T, x0.data(), v0.data(), built.scene.dofs);
-      if (rec) rec->rt_packet(k, n, k - 3, static_cast<double>(k - 3) * T, x0.data(), v0.data());
-    }
     const rt::Vec3 q = user.position_m();
-    const auto out = core.tick(k, q);
-    if (rec) rec->rt_tick(firmware::make_tick_record(core, k, q, out, 0.0));  // tick(k, q): the nominal step
+    const auto out = rt::drive_tick(
+        core, rt::TickDrive{k, 0, q, T},
+        [&](auto&& offer) {
+          for (int n = 0; n < core.neighbor_count(); ++n)
+            offer(rt::ReceivedState{n, k - 3, static_cast<double>(k - 3) * T, x0.data(), v0.data(), built.scene.dofs});
+        },
+        firmware::RecordOffered{rec, k});
+    if (rec) rec->rt_tick(firmware::make_tick_record(core, k, q, out, T));
     if (view) view->on_tick(core, k, T, q, out.device_force_N, out.flags, 0, 0);
     user.advance(static_cast<double>(k) * T, T, out.device_force_N);
     ++k;

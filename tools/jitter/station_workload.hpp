@@ -11,6 +11,7 @@
 #include "firmware/scenario.hpp"
 #include "firmware/session/recorder.hpp"
 #include "rt/station.hpp"
+#include "rt/tick_driver.hpp"
 #include "rt/user_model.hpp"
 #include "tools/jitter/jitter.hpp"
 
@@ -26,20 +27,24 @@ class StationJitterWorkload final : public JitterWorkload {
         v0_(static_cast<std::size_t>(built_.scene.dofs), 0.0) {
     user_.reset(built_.vp_start[0]);
   }
-  // One station tick: synthetic packets into rx(n).offer, tick, device step; with recording on,
-  // the session recorder's RT calls as the station's run_tick makes them (every packet offered,
-  // then the tick row). RT-safe.
-  void tick(const platform::TickInfo& info) override {
-    const auto k = static_cast<std::int64_t>(info.index);
+  // One station tick (rt::drive_tick, as the station's run_tick drives it): one synthetic packet
+  // per neighbour offered, the step at the nominal period, the device step; with recording on,
+  // the session recorder's RT calls as run_tick makes them (every packet offered, then the tick
+  // row). The tick index is the core's own next one, not info.index: that restarts with every
+  // run_jitter() call while the core goes on (--record-blocks runs block after block). RT-safe.
+  void tick(const platform::TickInfo&) override {
+    const std::int64_t k = core_.sequence() + 1;
     const double T = built_.spec.period_s;
     const bool rec = recording_ && recorder_ != nullptr;
-    for (int n = 0; n < core_.neighbor_count(); ++n) {
-      core_.rx(n).offer(k - 3, static_cast<double>(k - 3) * T, x0_.data(), v0_.data(), built_.scene.dofs);
-      if (rec) recorder_->rt_packet(k, n, k - 3, static_cast<double>(k - 3) * T, x0_.data(), v0_.data());
-    }
-    const rt::Vec3 q = user_.position_m();
-    const auto out = core_.tick(q);
-    if (rec) recorder_->rt_tick(firmware::make_tick_record(core_, k, q, out, 0.0));  // tick(q): the nominal step
+    const rt::TickDrive drive{k, 0, user_.position_m(), T};
+    const auto out = rt::drive_tick(
+        core_, drive,
+        [&](auto&& offer) {
+          for (int n = 0; n < core_.neighbor_count(); ++n)
+            offer(rt::ReceivedState{n, k - 3, static_cast<double>(k - 3) * T, x0_.data(), v0_.data(), built_.scene.dofs});
+        },
+        firmware::RecordOffered{rec ? recorder_ : nullptr, k});
+    if (rec) recorder_->rt_tick(firmware::make_tick_record(core_, k, drive.device_position_m, out, T));
     user_.advance(static_cast<double>(k) * T, T, out.device_force_N);
     flags_ |= out.flags;
   }

@@ -14,43 +14,6 @@ namespace {
 using platform::trace::Stage;
 using platform::trace::StageScope;
 
-// Drains the RX ring into the receive links; sequence numbers become run indices (seq - run_k0).
-// The age guard: a packet whose echo-based age bound (now - our own send stamp of the sequence it
-// echoes) exceeds the neighbour's limit, or that echoes none of our sends, is refused. RT-safe.
-void drain_rx(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
-  StageScope stage(Stage::rx_drain);
-  const double now_s = in.max_age_s ? net::monotonic_s() : 0.0;
-  in.ep->drain_packets([&](const net::RxPacket& p) {
-    const int n = in.sender_to_nbr[p.sender];
-    if (n < 0) {
-      ++cnt.foreign_packets;
-      return;
-    }
-    if (static_cast<std::int64_t>(p.seq) < in.run_k0) {
-      ++cnt.probe_packets_after_run;
-      return;
-    }
-    if (in.max_age_s) {
-      if (!p.has_echo) {
-        ++cnt.no_echo;
-        return;
-      }
-      if (p.age_bound_s(now_s) > in.max_age_s[n]) {
-        ++cnt.age_over_bound;
-        return;
-      }
-    }
-    platform::trace::packet_rx(static_cast<std::uint32_t>(p.sender), p.seq, static_cast<std::uint32_t>(p.count));
-    const rt::RxVerdict v = in.core->rx(n).offer(static_cast<std::int64_t>(p.seq) - in.run_k0, p.send_time_s, p.x_hat, p.v_hat,
-                                                 static_cast<int>(p.count));
-    if (v != rt::RxVerdict::kAccepted) ++cnt.rx_refused;
-    // Recorded as offered (the replay re-offers them), except what the sanity checks refused.
-    if (in.recorder && static_cast<int>(p.count) == in.dofs && v != rt::RxVerdict::kFuture && v != rt::RxVerdict::kNonFinite)
-      in.recorder->rt_packet(kr, n, static_cast<std::int64_t>(p.seq) - in.run_k0, p.send_time_s, p.x_hat, p.v_hat);
-    ++cnt.rx_offered;
-  });
-}
-
 // Largest node speed of the core's state (inf when not finite). RT-safe.
 double max_node_speed(const TickInputs& in) {
   const auto& v = in.core->v();
@@ -166,6 +129,39 @@ void TickRecords::reserve(std::size_t trace_rows, std::size_t state_rows, int do
   trace_n = state_n = 0;
 }
 
+void receive_packets(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
+  StageScope stage(Stage::rx_drain);
+  const double now_s = in.max_age_s ? net::monotonic_s() : 0.0;
+  in.ep->drain_packets([&](const net::RxPacket& p) {
+    const int n = in.sender_to_nbr[p.sender];
+    if (n < 0) {  // the decoder knows the same neighbours (unknown_sender): a table out of step
+      ++cnt.foreign_packets;
+      return;
+    }
+    if (static_cast<std::int64_t>(p.seq) < in.run_k0) {  // probing's packets, still in the ring
+      ++cnt.probe_packets_after_run;
+      return;
+    }
+    if (in.max_age_s) {
+      if (!p.has_echo) {
+        ++cnt.no_echo;
+        return;
+      }
+      if (p.age_bound_s(now_s) > in.max_age_s[n]) {
+        ++cnt.age_over_bound;
+        return;
+      }
+    }
+    platform::trace::packet_rx(static_cast<std::uint32_t>(p.sender), p.seq, static_cast<std::uint32_t>(p.count));
+    // The endpoint judged the rest (net/README.md "Receive-path sanity"): the link applies its tick
+    // rules only, counting what it does not use (stale, duplicate).
+    const std::int64_t seq = static_cast<std::int64_t>(p.seq) - in.run_k0;
+    in.core->rx(n).take(seq, p.send_time_s, p.x_hat, p.v_hat);
+    if (in.recorder) in.recorder->rt_packet(kr, n, seq, p.send_time_s, p.x_hat, p.v_hat);  // replay offers it again
+    ++cnt.rx_offered;
+  });
+}
+
 bool any_neighbour_within_bound(rt::StationCore& core, std::int64_t kr) {
   for (int n = 0; n < core.neighbor_count(); ++n)
     if (kr - core.rx(n).newest_sequence() <= core.neighbor(n).index_delay_bound_ticks) return true;
@@ -177,7 +173,7 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   in.ep->note_tick(k);                 // the sequence ceiling of the I/O thread's decoder
   const rt::Vec3 q = read_device(in, cnt);
   if (in.recorder && cnt.ticks_run == 0) in.recorder->rt_initial_state(in.core->x().data(), in.core->v().data());
-  drain_rx(in, cnt, kr);
+  receive_packets(in, cnt, kr);
   platform::trace::solve_begin();
   // T_k: the measured wake-to-wake period (the first tick: the nominal one); the core clamps it to
   // station.period_min_s..period_max_s and counts it when outside (rt/README.md "Variable steps")

@@ -70,6 +70,7 @@ void RxLink::init(int dofs, const double* x0, const double* v0, std::int64_t ini
   unused_ = false;  // the assumed initial state carries no velocity sample to use
   counters_ = RxCounters{};
   last_tick_ = INT64_MIN;
+  slot_ = kNoSlot;
 }
 
 RxVerdict RxLink::judge(std::int64_t seq) {
@@ -94,11 +95,15 @@ void RxLink::hold(std::int64_t seq, double send_time_s) {
   ++counters_.accepted;
 }
 
-RxVerdict RxLink::take(std::int64_t seq, double send_time_s, const double* x_hat, const double* v_hat) {
+RxVerdict RxLink::take(std::int64_t seq, double send_time_s, const double* x_hat, const double* v_hat, std::uint32_t slot,
+                       std::uint32_t& released) {
+  released = slot;
   const RxVerdict v = judge(seq);
   if (v != RxVerdict::kAccepted) return v;
-  std::memcpy(x_hat_.data(), x_hat, sizeof(double) * static_cast<std::size_t>(dofs_));
-  std::memcpy(v_hat_.data(), v_hat, sizeof(double) * static_cast<std::size_t>(dofs_));
+  released = slot_;  // the buffer held until now goes back; the new one is read in place
+  slot_ = slot;
+  x_ext_ = x_hat;
+  v_ext_ = v_hat;
   hold(seq, send_time_s);
   return RxVerdict::kAccepted;
 }
@@ -133,8 +138,8 @@ RxLink::TickView RxLink::begin_tick(std::int64_t k) {
   if (!unused_ && k != last_tick_) ++counters_.sustained_ticks;
   unused_ = false;
   last_tick_ = k;
-  v.x_hat = x_hat_.data();
-  v.v_hat = v_hat_.data();
+  v.x_hat = held_x();
+  v.v_hat = held_v();
   v.send_time_s = newest_send_time_;
   counters_.max_index_delay = std::max(counters_.max_index_delay, v.index_delay);
   return v;

@@ -16,9 +16,10 @@
 //    delay 0).
 // Two ways in. take(): the tick rules only (the rules above), for a packet a real station's
 // endpoint has already judged (authentic, in sequence range, finite, in the envelope, the scene's
-// size: net/README.md "Receive-path sanity"). offer(): the payload size and its finiteness checked
-// first, then the same rules, for feeders without an endpoint (the simulator, replay, tests): the one
-// check they share.
+// size: net/README.md "Receive-path sanity"); the link then holds the caller's buffer itself (no
+// copy) until a newer packet replaces it. offer(): the payload size and its finiteness checked
+// first, then the same rules, and the values copied into the link, for feeders without an endpoint
+// (the simulator, replay, tests): the one check they share. A link is fed one way or the other.
 // take(), offer() and begin_tick() never allocate: RT-safe.
 #include <array>
 #include <cstdint>
@@ -59,9 +60,13 @@ class RxLink {
   // from the same configuration at rest, v_j(k) = 0 for k <= 0). Allocates.
   void init(int dofs, const double* x_hat0, const double* v_hat0, std::int64_t initial_sequence = -1,
             RxRule rule = RxRule::kNewestBySequence);
-  // A judged packet (dofs values each, finite): the tick rules only; copies it into the link when
-  // it is used (kAccepted).
-  RxVerdict take(std::int64_t sequence, double send_time_s, const double* x_hat, const double* v_hat);
+  // A judged packet (dofs values each, finite) in the caller's buffer number `slot`: the tick rules
+  // only. kAccepted: the link now reads x_hat and v_hat where they are (the caller must leave that
+  // buffer alone until the link gives it back) and `released` is the buffer it held before (kNoSlot:
+  // none). Otherwise `released` = slot: not held, the caller may reuse it at once.
+  static constexpr std::uint32_t kNoSlot = 0xFFFFFFFFu;
+  RxVerdict take(std::int64_t sequence, double send_time_s, const double* x_hat, const double* v_hat, std::uint32_t slot,
+                 std::uint32_t& released);
   // An unjudged one: kBadSize unless dofs matches, kNonFinite if a value is NaN/inf (the held packet
   // stays intact), else as take().
   RxVerdict offer(std::int64_t sequence, double send_time_s, const double* x_hat, const double* v_hat, int dofs);
@@ -70,7 +75,7 @@ class RxLink {
   std::int64_t max_sequence_seen() const { return max_seen_; }
   RxRule rule() const { return rule_; }
   static constexpr int kUsedWindow = 4096;
-  const double* newest_x_hat() const { return x_hat_.data(); }  // the held packet's x_hat (monitoring; RT-safe)
+  const double* newest_x_hat() const { return held_x(); }  // the held packet's x_hat (monitoring; RT-safe)
   const RxCounters& counters() const { return counters_; }
   int dofs() const { return dofs_; }
 
@@ -78,6 +83,12 @@ class RxLink {
   int dofs_ = 0;
   std::vector<double> x_hat_, v_hat_;
   std::vector<double> x_in_, v_in_;  // offer() copies and checks into these, swapped in when finite
+  // take(): the held packet is the caller's buffer `slot_` (x_ext_, v_ext_), not x_hat_/v_hat_.
+  std::uint32_t slot_ = kNoSlot;
+  const double* x_ext_ = nullptr;
+  const double* v_ext_ = nullptr;
+  const double* held_x() const { return slot_ != kNoSlot ? x_ext_ : x_hat_.data(); }
+  const double* held_v() const { return slot_ != kNoSlot ? v_ext_ : v_hat_.data(); }
   // The tick rules' verdict on a sequence (counts stale and duplicate); kAccepted: use it.
   RxVerdict judge(std::int64_t seq);
   void hold(std::int64_t seq, double send_time_s);  // the newly used packet's bookkeeping

@@ -132,33 +132,38 @@ void TickRecords::reserve(std::size_t trace_rows, std::size_t state_rows, int do
 void receive_packets(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
   StageScope stage(Stage::rx_drain);
   const double now_s = in.max_age_s ? net::monotonic_s() : 0.0;
-  in.ep->drain_packets([&](const net::RxPacket& p) {
+  in.ep->drain_packets([&](const net::RxPacket& p) -> bool {  // true: the link keeps the RX buffer
     const int n = in.sender_to_nbr[p.sender];
     if (n < 0) {  // the decoder knows the same neighbours (unknown_sender): a table out of step
       ++cnt.foreign_packets;
-      return;
+      return false;
     }
     if (static_cast<std::int64_t>(p.seq) < in.run_k0) {  // probing's packets, still in the ring
       ++cnt.probe_packets_after_run;
-      return;
+      return false;
     }
     if (in.max_age_s) {
       if (!p.has_echo) {
         ++cnt.no_echo;
-        return;
+        return false;
       }
       if (p.age_bound_s(now_s) > in.max_age_s[n]) {
         ++cnt.age_over_bound;
-        return;
+        return false;
       }
     }
     platform::trace::packet_rx(static_cast<std::uint32_t>(p.sender), p.seq, static_cast<std::uint32_t>(p.count));
     // The endpoint judged the rest (net/README.md "Receive-path sanity"): the link applies its tick
-    // rules only, counting what it does not use (stale, duplicate).
+    // rules only, counting what it does not use (stale, duplicate), and reads a packet it uses in
+    // its RX buffer (the one copy of the payload: the decoder's into that buffer).
     const std::int64_t seq = static_cast<std::int64_t>(p.seq) - in.run_k0;
-    in.core->rx(n).take(seq, p.send_time_s, p.x_hat, p.v_hat);
+    std::uint32_t released = rt::RxLink::kNoSlot;
+    in.core->rx(n).take(seq, p.send_time_s, p.x_hat, p.v_hat, p.slot, released);
     if (in.recorder) in.recorder->rt_packet(kr, n, seq, p.send_time_s, p.x_hat, p.v_hat);  // replay offers it again
     ++cnt.rx_offered;
+    if (released == p.slot) return false;
+    if (released != rt::RxLink::kNoSlot) in.ep->release_rx(released);  // the packet it replaced
+    return true;
   });
 }
 

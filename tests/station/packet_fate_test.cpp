@@ -328,3 +328,25 @@ TEST(PacketJudgedOnce, every_kind_of_bad_packet_moves_exactly_one_counter_by_one
   // and a good one still is, after all that
   STRCMP_EQUAL((link + "accepted+1").c_str(), r.feed(r.packet(s0 + 20)).c_str());
 }
+
+// The link reads the packet it uses in its RX buffer (no copy), so that buffer must stay out of the
+// ring while it is held: after more packets than the ring has buffers went round it (each refused
+// by the age guard: no echo), the link still holds the used packet's values, and buffers it gave
+// back are used again (nothing leaks: the ring never ran full).
+TEST(PacketJudgedOnce, the_used_packet_stays_intact_in_its_buffer_while_the_ring_turns_over) {
+  ReceivePipeline r;
+  const int n = r.sender_to_nbr[r.sender];
+  std::uint64_t seq = r.next_seq;
+  STRCMP_EQUAL(("link" + std::to_string(n) + ".accepted+1").c_str(),
+               r.feed(r.packet(seq, [](net::WireConfig&, net::OutgoingState&, std::vector<double>& x) { x[0] += 0.001; })).c_str());
+  const float used = static_cast<float>(r.x0[0] + 0.001);  // as the float32 wire carries it
+  for (std::size_t i = 0; i < net::Endpoint::kRxBuffers + 8; ++i)
+    STRCMP_EQUAL("tick.no_echo+1", r.feed(r.packet(++seq, [](net::WireConfig&, net::OutgoingState& o, std::vector<double>& x) {
+      o.has_echo = false;
+      x[0] += 0.002;
+    })).c_str());
+  DOUBLES_EQUAL(static_cast<double>(used), r.core.rx(n).newest_x_hat()[0], 0.0);
+  for (int i = 0; i < 3 * static_cast<int>(net::Endpoint::kRxBuffers); ++i)  // each replaces the held one, which goes back
+    STRCMP_EQUAL(("link" + std::to_string(n) + ".accepted+1").c_str(), r.feed(r.packet(++seq)).c_str());
+  CHECK_EQUAL(0u, r.ep->stats().rx_ring_full);
+}

@@ -1,7 +1,7 @@
 // libFuzzer target: a station's whole receive path with arbitrary datagrams:
 //   decoder + reassembly (net/wire.hpp) with the endpoint's limits (a fuzzer-chosen source
 //   address, the sequence ceiling of our own tick) -> the payload envelope (net/envelope.hpp)
-//   -> the tick's echo-based age guard (net::RxPacket::age_bound_s) -> rt::RxLink::take and
+//   -> the tick's echo-based age guard (net::RxPacket::age_bound_s) -> rt::RxLink::offer and
 //   begin_tick, for three neighbours.
 // The input is split into datagrams by a 3-byte prefix (2 bytes length, 1 byte control: bit 0
 // re-sign with the real key so the fuzzer gets past the MAC, bits 1-3 the source address
@@ -99,7 +99,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     p.echo_time_s = static_cast<double>(st.echo_seq) * kT;
     if (!p.has_echo || p.age_bound_s(static_cast<double>(tick) * kT) > kMaxAge) continue;
     haptic::rt::RxLink& l = links[st.sender - 1];
-    l.take(static_cast<std::int64_t>(st.seq), 0.0, x.data(), v.data());  // as the tick does: the tick rules only
+    l.offer(static_cast<std::int64_t>(st.seq), 0.0, x.data(), v.data(), static_cast<int>(kValues));
     const auto view = l.begin_tick(tick);
     if (view.index_delay < 0) std::abort();
     if (!env.contains(view.x_hat, view.v_hat, kValues)) std::abort();

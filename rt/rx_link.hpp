@@ -68,7 +68,7 @@ class RxLink {
   RxVerdict take(std::int64_t sequence, double send_time_s, const double* x_hat, const double* v_hat, std::uint32_t slot,
                  std::uint32_t& released);
   // An unjudged one: kBadSize unless dofs matches, kNonFinite if a value is NaN/inf (the held packet
-  // stays intact), else as take().
+  // stays intact), else the tick rules as take(), the values copied into the link.
   RxVerdict offer(std::int64_t sequence, double send_time_s, const double* x_hat, const double* v_hat, int dofs);
   TickView begin_tick(std::int64_t k);
   std::int64_t newest_sequence() const { return newest_seq_; }  // sequence of the held packet (the one a tick uses)

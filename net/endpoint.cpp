@@ -39,6 +39,9 @@ const EndpointConfig& checked(const EndpointConfig& cfg, const Transport* t) {
   if (cfg.value_count == 0 || cfg.value_count > 3u * 100000u)
     throw std::invalid_argument("net: scene value count (3 x nodes) must be in [1, 300000]");
   if (cfg.peers.empty()) throw std::invalid_argument("net.peers must list at least one neighbor");
+  if (cfg.peers.size() > Endpoint::kRxHeld)
+    throw std::invalid_argument("net.peers lists " + std::to_string(cfg.peers.size()) + " neighbours; at most " +
+                                std::to_string(Endpoint::kRxHeld) + " (the tick holds one receive buffer per neighbour)");
   if (cfg.delay_queue_datagrams < 16 || cfg.delay_queue_datagrams > (1u << 20))
     throw std::invalid_argument("net.delay_queue_datagrams must be in [16, 1048576]");
   if (cfg.io_priority < 0 || cfg.io_priority > 98)

@@ -40,6 +40,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "net/delay_queue.hpp"
@@ -145,6 +146,7 @@ struct RxPacket {
   const double* v_hat = nullptr;
   std::uint32_t count = 0;
   double delivered_s = 0.0;      // CLOCK_MONOTONIC when the I/O thread put it in the RX ring
+  std::uint32_t slot = 0;        // the RX buffer holding x_hat, v_hat (drain_packets: keep it, release_rx)
   // Clock-free upper bound on this data's age at our time now_s: the sender sent it after it
   // received our packet stamped echo_time_s, so age <= now_s - echo_time_s (a round trip).
   // +inf without an echo. RT-safe.
@@ -154,6 +156,7 @@ struct RxPacket {
 class Endpoint {
  public:
   static constexpr std::size_t kRxBuffers = 64;
+  static constexpr std::size_t kRxHeld = 32;  // RX buffers the RT side may keep (one per neighbour: net.peers <= this)
   static constexpr std::size_t kTxBuffers = 16;
 
   // Allocates everything. Throws std::invalid_argument naming the config key on bad config.
@@ -183,7 +186,9 @@ class Endpoint {
     }
     return n;
   }
-  // Same, handing an RxPacket (adds the echo, for the age guard of net/README.md). RT-safe.
+  // Same, handing an RxPacket (adds the echo, for the age guard of net/README.md). An on_packet that
+  // returns bool keeps the buffer when it returns true: its values stay valid and untouched (out of
+  // the ring) until release_rx(p.slot); the RT side may hold at most kRxHeld buffers. RT-safe.
   template <class F>
   std::size_t drain_packets(F&& on_packet, std::size_t max_packets = std::numeric_limits<std::size_t>::max()) {
     std::size_t n = 0;
@@ -201,12 +206,19 @@ class Endpoint {
       p.v_hat = p.x_hat + value_count_;
       p.count = value_count_;
       p.delivered_s = static_cast<double>(m.delivered_ns) * 1e-9;
-      on_packet(static_cast<const RxPacket&>(p));
-      rx_.consumer_release(idx);
+      p.slot = idx;
+      if constexpr (std::is_same_v<std::invoke_result_t<F&, const RxPacket&>, bool>) {
+        if (!on_packet(static_cast<const RxPacket&>(p))) rx_.consumer_release(idx);
+      } else {
+        on_packet(static_cast<const RxPacket&>(p));
+        rx_.consumer_release(idx);
+      }
       ++n;
     }
     return n;
   }
+  // Gives back an RX buffer drain_packets' on_packet kept. RT-safe.
+  void release_rx(std::uint32_t slot) { rx_.consumer_release(slot); }
   // Queues (seq, send_time_s, x_hat, v_hat) for every neighbor. send_time_s is CLOCK_MONOTONIC
   // seconds (monotonic_s()); a negative value lets the I/O thread stamp it. false (and counted
   // as a TX overrun) when the I/O thread is behind. RT-safe (no allocation/lock; one

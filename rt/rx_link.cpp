@@ -70,13 +70,10 @@ void RxLink::init(int dofs, const double* x0, const double* v0, std::int64_t ini
   unused_ = false;  // the assumed initial state carries no velocity sample to use
   counters_ = RxCounters{};
   last_tick_ = INT64_MIN;
+  slot_ = kNoSlot;
 }
 
-RxVerdict RxLink::offer(std::int64_t seq, double send_time_s, const double* x_hat, const double* v_hat, int dofs) {
-  if (dofs != dofs_ || !x_hat || !v_hat) {
-    ++counters_.bad_size;
-    return RxVerdict::kBadSize;
-  }
+RxVerdict RxLink::judge(std::int64_t seq) {
   if (seq == newest_seq_) {
     ++counters_.duplicate;
     return RxVerdict::kDuplicate;
@@ -85,18 +82,10 @@ RxVerdict RxLink::offer(std::int64_t seq, double send_time_s, const double* x_ha
     ++counters_.stale;
     if (rule_ == RxRule::kNewestBySequence) return RxVerdict::kStale;
   }
-  const std::int64_t now = last_tick_ == INT64_MIN ? 0 : last_tick_;
-  if (seq > now + max_ahead_) {
-    ++counters_.future;
-    return RxVerdict::kFuture;
-  }
-  // Into the landing buffers (the held packet stays intact if this one is refused), then swapped in.
-  if ((copy_non_finite(x_hat, x_in_.data(), dofs_) | copy_non_finite(v_hat, v_in_.data(), dofs_)) != 0) {
-    ++counters_.non_finite;
-    return RxVerdict::kNonFinite;
-  }
-  x_hat_.swap(x_in_);  // swaps the buffers: no allocation
-  v_hat_.swap(v_in_);
+  return RxVerdict::kAccepted;
+}
+
+void RxLink::hold(std::int64_t seq, double send_time_s) {
   newest_seq_ = seq;
   max_seen_ = std::max(max_seen_, seq);
   newest_send_time_ = send_time_s;
@@ -104,13 +93,43 @@ RxVerdict RxLink::offer(std::int64_t seq, double send_time_s, const double* x_ha
   // sample already used (a duplicate arriving after a newer packet): delta = 0 then.
   unused_ = rule_ == RxRule::kNewestBySequence || !was_used(seq);
   ++counters_.accepted;
+}
+
+RxVerdict RxLink::take(std::int64_t seq, double send_time_s, const double* x_hat, const double* v_hat, std::uint32_t slot,
+                       std::uint32_t& released) {
+  released = slot;
+  const RxVerdict v = judge(seq);
+  if (v != RxVerdict::kAccepted) return v;
+  released = slot_;  // the buffer held until now goes back; the new one is read in place
+  slot_ = slot;
+  x_ext_ = x_hat;
+  v_ext_ = v_hat;
+  hold(seq, send_time_s);
+  return RxVerdict::kAccepted;
+}
+
+RxVerdict RxLink::offer(std::int64_t seq, double send_time_s, const double* x_hat, const double* v_hat, int dofs) {
+  if (dofs != dofs_ || !x_hat || !v_hat) {
+    ++counters_.bad_size;
+    return RxVerdict::kBadSize;
+  }
+  const RxVerdict v = judge(seq);
+  if (v != RxVerdict::kAccepted) return v;
+  // Into the landing buffers (the held packet stays intact if this one is refused), then swapped in.
+  if ((copy_non_finite(x_hat, x_in_.data(), dofs_) | copy_non_finite(v_hat, v_in_.data(), dofs_)) != 0) {
+    ++counters_.non_finite;
+    return RxVerdict::kNonFinite;
+  }
+  x_hat_.swap(x_in_);  // swaps the buffers: no allocation
+  v_hat_.swap(v_in_);
+  hold(seq, send_time_s);
   return RxVerdict::kAccepted;
 }
 
 RxLink::TickView RxLink::begin_tick(std::int64_t k) {
   TickView v;
   v.index_delay = k - newest_seq_;
-  if (v.index_delay < 0) {  // data stamped ahead of our tick (within max_ahead): never a negative delay
+  if (v.index_delay < 0) {  // data stamped ahead of our tick (within the sender's slack): never a negative delay
     v.index_delay = 0;
     ++counters_.ahead_ticks;
   }
@@ -119,8 +138,8 @@ RxLink::TickView RxLink::begin_tick(std::int64_t k) {
   if (!unused_ && k != last_tick_) ++counters_.sustained_ticks;
   unused_ = false;
   last_tick_ = k;
-  v.x_hat = x_hat_.data();
-  v.v_hat = v_hat_.data();
+  v.x_hat = held_x();
+  v.v_hat = held_v();
   v.send_time_s = newest_send_time_;
   counters_.max_index_delay = std::max(counters_.max_index_delay, v.index_delay);
   return v;

@@ -22,6 +22,11 @@ struct ReceivedState {
   const double* x_hat = nullptr;  // count doubles each
   const double* v_hat = nullptr;
   int count = 0;
+  // A real station's packet in an RX buffer of its endpoint (RxLink::take: the tick rules only, the
+  // link reads the buffer in place): its slot, and where the buffer the link gives back goes
+  // (RxLink::kNoSlot: none). kNoSlot (default): offer(), which checks size and finiteness and copies.
+  std::uint32_t slot = RxLink::kNoSlot;
+  std::uint32_t* released = nullptr;
 };
 
 // The inputs of one tick besides its packets.
@@ -38,16 +43,23 @@ struct NoTickObserver {
   void stepping() {}
 };
 
+// One packet into core.rx(p.link) at index seq - k0: taken in place when it names an RX buffer
+// (RxLink::take), else offered (RxLink::offer). Returns the link's verdict. RT-safe.
+inline RxVerdict hand_in(StationCore& core, std::int64_t k0, const ReceivedState& p) {
+  const std::int64_t index = p.seq - k0;
+  return p.slot != RxLink::kNoSlot ? core.rx(p.link).take(index, p.send_time_s, p.x_hat, p.v_hat, p.slot, *p.released)
+                                   : core.rx(p.link).offer(index, p.send_time_s, p.x_hat, p.v_hat, p.count);
+}
+
 // The tick: packets(offer) calls offer(const ReceivedState&) once per packet received for this tick
-// (offer returns the link's verdict); each is offered to core.rx(link) at index seq - k0 and then
+// (offer returns the link's verdict); each is handed to its link (hand_in) and then
 // observer.offered(packet, index, verdict) is called; after the last, observer.stepping(); then
 // core.tick(k, device_position_m, step_s). Returns the tick's output. RT-safe as above.
 template <class Packets, class Observer = NoTickObserver>
 StationCore::TickOutput drive_tick(StationCore& core, const TickDrive& in, Packets&& packets, Observer&& observer = Observer{}) {
   packets([&](const ReceivedState& p) {
-    const std::int64_t index = p.seq - in.k0;
-    const RxVerdict v = core.rx(p.link).offer(index, p.send_time_s, p.x_hat, p.v_hat, p.count);
-    observer.offered(p, index, v);
+    const RxVerdict v = hand_in(core, in.k0, p);
+    observer.offered(p, p.seq - in.k0, v);
     return v;
   });
   observer.stepping();

@@ -159,7 +159,10 @@ std::string ReplayResult::summary() const {
 ReplayResult replay_session(const std::string& path, const ReplayOptions& opt, const ReplayObserver& observer) {
   h5::Id file = h5::open_file_read(path);
   auto setup = read_core_setup(file.get());
-  if (h5::has_attr(file.get(), "first_tick") && h5::attr_i64(file.get(), "first_tick") > 0)
+  // A ring that wrapped starts after its first tick's core state; a whole-run log may start late (a
+  // station whose loop began after the run's first tick) and holds its initial state there.
+  if (h5::has_attr(file.get(), "ring_ticks") && h5::attr_i64(file.get(), "ring_ticks") > 0 && h5::has_attr(file.get(), "first_tick") &&
+      h5::attr_i64(file.get(), "first_tick") > 0)
     throw NotReplayable("a ring of the last " + std::to_string(h5::attr_i64(file.get(), "ring_ticks")) + " ticks (station.record_ring_s) that starts at tick " +
                         std::to_string(h5::attr_i64(file.get(), "first_tick")) +
                         ": it holds no core state there, so it is for inspection (h5py; rows in ring order, see ring_next_row), not replay;"

@@ -289,9 +289,6 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
       sc.solver.kind = r.solver_choice.kind;
     }
     r.core = std::make_unique<rt::StationCore>(sc);
-    // Sequence sanity in the receive links too (run indices: beyond our tick + the net's slack).
-    for (int n = 0; n < r.core->neighbor_count(); ++n)
-      r.core->rx(n).set_max_ahead(static_cast<std::int64_t>(plan.net.endpoint.max_sequence_ahead_ticks));
     for (int R : r.bounds.round_trip_ticks) r.max_age_s.push_back((R + S.age_slack_ticks) * built.spec.period_s);
     r.tx_deadband = rt::TxDeadband(built.spec.tx_deadband, built.scene.dofs, built.spec.period_s);
     r.status = PhaseStatus::kOk;

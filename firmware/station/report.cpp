@@ -55,10 +55,10 @@ void add_run_json(const StationOutcome& o, json& j) {
   j["max_node_speed_m_per_s"] = !ran ? json(nullptr) : std::isfinite(c->max_speed_m_per_s) ? json(c->max_speed_m_per_s) : json("inf");
   j["port_energy_min_J"] = or_null(ran, ran ? c->port_min_J : 0);
   j["no_neighbour_ticks"] = c ? c->no_neighbour_ticks : 0;
-  // Run packets the tick refused: age guard (no echo of our sends / age bound over the limit) and
-  // the receive links (future sequence, non-finite, stale, duplicate).
-  j["rx_refused"] = {{"no_echo", c ? c->no_echo : 0}, {"age_over_bound", c ? c->age_over_bound : 0},
-                     {"receive_link", c ? c->rx_refused : 0}};
+  // Run packets the tick's age guard refused (no echo of our sends / age bound over the limit); what
+  // the receive links did not use is per link (rx_stale_reordered, rx_duplicate), what the endpoint
+  // refused is in drops.
+  j["rx_refused"] = {{"no_echo", c ? c->no_echo : 0}, {"age_over_bound", c ? c->age_over_bound : 0}};
   j["push_failures"] = (c ? c->push_failures : 0) + (o.probe ? o.probe->push_failures : 0);
   // the trace's flags carry kTraceStateSent (station/tick.hpp) on every trace_every-th tick
   j["trace_every"] = o.plan->file.station.trace_every;
@@ -194,8 +194,6 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
     l["rx_accepted"] = rc.accepted;
     l["rx_stale_reordered"] = rc.stale;
     l["rx_duplicate"] = rc.duplicate;
-    l["rx_future_refused"] = rc.future;
-    l["rx_non_finite_refused"] = rc.non_finite;
     l["rx_ahead_ticks"] = rc.ahead_ticks;
     l["rx_sustained_ticks"] = rc.sustained_ticks;
     l["max_index_delay_ticks"] = rc.max_index_delay;

@@ -15,50 +15,56 @@ namespace {
 using platform::trace::Stage;
 using platform::trace::StageScope;
 
-// This tick's packets (rt::drive_tick's source): the RX ring drained, every packet of a
-// neighbour's run (sequence number >= run_k0) handed to `offer`. The age guard: a packet whose
-// echo-based age bound (now - our own send stamp of the sequence it echoes) exceeds the
-// neighbour's limit, or that echoes none of our sends, is refused. RT-safe.
+// This tick's packets (rt::drive_tick's source): the RX ring drained; what the tick alone can judge
+// here (the endpoint judged the rest, net/README.md "Receive-path sanity"): a sender with no link,
+// probing's packets still in the ring, and the age guard (a packet whose echo-based age bound, now -
+// our own send stamp of the sequence it echoes, exceeds the neighbour's limit, or that echoes none
+// of our sends). Every other packet is handed to its link in its RX buffer (RxLink::take: the one
+// copy of the payload is the decoder's into that buffer); the buffer the link gives back returns to
+// the endpoint. RT-safe.
 template <class Offer>
 void drain_rx(const TickInputs& in, TickCounters& cnt, Offer&& offer) {
   StageScope stage(Stage::rx_drain);
   const double now_s = in.max_age_s ? net::monotonic_s() : 0.0;
-  in.ep->drain_packets([&](const net::RxPacket& p) {
+  in.ep->drain_packets([&](const net::RxPacket& p) -> bool {  // true: the link keeps the RX buffer
     const int n = in.sender_to_nbr[p.sender];
-    if (n < 0) {
+    if (n < 0) {  // the decoder knows the same neighbours (unknown_sender): a table out of step
       ++cnt.foreign_packets;
-      return;
+      return false;
     }
-    if (static_cast<std::int64_t>(p.seq) < in.run_k0) {
+    if (static_cast<std::int64_t>(p.seq) < in.run_k0) {  // probing's packets, still in the ring
       ++cnt.probe_packets_after_run;
-      return;
+      return false;
     }
     if (in.max_age_s) {
       if (!p.has_echo) {
         ++cnt.no_echo;
-        return;
+        return false;
       }
       if (p.age_bound_s(now_s) > in.max_age_s[n]) {
         ++cnt.age_over_bound;
-        return;
+        return false;
       }
     }
     platform::trace::packet_rx(static_cast<std::uint32_t>(p.sender), p.seq, static_cast<std::uint32_t>(p.count));
-    offer(rt::ReceivedState{n, static_cast<std::int64_t>(p.seq), p.send_time_s, p.x_hat, p.v_hat, static_cast<int>(p.count)});
+    std::uint32_t released = rt::RxLink::kNoSlot;
+    offer(rt::ReceivedState{n, static_cast<std::int64_t>(p.seq), p.send_time_s, p.x_hat, p.v_hat, static_cast<int>(p.count), p.slot, &released});
+    if (released == p.slot) return false;
+    if (released != rt::RxLink::kNoSlot) in.ep->release_rx(released);  // the packet it replaced
+    return true;
   });
 }
 
-// What run tick kr does with each packet's verdict (rt::drive_tick's observer): refusals counted;
-// with a recorder every offered packet recorded with kr and its run index (the replay re-offers
-// them), except what the sanity checks refused. The solve's trace stage starts after the last. RT-safe.
+// What run tick kr does with each packet (rt::drive_tick's observer): with a recorder every packet
+// handed to a link recorded with kr and its run index (the replay offers them again); the link
+// counts what it does not use. The solve's trace stage starts after the last. RT-safe.
 struct RunTickObserver {
   const TickInputs& in;
   TickCounters& cnt;
   std::int64_t kr;
   void offered(const rt::ReceivedState& p, std::int64_t index, rt::RxVerdict v) {
-    if (v != rt::RxVerdict::kAccepted) ++cnt.rx_refused;
-    if (in.recorder && p.count == in.dofs && v != rt::RxVerdict::kFuture && v != rt::RxVerdict::kNonFinite)
-      in.recorder->rt_packet(kr, p.link, index, p.send_time_s, p.x_hat, p.v_hat);
+    (void)v;
+    if (in.recorder) in.recorder->rt_packet(kr, p.link, index, p.send_time_s, p.x_hat, p.v_hat);
     ++cnt.rx_offered;
   }
   void stepping() { platform::trace::solve_begin(); }
@@ -177,6 +183,15 @@ void TickRecords::reserve(std::size_t trace_rows, std::size_t state_rows, int do
   state_k.assign(state_rows, 0);
   state_x.assign(state_rows * static_cast<std::size_t>(dofs), 0.0);
   trace_n = state_n = 0;
+}
+
+void receive_packets(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
+  RunTickObserver observer{in, cnt, kr};
+  drain_rx(in, cnt, [&](const rt::ReceivedState& p) {
+    const rt::RxVerdict v = rt::hand_in(*in.core, in.run_k0, p);
+    observer.offered(p, p.seq - in.run_k0, v);
+    return v;
+  });
 }
 
 bool any_neighbour_within_bound(rt::StationCore& core, std::int64_t kr) {

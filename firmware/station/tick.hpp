@@ -70,13 +70,21 @@ struct TickCounters {
   std::uint64_t foreign_packets = 0, probe_packets_after_run = 0, rx_offered = 0, push_failures = 0, device_fault_ticks = 0;
   std::uint64_t no_neighbour_ticks = 0;  // ticks with every neighbour's data beyond its index-delay bound
   std::uint64_t age_over_bound = 0, no_echo = 0;  // packets refused by the age guard (TickInputs::max_age_s)
-  std::uint64_t rx_refused = 0;          // packets the receive links refused (future sequence, non-finite, stale, duplicate)
   std::uint64_t outside_workspace_ticks = 0;  // device samples beyond its workspace radius (clamped onto it)
   std::int64_t ticks_run = 0;
   std::int64_t last_wake_ns = 0;  // the previous tick's wake (the measured step T_k = wake - this)
   bool diverged = false;
   double diverged_at_s = -1, port_min_J = 0, max_speed_m_per_s = 0;
 };
+
+// The tick's receive stage: drains the endpoint's RX ring into the receive links. The endpoint has
+// judged each packet (authentic, from its address, in sequence range, finite, in the envelope, the
+// scene's size); here only what the tick alone knows: probing's packets left in the ring (counted,
+// dropped), the age guard (a run packet that echoes none of our sends, or whose echo-based age bound
+// now exceeds the neighbour's max_age_s, counted and dropped), then the link's tick rules
+// (rt::RxLink::take: stale and duplicate counted there). Each packet is counted once. Sequence
+// numbers become run indices (seq - run_k0); with a recorder every taken packet is recorded. RT-safe.
+void receive_packets(const TickInputs& in, TickCounters& cnt, std::int64_t kr);
 
 // Whether any neighbour's newest data is within its index-delay bound at run tick kr (the core
 // couples to it). RT-safe.

@@ -170,3 +170,31 @@ TEST(RxLinkPaperRule, samples_older_than_the_window_count_as_used) {
   CHECK_THROWS(std::invalid_argument, parse_rx_rule("latest", "--receive-rule"));
   CHECK_TRUE(parse_rx_rule("paper", "x") == RxRule::kMostRecentlyReceived);
 }
+
+// take(): a packet an endpoint has judged is read where it lies (no copy): the link holds the
+// caller's buffer and gives back the one it held before; a packet it does not use is given back at once.
+TEST_GROUP(RxLinkTake){};
+
+TEST(RxLinkTake, the_used_packet_is_read_in_its_buffer_and_the_replaced_buffer_is_given_back) {
+  Harness h;
+  const double a[6] = {1, 2, 3, 10, 20, 30}, b[6] = {4, 5, 6, 40, 50, 60}, c[6] = {7, 8, 9, 70, 80, 90};
+  std::uint32_t released = 99;
+  CHECK_TRUE(h.rx.take(5, 0.0, a, a + 3, 11, released) == RxVerdict::kAccepted);
+  CHECK_EQUAL(RxLink::kNoSlot, released);  // held nothing before (its own initial state)
+  auto v = h.rx.begin_tick(6);
+  POINTERS_EQUAL(a, v.x_hat);  // in place
+  POINTERS_EQUAL(a + 3, v.v_hat);
+  POINTERS_EQUAL(a, h.rx.newest_x_hat());
+  CHECK_TRUE(h.rx.take(4, 0.0, c, c + 3, 13, released) == RxVerdict::kStale);
+  CHECK_EQUAL(13u, released);  // not used: the caller's at once
+  CHECK_TRUE(h.rx.take(5, 0.0, c, c + 3, 14, released) == RxVerdict::kDuplicate);
+  CHECK_EQUAL(14u, released);
+  CHECK_TRUE(h.rx.take(7, 0.0, b, b + 3, 12, released) == RxVerdict::kAccepted);
+  CHECK_EQUAL(11u, released);  // the buffer of packet 5 goes back
+  v = h.rx.begin_tick(8);
+  POINTERS_EQUAL(b, v.x_hat);
+  DOUBLES_EQUAL(40.0, v.v_hat[0], 0);
+  CHECK_EQUAL(1, v.index_delay);
+  CHECK_TRUE(v.fresh);
+  CHECK_EQUAL(2u, h.rx.counters().accepted);
+}

@@ -17,8 +17,6 @@ using haptic::test::PaperWorld;
 
 namespace {
 
-constexpr std::int64_t kMaxAhead = 50;  // the station's net.max_sequence_ahead_ticks default
-
 struct Twins {
   const PaperWorld& w = PaperWorld::get();
   std::unique_ptr<StationCore> a, twin, nb;  // nb: the genuine neighbour (station 1)
@@ -29,8 +27,6 @@ struct Twins {
     a = std::make_unique<StationCore>(w.station(0, 2, {1}, 30, d0, 5));
     twin = std::make_unique<StationCore>(w.station(0, 2, {1}, 30, d0, 5));
     nb = std::make_unique<StationCore>(w.station(1, 2, {0}, 30, d1, 5));
-    a->rx(0).set_max_ahead(kMaxAhead);
-    twin->rx(0).set_max_ahead(kMaxAhead);
   }
   // Runs `ticks` ticks, packets delayed by 2 ticks each way, A pushing into its face; before A's
   // tick k, attack(k, A's link) may offer whatever it likes. Returns the first tick where A and
@@ -69,23 +65,6 @@ struct Twins {
 
 TEST_GROUP(RxAttack){};
 
-TEST(RxAttack, ForgedFarFutureSequenceWithShiftedPositionsChangesNothing) {
-  Twins t;
-  std::vector<double> forged;
-  const int diff = t.run(400, [&](std::int64_t k, RxLink& rx) {
-    if (k != 100) return;
-    // A packet with a valid MAC would get this far without the decoder's ceiling: sequence
-    // current + 10^6, every node shifted 50 mm.
-    forged.assign(t.sent.back().begin(), t.sent.back().end());
-    for (int i = 0; i < t.dofs; ++i) forged[static_cast<std::size_t>(i)] += 0.05;
-    CHECK(rx.offer(k + 1'000'000, 0, forged.data(), forged.data() + t.dofs, t.dofs) == RxVerdict::kFuture);
-  });
-  CHECK_EQUAL(-1, diff);
-  CHECK_EQUAL(1u, t.a->rx(0).counters().future);
-  CHECK_EQUAL(0u, t.a->edge_drop_events());  // the genuine stream is still used
-  CHECK_TRUE(t.a->in_contact());
-}
-
 TEST(RxAttack, NonFinitePayloadIsRefusedAndChangesNothing) {
   Twins t;
   std::vector<double> bad;
@@ -106,11 +85,10 @@ TEST(RxAttack, DataStampedSlightlyAheadGivesIndexDelayZeroNeverNegative) {
   RxLink rx;
   const double z[3] = {0, 0, 0};
   rx.init(3, z, z);
-  rx.set_max_ahead(5);
   rx.begin_tick(10);
   const double x[3] = {1, 2, 3};
-  CHECK(rx.offer(14, 0, x, x, 3) == RxVerdict::kAccepted);  // 4 ahead of our tick 10: within the slack
-  CHECK(rx.offer(16, 0, x, x, 3) == RxVerdict::kFuture);    // 6 ahead: refused
+  // 4 ahead of our tick 10 (within the sender's slack: the decoder refuses beyond it, future_sequence)
+  CHECK(rx.offer(14, 0, x, x, 3) == RxVerdict::kAccepted);
   const auto v = rx.begin_tick(11);
   CHECK_EQUAL(0, v.index_delay);
   CHECK_EQUAL(1u, rx.counters().ahead_ticks);

@@ -24,6 +24,7 @@
 
 #include "tests/support/dense_reference.hpp"
 #include "rt/gains.hpp"
+#include "rt/rx_link.hpp"
 #include "rt/scene.hpp"
 #include "rt/station.hpp"
 #include "rt/step_solver.hpp"
@@ -510,8 +511,31 @@ void BM_StationPeakMemory(benchmark::State& state) {
   }
 }
 
+// One received packet of n nodes into a receive link, as the station hands it over: mode 0 offer()
+// (the checked way in: size, finiteness, a copy: what the station did before the receive link read
+// the packet in its RX buffer), mode 1 take() (the tick rules only, read in place).
+void BM_RxLinkReceive(benchmark::State& state) {
+  const int dofs = 3 * static_cast<int>(state.range(0));
+  const bool in_place = state.range(1) == 1;
+  std::vector<double> x0(static_cast<std::size_t>(dofs), 0.0), pkt(2 * static_cast<std::size_t>(dofs), 0.001);
+  haptic::rt::RxLink link;
+  link.init(dofs, x0.data(), nullptr);
+  std::int64_t seq = 0;
+  std::uint32_t released = 0;
+  for (auto _ : state) {
+    ++seq;
+    const auto v = in_place ? link.take(seq, 0.0, pkt.data(), pkt.data() + dofs, static_cast<std::uint32_t>(seq % 2), released)
+                            : link.offer(seq, 0.0, pkt.data(), pkt.data() + dofs, dofs);
+    benchmark::DoNotOptimize(v);
+    benchmark::DoNotOptimize(link.newest_x_hat());
+    benchmark::ClobberMemory();
+  }
+  state.counters["payload_bytes"] = 2.0 * dofs * sizeof(double);
+}
+
 }  // namespace
 
+BENCHMARK(BM_RxLinkReceive)->ArgsProduct({{33, 16000}, {0, 1}})->Unit(benchmark::kNanosecond);
 // 33 nodes: every solver and the strawman
 BENCHMARK(BM_Tick)->ArgsProduct({{33}, {kDirectArg, kIterativeArg, kDenseOnceArg, kCholmodArg, kAutoArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_DenseRefactorEveryTick)->Arg(33)->Unit(benchmark::kMicrosecond);

@@ -166,8 +166,7 @@ def run_once(a, name, run_dir, plan, flood_args, env, lab_tool, flood_bin):
             "exit_code": j["exit_code"], "edge_energy_trips": j["edge_energy_trips"],
             "drops": j["drops"]["by_reason"], "datagrams_received": j["drops"]["datagrams_received"],
             "rx_refused": j["rx_refused"], "damping_Ns_per_m": j["damping_Ns_per_m"],
-            "links": {str(l["peer"]): {k: l[k] for k in ("rx_accepted", "rx_packets_run", "rate_limited", "round_trip_bound_ticks",
-                                                          "rx_future_refused", "rx_non_finite_refused")}
+            "links": {str(l["peer"]): {k: l[k] for k in ("rx_accepted", "rx_packets_run", "rate_limited", "round_trip_bound_ticks")}
                       for l in j["links"]}}
     if attacker is not None:
         res["attacker"] = json.load(open(os.path.join(run_dir, "attacker.json")))

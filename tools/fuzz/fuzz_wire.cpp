@@ -57,10 +57,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   static const PayloadEnvelope env = envelope();
   Decoder dec(cfg, peers, kValues, 2);
   haptic::rt::RxLink links[3];
-  for (auto& l : links) {
-    l.init(static_cast<int>(kValues), env.rest_x.data(), nullptr);
-    l.set_max_ahead(static_cast<std::int64_t>(kAhead));
-  }
+  for (auto& l : links) l.init(static_cast<int>(kValues), env.rest_x.data(), nullptr);
   std::vector<std::uint8_t> buf;
   std::vector<double> x(kValues), v(kValues);
   std::int64_t tick = 0;

@@ -78,6 +78,11 @@
 //                                    # force) and exit 4; also the envelope's speed bound on neighbours' packets, [1e-6, 1e3]
 //   max_no_neighbour_fraction = 0.1 # the run fails (exit 7) when more than this share of its ticks had no
 //                                    # neighbour within its bound (all edges dropped), [0, 1]
+//   max_missed_cycles = 500          # the run ends with exit 11 when its run loop skipped more than this many periods
+//                                    # in all (the host stalled the station: SIGSTOP, swap, a starved CPU); 500 = 1 s
+//                                    # at 2 ms, four times net.peer_silence_s, after which the neighbours have long
+//                                    # declared this station silent; a loaded 2-core test machine skips 5-104 in an
+//                                    # 8-15 s four-process run (the probing loop's skips, ~190 there, are not counted), [0, 1e9]
 //   trace_every = 1                  # every k-th tick into station-<id>-trace.csv, [1, 100000]
 //   state_every = 5                  # every k-th tick the whole x into station-<id>-state.csv, [1, 100000]
 //   clock_offset_max_ms = 20         # bound on each neighbour's tick-grid offset (its epoch in our clock minus ours,
@@ -205,6 +210,7 @@ struct StationSection {
   int io_priority = 70;
   std::string out_dir = ".";
   double max_no_neighbour_fraction = 0.1;
+  std::int64_t max_missed_cycles = 500;  // 1 s of periods at 2 ms (exit 11 above it)
   double divergence_speed_m_per_s = 50;
   int trace_every = 1;
   int state_every = 5;

@@ -457,6 +457,10 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
   if (!pr.failure.empty()) log.error(pr.failure);
   const RunConditions c = run_conditions(o);
   const int code = exit_code(c);
+  if (c.missed_cycles)
+    log.error("missed " + std::to_string(c.missed_cycles_total) + " cycles (more than station.max_missed_cycles = " +
+              std::to_string(plan.file.station.max_missed_cycles) + "): the host stalled this station (SIGSTOP, swap, a starved CPU); " +
+              "its neighbours saw it silent meanwhile");
   try {
     write_station_outputs(o, c);
   } catch (const std::exception& e) {
@@ -469,7 +473,7 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
     names += n;
   }
   std::cout << log.tag << ": " << (code == kExitOk ? "done" : "FAILED (" + names + ")") << ", " << pr.counters.ticks_run << " ticks, "
-            << pr.run.loop.overruns << " overruns, "
+            << pr.run.loop.overruns << " overruns (" << c.missed_cycles_total << " missed cycles), "
             << (pr.counters.diverged ? "DIVERGED" : c.held_by_gate ? "HELD BY THE GATE" : c.edge_drop_rule_acted ? "stable with EDGES DROPPED" : "stable")
             << ", B_i "
             << (pr.built ? std::to_string(pr.build.bounds.damping_Ns_per_m) : std::string("none")) << " N s/m; exit " << code << "; wrote "
@@ -484,7 +488,9 @@ std::string exit_code_help() {
          "9 device missing (device.kind names a device that could not be started; a station never substitutes a simulated user: "
          "device.kind = \"simulated\" asks for one); "
          "4 diverged; 5 safe state latched (loop exception or device fault); 6 passivity condition not met (B_i below eq. (18) on the measured "
-         "round-trip bounds); 4, 5 and 6 are safety stops: the systemd unit does not restart them, the operator re-arms; 7 no neighbour (none answered probing, or none within its bound for more than station.max_no_neighbour_fraction "
+         "round-trip bounds); 4, 5 and 6 are safety stops: the systemd unit does not restart them, the operator re-arms; "
+         "11 missed cycles (the run loop skipped more than station.max_missed_cycles periods: the host stalled the station; not a safety stop, "
+         "the systemd unit restarts it); 7 no neighbour (none answered probing, or none within its bound for more than station.max_no_neighbour_fraction "
          "of the run); 3 other run-time failure; 8 the run ended before the scripted release (e.g. --duration shorter than station.release_s); "
          "10 held by the gate (the per-edge energy gate tripped: the run stayed bounded by the gate, not by eq. (18) alone). "
          "station-<id>.json names each condition under \"conditions\" (also edge_drop_rule_acted, which has no code of its own) "

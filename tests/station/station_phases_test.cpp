@@ -584,6 +584,8 @@ TEST(StationPhases, ExitCodesFollowTheDocumentedOrder) {
   LONGS_EQUAL(kExitRunFailed, exit_code(c));
   c.no_neighbour = true;
   LONGS_EQUAL(kExitNoNeighbour, exit_code(c));
+  c.missed_cycles = true;  // the stall is the cause of what its neighbours saw: named before 7
+  LONGS_EQUAL(kExitMissedCycles, exit_code(c));
   c.passivity_not_met = true;
   LONGS_EQUAL(kExitPassivityNotMet, exit_code(c));
   c.safe_state_latched = true;
@@ -595,7 +597,47 @@ TEST(StationPhases, ExitCodesFollowTheDocumentedOrder) {
   LONGS_EQUAL(kExitDiverged, exit_code(c));
   c.device_missing = true;
   LONGS_EQUAL(kExitDeviceMissing, exit_code(c));
-  LONGS_EQUAL(9u, c.names().size());
+  LONGS_EQUAL(10u, c.names().size());
+}
+
+// A station the host stalled (SIGSTOP, swap) says so: more than station.max_missed_cycles periods
+// skipped by its run loop is the condition "missed_cycles" and exit 11; not
+// a safety stop (the systemd unit may restart it).
+TEST(StationPhases, MissedCyclesOverTheBoundAreAConditionWithTheirOwnExitCode) {
+  test::StationText s;
+  s.peers = {2, 3, 4};
+  s.out_dir = "/tmp";
+  s.station_extra = "max_missed_cycles = 500\n";
+  const PlanResult pr = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  CHECK_TEXT(pr.status == PhaseStatus::kOk, pr.error.c_str());
+  RunPhaseResult run;
+  ProbeResult probe;
+  StationOutcome o;
+  o.plan = pr.plan.get();
+  o.run = &run;
+  o.probe = &probe;
+  run.loop.missed_cycles = 500;  // at the bound: not over it
+  CHECK_FALSE(run_conditions(o).missed_cycles);
+  CHECK(exit_code(run_conditions(o)) != kExitMissedCycles);  // (8: this outcome ran no ticks)
+  probe.loop_missed_cycles = 5000;  // probing's start-up skips are not counted
+  CHECK_FALSE(run_conditions(o).missed_cycles);
+  run.loop.missed_cycles = 501;
+  RunConditions c = run_conditions(o);
+  CHECK(c.missed_cycles);
+  LONGS_EQUAL(501, static_cast<long>(c.missed_cycles_total));
+  LONGS_EQUAL(kExitMissedCycles, exit_code(c));
+  CHECK(has(json(c.names()), "missed_cycles"));
+  run.loop.missed_cycles = 1259;  // a 2.5 s SIGSTOP
+  probe.loop_missed_cycles = 0;
+  LONGS_EQUAL(kExitMissedCycles, exit_code(run_conditions(o)));
+  for (const int code : kSafetyStopExitCodes) CHECK(code != kExitMissedCycles);
+  s.station_extra = "max_missed_cycles = -1\n";
+  try {
+    parse_station_file(s.text());
+    FAIL("a negative max_missed_cycles was accepted");
+  } catch (const std::invalid_argument& e) {
+    CHECK_TEXT(std::string(e.what()).find("station.max_missed_cycles") != std::string::npos, e.what());
+  }
 }
 
 // No silent stand-in: a configured device that cannot be started ends the run with its

@@ -89,6 +89,10 @@
 //                                    # from NTP-style echoes, net/README.md): a larger offset, beyond the measurement's
 //                                    # own uncertainty (half the round trip), is warned about, [0, 1e6]
 //   clock_offset_refuse = false      # true: refuse to couple instead (exit 3) when the bound is exceeded
+//   clock_offset_limit_ms = 1000     # a neighbour's tick-grid offset is used up to this (its sequence numbers mapped onto
+//                                    # our grid, station/neighbours.hpp) and refused beyond it, less its uncertainty (exit 3,
+//                                    # naming both stations and the offset); the I/O thread's sequence ceiling
+//                                    # (net.max_sequence_ahead_ticks) is widened by it, [0, 10000]
 //   record = false                   # true: the session log out_dir/station-<id>.h5 (HDF5, firmware/session/log.hpp;
 //                                    # `haptic-station replay` re-runs it bit-exactly)
 //   record_max_mb = 1024             # rows past this many MB are not written (the log says from which tick), [1, 1e6]
@@ -216,6 +220,7 @@ struct StationSection {
   int state_every = 5;
   double clock_offset_max_ms = 20.0;
   bool clock_offset_refuse = false;
+  double clock_offset_limit_ms = 1000.0;  // the grid offset used (sequences mapped) up to this; refused beyond
   double rejoin_probe_s = 0.4;
   int age_slack_ticks = 10;
 };

@@ -81,7 +81,8 @@ void open_resources(const StationPlan& plan, StationResources& res, const Log& l
   log.say("device: " + std::string(res.dev.device->capabilities().name) +
           (res.dev.simulated ? " (simulated user: scenario script of user " + std::to_string(plan.station_id) + ")" : ""));
   if (!log.quiet && !res.dev.report.empty()) std::cerr << res.dev.report << (res.dev.report.back() == '\n' ? "" : "\n");
-  res.ep = std::make_unique<net::Endpoint>(plan.net.endpoint, plan.net.make_transport());
+  // its sequence ceiling lets a neighbour's grid run up to station.clock_offset_limit_ms ahead of ours
+  res.ep = std::make_unique<net::Endpoint>(plan.endpoint_config(), plan.net.make_transport());
   res.gpio = std::make_unique<platform::GpioToggler>(plan.file.gpio);
   if (!plan.file.telemetry.path.empty()) {
     platform::TelemetryConfig tc = plan.file.telemetry;
@@ -229,6 +230,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
   }
   TickInputs in = tick_inputs(plan, res, pr.build.core.get(), &pr.build.tx_deadband, &pr.build.map);
   if (!pr.build.max_age_s.empty()) in.max_age_s = pr.build.max_age_s.data();  // the age guard
+  if (pr.probe.clock.shift_ticks.size() == plan.neighbours().size()) in.seq_shift_ticks = pr.probe.clock.shift_ticks.data();  // grid offsets
   RunObserver observer;
   observer.rt_ready = [&](const std::string& summary, const std::vector<std::string>& warnings) {
     if (!summary.empty() && !log.quiet) std::cerr << summary << (summary.back() == '\n' ? "" : "\n");
@@ -281,8 +283,14 @@ void note_probe(const StationPlan& plan, PhaseResults& pr, const Log& log) {
   nlohmann::json offs = nlohmann::json::object();
   for (std::size_t n = 0; n < pr.probe.clock.grid_offset_s.size(); ++n) {
     const double o = pr.probe.clock.grid_offset_s[n], u = pr.probe.clock.uncertainty_s[n];
+    const std::int64_t shift = n < pr.probe.clock.shift_ticks.size() ? pr.probe.clock.shift_ticks[n] : 0;
     offs[std::to_string(plan.neighbours()[n] + 1)] = {{"tick_grid_offset_ms", std::isfinite(o) ? nlohmann::json(o * 1e3) : nlohmann::json(nullptr)},
-                                                      {"uncertainty_ms", std::isfinite(u) ? nlohmann::json(u * 1e3) : nlohmann::json(nullptr)}};
+                                                      {"uncertainty_ms", std::isfinite(u) ? nlohmann::json(u * 1e3) : nlohmann::json(nullptr)},
+                                                      {"sequence_shift_ticks", shift}};
+    if (shift != 0)
+      log.say("station " + std::to_string(plan.neighbours()[n] + 1) + "'s tick grid is " + std::to_string(std::lround(std::abs(o) * 1e3)) + " ms " +
+              (o > 0 ? "behind" : "ahead of") + " ours: its sequence numbers are mapped onto our grid (" + std::to_string(shift) +
+              " ticks; used up to station.clock_offset_limit_ms = " + std::to_string(plan.file.station.clock_offset_limit_ms) + ")");
   }
   pr.lifecycle["clock_offsets"] = offs;
   pr.lifecycle["clock_offset_exceeded"] = pr.probe.clock.exceeded;

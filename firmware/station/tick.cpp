@@ -14,7 +14,8 @@ namespace {
 using platform::trace::Stage;
 using platform::trace::StageScope;
 
-// Drains the RX ring into the receive links; sequence numbers become run indices (seq - run_k0).
+// Drains the RX ring into the receive links; sequence numbers, mapped onto our tick grid
+// (TickInputs::seq_shift_ticks), become run indices (seq + shift - run_k0).
 // The age guard: a packet whose echo-based age bound (now - our own send stamp of the sequence it
 // echoes) exceeds the neighbour's limit, or that echoes none of our sends, is refused. RT-safe.
 void drain_rx(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
@@ -26,7 +27,8 @@ void drain_rx(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
       ++cnt.foreign_packets;
       return;
     }
-    if (static_cast<std::int64_t>(p.seq) < in.run_k0) {
+    const std::int64_t seq = static_cast<std::int64_t>(p.seq) + (in.seq_shift_ticks ? in.seq_shift_ticks[n] : 0);  // on our grid
+    if (seq < in.run_k0) {
       ++cnt.probe_packets_after_run;
       return;
     }
@@ -41,12 +43,12 @@ void drain_rx(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
       }
     }
     platform::trace::packet_rx(static_cast<std::uint32_t>(p.sender), p.seq, static_cast<std::uint32_t>(p.count));
-    const rt::RxVerdict v = in.core->rx(n).offer(static_cast<std::int64_t>(p.seq) - in.run_k0, p.send_time_s, p.x_hat, p.v_hat,
+    const rt::RxVerdict v = in.core->rx(n).offer(seq - in.run_k0, p.send_time_s, p.x_hat, p.v_hat,
                                                  static_cast<int>(p.count));
     if (v != rt::RxVerdict::kAccepted) ++cnt.rx_refused;
     // Recorded as offered (the replay re-offers them), except what the sanity checks refused.
     if (in.recorder && static_cast<int>(p.count) == in.dofs && v != rt::RxVerdict::kFuture && v != rt::RxVerdict::kNonFinite)
-      in.recorder->rt_packet(kr, n, static_cast<std::int64_t>(p.seq) - in.run_k0, p.send_time_s, p.x_hat, p.v_hat);
+      in.recorder->rt_packet(kr, n, seq - in.run_k0, p.send_time_s, p.x_hat, p.v_hat);
     ++cnt.rx_offered;
   });
 }

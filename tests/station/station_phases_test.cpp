@@ -571,6 +571,30 @@ TEST(StationPhases, AnExceptionAtTheLoopBoundaryEntersTheSafeStateAndIsReported)
   std::filesystem::remove_all(s.out_dir);
 }
 
+// A station whose clock is 0.3 s behind (its epoch 0.3 s later on the common clock) couples: each
+// end maps the other's sequence numbers onto its own grid by the offset measured while probing
+// (station.clock_offset_limit_ms, default 1 s). Without the mapping the hub exits 3 and the leaf 7.
+TEST(StationPhases, AStationWhoseClockIsOffByAThirdOfASecondRunsWithTheOthers) {
+  const std::string dir = test::fresh_dir("clock");
+  const std::string keys = "probe_s = 1.2\nsetup_gap_s = 0.1\nduration_s = 2.0\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 0.5\n"
+                           "max_no_neighbour_fraction = 0.5\n";
+  const std::vector<int> codes = run_four(dir, 109, {keys, keys, keys, keys}, {"", "", "", ""}, [](int id, const std::string&, RunOverrides& o) {
+    if (id == 2) o.start_at += 0.3;
+  });
+  for (int i = 1; i <= 4; ++i) {
+    const json j = station_json(dir, i);
+    CHECK_TEXT(codes[static_cast<std::size_t>(i - 1)] == kExitOk, (std::to_string(i) + ": " + j["conditions"].dump() + " " + j["error"].dump()).c_str());
+    CHECK(no_condition_but_edge_drops(j["conditions"]));
+  }
+  const json leaf = station_json(dir, 2), hub = station_json(dir, 1);
+  DOUBLES_EQUAL(-300.0, number(leaf["lifecycle"]["clock_offsets"]["1"]["tick_grid_offset_ms"]), 10.0);
+  CHECK(std::abs(number(leaf["lifecycle"]["clock_offsets"]["1"]["sequence_shift_ticks"]) + 150) <= 5);
+  CHECK(std::abs(number(hub["lifecycle"]["clock_offsets"]["2"]["sequence_shift_ticks"]) - 150) <= 5);
+  CHECK(number(leaf["rx_offered"]) > 300);  // the hub's packets reached the leaf's core (~850 of 1000 ticks overlap)
+  CHECK(number(leaf["links"][0]["rx_accepted"]) > 300);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(StationPhases, ExitCodesFollowTheDocumentedOrder) {
   RunConditions c;
   LONGS_EQUAL(kExitOk, exit_code(c));

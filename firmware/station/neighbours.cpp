@@ -110,6 +110,23 @@ std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::
   return lines;
 }
 
+std::vector<std::string> round_trip_over_bound_events(const StationPlan& plan, const net::EndpointStats& stats,
+                                                      const std::vector<int>& bound_ticks) {
+  std::vector<std::string> lines;
+  const auto& nbrs = plan.neighbours();
+  const double T = plan.built->spec.period_s;
+  for (std::size_t n = 0; n < nbrs.size(); ++n) {
+    const net::PeerStats& p = peer_of(plan, stats, n);
+    if (p.rtt_over_bound_events == 0) continue;
+    const double bound_s = n < bound_ticks.size() ? static_cast<double>(bound_ticks[n]) * T : p.rtt_probe_bound_s;
+    lines.push_back("neighbour " + std::to_string(nbrs[n] + 1) + ": " + std::to_string(p.rtt_over_bound_events) +
+                    " round trip(s) above the probing bound " + ms(p.rtt_probe_bound_s) + " (largest " + ms(p.rtt_max_s) + "; R_ij = " + ms(bound_s) +
+                    " with the loss allowance, which B_i and the age guard use): B_i was not re-derived; data older than the age guard's "
+                    "bound is refused (that edge dropped while late) (net/README.md, \"Policy for a measured round trip above the bound\")");
+  }
+  return lines;
+}
+
 std::vector<std::string> PeerEventLog::poll(const net::EndpointStats& stats) {
   std::vector<std::string> lines;
   const auto& nbrs = plan_->neighbours();

@@ -55,6 +55,13 @@ ClockCheck check_clock_offsets(const StationPlan& plan, const net::EndpointStats
 // tripped 1 time(s) ...". Called after the run loop ended (reads the core). Not RT-safe.
 std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::StationCore& core);
 
+// The round trips net/ measured above the bound during the run, one line per neighbour that had
+// any: "neighbour 2: 1 round trip(s) above the probing bound 30.0 ms (largest 33.9 ms; R_ij = 48.0 ms
+// with the loss allowance, which B_i and the age guard use): B_i was not re-derived; ...".
+// `bound_ticks`: the build's R_ij per neighbour. Not RT-safe.
+std::vector<std::string> round_trip_over_bound_events(const StationPlan& plan, const net::EndpointStats& stats,
+                                                      const std::vector<int>& bound_ticks);
+
 class PeerEventLog {
  public:
   PeerEventLog(const StationPlan& plan, std::int64_t run_epoch_ns, double quiet_s);

@@ -163,6 +163,7 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
   l["rtt_max_ms"] = or_null(rtt, 1e3 * ps.rtt_max_s);
   l["rtt_bound_ms_now"] = or_null(ps.rtt_has_bound, 1e3 * ps.rtt_bound_s);
   l["rtt_over_bound_events"] = ps.rtt_over_bound_events;
+  l["rtt_echoes_before_pause"] = ps.echoes_before_pause;  // held through the set-up gap: no round-trip samples
   l["peer_safe_state_packets"] = ps.safe_state_packets;
   l["rate_limited"] = ps.rate_limited;
   // Pairwise keys (net.key_file): agreed with this neighbour, how often (a restart re-agrees), hellos.

@@ -203,6 +203,17 @@ void open_view(const StationPlan& plan, StationResources& res, const BuildResult
 }
 
 // run: refuses a core that is ready more than a second after the run start; else the loop.
+// After the run loop (no race with the tick): the energy gate's trips and the round trips measured
+// above the bound, one line per neighbour each, logged and kept in the neighbour events.
+void say_after_run(const StationPlan& plan, StationResources& res, PhaseResults& pr, nlohmann::json& ev, const Log& log) {
+  std::vector<std::string> lines = energy_bound_events(plan, *pr.build.core);
+  for (auto& line : round_trip_over_bound_events(plan, res.ep->stats(), pr.build.bounds.round_trip_ticks)) lines.push_back(std::move(line));
+  for (const auto& line : lines) {
+    log.say(line);
+    ev.push_back(line);
+  }
+}
+
 void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
   const double late_s = static_cast<double>(read_clocks().monotonic_ns - plan.times.run_epoch_ns()) * 1e-9;
   if (late_s > 1.0 && !plan.times.rejoin) {
@@ -248,6 +259,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
       ev.push_back(line);
     }
   };
+  res.ep->sending_resumes(net::monotonic_ns());  // echoes held through the set-up gap are no round trips
   if (plan.times.rejoin) {
     // A rejoining station refreshes the adopted state at its first tick (RT-safe, preallocated).
     Eigen::VectorXd x = pr.build.core->x(), v = pr.build.core->v();
@@ -264,10 +276,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
     pr.run = run_loop(plan, in, pr.records, pr.counters, stop, observer);
   }
   pr.ran = true;
-  for (const auto& line : energy_bound_events(plan, *pr.build.core)) {  // after the loop: no race with the tick
-    log.say(line);
-    ev.push_back(line);
-  }
+  say_after_run(plan, res, pr, ev, log);
   pr.lifecycle["device"]["outside_workspace_ticks"] = pr.counters.outside_workspace_ticks;
   if (plan.times.rejoin) {
     pr.lifecycle["rejoin"]["state_from_station"] = pr.adopted.from_station;

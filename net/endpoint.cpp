@@ -417,7 +417,8 @@ void Endpoint::on_fingerprint(PeerState& p, const DecodedState& st) {
 
 void Endpoint::on_state(PeerState& p, const DecodedState& st, std::int64_t now_ns) {
   p.round_trip.note_received(st.seq, st.send_time_ns, now_ns);
-  if (st.has_echo) p.round_trip.on_echo(st.echo_seq, st.echo_hold_ns, st.send_time_ns, now_ns, send_records_);
+  if (st.has_echo)
+    p.round_trip.on_echo(st.echo_seq, st.echo_hold_ns, st.send_time_ns, now_ns, send_records_, echo_floor_ns_.load(std::memory_order_relaxed));
   p.received.on_state(st.seq, st.send_time_ns, now_ns);
 }
 

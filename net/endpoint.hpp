@@ -230,6 +230,11 @@ class Endpoint {
   // authentic datagrams with a sequence above k + max_sequence_ahead_ticks are dropped
   // (future_sequence). RT-safe (one relaxed atomic store).
   void note_tick(std::int64_t k) { ceiling_.note_tick(k); }
+  // A planned pause of our sending ends now (the gap between probing and the run, while the core is
+  // built): echoes of packets sent before now_ns are no round-trip samples (the neighbours held them
+  // through the pause; RoundTrip::on_echo). Thread-safe (one atomic store). Not RT-safe by intent:
+  // called once, before the run loop.
+  void sending_resumes(std::int64_t now_ns) { echo_floor_ns_.store(now_ns, std::memory_order_relaxed); }
   // Per neighbor (index into config peers): the current round-trip bound in ticks of
   // period_s and its generation (bumps on every change: probing done, over-bound event).
   // RT-safe (atomics).
@@ -339,6 +344,7 @@ class Endpoint {
   std::atomic<bool> tx_spinning_{false};
   std::atomic<std::uint64_t> tx_pushed_{0};
   SequenceCeiling ceiling_;
+  std::atomic<std::int64_t> echo_floor_ns_{0};  // sending_resumes()
   DeliveryWaiter rx_waiter_;  // wait_rx()
 
   // The I/O thread and what only it touches.

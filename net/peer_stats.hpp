@@ -25,6 +25,7 @@ struct PeerStats {
   std::uint64_t bytes_sent = 0;           // UDP payload bytes of the datagrams sent (every kind)
   std::uint64_t rtt_samples = 0;
   std::uint64_t echoes_unmatched = 0;     // echoes naming a sequence we have no send record of
+  std::uint64_t echoes_before_pause = 0;  // echoes of packets sent before our sending paused (no round-trip sample)
   double rtt_last_s = 0.0, rtt_mean_s = 0.0, rtt_min_s = 0.0, rtt_max_s = 0.0, rtt_bound_s = 0.0;
   bool rtt_probing = false, rtt_has_bound = false;
   std::uint64_t rtt_over_bound_events = 0, rtt_bound_generation = 0;

@@ -30,7 +30,7 @@ void RoundTrip::note_received(std::uint64_t seq, std::int64_t send_time_ns, std:
 }
 
 void RoundTrip::on_echo(std::uint64_t echo_seq, std::int64_t hold_ns, std::int64_t peer_send_ns, std::int64_t now_ns,
-                        const SendRecords& records) {
+                        const SendRecords& records, std::int64_t echo_floor_ns) {
   if (sampled_any_ && echo_seq <= last_sampled_echo_) return;  // seen before
   const std::int64_t* sent = records.send_ns(echo_seq);
   if (sent == nullptr) {
@@ -39,6 +39,10 @@ void RoundTrip::on_echo(std::uint64_t echo_seq, std::int64_t hold_ns, std::int64
   }
   sampled_any_ = true;
   last_sampled_echo_ = echo_seq;
+  if (*sent < echo_floor_ns) {  // held through our own pause: not the link's round trip
+    ++echoes_before_pause_;
+    return;
+  }
   if (rtt_.add_sample(static_cast<double>(now_ns - *sent) * 1e-9)) publish_bound();
   offset_.add(static_cast<double>(*sent) * 1e-9, static_cast<double>(peer_send_ns) * 1e-9,
               static_cast<double>(std::max<std::int64_t>(0, hold_ns)) * 1e-9, static_cast<double>(now_ns) * 1e-9);
@@ -75,6 +79,7 @@ void RoundTrip::fill(PeerStats& s) const {
   s.rtt_over_bound_events = rtt_.over_bound_events();
   s.rtt_bound_generation = rtt_.generation();
   s.echoes_unmatched = echoes_unmatched_;
+  s.echoes_before_pause = echoes_before_pause_;
   s.clock_offset_samples = offset_.samples();
   s.clock_offset_s = offset_.offset_s();
   s.clock_offset_rtt_s = offset_.path_s();

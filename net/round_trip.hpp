@@ -86,9 +86,12 @@ class RoundTrip {
   // The echo of one of our sequences, held hold_ns by the neighbour, in its packet stamped
   // peer_send_ns (its clock) and received at now_ns: the first time this echo is seen, a round-trip
   // sample from our send record and a clock-offset sample; an echo naming a sequence we have no
-  // record of is counted (echoes_unmatched). An over-bound sample publishes the raised bound. RT-safe.
+  // record of is counted (echoes_unmatched). An over-bound sample publishes the raised bound.
+  // An echo of a packet we sent before echo_floor_ns (the end of a planned pause of our sending:
+  // the gap between probing and the run) is no sample: the neighbour held it through our pause, so
+  // now - send stamp measures the pause, not the link; counted (echoes_before_pause). RT-safe.
   void on_echo(std::uint64_t echo_seq, std::int64_t hold_ns, std::int64_t peer_send_ns, std::int64_t now_ns,
-               const SendRecords& records);
+               const SendRecords& records, std::int64_t echo_floor_ns = 0);
   // A new incarnation of the neighbour: its echoes and the offset window start afresh.
   void restart();
 
@@ -114,7 +117,7 @@ class RoundTrip {
   EchoSlot echo_, previous_echo_;
   std::uint64_t last_sampled_echo_ = 0;
   bool sampled_any_ = false;
-  std::uint64_t echoes_unmatched_ = 0;
+  std::uint64_t echoes_unmatched_ = 0, echoes_before_pause_ = 0;
   std::atomic<std::uint64_t> bound_ns_{0};
   std::atomic<std::uint64_t> bound_generation_{0};
 };

@@ -32,7 +32,7 @@ void parse_station_section(View root, StationFile& f) {
   only_keys(st, "station", {"id", "scenario", "users", "topology", "delay_matrix", "pushes", "push_seed", "allow_routed_peers", "run_subdir", "nodes", "duration_s", "seed", "period_min_s", "period_max_s", "delay_correlation", "push_start_s", "push_end_s", "release_s",
                             "start_clock", "start_at", "start_delay_s", "start_align_s", "probe_s", "setup_gap_s", "damping_margin", "consensus_passivity", "pspm_reservoir_J",
                             "loss_allowance_ticks", "loss_allowance_max_ticks", "solver", "tx_deadband_mm", "tx_max_interval_ticks", "tx_predict", "agreement_ticks", "damping_Ns_per_m", "io_priority",
-                            "out_dir", "max_no_neighbour_fraction", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse",
+                            "out_dir", "max_no_neighbour_fraction", "max_missed_cycles", "trace_every", "state_every", "clock_offset_max_ms", "clock_offset_refuse", "clock_offset_limit_ms",
                             "rejoin_probe_s", "record", "record_max_mb", "record_deflate", "record_ring_s", "view_port", "view_bind", "view_rate_hz", "age_slack_ticks", "edge_energy_bound_J", "edge_energy_leak_W",
                             "divergence_speed_m_per_s"});
   StationSection& s = f.station;
@@ -89,11 +89,13 @@ void parse_station_section(View root, StationFile& f) {
   s.out_dir = text(st["out_dir"], "station.out_dir", ".");
   if (s.out_dir.empty()) bad("station.out_dir", "a non-empty directory path");
   s.max_no_neighbour_fraction = real(st["max_no_neighbour_fraction"], "station.max_no_neighbour_fraction", 0.1, 0.0, 1.0);
+  s.max_missed_cycles = integer(st["max_missed_cycles"], "station.max_missed_cycles", 500, 0, 1000000000);
   s.divergence_speed_m_per_s = real(st["divergence_speed_m_per_s"], "station.divergence_speed_m_per_s", 50.0, 1e-6, 1e3);
   s.trace_every = static_cast<int>(integer(st["trace_every"], "station.trace_every", 1, 1, 100000));
   s.state_every = static_cast<int>(integer(st["state_every"], "station.state_every", 5, 1, 100000));
   s.clock_offset_max_ms = real(st["clock_offset_max_ms"], "station.clock_offset_max_ms", 20.0, 0.0, 1e6);
   s.clock_offset_refuse = boolean(st["clock_offset_refuse"], "station.clock_offset_refuse", false);
+  s.clock_offset_limit_ms = real(st["clock_offset_limit_ms"], "station.clock_offset_limit_ms", 1000.0, 0.0, 10000.0);
   s.rejoin_probe_s = real(st["rejoin_probe_s"], "station.rejoin_probe_s", 0.4, 0.1, 10);
   s.age_slack_ticks = static_cast<int>(integer(st["age_slack_ticks"], "station.age_slack_ticks", 10, 0, 100000));
 }

@@ -78,12 +78,21 @@
 //                                    # force) and exit 4; also the envelope's speed bound on neighbours' packets, [1e-6, 1e3]
 //   max_no_neighbour_fraction = 0.1 # the run fails (exit 7) when more than this share of its ticks had no
 //                                    # neighbour within its bound (all edges dropped), [0, 1]
+//   max_missed_cycles = 500          # the run ends with exit 11 when its run loop skipped more than this many periods
+//                                    # in all (the host stalled the station: SIGSTOP, swap, a starved CPU); 500 = 1 s
+//                                    # at 2 ms, four times net.peer_silence_s, after which the neighbours have long
+//                                    # declared this station silent; a loaded 2-core test machine skips 5-104 in an
+//                                    # 8-15 s four-process run (the probing loop's skips, ~190 there, are not counted), [0, 1e9]
 //   trace_every = 1                  # every k-th tick into station-<id>-trace.csv, [1, 100000]
 //   state_every = 5                  # every k-th tick the whole x into station-<id>-state.csv, [1, 100000]
 //   clock_offset_max_ms = 20         # bound on each neighbour's tick-grid offset (its epoch in our clock minus ours,
 //                                    # from NTP-style echoes, net/README.md): a larger offset, beyond the measurement's
 //                                    # own uncertainty (half the round trip), is warned about, [0, 1e6]
 //   clock_offset_refuse = false      # true: refuse to couple instead (exit 3) when the bound is exceeded
+//   clock_offset_limit_ms = 1000     # a neighbour's tick-grid offset is used up to this (its sequence numbers mapped onto
+//                                    # our grid, station/neighbours.hpp) and refused beyond it, less its uncertainty (exit 3,
+//                                    # naming both stations and the offset); the I/O thread's sequence ceiling
+//                                    # (net.max_sequence_ahead_ticks) is widened by it, [0, 10000]
 //   record = false                   # true: the session log out_dir/station-<id>.h5 (HDF5, firmware/session/log.hpp;
 //                                    # `haptic-station replay` re-runs it bit-exactly)
 //   record_max_mb = 1024             # rows past this many MB are not written (the log says from which tick), [1, 1e6]
@@ -205,11 +214,13 @@ struct StationSection {
   int io_priority = 70;
   std::string out_dir = ".";
   double max_no_neighbour_fraction = 0.1;
+  std::int64_t max_missed_cycles = 500;  // 1 s of periods at 2 ms (exit 11 above it)
   double divergence_speed_m_per_s = 50;
   int trace_every = 1;
   int state_every = 5;
   double clock_offset_max_ms = 20.0;
   bool clock_offset_refuse = false;
+  double clock_offset_limit_ms = 1000.0;  // the grid offset used (sequences mapped) up to this; refused beyond
   double rejoin_probe_s = 0.4;
   int age_slack_ticks = 10;
 };

@@ -55,12 +55,18 @@ ClockCheck check_clock_offsets(const StationPlan& plan, const net::EndpointStats
     if (p.clock_offset_samples == 0 || !std::isfinite(e)) {
       c.grid_offset_s.push_back(NAN);
       c.uncertainty_s.push_back(NAN);
+      c.shift_ticks.push_back(0);
       continue;
     }
     const double offset = (e - p.clock_offset_s) - epoch_s;
     const double unc = p.clock_offset_rtt_s / 2.0 + T;
     c.grid_offset_s.push_back(offset);
     c.uncertainty_s.push_back(unc);
+    // within the uncertainty the grids are one: no shift (a one-host session stays bit-for-bit as before)
+    c.shift_ticks.push_back(std::abs(offset) > unc ? std::llround(offset / T) : 0);
+    if (std::abs(offset) - unc > plan.file.station.clock_offset_limit_ms * 1e-3)
+      c.refusal += (c.refusal.empty() ? "" : "; ") + std::string("station ") + std::to_string(nbrs[n] + 1) + "'s tick grid is " + ms(std::abs(offset)) +
+                   " (+- " + ms(unc) + ") " + (offset > 0 ? "behind" : "ahead of") + " station " + std::to_string(plan.station_id) + "'s";
     if (std::abs(offset) - unc > bound) {
       c.exceeded = true;
       if (!c.message.empty()) c.message += "; ";
@@ -68,6 +74,9 @@ ClockCheck check_clock_offsets(const StationPlan& plan, const net::EndpointStats
                    " than ours (+- " + ms(unc) + ")";
     }
   }
+  if (!c.refusal.empty())
+    c.refusal = "refusing to couple: clock offset beyond station.clock_offset_limit_ms = " + ms(plan.file.station.clock_offset_limit_ms * 1e-3) +
+                ": " + c.refusal + " (their clocks, or start_at, differ: check NTP/PTP)";
   if (c.exceeded)
     c.message = "clock offset above station.clock_offset_max_ms = " + std::to_string(plan.file.station.clock_offset_max_ms) + ": " + c.message +
                 " (start_clock = \"realtime\" with unsynchronised clocks? check NTP/PTP)";
@@ -97,6 +106,23 @@ std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::
                   nbrs[n] + 1, gate.bound_J(j), static_cast<unsigned long long>(gate.trips(j)), static_cast<unsigned long long>(gate.gated_ticks(j)),
                   acc.peak_J(j), acc.edge_J(j), gate.release_J(j));
     lines.emplace_back(b);
+  }
+  return lines;
+}
+
+std::vector<std::string> round_trip_over_bound_events(const StationPlan& plan, const net::EndpointStats& stats,
+                                                      const std::vector<int>& bound_ticks) {
+  std::vector<std::string> lines;
+  const auto& nbrs = plan.neighbours();
+  const double T = plan.built->spec.period_s;
+  for (std::size_t n = 0; n < nbrs.size(); ++n) {
+    const net::PeerStats& p = peer_of(plan, stats, n);
+    if (p.rtt_over_bound_events == 0) continue;
+    const double bound_s = n < bound_ticks.size() ? static_cast<double>(bound_ticks[n]) * T : p.rtt_probe_bound_s;
+    lines.push_back("neighbour " + std::to_string(nbrs[n] + 1) + ": " + std::to_string(p.rtt_over_bound_events) +
+                    " round trip(s) above the probing bound " + ms(p.rtt_probe_bound_s) + " (largest " + ms(p.rtt_max_s) + "; R_ij = " + ms(bound_s) +
+                    " with the loss allowance, which B_i and the age guard use): B_i was not re-derived; data older than the age guard's "
+                    "bound is refused (that edge dropped while late) (net/README.md, \"Policy for a measured round trip above the bound\")");
   }
   return lines;
 }

@@ -31,10 +31,16 @@ struct NeighbourGrid {
 // The offset of each neighbour's tick grid against ours, in seconds on our clock:
 //   offset_n = (epoch_n in its clock - clock_offset_n) - our epoch,
 // with its uncertainty (half the round trip of the clock-offset sample, plus one period of push lag).
+// Used up to station.clock_offset_limit_ms: the run maps neighbour n's sequence numbers onto our
+// grid by shift_ticks[n] = round(offset_n / T) (its tick s happens at our tick s + shift), so a
+// station whose clock (or start_at) is off couples on time; beyond the limit (less the uncertainty)
+// the station refuses to couple, naming both stations and the offset.
 struct ClockCheck {
   std::vector<double> grid_offset_s, uncertainty_s;  // per neighbour (NaN: no estimate)
+  std::vector<std::int64_t> shift_ticks;             // per neighbour: added to its sequence numbers (0: no estimate)
   std::string message;  // "" when every known offset is within the bound beyond its uncertainty
   bool exceeded = false;
+  std::string refusal;  // "" when every known offset is within station.clock_offset_limit_ms
 };
 ClockCheck check_clock_offsets(const StationPlan& plan, const net::EndpointStats& stats, const NeighbourGrid& grid, std::int64_t epoch_ns);
 
@@ -48,6 +54,13 @@ ClockCheck check_clock_offsets(const StationPlan& plan, const net::EndpointStats
 // authenticated peer"), one line per neighbour that tripped: "neighbour 3: energy bound 0.1 J
 // tripped 1 time(s) ...". Called after the run loop ended (reads the core). Not RT-safe.
 std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::StationCore& core);
+
+// The round trips net/ measured above the bound during the run, one line per neighbour that had
+// any: "neighbour 2: 1 round trip(s) above the probing bound 30.0 ms (largest 33.9 ms; R_ij = 48.0 ms
+// with the loss allowance, which B_i and the age guard use): B_i was not re-derived; ...".
+// `bound_ticks`: the build's R_ij per neighbour. Not RT-safe.
+std::vector<std::string> round_trip_over_bound_events(const StationPlan& plan, const net::EndpointStats& stats,
+                                                      const std::vector<int>& bound_ticks);
 
 class PeerEventLog {
  public:

@@ -19,13 +19,18 @@ enum class PhaseStatus {
 // several conditions hold, the code is the first of this list that holds:
 //   2 configuration error, 9 device missing (device.kind names a device that could not be
 //   started; a station never substitutes a simulated user), 4 diverged, 5 safe state latched, 6 passivity condition not met,
+//   11 missed cycles (the run loop skipped more than station.max_missed_cycles periods in all: the
+//      host stalled the station; before 7, because a stalled station's neighbours see it silent and it may in turn
+//      see them out of bound: the stall is the cause, and the stalled station is the one that must say so),
 //   7 no neighbour (none answered probing, or none within its bound for more than
 //     station.max_no_neighbour_fraction of the run), 3 other run-time failure,
 //   8 the run ended before the scripted release,
 //   10 held by the gate (the per-edge energy gate tripped: the run stayed bounded by the gate's
 //      bound, not by eq. (18) alone; station-<id>.json's "gate" says how often and how much it
 //      removed); 0 otherwise.
-// A safety stop keeps its code: 10 is the last of the list, so it never replaces 4, 5 or 6.
+// A safety stop keeps its code: 10 is the last of the list and 11 comes after 6, so neither replaces 4, 5 or 6.
+// 11 is not a safety stop: no safety check of the core acted (else 4, 5 or 6 would be the code), the stall came
+// from the host, and a restarted station rejoins its session; the systemd unit restarts it like 3 and 7.
 // The edge-drop rule (a packet over its index-delay bound) is named in the conditions
 // ("edge_drop_rule_acted", counts in "gate") without a code of its own: it is eq. (18)'s own
 // over-bound action, and a lab run may see a few drop events on an honest network.
@@ -40,6 +45,7 @@ enum ExitCode : int {
   kExitBeforeRelease = 8,
   kExitDeviceMissing = 9,
   kExitHeldByGate = 10,
+  kExitMissedCycles = 11,
 };
 
 // Safety stops: the exits after which force output stays off until the operator has looked (only

@@ -558,4 +558,14 @@ PlanResult plan_station(const StationFile& file, const RunOverrides& overrides, 
   return r;
 }
 
+std::int64_t StationPlan::clock_offset_limit_ticks() const {
+  return static_cast<std::int64_t>(std::ceil(file.station.clock_offset_limit_ms * 1e-3 / built->spec.period_s));
+}
+
+net::EndpointConfig StationPlan::endpoint_config() const {
+  net::EndpointConfig ec = net.endpoint;
+  ec.max_sequence_ahead_ticks += static_cast<std::uint64_t>(clock_offset_limit_ticks());
+  return ec;
+}
+
 }  // namespace haptic::firmware

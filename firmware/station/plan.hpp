@@ -90,6 +90,12 @@ struct StationPlan {
   std::size_t state_capacity = 0;   // preallocated state rows (x dofs values each)
   bool ends_before_release = false; // the planned run ends at or before the scripted release
   std::vector<std::string> warnings;
+  // station.clock_offset_limit_ms in whole ticks (rounded up): how far a neighbour's tick grid may
+  // run ahead of ours and still be used (station/neighbours.hpp ClockCheck).
+  std::int64_t clock_offset_limit_ticks() const;
+  // The endpoint's configuration: net's, with its sequence ceiling (net.max_sequence_ahead_ticks)
+  // widened by clock_offset_limit_ticks(), so probing measures a grid offset up to the limit.
+  net::EndpointConfig endpoint_config() const;
 };
 
 struct PlanResult {

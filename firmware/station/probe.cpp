@@ -24,13 +24,16 @@ std::string id_list(const std::vector<int>& ids) {
 }
 
 // Neighbour packets into the tick grid; notes a neighbour already running the session (a run
-// packet, sequence number >= run_k0: its session started before ours). Not RT-safe.
+// packet, sequence number >= run_k0, further ahead of our tick than a grid offset within
+// station.clock_offset_limit_ms explains: its session started before ours). Not RT-safe.
 void take_neighbour_packets(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r) {
+  const std::int64_t k_now = (net::monotonic_ns() - plan.times.epoch_ns) / plan.times.period_ns;
+  const std::int64_t running_above = std::max(plan.times.run_k0, k_now + plan.clock_offset_limit_ticks());
   ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
     const int n = plan.peers.sender_to_nbr[sender];
     r.grid.add(n, seq, send_time_s, plan.built->spec.period_s);  // the neighbour's tick grid
     r.loss_counter.add(n, seq);                                   // and which of its probes arrived
-    if (n >= 0 && static_cast<std::int64_t>(seq) >= plan.times.run_k0 && r.running_session_from == 0) r.running_session_from = sender;
+    if (n >= 0 && static_cast<std::int64_t>(seq) >= running_above && r.running_session_from == 0) r.running_session_from = sender;
   });
 }
 
@@ -226,6 +229,11 @@ void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, 
 
 void check_clock(const StationPlan& plan, std::int64_t epoch_ns, ProbeResult& r) {
   r.clock = check_clock_offsets(plan, r.stats_at_end, r.grid, epoch_ns);
+  if (!r.clock.refusal.empty()) {
+    r.status = PhaseStatus::kFailed;
+    r.message = r.clock.refusal;
+    return;
+  }
   if (!r.clock.exceeded) return;
   if (plan.file.station.clock_offset_refuse) {
     r.status = PhaseStatus::kFailed;

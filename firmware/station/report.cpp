@@ -163,6 +163,7 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
   l["rtt_max_ms"] = or_null(rtt, 1e3 * ps.rtt_max_s);
   l["rtt_bound_ms_now"] = or_null(ps.rtt_has_bound, 1e3 * ps.rtt_bound_s);
   l["rtt_over_bound_events"] = ps.rtt_over_bound_events;
+  l["rtt_echoes_before_pause"] = ps.echoes_before_pause;  // held through the set-up gap: no round-trip samples
   l["peer_safe_state_packets"] = ps.safe_state_packets;
   l["rate_limited"] = ps.rate_limited;
   // Pairwise keys (net.key_file): agreed with this neighbour, how often (a restart re-agrees), hellos.
@@ -255,6 +256,7 @@ std::vector<std::string> RunConditions::names() const {
   if (diverged) n.push_back("diverged");
   if (safe_state_latched) n.push_back("safe_state_latched");
   if (passivity_not_met) n.push_back("passivity_condition_not_met");
+  if (missed_cycles) n.push_back("missed_cycles");
   if (no_neighbour) n.push_back("no_neighbour");
   if (failed) n.push_back("failed");
   if (ended_before_release) n.push_back("ended_before_release");
@@ -271,6 +273,9 @@ RunConditions run_conditions(const StationOutcome& o) {
   c.diverged = k && k->diverged;
   c.safe_state_latched = (o.run && o.run->loop_exception) || (!o.device_fault.empty() && o.device_fault != "none");
   c.passivity_not_met = o.build && o.build->status == PhaseStatus::kOk && !o.build->passivity_condition_met;
+  // the run loop's only: the probing loop's ticks do start-up work (key agreement) and skip ~190 on a loaded machine
+  c.missed_cycles_total = o.run ? o.run->loop.missed_cycles : 0;
+  c.missed_cycles = c.missed_cycles_total > static_cast<std::uint64_t>(p.file.station.max_missed_cycles);
   if (k && k->ticks_run > 0) c.no_neighbour_fraction = static_cast<double>(k->no_neighbour_ticks) / static_cast<double>(k->ticks_run);
   c.no_neighbour = o.failure_status == PhaseStatus::kNoNeighbour ||
                    (c.no_neighbour_fraction && *c.no_neighbour_fraction > p.file.station.max_no_neighbour_fraction);
@@ -294,6 +299,7 @@ int exit_code(const RunConditions& c) {
   if (c.diverged) return kExitDiverged;
   if (c.safe_state_latched) return kExitSafeState;
   if (c.passivity_not_met) return kExitPassivityNotMet;
+  if (c.missed_cycles) return kExitMissedCycles;
   if (c.no_neighbour) return kExitNoNeighbour;
   if (c.failed) return kExitRunFailed;
   if (c.ended_before_release) return kExitBeforeRelease;
@@ -310,6 +316,8 @@ nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c) 
   j["warnings"] = o.plan->warnings;
   j["no_neighbour_fraction"] = c.no_neighbour_fraction ? json(*c.no_neighbour_fraction) : json(nullptr);
   j["max_no_neighbour_fraction"] = o.plan->file.station.max_no_neighbour_fraction;
+  j["missed_cycles_total"] = c.missed_cycles_total;  // the run loop's (loop.missed_cycles)
+  j["max_missed_cycles"] = o.plan->file.station.max_missed_cycles;
   j["conditions"] = c.names();
   j["exit_code"] = exit_code(c);
   j["wall_time_s"] = o.wall_time_s;

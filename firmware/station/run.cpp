@@ -81,7 +81,8 @@ void open_resources(const StationPlan& plan, StationResources& res, const Log& l
   log.say("device: " + std::string(res.dev.device->capabilities().name) +
           (res.dev.simulated ? " (simulated user: scenario script of user " + std::to_string(plan.station_id) + ")" : ""));
   if (!log.quiet && !res.dev.report.empty()) std::cerr << res.dev.report << (res.dev.report.back() == '\n' ? "" : "\n");
-  res.ep = std::make_unique<net::Endpoint>(plan.net.endpoint, plan.net.make_transport());
+  // its sequence ceiling lets a neighbour's grid run up to station.clock_offset_limit_ms ahead of ours
+  res.ep = std::make_unique<net::Endpoint>(plan.endpoint_config(), plan.net.make_transport());
   res.gpio = std::make_unique<platform::GpioToggler>(plan.file.gpio);
   if (!plan.file.telemetry.path.empty()) {
     platform::TelemetryConfig tc = plan.file.telemetry;
@@ -202,6 +203,17 @@ void open_view(const StationPlan& plan, StationResources& res, const BuildResult
 }
 
 // run: refuses a core that is ready more than a second after the run start; else the loop.
+// After the run loop (no race with the tick): the energy gate's trips and the round trips measured
+// above the bound, one line per neighbour each, logged and kept in the neighbour events.
+void say_after_run(const StationPlan& plan, StationResources& res, PhaseResults& pr, nlohmann::json& ev, const Log& log) {
+  std::vector<std::string> lines = energy_bound_events(plan, *pr.build.core);
+  for (auto& line : round_trip_over_bound_events(plan, res.ep->stats(), pr.build.bounds.round_trip_ticks)) lines.push_back(std::move(line));
+  for (const auto& line : lines) {
+    log.say(line);
+    ev.push_back(line);
+  }
+}
+
 void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
   const double late_s = static_cast<double>(read_clocks().monotonic_ns - plan.times.run_epoch_ns()) * 1e-9;
   if (late_s > 1.0 && !plan.times.rejoin) {
@@ -229,6 +241,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
   }
   TickInputs in = tick_inputs(plan, res, pr.build.core.get(), &pr.build.tx_deadband, &pr.build.map);
   if (!pr.build.max_age_s.empty()) in.max_age_s = pr.build.max_age_s.data();  // the age guard
+  if (pr.probe.clock.shift_ticks.size() == plan.neighbours().size()) in.seq_shift_ticks = pr.probe.clock.shift_ticks.data();  // grid offsets
   RunObserver observer;
   observer.rt_ready = [&](const std::string& summary, const std::vector<std::string>& warnings) {
     if (!summary.empty() && !log.quiet) std::cerr << summary << (summary.back() == '\n' ? "" : "\n");
@@ -246,6 +259,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
       ev.push_back(line);
     }
   };
+  res.ep->sending_resumes(net::monotonic_ns());  // echoes held through the set-up gap are no round trips
   if (plan.times.rejoin) {
     // A rejoining station refreshes the adopted state at its first tick (RT-safe, preallocated).
     Eigen::VectorXd x = pr.build.core->x(), v = pr.build.core->v();
@@ -262,10 +276,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
     pr.run = run_loop(plan, in, pr.records, pr.counters, stop, observer);
   }
   pr.ran = true;
-  for (const auto& line : energy_bound_events(plan, *pr.build.core)) {  // after the loop: no race with the tick
-    log.say(line);
-    ev.push_back(line);
-  }
+  say_after_run(plan, res, pr, ev, log);
   pr.lifecycle["device"]["outside_workspace_ticks"] = pr.counters.outside_workspace_ticks;
   if (plan.times.rejoin) {
     pr.lifecycle["rejoin"]["state_from_station"] = pr.adopted.from_station;
@@ -281,8 +292,14 @@ void note_probe(const StationPlan& plan, PhaseResults& pr, const Log& log) {
   nlohmann::json offs = nlohmann::json::object();
   for (std::size_t n = 0; n < pr.probe.clock.grid_offset_s.size(); ++n) {
     const double o = pr.probe.clock.grid_offset_s[n], u = pr.probe.clock.uncertainty_s[n];
+    const std::int64_t shift = n < pr.probe.clock.shift_ticks.size() ? pr.probe.clock.shift_ticks[n] : 0;
     offs[std::to_string(plan.neighbours()[n] + 1)] = {{"tick_grid_offset_ms", std::isfinite(o) ? nlohmann::json(o * 1e3) : nlohmann::json(nullptr)},
-                                                      {"uncertainty_ms", std::isfinite(u) ? nlohmann::json(u * 1e3) : nlohmann::json(nullptr)}};
+                                                      {"uncertainty_ms", std::isfinite(u) ? nlohmann::json(u * 1e3) : nlohmann::json(nullptr)},
+                                                      {"sequence_shift_ticks", shift}};
+    if (shift != 0)
+      log.say("station " + std::to_string(plan.neighbours()[n] + 1) + "'s tick grid is " + std::to_string(std::lround(std::abs(o) * 1e3)) + " ms " +
+              (o > 0 ? "behind" : "ahead of") + " ours: its sequence numbers are mapped onto our grid (" + std::to_string(shift) +
+              " ticks; used up to station.clock_offset_limit_ms = " + std::to_string(plan.file.station.clock_offset_limit_ms) + ")");
   }
   pr.lifecycle["clock_offsets"] = offs;
   pr.lifecycle["clock_offset_exceeded"] = pr.probe.clock.exceeded;
@@ -457,6 +474,10 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
   if (!pr.failure.empty()) log.error(pr.failure);
   const RunConditions c = run_conditions(o);
   const int code = exit_code(c);
+  if (c.missed_cycles)
+    log.error("missed " + std::to_string(c.missed_cycles_total) + " cycles (more than station.max_missed_cycles = " +
+              std::to_string(plan.file.station.max_missed_cycles) + "): the host stalled this station (SIGSTOP, swap, a starved CPU); " +
+              "its neighbours saw it silent meanwhile");
   try {
     write_station_outputs(o, c);
   } catch (const std::exception& e) {
@@ -469,7 +490,7 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
     names += n;
   }
   std::cout << log.tag << ": " << (code == kExitOk ? "done" : "FAILED (" + names + ")") << ", " << pr.counters.ticks_run << " ticks, "
-            << pr.run.loop.overruns << " overruns, "
+            << pr.run.loop.overruns << " overruns (" << c.missed_cycles_total << " missed cycles), "
             << (pr.counters.diverged ? "DIVERGED" : c.held_by_gate ? "HELD BY THE GATE" : c.edge_drop_rule_acted ? "stable with EDGES DROPPED" : "stable")
             << ", B_i "
             << (pr.built ? std::to_string(pr.build.bounds.damping_Ns_per_m) : std::string("none")) << " N s/m; exit " << code << "; wrote "
@@ -484,7 +505,9 @@ std::string exit_code_help() {
          "9 device missing (device.kind names a device that could not be started; a station never substitutes a simulated user: "
          "device.kind = \"simulated\" asks for one); "
          "4 diverged; 5 safe state latched (loop exception or device fault); 6 passivity condition not met (B_i below eq. (18) on the measured "
-         "round-trip bounds); 4, 5 and 6 are safety stops: the systemd unit does not restart them, the operator re-arms; 7 no neighbour (none answered probing, or none within its bound for more than station.max_no_neighbour_fraction "
+         "round-trip bounds); 4, 5 and 6 are safety stops: the systemd unit does not restart them, the operator re-arms; "
+         "11 missed cycles (the run loop skipped more than station.max_missed_cycles periods: the host stalled the station; not a safety stop, "
+         "the systemd unit restarts it); 7 no neighbour (none answered probing, or none within its bound for more than station.max_no_neighbour_fraction "
          "of the run); 3 other run-time failure; 8 the run ended before the scripted release (e.g. --duration shorter than station.release_s); "
          "10 held by the gate (the per-edge energy gate tripped: the run stayed bounded by the gate, not by eq. (18) alone). "
          "station-<id>.json names each condition under \"conditions\" (also edge_drop_rule_acted, which has no code of its own) "

@@ -21,7 +21,8 @@ using platform::trace::StageScope;
 // our own send stamp of the sequence it echoes, exceeds the neighbour's limit, or that echoes none
 // of our sends). Every other packet is handed to its link in its RX buffer (RxLink::take: the one
 // copy of the payload is the decoder's into that buffer); the buffer the link gives back returns to
-// the endpoint. RT-safe.
+// the endpoint. Sequence numbers, mapped onto our tick grid (TickInputs::seq_shift_ticks: a
+// neighbour's measured clock offset), become run indices (seq + shift - run_k0). RT-safe.
 template <class Offer>
 void drain_rx(const TickInputs& in, TickCounters& cnt, Offer&& offer) {
   StageScope stage(Stage::rx_drain);
@@ -32,7 +33,8 @@ void drain_rx(const TickInputs& in, TickCounters& cnt, Offer&& offer) {
       ++cnt.foreign_packets;
       return false;
     }
-    if (static_cast<std::int64_t>(p.seq) < in.run_k0) {  // probing's packets, still in the ring
+    const std::int64_t seq = static_cast<std::int64_t>(p.seq) + (in.seq_shift_ticks ? in.seq_shift_ticks[n] : 0);  // on our grid
+    if (seq < in.run_k0) {  // probing's packets, still in the ring
       ++cnt.probe_packets_after_run;
       return false;
     }
@@ -48,7 +50,7 @@ void drain_rx(const TickInputs& in, TickCounters& cnt, Offer&& offer) {
     }
     platform::trace::packet_rx(static_cast<std::uint32_t>(p.sender), p.seq, static_cast<std::uint32_t>(p.count));
     std::uint32_t released = rt::RxLink::kNoSlot;
-    offer(rt::ReceivedState{n, static_cast<std::int64_t>(p.seq), p.send_time_s, p.x_hat, p.v_hat, static_cast<int>(p.count), p.slot, &released});
+    offer(rt::ReceivedState{n, seq, p.send_time_s, p.x_hat, p.v_hat, static_cast<int>(p.count), p.slot, &released});
     if (released == p.slot) return false;
     if (released != rt::RxLink::kNoSlot) in.ep->release_rx(released);  // the packet it replaced
     return true;

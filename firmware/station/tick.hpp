@@ -51,6 +51,9 @@ struct TickInputs {
   // (R_ij + station.age_slack_ticks) T); a packet beyond it, or with no echo of one of our own
   // sends, is not handed to the core (counted). Null: no age guard.
   const double* max_age_s = nullptr;
+  // Per neighbour index: added to its sequence numbers to put them on our tick grid (the grid
+  // offset measured while probing, station/neighbours.hpp ClockCheck::shift_ticks). Null: none.
+  const std::int64_t* seq_shift_ticks = nullptr;
   const drivers::WorkspaceMap* map = nullptr;  // device -> object frame; null = identity
   std::int64_t ramp_ticks = 0;                 // force ramp-in over this many coupled ticks (0 = none)
 };

@@ -52,7 +52,7 @@ Station open_station(const StationFile& f, double start_at) {
   s.plan = std::move(pr.plan);
   auto t = std::make_unique<haptic::net::UdpTransport>("127.0.0.1:0", std::vector<haptic::net::UdpPeer>{});
   s.udp = t.get();
-  s.ep = std::make_unique<haptic::net::Endpoint>(s.plan->net.endpoint, std::move(t));
+  s.ep = std::make_unique<haptic::net::Endpoint>(s.plan->endpoint_config(), std::move(t));
   return s;
 }
 
@@ -162,6 +162,36 @@ TEST(StationLifecycle, ATickGridFarFromOursIsWarnedAboutOrRefused) {
   check_clock(strict, strict.times.epoch_ns, refused);
   CHECK(refused.status == PhaseStatus::kFailed);
   STRCMP_CONTAINS("refusing to couple (station.clock_offset_refuse = true): clock offset above station.clock_offset_max_ms", refused.message.c_str());
+}
+
+TEST(StationLifecycle, AGridOffsetWithinTheLimitIsMappedAndOneBeyondItIsRefusedNamingBothStations) {
+  const double t0 = soon_s();
+  // The leaf's epoch is 300 ms later than the hub's (its clock 0.3 s behind); probing 1.2 s, so
+  // they overlap for 0.9 s. Net's sequence ceiling (100 ms) is widened by station.clock_offset_limit_ms.
+  Station a = open_station(star_station_file(1, 33, 1.2), t0), b = open_station(star_station_file(2, 33, 1.2), t0 + 0.3);
+  connect(a, b);
+  auto [ra, rb] = probe_both(a, b);
+  CHECK_TEXT(rb.status == PhaseStatus::kOk, rb.message.c_str());
+  DOUBLES_EQUAL(-0.3, rb.clock.grid_offset_s.at(0), 0.01);
+  LONGS_EQUAL(1u, rb.clock.shift_ticks.size());
+  CHECK_TEXT(std::abs(rb.clock.shift_ticks[0] + 150) <= 5, std::to_string(rb.clock.shift_ticks[0]).c_str());  // hub tick s = our tick s - 150
+  CHECK(rb.clock.refusal.empty());
+  // The hub (its probing fails: 3 and 4 never answer) sees the leaf's grid 300 ms behind: +150 ticks.
+  const ClockCheck hub = check_clock_offsets(*a.plan, ra.stats_at_end, ra.grid, a.plan->times.epoch_ns);
+  CHECK_TEXT(std::abs(hub.shift_ticks.at(0) - 150) <= 5, std::to_string(hub.shift_ticks.at(0)).c_str());
+  // Beyond the limit (here 200 ms) the same measurement refuses, naming both stations and the offset.
+  ProbeResult refused = rb;
+  refused.status = PhaseStatus::kOk;
+  StationPlan strict = *b.plan;
+  strict.file.station.clock_offset_limit_ms = 200;
+  check_clock(strict, strict.times.epoch_ns, refused);
+  CHECK(refused.status == PhaseStatus::kFailed);
+  STRCMP_CONTAINS("refusing to couple: clock offset beyond station.clock_offset_limit_ms = 200.0 ms: ", refused.message.c_str());
+  const std::string grid_is = "station 1's tick grid is ";
+  const std::size_t at = refused.message.find(grid_is);
+  CHECK_TEXT(at != std::string::npos, refused.message.c_str());
+  DOUBLES_EQUAL(300.0, std::stod(refused.message.substr(at + grid_is.size())), 10.0);  // "299.3 ms (+- 2.0 ms) ahead of ..." 
+  STRCMP_CONTAINS(" ahead of station 2's", refused.message.c_str());
 }
 
 TEST(StationLifecycle, NeighbourSilenceAndReturnAreLoggedOnceEach) {

@@ -571,6 +571,52 @@ TEST(StationPhases, AnExceptionAtTheLoopBoundaryEntersTheSafeStateAndIsReported)
   std::filesystem::remove_all(s.out_dir);
 }
 
+// A station whose clock is 0.3 s behind (its epoch 0.3 s later on the common clock) couples: each
+// end maps the other's sequence numbers onto its own grid by the offset measured while probing
+// (station.clock_offset_limit_ms, default 1 s). Without the mapping the hub exits 3 and the leaf 7.
+TEST(StationPhases, AStationWhoseClockIsOffByAThirdOfASecondRunsWithTheOthers) {
+  const std::string dir = test::fresh_dir("clock");
+  const std::string keys = "probe_s = 1.2\nsetup_gap_s = 0.1\nduration_s = 2.0\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 0.5\n"
+                           "max_no_neighbour_fraction = 0.5\n";
+  const std::vector<int> codes = run_four(dir, 109, {keys, keys, keys, keys}, {"", "", "", ""}, [](int id, const std::string&, RunOverrides& o) {
+    if (id == 2) o.start_at += 0.3;
+  });
+  for (int i = 1; i <= 4; ++i) {
+    const json j = station_json(dir, i);
+    CHECK_TEXT(codes[static_cast<std::size_t>(i - 1)] == kExitOk, (std::to_string(i) + ": " + j["conditions"].dump() + " " + j["error"].dump()).c_str());
+    CHECK(no_condition_but_edge_drops(j["conditions"]));
+  }
+  const json leaf = station_json(dir, 2), hub = station_json(dir, 1);
+  DOUBLES_EQUAL(-300.0, number(leaf["lifecycle"]["clock_offsets"]["1"]["tick_grid_offset_ms"]), 10.0);
+  CHECK(std::abs(number(leaf["lifecycle"]["clock_offsets"]["1"]["sequence_shift_ticks"]) + 150) <= 5);
+  CHECK(std::abs(number(hub["lifecycle"]["clock_offsets"]["2"]["sequence_shift_ticks"]) - 150) <= 5);
+  CHECK(number(leaf["rx_offered"]) > 300);  // the hub's packets reached the leaf's core (~850 of 1000 ticks overlap)
+  CHECK(number(leaf["links"][0]["rx_accepted"]) > 300);
+  std::filesystem::remove_all(dir);
+}
+
+// The set-up gap between probing and the run (no packets sent while the core is built) is no round
+// trip: a neighbour's first run packets echo our last probe, held through the 0.5 s gap; those echoes
+// are not samples (rtt_echoes_before_pause), so a clean run has no ~505 ms "round trip" and no
+// false over-bound event per link.
+TEST(StationPhases, TheGapBetweenProbingAndTheRunIsNoRoundTripAboveTheBound) {
+  const std::string dir = test::fresh_dir("gap");
+  const std::string keys = "probe_s = 0.4\nsetup_gap_s = 0.5\nduration_s = 1.0\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 0.5\n"
+                           "max_no_neighbour_fraction = 1.0\n";
+  run_four(dir, 110, {keys, keys, keys, keys});
+  double set_aside = 0;
+  for (int i = 1; i <= 4; ++i) {
+    const json j = station_json(dir, i);
+    for (const json& l : j["links"]) {
+      const std::string who = std::to_string(i) + "->" + std::to_string(l["peer"].get<int>()) + ": rtt_max_ms " + l["rtt_max_ms"].dump();
+      set_aside += number(l["rtt_echoes_before_pause"]);
+      CHECK_TEXT(number(l["rtt_max_ms"]) < 400.0, who.c_str());  // not the 0.5 s gap (loopback: a few ms, ~120 at load 10)
+    }
+  }
+  CHECK(set_aside >= 1);  // held echoes arrived and were set aside (on a link whose ends start their runs in step)
+  std::filesystem::remove_all(dir);
+}
+
 TEST(StationPhases, ExitCodesFollowTheDocumentedOrder) {
   RunConditions c;
   LONGS_EQUAL(kExitOk, exit_code(c));
@@ -584,6 +630,8 @@ TEST(StationPhases, ExitCodesFollowTheDocumentedOrder) {
   LONGS_EQUAL(kExitRunFailed, exit_code(c));
   c.no_neighbour = true;
   LONGS_EQUAL(kExitNoNeighbour, exit_code(c));
+  c.missed_cycles = true;  // the stall is the cause of what its neighbours saw: named before 7
+  LONGS_EQUAL(kExitMissedCycles, exit_code(c));
   c.passivity_not_met = true;
   LONGS_EQUAL(kExitPassivityNotMet, exit_code(c));
   c.safe_state_latched = true;
@@ -595,7 +643,47 @@ TEST(StationPhases, ExitCodesFollowTheDocumentedOrder) {
   LONGS_EQUAL(kExitDiverged, exit_code(c));
   c.device_missing = true;
   LONGS_EQUAL(kExitDeviceMissing, exit_code(c));
-  LONGS_EQUAL(9u, c.names().size());
+  LONGS_EQUAL(10u, c.names().size());
+}
+
+// A station the host stalled (SIGSTOP, swap) says so: more than station.max_missed_cycles periods
+// skipped by its run loop is the condition "missed_cycles" and exit 11; not
+// a safety stop (the systemd unit may restart it).
+TEST(StationPhases, MissedCyclesOverTheBoundAreAConditionWithTheirOwnExitCode) {
+  test::StationText s;
+  s.peers = {2, 3, 4};
+  s.out_dir = "/tmp";
+  s.station_extra = "max_missed_cycles = 500\n";
+  const PlanResult pr = plan_station(parse_station_file(s.text()), RunOverrides{}, read_clocks());
+  CHECK_TEXT(pr.status == PhaseStatus::kOk, pr.error.c_str());
+  RunPhaseResult run;
+  ProbeResult probe;
+  StationOutcome o;
+  o.plan = pr.plan.get();
+  o.run = &run;
+  o.probe = &probe;
+  run.loop.missed_cycles = 500;  // at the bound: not over it
+  CHECK_FALSE(run_conditions(o).missed_cycles);
+  CHECK(exit_code(run_conditions(o)) != kExitMissedCycles);  // (8: this outcome ran no ticks)
+  probe.loop_missed_cycles = 5000;  // probing's start-up skips are not counted
+  CHECK_FALSE(run_conditions(o).missed_cycles);
+  run.loop.missed_cycles = 501;
+  RunConditions c = run_conditions(o);
+  CHECK(c.missed_cycles);
+  LONGS_EQUAL(501, static_cast<long>(c.missed_cycles_total));
+  LONGS_EQUAL(kExitMissedCycles, exit_code(c));
+  CHECK(has(json(c.names()), "missed_cycles"));
+  run.loop.missed_cycles = 1259;  // a 2.5 s SIGSTOP
+  probe.loop_missed_cycles = 0;
+  LONGS_EQUAL(kExitMissedCycles, exit_code(run_conditions(o)));
+  for (const int code : kSafetyStopExitCodes) CHECK(code != kExitMissedCycles);
+  s.station_extra = "max_missed_cycles = -1\n";
+  try {
+    parse_station_file(s.text());
+    FAIL("a negative max_missed_cycles was accepted");
+  } catch (const std::invalid_argument& e) {
+    CHECK_TEXT(std::string(e.what()).find("station.max_missed_cycles") != std::string::npos, e.what());
+  }
 }
 
 // No silent stand-in: a configured device that cannot be started ends the run with its

@@ -197,7 +197,7 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   }
   plan_device_file_warnings(*p);
   p->ramp_in_ticks = ramp_in_ticks(f, spec.period_s);
-  p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
+  p->fingerprint = station_fingerprint(*p->built, f);
   p->net.endpoint.fingerprint = p->fingerprint;  // sent to every neighbour (net/)
   p->net.endpoint.io_priority = f.station.io_priority;  // the I/O thread's RtThread (SCHED_FIFO or 0)
   set_payload_envelope(*p->built, p->net);
@@ -330,6 +330,15 @@ SceneFingerprint scene_fingerprint(const BuiltScenario& b, std::int64_t period_n
     const std::uint64_t h = net::fingerprint_hash(band, sizeof band);
     fp.tx_deadband_hash = static_cast<std::uint16_t>((h ^ (h >> 16) ^ (h >> 32) ^ (h >> 48)) | 1u);  // 0 means off
   }
+  return fp;
+}
+
+SceneFingerprint station_fingerprint(const BuiltScenario& b, const StationFile& f) {
+  SceneFingerprint fp = scene_fingerprint(b, f.loop.period_ns);
+  Fnv1a g;
+  g.value(fp.gains_hash);
+  g.value(f.shared_options_hash);
+  fp.gains_hash = g.h;
   return fp;
 }
 

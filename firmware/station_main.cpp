@@ -269,7 +269,7 @@ CLI::App* add_run_options(CLI::App& app, RunArgs& a) {
   run->add_option("--out", a.out, "Output directory for station-<id>.json/-trace.csv/-state.csv (default: station.out_dir)");
   run->add_option("--duration", a.duration, "Run time in s after probing (default: station.duration_s, else the scenario's)")->check(kPositive);
   run->add_flag("--check-config", a.check,
-                "Run every check `run` makes before it opens a socket (the plan phase), print a summary and exit: 0 valid, 2 configuration error");
+                "Run every check `run` makes before it opens a socket (the plan phase), print a summary and exit: 0 valid, 2 configuration error, 9 device missing (device.kind = \"auto\" with no device here)");
   run->add_flag("--probe-only", a.probe_only,
                 "Plan, open the device and endpoint, probe the neighbours (round trips, loss, clock offsets, fingerprints) at the common "
                 "epoch, write station-<id>.json and stop before coupling: 0 every neighbour answered and matches, 7 none answered, 3 otherwise "

@@ -9,6 +9,7 @@
 #include "platform/toml_config.hpp"
 
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -143,10 +144,30 @@ ImpairmentSection parse_impairment(const toml::node_view<const toml::node>& net,
   c.impairment_seed = s.seed;
   c.impairment_seed_given = static_cast<bool>(imp["seed"]);
   const std::string tf = text(imp["trace_file"], P + "impairment.trace_file", "");
-  if (!tf.empty()) s.trace = load_delay_trace(tf);
+  if (!tf.empty()) {
+    try {
+      s.trace = load_delay_trace(tf);
+    } catch (const std::invalid_argument& e) {
+      bad(P + "impairment.trace_file = \"" + tf + "\"", std::string("a readable delay trace (ms per line): ") + e.what());
+    }
+  }
   s.blackout_start_s = option(imp, "net.impairment", "blackout_start_s", P).real;
   s.blackout_length_s = option(imp, "net.impairment", "blackout_length_s", P).real;
   return s;
+}
+
+// A peer's UDP address (key k): parsed, a port other than 0 and not this station's own bind.
+void check_peer_address(const NetConfig& c, const std::string& k, const std::string& P) {
+  const std::string& text_address = c.udp_peers.back().address;
+  socklen_t len = 0, bind_len = 0;
+  const sockaddr_storage a = parse_udp_address(text_address, k, len);
+  const auto port = [](const sockaddr_storage& s) {
+    return ntohs(s.ss_family == AF_INET ? reinterpret_cast<const sockaddr_in*>(&s)->sin_port : reinterpret_cast<const sockaddr_in6*>(&s)->sin6_port);
+  };
+  if (port(a) == 0) bad(k + " = \"" + text_address + "\"", "a neighbour's address with its port (1..65535), not port 0");
+  const sockaddr_storage own = parse_udp_address(c.bind, P + "bind", bind_len);
+  if (len == bind_len && std::memcmp(&a, &own, len) == 0)
+    bad(k + " = \"" + text_address + "\"", "another station's address, not this station's own " + P + "bind");
 }
 
 // One entry of net.peers (key k, e.g. "net.peers[2]"): id, impairment of our link to it, its
@@ -176,6 +197,11 @@ void parse_peer(const toml::node_view<const toml::node>& p, const std::string& k
     if (!p["public_key"]) bad(k + ".public_key", "set when " + P + "key_file is (the neighbour's public key, 64 hex digits)");
     l.public_key = public_key_from_hex(text(p["public_key"], k + ".public_key", ""), k + ".public_key");
     if (l.public_key == e.own_keys.public_key) bad(k + ".public_key", "the neighbour's key, not this station's own");
+    try {  // the agreement run does while probing: a key with no shared secret (all zero, a low-order point) fails here
+      (void)pair_keys(e.own_keys, self, l.public_key, l.station_id);
+    } catch (const std::invalid_argument&) {
+      bad(k + ".public_key", "a valid public key (`haptic-keygen` prints it): this one, e.g. all zero, agrees no key");
+    }
   } else if (p["public_key"]) {
     bad(k + ".public_key", "absent with " + P + "shared_session_key (public keys go with " + P + "key_file)");
   }
@@ -183,8 +209,7 @@ void parse_peer(const toml::node_view<const toml::node>& p, const std::string& k
   if (c.transport == "udp") {
     if (!p["address"]) bad(k + ".address", "set for transport = \"udp\"");
     c.udp_peers.push_back({l.station_id, text(p["address"], k + ".address", "")});
-    socklen_t len = 0;
-    parse_udp_address(c.udp_peers.back().address, k + ".address", len);
+    check_peer_address(c, k + ".address", P);
   } else {
     if (!p["mac"]) bad(k + ".mac", "set for transport = \"raw\"");
     c.raw_peers.push_back({l.station_id, parse_mac(text(p["mac"], k + ".mac", ""), k + ".mac")});

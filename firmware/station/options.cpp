@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include "firmware/scenario.hpp"
 #include "firmware/station/config.hpp"
 #include "net/options.hpp"
 #include "rt/edge_energy.hpp"
@@ -45,6 +46,10 @@ OptionDecl V(const char* s, const char* k, double lo, double hi, const char* hel
 
 
 // [station]: the session (scenario, timing, passivity) and this station's outputs.
+// A real-time station's largest built-in ball (the simulator's is kMaxSceneNodes).
+constexpr int kMaxStationSceneNodes = 5000;
+static_assert(kMaxStationSceneNodes <= kMaxSceneNodes);
+
 const std::vector<StationOption> kStation = {
     {I("station", "id", 1, 1, 64, "this station's user number, 1..users of the scenario").must_be_given(), HAPTIC_FIELD(station, id)},
     {T("station", "scenario", "paper-best", "built-in scene, gains, topology, delays, user scripts"), HAPTIC_FIELD(station, scenario)},
@@ -60,7 +65,7 @@ const std::vector<StationOption> kStation = {
                                                "interfaces; true: peers across routers"), HAPTIC_FIELD(station, allow_routed_peers)},
     {B("station", "run_subdir", false, "outputs go to out_dir/<UTC time>-s<session_id>/ (created): a run never overwrites an earlier one"),
      HAPTIC_FIELD(station, run_subdir)},
-    {I("station", "nodes", 33, 4, 5000, "scene size (33 = the paper's ball); absent with scene.file"), HAPTIC_FIELD(station, nodes)},
+    {I("station", "nodes", 33, kMinSceneNodes, kMaxStationSceneNodes, "scene size (33 = the paper's ball, else a lattice ball); absent with scene.file"), HAPTIC_FIELD(station, nodes)},
     {R("station", "duration_s", 0, 0, 3600, "run time from the run start").open_low().with_special(0).with_note(" (0 = the scenario's)"),
      HAPTIC_FIELD(station, duration_s)},
     {I("station", "seed", 1, 0, double(1ll << 40), "run seed: impairment link seeds as the simulator's"), HAPTIC_FIELD(station, seed)},

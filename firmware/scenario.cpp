@@ -140,6 +140,10 @@ void ScenarioSpec::validate() const {
   if (!(delay_correlation >= 0 && delay_correlation < 1)) bad("--delay-correlation must be in [0, 1)");
   if (!(scene.node_mass_kg > 0 && std::isfinite(scene.node_mass_kg))) bad("--node-mass-kg must be > 0");
   if (!(loss_probability >= 0 && loss_probability < 1)) bad("loss_probability must be in [0, 1)");
+  if (delay_trace && delay_trace->empty()) bad("--delay-trace: the file holds no delay");
+  if (!(burst_enter_probability >= 0 && burst_enter_probability <= 1)) bad("--burst-enter must be in [0, 1] (a probability per packet)");
+  if (!(burst_mean_packets >= 1 && std::isfinite(burst_mean_packets))) bad("--burst-length must be >= 1 (packets)");
+  if (!(burst_loss_probability >= 0 && burst_loss_probability <= 1)) bad("--burst-loss must be in [0, 1]");
   if (!(duplicate_probability >= 0 && duplicate_probability <= 1)) bad("duplicate_probability must be in [0, 1]");
   if (scene_nodes < kMinSceneNodes || scene_nodes > kMaxSceneNodes)
     bad("--nodes must be in [" + std::to_string(kMinSceneNodes) + ", " + std::to_string(kMaxSceneNodes) + "]");
@@ -241,10 +245,14 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
   // Nbar_ij from the delay model with its allowances, B_i and the condition: the passivity budget
   // (firmware/model/passivity_budget.hpp).
   const model::NbarAllowances allow = model::delay_model_allowances(
-      spec.loss_allowance_ticks, spec.loss_probability, spec.duration_s, T, 2 * static_cast<int>(spec.topology.size()),
+      spec.loss_allowance_ticks, spec.loss_model(), spec.duration_s, T, 2 * static_cast<int>(spec.topology.size()),
       spec.tx_deadband.added_index_delay_ticks(), model::ClockModel{spec.timer_jitter_s, spec.step_jitter, spec.clock_drift_ppm});
   b.loss_allowance_ticks = allow.loss_ticks;
-  b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T, allow.total());
+  b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T, allow.total(), spec.receive_rule);
+  if (spec.delay_trace) {
+    const auto [lo, hi] = std::minmax_element(spec.delay_trace->begin(), spec.delay_trace->end());
+    b.nbar_ticks = model::index_delay_bounds_ticks_from_range(spec.delay_ms, *lo * 1e3, *hi * 1e3, T, allow.total(), spec.receive_rule);
+  }
   const Eigen::VectorXd half_sums = model::round_trip_half_sums_ms(spec.topology, b.nbar_ticks, T);
   b.round_trip_sum_ms.assign(half_sums.data(), half_sums.data() + half_sums.size());
   b.damping_min.assign(static_cast<std::size_t>(N), 0.0);

@@ -82,6 +82,17 @@ struct ScenarioSpec {
   double jitter_fraction = net::kPaperJitterFraction;      // the paper's impairment (net/impairment.hpp)
   double delay_correlation = 0;              // --delay-correlation: AR(1) per packet of the delay (net::LinkImpairment), 0 = i.i.d.
   double loss_probability = net::kPaperLossProbability;
+  // --delay-trace: recorded one-way delays (s) every link replays in place of the uniform draw
+  // (net::LinkImpairment::delay_trace; Nbar then from the trace's range); empty: the delay model.
+  std::shared_ptr<const std::vector<double>> delay_trace;
+  // Gilbert-Elliott burst loss on every link (net::LinkImpairment; off when burst_enter_probability = 0):
+  // --burst-enter (good -> bad per packet), --burst-length (mean packets in the bad state), --burst-loss.
+  double burst_enter_probability = 0;
+  double burst_mean_packets = 5;
+  double burst_loss_probability = 1;
+  model::LossModel loss_model() const {
+    return {loss_probability, burst_enter_probability, 1.0 / burst_mean_packets, burst_loss_probability};
+  }
   double duplicate_probability = net::kPaperDuplicateProbability;
   int scene_nodes = 33;                      // 33: the paper's ball; otherwise a lattice ball, [kMinSceneNodes, kMaxSceneNodes]
   SceneFileSpec scene_file{};                // a mesh file instead (scene_nodes then unused)

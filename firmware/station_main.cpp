@@ -98,6 +98,8 @@ struct SimArgs {
   double pspm_reservoir_J = 0.0;
   double timer_jitter_ms = 0, step_jitter = 0, clock_drift_ppm = 0;  // station clocks (variable steps T_k)
   double jitter = -1, delay_correlation = 0, node_mass_kg = -1;     // delay model and object (stability maps)
+  double burst_enter = 0, burst_length = 5, burst_loss = 1;         // Gilbert-Elliott burst loss (off at 0)
+  std::string delay_trace;                                          // recorded one-way delays (ms per line)
   std::optional<int> users;  // unset: the scenario's (or --topology-file's) user count
   std::uint64_t push_seed = 1;
   double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1, push_end = -1, release = -1;
@@ -181,6 +183,25 @@ void add_sim_output_options(CLI::App* sim, SimArgs& a) {
 }
 
 // The `sim` subcommand's options into `a`. Not RT-safe.
+// The delay and loss model beyond the paper's (stability maps): jitter, correlation, burst loss.
+void add_sim_network_options(CLI::App* sim, SimArgs& a) {
+  sim->add_option("--jitter", a.jitter, "Delay jitter: each delay in mean x [1 - this, 1 + this], in [0, 1] (default 0.5, the paper's)")
+      ->check(CLI::Range(0.0, 1.0));
+  sim->add_option("--delay-correlation", a.delay_correlation,
+                  "Time-correlated delays: AR(1) coefficient per packet of a latent Gaussian mapped onto the same uniform support "
+                  "(net::LinkImpairment), in [0, 1); 0 = i.i.d. (default 0)");
+  sim->add_option("--delay-trace", a.delay_trace,
+                  "Recorded one-way delays, one per line in ms ('#' comments), replayed by every link in place of the uniform draw "
+                  "(Nbar from the trace's smallest and largest delay)")
+      ->check(CLI::ExistingFile);
+  sim->add_option("--burst-enter", a.burst_enter,
+                  "Gilbert-Elliott burst loss on every link: probability per packet of entering a burst, in [0, 1]; the loss "
+                  "allowance then comes from the burst model (default 0: off)")
+      ->check(CLI::Range(0.0, 1.0));
+  sim->add_option("--burst-length", a.burst_length, "Mean burst length in packets, >= 1 (default 5)")->check(CLI::Range(1.0, 1e6));
+  sim->add_option("--burst-loss", a.burst_loss, "Loss probability inside a burst, in [0, 1] (default 1)")->check(CLI::Range(0.0, 1.0));
+}
+
 CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   auto* sim = app.add_subcommand("sim", "Deterministic simulation of all stations (simulated users, impaired network)");
   std::string names;
@@ -216,7 +237,8 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
                                         "direct or iterative (default auto)")
       ->check(CLI::IsMember({"auto", "direct", "iterative"}));
   sim->add_option("--damping-margin", a.margin, "B_i = (1 + margin) x eq. (18) minimum (default 0.05)")->check(CLI::Range(0.0, 10.0));
-  sim->add_option("--loss-allowance", a.allowance, "Ticks added to ceil(max delay / T) for the bound Nbar_ij (default: from the loss model, the smallest L with run ticks x directed links x loss^(L+1) <= 0.01)")
+  sim->add_option("--loss-allowance", a.allowance, "Ticks added to ceil(max delay / T) for the bound Nbar_ij (default: from the loss model, the smallest L with run ticks x directed links x "
+                  "P(L+1 packets in a row lost) <= 0.01: loss^(L+1), or from the burst chain with --burst-enter)")
       ->check(CLI::Range(0, 1000));
   auto* band = sim->add_option("--tx-deadband-mm", a.tx_deadband_mm,
                                "Send a state only when some node moved more than this since the last one sent, in mm (default 0: every tick)");
@@ -238,11 +260,6 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
       ->check(kNonNegative);
   sim->add_option("--receive-rule", a.receive_rule,
                   "Which packet a tick uses: newest (by sequence number) or paper (the most recently received, Fig. 4; late data used) (default newest)");
-  sim->add_option("--jitter", a.jitter, "Delay jitter: each delay in mean x [1 - this, 1 + this], in [0, 1] (default 0.5, the paper's)")
-      ->check(CLI::Range(0.0, 1.0));
-  sim->add_option("--delay-correlation", a.delay_correlation,
-                  "Time-correlated delays: AR(1) coefficient per packet of a latent Gaussian mapped onto the same uniform support "
-                  "(net::LinkImpairment), in [0, 1); 0 = i.i.d. (default 0)");
   sim->add_option("--node-mass-kg", a.node_mass_kg, "Mass of each of the ball's nodes in kg (default: the paper ball's 0.04)")->check(kPositive);
   sim->add_option("--timer-jitter-ms", a.timer_jitter_ms,
                   "Each station's wake is late by a uniform draw in [0, this] ms after its grid time; the core integrates each tick over "
@@ -257,6 +274,7 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
                   "(default eq18)");
   sim->add_option("--pspm-reservoir-J", a.pspm_reservoir_J, "With --consensus-passivity pspm: each edge's initial energy reservoir, J (default 0)");
   add_sim_output_options(sim, a);
+  add_sim_network_options(sim, a);
   return sim;
 }
 
@@ -411,6 +429,10 @@ ScenarioSpec sim_scenario_spec(const SimArgs& a) {
   spec.solver = haptic::rt::parse_step_solver_kind(a.solver);
   if (a.jitter != -1) spec.jitter_fraction = a.jitter;
   spec.delay_correlation = a.delay_correlation;
+  if (!a.delay_trace.empty()) spec.delay_trace = haptic::net::load_delay_trace(a.delay_trace);
+  spec.burst_enter_probability = a.burst_enter;
+  spec.burst_mean_packets = a.burst_length;
+  spec.burst_loss_probability = a.burst_loss;
   if (a.node_mass_kg != -1) spec.scene.node_mass_kg = a.node_mass_kg;
   spec.timer_jitter_s = a.timer_jitter_ms * 1e-3;
   spec.step_jitter = a.step_jitter;

@@ -135,7 +135,7 @@ class ImpairedLink {
 // simulator's channel runs it: packets before the run (seq < first_run_seq: probing) draw from a
 // stream of their own; run packets draw fate_of(seq - first_run_seq) from the link seed's
 // stream. So run packet k meets the same fate in a station and in the simulator (first_run_seq
-// = 0) for the same link seed (tests/firmware/packet_fate_test.cpp).
+// = 0) for the same link seed (tests/firmware/station/packet_fate_test.cpp).
 class SendImpairment {
  public:
   SendImpairment() = default;

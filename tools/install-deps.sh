@@ -11,7 +11,7 @@ PKGS=(
   build-essential cmake ninja-build pkg-config git
   # compiler cache: the mutation suite's lean build reuses the main build's objects (tools/test.sh)
   ccache
-  # the Debian package and its checks (tools/package, tests/install/deb_check.sh): lintian, systemd-analyze
+  # the Debian package and its checks (tools/package, tests/tools/package/deb_check.sh): lintian, systemd-analyze
   lintian systemd
   # core libraries
   libeigen3-dev libtomlplusplus-dev libcli11-dev libsodium-dev
@@ -36,7 +36,7 @@ PKGS=(
   # scenes from files: TetGen tetrahedralizes surface meshes; Gmsh makes the tests' meshes
   tetgen gmsh
   # live web view (firmware/view/server.hpp, tools/view/): libwebsockets, three.js, Chart.js (local, no CDN);
-  # chromium for its headless test (tests/station/view_check.sh; a visible skip without it)
+  # chromium for its headless test (tests/firmware/view/view_check.sh; a visible skip without it)
   libwebsockets-dev libjs-three libjs-chart.js chromium
 )
 apt-get update -qq

@@ -81,6 +81,34 @@ int loss_allowance_from_loss(double p, double ticks, int directed_links, double 
   return L;
 }
 
+double consecutive_loss_probability(const LossModel& m, int n) {
+  if (!(m.p >= 0 && m.p < 1)) bad("loss probability must be in [0, 1)");
+  if (!m.bursty()) return std::pow(m.p, n);
+  if (!(m.burst_enter > 0 && m.burst_enter <= 1)) bad("burst entry probability must be in (0, 1]");
+  if (!(m.burst_exit > 0 && m.burst_exit <= 1)) bad("burst exit probability must be in (0, 1]");
+  if (!(m.burst_loss >= 0 && m.burst_loss <= 1)) bad("loss probability in a burst must be in [0, 1]");
+  // a(s) = P(the packets so far all lost, chain now in s), from the stationary distribution; each
+  // further packet steps the chain, then is lost with its state's probability.
+  const double pi_bad = m.burst_enter / (m.burst_enter + m.burst_exit);
+  double good = (1 - pi_bad) * m.p, bad_state = pi_bad * m.burst_loss;
+  for (int k = 1; k < n; ++k) {
+    const double g = (good * (1 - m.burst_enter) + bad_state * m.burst_exit) * m.p;
+    const double b = (good * m.burst_enter + bad_state * (1 - m.burst_exit)) * m.burst_loss;
+    good = g;
+    bad_state = b;
+  }
+  return n <= 0 ? 1.0 : good + bad_state;
+}
+
+int loss_allowance_from_loss(const LossModel& m, double ticks, int directed_links, double per_run) {
+  if (!m.bursty()) return loss_allowance_from_loss(m.p, ticks, directed_links, per_run);
+  if (!(per_run > 0 && per_run < 1)) bad("over-bound chance per run must be in (0, 1)");
+  const double events = std::max(1.0, ticks) * std::max(1, directed_links);
+  int L = 0;
+  while (L < 1000 && consecutive_loss_probability(m, L + 1) * events > per_run) ++L;
+  return L;
+}
+
 double loss_upper_bound(long long lost, long long expected, double z) {
   if (expected <= 0) bad("measured loss: no packet expected (the probe was too short)");
   if (lost < 0 || lost > expected) bad("measured loss: lost must be in [0, expected]");
@@ -96,15 +124,36 @@ int loss_allowance_from_measured_loss(long long lost, long long expected, double
   return loss_allowance_from_loss(p, ticks, directed_links, per_run);
 }
 
+int receive_rule_ticks(rt::RxRule rule, double min_delay_ms, double max_delay_ms, double period_s) {
+  if (rule == rt::RxRule::kNewestBySequence) return 0;
+  if (!(period_s > 0)) bad("period: T must be > 0 s");
+  if (!(min_delay_ms >= 0 && min_delay_ms <= max_delay_ms) || !std::isfinite(max_delay_ms))
+    bad("delay: a link's delays must satisfy 0 <= min <= max < inf");
+  return static_cast<int>(std::ceil((max_delay_ms - min_delay_ms) * 1e-3 / period_s - 1e-9)) + 1;
+}
+
 Eigen::MatrixXi index_delay_bounds_ticks(const Eigen::MatrixXd& mean_delay_ms, double jitter_fraction, double period_s,
-                                         int loss_allowance_ticks) {
+                                         int loss_allowance_ticks, rt::RxRule rule) {
   check_square(mean_delay_ms, "delay matrix");
   const auto n = mean_delay_ms.rows();
   Eigen::MatrixXi nbar = Eigen::MatrixXi::Zero(n, n);
   for (Eigen::Index i = 0; i < n; ++i)
     for (Eigen::Index j = 0; j < n; ++j)
       if (i != j && std::isfinite(mean_delay_ms(i, j)))
-        nbar(i, j) = index_delay_bound_ticks((1.0 + jitter_fraction) * mean_delay_ms(i, j), period_s, loss_allowance_ticks);
+        nbar(i, j) = index_delay_bound_ticks((1.0 + jitter_fraction) * mean_delay_ms(i, j), period_s, loss_allowance_ticks) +
+                     receive_rule_ticks(rule, (1.0 - jitter_fraction) * mean_delay_ms(i, j), (1.0 + jitter_fraction) * mean_delay_ms(i, j),
+                                        period_s);
+  return nbar;
+}
+
+Eigen::MatrixXi index_delay_bounds_ticks_from_range(const Eigen::MatrixXd& links, double min_delay_ms, double max_delay_ms, double period_s,
+                                                    int loss_allowance_ticks, rt::RxRule rule) {
+  check_square(links, "delay matrix");
+  const int one = index_delay_bound_ticks(max_delay_ms, period_s, loss_allowance_ticks) + receive_rule_ticks(rule, min_delay_ms, max_delay_ms, period_s);
+  Eigen::MatrixXi nbar = Eigen::MatrixXi::Zero(links.rows(), links.cols());
+  for (Eigen::Index i = 0; i < links.rows(); ++i)
+    for (Eigen::Index j = 0; j < links.cols(); ++j)
+      if (i != j && std::isfinite(links(i, j))) nbar(i, j) = one;
   return nbar;
 }
 

@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 
 #include "firmware/model/graph.hpp"
+#include "rt/rx_link.hpp"
 
 namespace haptic::model {
 
@@ -25,6 +26,24 @@ namespace haptic::model {
 // over-bound event at all). p = 0: 0. Throws std::invalid_argument for p outside [0, 1).
 inline constexpr double kOverBoundChancePerRun = 0.01;
 int loss_allowance_from_loss(double loss_probability, double ticks, int directed_links, double per_run = kOverBoundChancePerRun);
+
+// A link's loss: independent with probability p per packet, optionally under Gilbert-Elliott
+// bursts (net::LinkImpairment's chain, stepped once per packet: good -> bad with burst_enter, bad ->
+// good with burst_exit, loss burst_loss in the bad state and p in the good one; off when
+// burst_enter = 0).
+struct LossModel {
+  double p = 0;
+  double burst_enter = 0;
+  double burst_exit = 1;
+  double burst_loss = 1;
+  bool bursty() const { return burst_enter > 0; }
+};
+// The chance that n given consecutive packets are all lost, with the chain in its stationary state
+// (p^n without bursts). Throws std::invalid_argument for probabilities outside their ranges.
+double consecutive_loss_probability(const LossModel& loss, int n);
+// The allowance as above for any LossModel: the smallest L with ticks x directed_links x
+// consecutive_loss_probability(L + 1) <= per_run (= loss_allowance_from_loss without bursts).
+int loss_allowance_from_loss(const LossModel& loss, double ticks, int directed_links, double per_run = kOverBoundChancePerRun);
 
 // The same allowance from a measured loss: `lost` of `expected` packets (a station's probing). The
 // loss probability put in is the upper end of the Wilson score interval at z = 1.96 (97.5 %
@@ -47,10 +66,22 @@ Eigen::MatrixXd parse_delay_matrix(const std::string& text, const std::string& k
 // eq. (18) index-delay bound for one directed link whose packets arrive at most max_delay_ms
 // after they were sent: ceil(max_delay / T) + loss_allowance_ticks (ticks).
 int index_delay_bound_ticks(double max_delay_ms, double period_s, int loss_allowance_ticks);
-// The same for every ordered pair of a mean delay matrix with uniform jitter
-// (max = (1 + jitter_fraction) mean); diagonal 0.
+// The receive rule's share of Nbar (ticks) for a link whose delays lie in [min, max]. Newest by
+// sequence: 0 (the bound above). The paper's rule (Fig. 4: the packet that arrived last is used, even
+// an older one): with the held packet s* arrived at a*, every packet s with a* - min < s T <= k T - max
+// would have arrived in (a*, k T] and replaced it, so those were lost: k T - a* <= (L + 1) T + max - min,
+// and N = k - s* <= (k T - a* + max) / T. The held packet can be older by the delay spread:
+// ceil((max - min) / T) + 1 ticks (the + 1: whole ticks).
+int receive_rule_ticks(rt::RxRule rule, double min_delay_ms, double max_delay_ms, double period_s);
+// The same for every ordered pair of a mean delay matrix with uniform jitter (delays in
+// mean [1 - jitter_fraction, 1 + jitter_fraction]) under the receive rule in force; diagonal 0.
 Eigen::MatrixXi index_delay_bounds_ticks(const Eigen::MatrixXd& mean_delay_ms, double jitter_fraction, double period_s,
-                                         int loss_allowance_ticks);
+                                         int loss_allowance_ticks, rt::RxRule rule = rt::RxRule::kNewestBySequence);
+// The same for links whose every delay lies in [min_delay_ms, max_delay_ms] (a recorded delay trace
+// replayed on every link): each ordered pair with a finite entry of `links` (a delay matrix; its
+// values unused) gets the bound of that range; diagonal 0.
+Eigen::MatrixXi index_delay_bounds_ticks_from_range(const Eigen::MatrixXd& links, double min_delay_ms, double max_delay_ms, double period_s,
+                                                    int loss_allowance_ticks, rt::RxRule rule = rt::RxRule::kNewestBySequence);
 // eq. (18) bookkeeping: per user sum over its links of (Nbar_ij + Nbar_ji) T / 2, in ms.
 Eigen::VectorXd round_trip_half_sums_ms(const Graph& g, const Eigen::MatrixXi& nbar_ticks, double period_s);
 

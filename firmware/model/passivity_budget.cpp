@@ -14,10 +14,10 @@ int clock_allowance_ticks(const ClockModel& c, double run_s, double period_s) {
   return static_cast<int>(std::ceil(c.timer_jitter_s / period_s + drift + wander));
 }
 
-NbarAllowances delay_model_allowances(int loss_allowance_ticks, double loss_probability, double run_s, double period_s,
+NbarAllowances delay_model_allowances(int loss_allowance_ticks, const LossModel& loss, double run_s, double period_s,
                                       int directed_links, int deadband_ticks, const ClockModel& clock) {
   NbarAllowances a;
-  a.loss_ticks = loss_allowance_ticks >= 0 ? loss_allowance_ticks : loss_allowance_from_loss(loss_probability, run_s / period_s, directed_links);
+  a.loss_ticks = loss_allowance_ticks >= 0 ? loss_allowance_ticks : loss_allowance_from_loss(loss, run_s / period_s, directed_links);
   a.deadband_ticks = deadband_ticks;
   a.clock_ticks = clock_allowance_ticks(clock, run_s, period_s);
   return a;

@@ -52,7 +52,7 @@ struct NbarAllowances {
 };
 // The delay model's allowances: loss_allowance_ticks >= 0 given, -1 from the loss model over the
 // run's ticks and directed links (loss_allowance_from_loss).
-NbarAllowances delay_model_allowances(int loss_allowance_ticks, double loss_probability, double run_s, double period_s,
+NbarAllowances delay_model_allowances(int loss_allowance_ticks, const LossModel& loss, double run_s, double period_s,
                                       int directed_links, int deadband_ticks, const ClockModel& clock);
 
 // One link of one station as the budget sees it (ticks).

@@ -9,8 +9,12 @@ LinkSetup scenario_link(const ScenarioSpec& spec, int receiver, int sender, std:
     s.model.jitter_fraction = spec.jitter_fraction;
     s.model.loss_probability = spec.loss_probability;
     s.model.duplicate_probability = spec.duplicate_probability;
+    s.model.burst_enter_probability = spec.burst_enter_probability;
+    s.model.burst_exit_probability = 1.0 / spec.burst_mean_packets;
+    s.model.burst_loss_probability = spec.burst_loss_probability;
   }
   s.model.delay_correlation = spec.delay_correlation;  // the one delay model, i.i.d. or time-correlated
+  s.model.delay_trace = spec.delay_trace;              // or a recorded trace, replayed
   s.seed = net::link_seed(run_seed, receiver, sender);
   return s;
 }

@@ -44,7 +44,7 @@ enum ExitCode : int {
 
 // Safety stops: the exits after which force output stays off until the operator has looked (only
 // the operator re-arms, drivers/README.md "Safe state"). The systemd unit lists them in
-// RestartPreventExitStatus; tests/install/unit_check.sh reads this list and fails if the installed
+// RestartPreventExitStatus; tests/firmware/deploy/unit_check.sh reads this list and fails if the installed
 // unit would restart any of them.
 inline constexpr int kSafetyStopExitCodes[] = {kExitDiverged, kExitSafeState, kExitPassivityNotMet};
 

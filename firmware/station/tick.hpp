@@ -98,7 +98,7 @@ rt::Vec3 read_device(const TickInputs& in, TickCounters& cnt);
 // push_state(k, t, x_hat, v_hat), monitor, records, telemetry, GPIO low. With a recorder, the
 // first tick hands it the core's initial state, every offered packet is recorded with kr, and
 // every tick its row (device sample, force, flags, state hash; firmware/session/log.hpp). Returns the core's
-// TickFlags. RT-safe: no allocation, lock or blocking call (tests/station checks it).
+// TickFlags. RT-safe: no allocation, lock or blocking call (tests/firmware/station checks it).
 std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt, std::int64_t k, std::int64_t kr, const platform::TickInfo& info);
 
 }  // namespace haptic::firmware

@@ -13,7 +13,7 @@
 // Usage: falcon_station_session BUILD_BIN_DIR WORK_DIR   (exit 0 ok, 1 failed)
 //        falcon_station_session --run 'COMMAND' WORK_DIR: instead of diag and the two-station lab, runs
 //        COMMAND (sh -c, with $FALCON_FIRMWARE = the stand-in's firmware file) under the same stand-in, then
-//        checks the Falcon side the same way (tests/station/documented_lab_check.sh: the shipped lab files).
+//        checks the Falcon side the same way (tests/firmware/station/documented_lab_check.sh: the shipped lab files).
 #include "tests/drivers/falcon_standin.hpp"
 #include "tests/support/file_text.hpp"
 

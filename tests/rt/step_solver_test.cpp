@@ -13,6 +13,7 @@
 #include "rt/station.hpp"
 #include "rt/step_solver.hpp"
 #include "tests/rt/fixtures.hpp"
+#include "tests/support/ball_station.hpp"
 
 using namespace haptic;
 using namespace haptic::rt;
@@ -233,21 +234,6 @@ TEST_GROUP(WarmStart){};
 
 // Four users on a lattice ball, three neighbours with the paper's gains, the iterative solver, and
 // the push 1 cm into the face towards (1, 1, 1) (returned in push).
-static StationConfig iterative_ball_station(const Scene& scene, const EdgeGains& gains, Eigen::Vector3d& push) {
-  StationConfig cfg;
-  cfg.users = 4;
-  cfg.scene = &scene;
-  cfg.damping_Ns_per_m = 30.45;
-  for (int p = 1; p <= 3; ++p) cfg.neighbors.push_back({p, &gains, 1 << 30});
-  const int f = scene.mesh.face_towards(Eigen::Vector3d(1, 1, 1));
-  const auto& face = scene.mesh.surface[static_cast<std::size_t>(f)];
-  cfg.contact_nodes = {face[0], face[1], face[2]};
-  cfg.vp_initial_position_m = scene.mesh.face_center(f);
-  cfg.solver.kind = StepSolverKind::kIterative;
-  push = cfg.vp_initial_position_m - 0.01 * scene.mesh.face_normal(f);
-  return cfg;
-}
-
 // The iterative solve starts from the linear extrapolation g = 2 y0(k-1) - y0(k-2) of the last two
 // solutions of A y0 = b (before the contact correction), improved by one Jacobi step
 // g += D^{-1}(b - A g) whose A g comes from the kept b(k-1) - r(k-1) and b(k-2) - r(k-2) (no
@@ -257,10 +243,11 @@ static StationConfig iterative_ball_station(const Scene& scene, const EdgeGains&
 // correction) 4.91. The check sits between 3.12 and 4.12. Iteration counts are deterministic (no
 // timing).
 TEST(WarmStart, extrapolated_guess_with_a_jacobi_step_needs_a_cg_iteration_less_than_extrapolation_alone_on_a_1021_node_ball) {
-  const Scene scene = build_scene(make_lattice_ball(1000, 0.05), SceneParams{});
-  const EdgeGains gains = paper_edge_gains(scene);
-  Eigen::Vector3d push;
-  StationConfig cfg = iterative_ball_station(scene, gains, push);
+  test::BallStation ball(1000);
+  ball.cfg.solver.kind = StepSolverKind::kIterative;
+  const Scene& scene = ball.scene;
+  const Eigen::Vector3d push = ball.push;
+  StationConfig cfg = ball.cfg;
   cfg.solver.relative_tolerance = 1e-10;
   StationCore st(cfg);
   std::vector<double> x(scene.x_d.data(), scene.x_d.data() + scene.dofs), v(static_cast<std::size_t>(scene.dofs), 1e-4);
@@ -284,10 +271,11 @@ TEST(WarmStart, extrapolated_guess_with_a_jacobi_step_needs_a_cg_iteration_less_
 // the default tolerance over ticks 100-299 on a 1021-node ball: 2.67 per tick, 3.00 from the
 // extrapolation (measured 2026-12-01); the check sits between the two.
 TEST(WarmStart, an_alternating_neighbour_set_costs_fewer_iterations_with_the_guess_from_two_ticks_back) {
-  const Scene scene = build_scene(make_lattice_ball(1000, 0.05), SceneParams{});
-  const EdgeGains gains = paper_edge_gains(scene);
-  Eigen::Vector3d push;
-  StationConfig cfg = iterative_ball_station(scene, gains, push);
+  test::BallStation ball(1000);
+  ball.cfg.solver.kind = StepSolverKind::kIterative;
+  const Scene& scene = ball.scene;
+  const Eigen::Vector3d push = ball.push;
+  StationConfig cfg = ball.cfg;
   cfg.neighbors[2].index_delay_bound_ticks = 0;
   StationCore st(cfg);
   std::vector<double> x(scene.x_d.data(), scene.x_d.data() + scene.dofs), v(static_cast<std::size_t>(scene.dofs), 1e-4);
@@ -313,10 +301,11 @@ TEST(WarmStart, an_alternating_neighbour_set_costs_fewer_iterations_with_the_gue
 // two stations fed the same ticks, one on the baseline build, must agree bit for bit in state,
 // predicted state and every energy, through contact and neighbours that skip packets.
 TEST(WarmStart, the_station_kernels_avx_build_gives_the_baseline_builds_bits) {
-  const Scene scene = build_scene(make_lattice_ball(1000, 0.05), SceneParams{});
-  const EdgeGains gains = paper_edge_gains(scene);
-  Eigen::Vector3d push;
-  const StationConfig cfg = iterative_ball_station(scene, gains, push);
+  test::BallStation ball(1000);
+  ball.cfg.solver.kind = StepSolverKind::kIterative;
+  const Scene& scene = ball.scene;
+  const Eigen::Vector3d push = ball.push;
+  const StationConfig cfg = ball.cfg;
   StationCore wide(cfg), base(cfg);
   if (!wide.use_avx(true)) {
     printf("\n  SKIPPED: this CPU has no AVX, only the baseline build runs\n");

@@ -14,6 +14,7 @@ Debian's python3 only (no third-party modules). The mutants are in mutants.py be
 """
 import argparse
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -87,6 +88,17 @@ def build(build_dir, targets):
     return r.returncode == 0, (r.stdout + r.stderr).decode(errors="replace")[-4000:]
 
 
+def test_area(source, binary):
+    """The top-level folder of tests/ (an area of HAPTIC_TEST_AREAS) whose CMakeLists.txt declares binary."""
+    decl = "haptic_add_cpputest(" + binary
+    for root, _dirs, files in os.walk(os.path.join(source, "tests")):
+        if "CMakeLists.txt" in files:
+            with open(os.path.join(root, "CMakeLists.txt"), encoding="utf-8") as f:
+                if re.search(re.escape(decl) + r"\b", f.read()):
+                    return os.path.relpath(root, os.path.join(source, "tests")).split(os.sep)[0]
+    raise SystemExit("mutation: no tests/**/CMakeLists.txt declares %s" % binary)
+
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -128,7 +140,7 @@ def main():
     log("mutation: copying %s to %s" % (source, tree))
     copy_tree(source, tree)
     binaries = sorted({parse_test(t)[0] for m in mutants for t in m["tests"]})
-    areas = sorted({m_area for b in binaries for m_area in [b.replace("test_", "")]})
+    areas = sorted({test_area(source, b) for b in binaries})
     cfg = ["cmake", "-S", tree, "-B", bdir, "-G", "Ninja", "-DCMAKE_BUILD_TYPE=Release",
            "-DHAPTIC_BUILD_BENCHMARKS=OFF", "-DHAPTIC_TEST_AREAS=" + ";".join(areas)]
     if shutil.which("ccache"):

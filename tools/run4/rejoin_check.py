@@ -2,17 +2,19 @@
 """Checks a four-station run in which one station was SIGKILLed and restarted (tools/run4/run4.sh
 --kill I:KILL_S:RESTART_S): the restarted station rejoined within --max-rejoin-s of its start, its
 copy started within --adopt-m of the neighbour copy it took over (state adoption before coupling),
-the copies reached consensus again by the end, and no user's device force jumped by more than the
+the copies reached consensus again by the end (the consensus error of `haptic-station merge`, the
+simulator's definition: the largest distance between two copies of a node), and no user's device force jumped by more than the
 hold force: neither tick to tick nor within any 100 ms (a jolt a hand feels), from just before the
 kill until the release, nor (the other stations) away from its value at the restart until the
 release (the copies that drifted apart while the station was away are pulled together again). Also printed, not checked:
 how far each force moved from its value at the kill while the station was away (the outage itself).
 Prints the figures; exit 0 when all checks hold, 1 otherwise.
-Usage: rejoin_check.py OUT_DIR [--max-rejoin-s 2.0] [--consensus-m 1e-3] [--adopt-m 1e-3]"""
-import argparse, csv, json, math, os, sys
+Usage: rejoin_check.py OUT_DIR [--station BIN] [--max-rejoin-s 2.0] [--consensus-m 1e-3] [--adopt-m 1e-3]"""
+import argparse, csv, json, math, os, subprocess, sys
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
 ap.add_argument('out')
+ap.add_argument('--station', default='haptic-station', help='the haptic-station binary (its merge computes the consensus error)')
 ap.add_argument('--max-rejoin-s', type=float, default=2.0)
 ap.add_argument('--consensus-m', type=float, default=1e-3)
 ap.add_argument('--adopt-m', type=float, default=1e-3)
@@ -51,42 +53,37 @@ def read_rows(path):
     with open(path) as f:
         return list(csv.DictReader(f))
 
-# 2. consensus at the end: every copy within consensus_m of the mean of the copies, last common k
-states = {}
-for i in range(1, 5):
-    rows = read_rows(os.path.join(a.out, f'station-{i}-state.csv'))
-    states[i] = {int(r['k']): [float(v) for kk, v in r.items() if kk != 'k'] for r in rows}
-common = set.intersection(*(set(s) for s in states.values()))
-if not common:
-    fails.append('no common state row of the four stations')
+# 2. consensus at the end: the merged run's consensus error (merge reads the station files from the
+# first tick all four recorded, i.e. from the restart on), and the rejoined copy against the copy it took over.
+merged = subprocess.run([a.station, 'merge', a.out], capture_output=True, text=True)
+if merged.returncode != 0:
+    fails.append(f'haptic-station merge failed ({merged.returncode}): {merged.stderr.strip()}')
 else:
-    def spread_at(ids, k):
-        xs = [states[i][k] for i in ids]
-        out = 0.0
-        for p in range(len(xs[0]) // 3):
-            mean = [sum(x[3 * p + d] for x in xs) / len(xs) for d in range(3)]
-            out = max(out, max(math.dist(mean, x[3 * p:3 * p + 3]) for x in xs))
-        return out
-    others = [i for i in range(1, 5) if i != who]
-    before = [k for k in set.intersection(*(set(states[i]) for i in others)) if (k + 1) * T <= restart['restart_run_s']]
-    if before:
-        kb = max(before)
-        print(f'before the restart (run time {(kb + 1) * T:.2f} s): the other three copies are {spread_at(others, kb) * 1e3:.4f} mm apart')
-    # The rejoined copy's first state row against the copy it took over, same k.
-    src = (rj or {}).get('state_from_station')
-    if src in states:
-        k1 = next((k for k in sorted(states[who]) if k in states[src]), None)
-        if k1 is not None:
-            a0, b0 = states[who][k1], states[src][k1]
-            d = max(math.dist(a0[3 * p:3 * p + 3], b0[3 * p:3 * p + 3]) for p in range(len(a0) // 3))
-            print(f'adoption: station {who}\'s first state row (run time {(k1 + 1) * T:.3f} s) is {d * 1e3:.4f} mm from station {src}\'s copy')
-            if not d <= a.adopt_m:
-                fails.append(f'the rejoined copy started {d * 1e3:.3f} mm from the copy it took over (> {a.adopt_m * 1e3} mm)')
-    k_end = max(common)
-    spread = spread_at(range(1, 5), k_end)
-    print(f'consensus at run time {(k_end + 1) * T:.2f} s: largest node distance from the mean of the copies {spread * 1e3:.4f} mm')
-    if not spread <= a.consensus_m:
-        fails.append(f'copies {spread * 1e3:.3f} mm apart at the end (> {a.consensus_m * 1e3} mm)')
+    summary = json.load(open(os.path.join(a.out, 'summary.json')))
+    err = summary.get('consensus_error_m')
+    print(f'consensus at the end of the merged run: consensus error {err * 1e3:.4f} mm' if err is not None else 'consensus: no copies sample')
+    if err is None or not err <= a.consensus_m:
+        fails.append(f'consensus error at the end {err} m (> {a.consensus_m} m)')
+
+states = {}
+for i in (who, (rj or {}).get('state_from_station')):
+    if i in js:
+        with open(os.path.join(a.out, f'station-{i}-state.csv')) as f:
+            states[i] = {int(r['k']): [float(v) for kk, v in r.items() if kk != 'k'] for r in csv.DictReader(f)}
+# The rejoined copy's first state row equals the copy it took over, same k, within adopt_m on every node.
+src = (rj or {}).get('state_from_station')
+if src in states and src != who:
+    k1 = next((k for k in sorted(states[who]) if k in states[src]), None)
+    if k1 is not None:
+        a0, b0 = states[who][k1], states[src][k1]
+        d = max(math.dist(a0[3 * p:3 * p + 3], b0[3 * p:3 * p + 3]) for p in range(len(a0) // 3))
+        print(f'adoption: station {who}\'s first state row (run time {(k1 + 1) * T:.3f} s) is {d * 1e3:.4f} mm from station {src}\'s copy')
+        if not d <= a.adopt_m:
+            fails.append(f'the rejoined copy started {d * 1e3:.3f} mm from the copy it took over (> {a.adopt_m * 1e3} mm)')
+
+def read_rows(path):
+    with open(path) as f:
+        return list(csv.DictReader(f))
 
 # 3. device force jumps around the rejoin vs the hold force (mean |F| while holding, the others)
 push_end, release = js[1]['push_end_s'], js[1]['release_time_s']

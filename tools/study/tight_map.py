@@ -34,6 +34,9 @@ AXES = [
     ("timer jitter T_k", "ms", [0.0, 0.2, 0.35, 0.5], lambda v: ["--timer-jitter-ms", repr(v)]),
     ("D_ij", "N s/m", [0.0, 1.0, 5.0], lambda v: ["--d-gain", repr(v)]),
     ("node mass", "kg", [0.01, 0.04, 0.16], lambda v: ["--node-mass-kg", repr(v)]),
+    # Gilbert-Elliott bursts (5 packets mean, all lost inside) on top of no loss; the allowance from the burst chain
+    ("burst entry probability", "per packet", [0.0, 0.01, 0.05],
+     lambda v: ["--burst-enter", repr(v), "--burst-length", "5", "--loss-allowance", None] if v > 0 else []),
 ]
 DEFAULT_DELAY = ["--delay-matrix", delay_matrix(1.33)]
 
@@ -53,7 +56,8 @@ def merged(args):
                 i += 2
     out = sorted(set(flags))
     for k, v in opts.items():
-        out += [k, v]
+        if v is not None:  # None removes the tight case's value (the simulator's default applies)
+            out += [k, v]
     return out
 
 
@@ -72,7 +76,7 @@ def unstable(s):
 
 def critical_scale(station, args, duration, out, lo=0.02, hi=2.0, steps=6):
     """Smallest f in [lo, hi] (log bisection) with a stable run at B = f x eq. (18)."""
-    base = run(station, args, 0.01, out)
+    base = run(station, args, duration, out)  # eq. (18) of a run this long: the loss allowance grows with the run
     b18 = base["damping_min_Ns_per_m"]
     def stable_at(f):
         s = run(station, args + ["--damping", ",".join(repr(f * b) for b in b18)], duration, out)
@@ -100,21 +104,27 @@ def main():
     ap.add_argument("--correlation", type=float, default=0.99, help="AR(1) coefficient of the correlated model (default 0.99)")
     ap.add_argument("--quick", action="store_true", help="two values per axis, 4 bisection steps")
     ap.add_argument("--out", default="tools/study/results")
+    ap.add_argument("--lo", type=float, default=0.02, help="smallest scale of eq. (18) tried (default 0.02)")
+    ap.add_argument("--only", help="only the axes whose name contains this text; writes tight_map-<text>.{json,png}")
     a = ap.parse_args()
+    axes = [ax for ax in AXES if a.only is None or a.only in ax[0]]
+    if not axes:
+        ap.error("--only %r matches no axis (axes: %s)" % (a.only, ", ".join(ax[0] for ax in AXES)))
+    stem = "tight_map" if a.only is None else "tight_map-" + a.only.replace(" ", "_")
     tmp = tempfile.mkdtemp(prefix="tight-map-")
     models = [("i.i.d.", []), ("correlated rho=%g" % a.correlation, ["--delay-correlation", repr(a.correlation)])]
-    res = {"tight_case": " ".join(TIGHT + DEFAULT_DELAY), "duration_s": a.duration, "axes": []}
+    res = {"tight_case": " ".join(TIGHT + DEFAULT_DELAY), "duration_s": a.duration, "lowest_scale_tried": a.lo, "axes": []}
     t0 = time.time()
-    total = sum(len(ax[2][:2] if a.quick else ax[2]) for ax in AXES) * len(models)
+    total = sum(len(ax[2][:2] if a.quick else ax[2]) for ax in axes) * len(models)
     done = 0
-    for name, unit, values, fn in AXES:
+    for name, unit, values, fn in axes:
         if a.quick:
             values = values[:2]
         axis = {"name": name, "unit": unit, "values": values, "models": {}}
         for mname, margs in models:
             pts = []
             for v in values:
-                r = critical_scale(a.station, fn(v) + margs, a.duration, tmp, steps=4 if a.quick else 6)
+                r = critical_scale(a.station, fn(v) + margs, a.duration, tmp, lo=a.lo, steps=4 if a.quick else 6)
                 r["value"] = v
                 pts.append(r)
                 done += 1
@@ -123,10 +133,10 @@ def main():
             axis["models"][mname] = pts
         res["axes"].append(axis)
     os.makedirs(a.out, exist_ok=True)
-    with open(os.path.join(a.out, "tight_map.json"), "w") as f:
+    with open(os.path.join(a.out, stem + ".json"), "w") as f:
         json.dump(res, f, indent=1)
-    plot(res, os.path.join(a.out, "tight_map.png"))
-    print("wrote %s/tight_map.json, tight_map.png" % a.out)
+    plot(res, os.path.join(a.out, stem + ".png"))
+    print("wrote %s/%s.json, %s.png" % (a.out, stem, stem))
 
 
 def plot(res, path):
@@ -134,12 +144,20 @@ def plot(res, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     axes = res["axes"]
-    fig, axs = plt.subplots(2, 3, figsize=(13, 7.5))
+    cols = min(3, len(axes))
+    rows = (len(axes) + cols - 1) // cols
+    fig, axs = plt.subplots(rows, cols, figsize=(max(4.4 * cols, 10.0), 3.75 * rows + 0.8), squeeze=False)
+    for ax in list(axs.flat)[len(axes):]:
+        ax.set_visible(False)
     for ax, axis in zip(axs.flat, axes):
         for mname, pts in axis["models"].items():
             xs = [p["value"] for p in pts if p["critical_scale"] is not None]
             ys = [p["critical_scale"] for p in pts if p["critical_scale"] is not None]
             ax.plot(xs, ys, "o-", label="stability boundary, " + mname)
+            # stable at the smallest scale tried: the boundary is at or below it (an upper bound)
+            low = [(p["value"], p["critical_scale"]) for p in pts if "upper bound" in p.get("note", "")]
+            if low:
+                ax.plot([v for v, _ in low], [c for _, c in low], "v", color="0.3", ms=9)
         ax.axhline(1.0, color="k", ls="--", label="eq. (18)")
         ax.set_yscale("log")
         ax.set_xlabel(axis["name"] + (" (%s)" % axis["unit"] if axis["unit"] else ""))

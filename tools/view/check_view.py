@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Checks two headless-Chromium screenshots of the live view and the status text the page reported
-back to its server (tests/station/view_check.sh): the 3D canvas is not blank in either, the mesh
+back to its server (tests/firmware/view/view_check.sh): the 3D canvas is not blank in either, the mesh
 and the plots changed between the two, and the status names every expected neighbour.
 Exit 0 when all hold, 1 with the reasons otherwise.
 Usage: check_view.py A.png B.png STATUS.txt NEIGHBOUR[,NEIGHBOUR...]"""

@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# A short simulated run traced at node 2 (rest x != 0, so a position plotted as a displacement
+# would show), then tools/plots/check_figures.py on its folder. Exit 77 (skipped) without matplotlib.
+set -euo pipefail
+bin="$1"; out="$2"
+here="$(cd "$(dirname "$0")" && pwd)"
+repo="$(cd "$here/../../.." && pwd)"
+/usr/bin/python3 -c 'import matplotlib, numpy' 2>/dev/null || { echo "SKIPPED: python3-matplotlib / python3-numpy missing"; exit 77; }
+rm -rf "$out"; mkdir -p "$out"
+"$bin" sim --scenario paper-best --out "$out/sim" --duration 3 --push-end 1 --release 2 --trace-node 2 --trace-every 5 --no-plots --quiet
+/usr/bin/python3 "$repo/tools/plots/check_figures.py" "$out/sim"

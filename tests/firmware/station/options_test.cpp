@@ -142,7 +142,7 @@ TEST(StationOptions, TheKeysTheDocsNameAreTheDeclaredKeys) {
       if (!declared.count(k)) FAIL((std::string(doc) + " names `" + (*m)[1].str() + "`, which no option declares").c_str());
     }
   }
-  CHECK(named > 50);
+  CHECK(named > 10);  // the pattern still finds keys (56 at the time of writing)
 }
 
 // One range, written once: the deadband's [0, 100) as the docs table says, and a value the

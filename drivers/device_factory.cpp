@@ -117,6 +117,22 @@ void use_simulated(const DeviceSelection& sel, OpenedDevice& out) {
 }
 }  // namespace
 
+std::string auto_device_absence(const DeviceSelection& sel) {
+  if (sel.kind != "auto" || !sel.spacemouse.hidraw_path.empty()) return "";
+  std::string report;
+  try {
+    UsbMonitor monitor(sel.usb);
+    for (const UsbDeviceInfo& d : monitor.enumerate(true))
+      if (d.kind == DeviceKind::kPhantomTouch || d.kind == DeviceKind::kFalcon) return "";
+    report += "usb: no Touch or Falcon\n";
+  } catch (const std::exception& e) {
+    report += std::string("usb: ") + e.what() + "\n";  // open_device then tries no USB device either
+  }
+  for (const HidDeviceInfo& h : list_hid_devices(true))
+    if (h.kind == DeviceKind::kSpaceMouse) return "";
+  return report + "hid: no SpaceMouse\n";
+}
+
 OpenedDevice open_device(const DeviceSelection& sel) {
   const std::string& k = sel.kind;
   if (k != "auto" && k != "touch" && k != "falcon" && k != "spacemouse" && k != "simulated")

@@ -65,6 +65,9 @@ class DeviceMissing : public std::runtime_error {
 // DeviceMissing when no real device of the requested kind starts ("auto" included: a station
 // never falls back to a simulated user on its own).
 OpenedDevice open_device(const DeviceSelection& selection);
+// kind "auto" only: why open_device would throw DeviceMissing before trying any device (no Touch or
+// Falcon on USB, no SpaceMouse hidraw node), for --check-config; "" when it would try one. Non-RT.
+std::string auto_device_absence(const DeviceSelection& selection);
 
 // The capabilities a device of `kind` ("touch", "spacemouse", "simulated") publishes before it is
 // opened (the vendor's figures, or the simulated model's), for checks at planning time; nullopt for

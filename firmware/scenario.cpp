@@ -145,7 +145,8 @@ void ScenarioSpec::validate() const {
   if (!(burst_mean_packets >= 1 && std::isfinite(burst_mean_packets))) bad("--burst-length must be >= 1 (packets)");
   if (!(burst_loss_probability >= 0 && burst_loss_probability <= 1)) bad("--burst-loss must be in [0, 1]");
   if (!(duplicate_probability >= 0 && duplicate_probability <= 1)) bad("duplicate_probability must be in [0, 1]");
-  if (scene_nodes < 7 || scene_nodes > 20000) bad("--nodes must be in [7, 20000]");
+  if (scene_nodes < kMinSceneNodes || scene_nodes > kMaxSceneNodes)
+    bad("--nodes must be in [" + std::to_string(kMinSceneNodes) + ", " + std::to_string(kMaxSceneNodes) + "]");
   if (!scene_file.path.empty()) {
     if (!(scene_file.unit_m > 0 && std::isfinite(scene_file.unit_m))) bad(scene_file.key("unit_m") + " must be > 0 (metres per file unit)");
     if (!(scene_file.density_kg_per_m3 >= 0 && std::isfinite(scene_file.density_kg_per_m3))) bad(scene_file.key("density_kg_per_m3") + " must be > 0 kg/m^3");

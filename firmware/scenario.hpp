@@ -65,6 +65,12 @@ struct SceneFileSpec {
   std::string key(const std::string& field) const;
 };
 
+// Sizes of the built-in lattice ball (ScenarioSpec::scene_nodes): the smallest that makes a ball (for 7,
+// rt::make_lattice_ball finds no lattice spacing), the largest the simulator builds (a real-time
+// station's own bound is station.nodes's, firmware/station/options.cpp).
+inline constexpr int kMinSceneNodes = 8;
+inline constexpr int kMaxSceneNodes = 20000;
+
 struct ScenarioSpec {
   std::string name = "paper-best";
   int users = 4;
@@ -88,7 +94,7 @@ struct ScenarioSpec {
     return {loss_probability, burst_enter_probability, 1.0 / burst_mean_packets, burst_loss_probability};
   }
   double duplicate_probability = net::kPaperDuplicateProbability;
-  int scene_nodes = 33;                      // 33: the paper's ball; otherwise a lattice ball
+  int scene_nodes = 33;                      // 33: the paper's ball; otherwise a lattice ball, [kMinSceneNodes, kMaxSceneNodes]
   SceneFileSpec scene_file{};                // a mesh file instead (scene_nodes then unused)
   // For a lattice ball, keep the same physical object as the paper's ball: total mass 33 x
   // node_mass_kg shared by the nodes, and edge stiffness scaled by mean edge length (a spring

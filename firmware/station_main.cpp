@@ -18,6 +18,7 @@
 #include "firmware/sim/simulator.hpp"
 #include "firmware/view/timeline.hpp"
 #include "firmware/station/config.hpp"
+#include "firmware/station/option_cli.hpp"
 #include "firmware/station/phase.hpp"
 #include "firmware/station/run.hpp"
 #include "platform/command_line.hpp"
@@ -136,6 +137,7 @@ void add_view_options(CLI::App* app, int& port, std::string& bind, double& secon
 }
 
 struct RunArgs {
+  std::vector<std::pair<std::string, std::string>> sets;  // --SECTION.KEY VALUE overrides of the station file
   std::string config, out;
   double start_at = -1, duration = -1;
   bool quiet = false, check = false, probe_only = false;
@@ -285,14 +287,14 @@ CLI::App* add_run_options(CLI::App& app, RunArgs& a) {
   run->add_option("--out", a.out, "Output directory for station-<id>.json/-trace.csv/-state.csv (default: station.out_dir)");
   run->add_option("--duration", a.duration, "Run time in s after probing (default: station.duration_s, else the scenario's)")->check(kPositive);
   run->add_flag("--check-config", a.check,
-                "Run every check `run` makes before it opens a socket (the plan phase), print a summary and exit: 0 valid, 2 configuration error");
+                "Run every check `run` makes before it opens a socket (the plan phase), print a summary and exit: 0 valid, 2 configuration error, 9 device missing (device.kind = \"auto\" with no device here)");
   run->add_flag("--probe-only", a.probe_only,
                 "Plan, open the device and endpoint, probe the neighbours (round trips, loss, clock offsets, fingerprints) at the common "
                 "epoch, write station-<id>.json and stop before coupling: 0 every neighbour answered and matches, 7 none answered, 3 otherwise "
                 "(start every station of the lab with the same --start-at; `haptic-lab check --probe` does)");
   run->footer(exit_code_help());
   run->add_flag("--quiet", a.quiet, "Only the final line");
-
+  add_option_overrides(run, all_option_decls(), a.sets);
   return run;
 }
 
@@ -369,7 +371,7 @@ int run_command(const RunArgs& a) {
   ov.quiet = a.quiet;
   ov.probe_only = a.probe_only;
   try {
-    file = load_station_file(a.config);
+    file = load_station_file(a.config, a.sets);
   } catch (const std::exception& e) {
     std::cerr << "haptic-station run: error: " << e.what() << "\n";
     return kExitConfigError;
@@ -575,7 +577,8 @@ int main(int argc, char** argv) {
       "  run  run one station in real time over real sockets (--config FILE.toml)\n"
       "  replay  re-run a station's core from its session log, bit-exactly (LOG.h5)\n"
       "  merge  merge the outputs of N run processes into the simulator's summary.json, trace.csv, series.csv, snapshots.json\n"
-      "  scenario  print a built-in scenario's users, links and delays as JSON"};
+      "  scenario  print a built-in scenario's users, links and delays as JSON\n"
+      "  options  print every station-file option as a Markdown table"};
   app.require_subcommand(1);
   haptic::platform::add_version_flag(app, "haptic-station");
   app.footer("Exit status: 0 done; 2 bad options or configuration. `run` also: " + exit_code_help() +
@@ -592,6 +595,10 @@ int main(int argc, char** argv) {
   CLI::App* merge = add_merge_options(app, merge_dir);
   ScenarioQuery scenario_query;
   CLI::App* scenario = add_scenario_options(app, scenario_query);
+  CLI::App* options = app.add_subcommand("options", "Print every station-file option (key, type, accepted values, default, meaning) "
+                                                    "as the Markdown table of firmware/station/OPTIONS.md");
+  bool markdown = true;
+  options->add_flag("--markdown", markdown, "Markdown (the only format, the default)");
 
   // --help/--version: 0; a usage error (an unknown option or subcommand with "did you mean"): 2.
   if (const int rc = haptic::platform::parse_command_line(app, argc, argv, kExitConfigError); rc >= 0) return rc;
@@ -601,5 +608,6 @@ int main(int argc, char** argv) {
   if (replay->parsed()) return replay_command(replay_args);
   if (merge->parsed()) return merge_command(merge_dir);
   if (scenario->parsed()) return scenario_command(scenario_query);
+  if (options->parsed()) std::cout << options_markdown();
   return 0;
 }

@@ -5,9 +5,11 @@
 #include <sched.h>
 
 #include "net/keys.hpp"
+#include "net/options.hpp"
 #include "platform/toml_config.hpp"
 
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -26,6 +28,20 @@ template <class T>
 T integer(View n, const std::string& key, T def, long long lo, long long hi) {
   return static_cast<T>(platform::config::integer(n, key, static_cast<long long>(def), lo, hi));
 }
+
+// Option `key` of [net] section `section` ("net", "net.impairment") read by its one declaration
+// (net/options.cpp); P: the section as written ("net." or "network.").
+platform::config::OptionValue option(View table, const char* section, const char* key, const std::string& P) {
+  const std::string sub = std::string(section).substr(3);  // "" or ".impairment"
+  return platform::config::read_option(table[key], net_option(section, key), P.substr(0, P.size() - 1) + sub + "." + key);
+}
+double real_of(View t, const char* key, const std::string& P) { return option(t, "net", key, P).real; }
+template <class T>
+T integer_of(View t, const char* key, const std::string& P) {
+  return static_cast<T>(option(t, "net", key, P).integer);
+}
+bool boolean_of(View t, const char* key, const std::string& P) { return option(t, "net", key, P).boolean; }
+std::string text_of(View t, const char* key, const std::string& P) { return option(t, "net", key, P).text; }
 
 }  // namespace
 
@@ -64,36 +80,29 @@ namespace {
 // net.transport and net.session_id.
 void parse_transport(const toml::node_view<const toml::node>& net, const std::string& P, NetConfig& c) {
   EndpointConfig& e = c.endpoint;
-  c.transport = text(net["transport"], P + "transport", "udp");
-  if (c.transport != "udp" && c.transport != "raw") bad(P + "transport", "\"udp\" or \"raw\"");
-  e.wire.session_id = integer<std::uint32_t>(net["session_id"], P + "session_id", 1, 0, 0xFFFFFFFFll);
+  c.transport = text_of(net, "transport", P);
+  e.wire.session_id = integer_of<std::uint32_t>(net, "session_id", P);
 }
 
 // Encoding, datagram size, the I/O thread, round-trip margins and receive limits.
 void parse_io_options(const toml::node_view<const toml::node>& net, const std::string& P, NetConfig& c) {
   EndpointConfig& e = c.endpoint;
-  const std::string enc = text(net["encoding"], P + "encoding", "float32");
-  if (enc == "float64") e.wire.encoding = ValueEncoding::float64;
-  else if (enc == "float32") e.wire.encoding = ValueEncoding::float32;
-  else bad(P + "encoding", "\"float64\" or \"float32\"");
-  e.wire.max_datagram_bytes = integer<std::size_t>(net["max_datagram_bytes"], P + "max_datagram_bytes",
-                                                   kDefaultDatagramBytes, kMinDatagramBytes + 8, kMaxDatagramBytes);
-  e.io_busy_poll = boolean(net["io_busy_poll"], P + "io_busy_poll", false);
-  e.tx_spin = boolean(net["tx_spin"], P + "tx_spin", false);
-  e.io_cpu = integer<int>(net["io_cpu"], P + "io_cpu", -1, -1, CPU_SETSIZE - 1);
-  e.tx_spin_lead_s = real(net["tx_spin_lead_us"], P + "tx_spin_lead_us", 100.0, 0.0, 1e6) * 1e-6;
-  e.tx_spin_tail_s = real(net["tx_spin_tail_us"], P + "tx_spin_tail_us", 300.0, 1.0, 1e6) * 1e-6;
-  e.peer_silence_s = real(net["peer_silence_s"], P + "peer_silence_s", 0.25, 0.01, 60.0);
-  e.delay_queue_datagrams = integer<std::size_t>(net["delay_queue_datagrams"], P + "delay_queue_datagrams", 8192, 16, 1 << 20);
-  e.rtt.margin_fraction = real(net["rtt_margin_fraction"], P + "rtt_margin_fraction", 0.25, 0.0, 10.0);
-  e.rtt.margin_s = real(net["rtt_margin_s"], P + "rtt_margin_s", 0.004, 0.0, 10.0);
-  e.rtt.min_probe_samples = integer<std::uint64_t>(net["rtt_min_probe_samples"], P + "rtt_min_probe_samples", 20, 1, 1000000);
-
-  c.listen_any = boolean(net["listen_any"], P + "listen_any", false);
-  e.max_sequence_ahead_ticks =
-      integer<std::uint64_t>(net["max_sequence_ahead_ticks"], P + "max_sequence_ahead_ticks", 50, 1, 1ll << 40);
-  e.rx_rate_limit_per_s = real(net["rx_rate_limit_per_s"], P + "rx_rate_limit_per_s", 0.0, 0.0, 1e9);
-  c.envelope_radii = real(net["envelope_radii"], P + "envelope_radii", 3.0, 0.0, 1e6);
+  e.wire.encoding = text_of(net, "encoding", P) == "float64" ? ValueEncoding::float64 : ValueEncoding::float32;
+  e.wire.max_datagram_bytes = integer_of<std::size_t>(net, "max_datagram_bytes", P);
+  e.io_busy_poll = boolean_of(net, "io_busy_poll", P);
+  e.tx_spin = boolean_of(net, "tx_spin", P);
+  e.io_cpu = integer_of<int>(net, "io_cpu", P);
+  e.tx_spin_lead_s = real_of(net, "tx_spin_lead_us", P) * 1e-6;
+  e.tx_spin_tail_s = real_of(net, "tx_spin_tail_us", P) * 1e-6;
+  e.peer_silence_s = real_of(net, "peer_silence_s", P);
+  e.delay_queue_datagrams = integer_of<std::size_t>(net, "delay_queue_datagrams", P);
+  e.rtt.margin_fraction = real_of(net, "rtt_margin_fraction", P);
+  e.rtt.margin_s = real_of(net, "rtt_margin_s", P);
+  e.rtt.min_probe_samples = integer_of<std::uint64_t>(net, "rtt_min_probe_samples", P);
+  c.listen_any = boolean_of(net, "listen_any", P);
+  e.max_sequence_ahead_ticks = integer_of<std::uint64_t>(net, "max_sequence_ahead_ticks", P);
+  e.rx_rate_limit_per_s = real_of(net, "rx_rate_limit_per_s", P);
+  c.envelope_radii = real_of(net, "envelope_radii", P);
 }
 
 // Where this station listens: bind (udp; never the wildcard without listen_any) or interface (raw).
@@ -131,14 +140,34 @@ ImpairmentSection parse_impairment(const toml::node_view<const toml::node>& net,
   if (!imp.is_table()) bad("[" + P + "impairment]", "a table");
   s.preset = text(imp["preset"], P + "impairment.preset", "none");
   LinkImpairment::preset(s.preset, 0.0, P + "impairment.preset");  // validates the name
-  s.seed = integer<std::uint64_t>(imp["seed"], P + "impairment.seed", 1, 0, (1ll << 62));
+  s.seed = static_cast<std::uint64_t>(option(imp, "net.impairment", "seed", P).integer);
   c.impairment_seed = s.seed;
   c.impairment_seed_given = static_cast<bool>(imp["seed"]);
   const std::string tf = text(imp["trace_file"], P + "impairment.trace_file", "");
-  if (!tf.empty()) s.trace = load_delay_trace(tf);
-  s.blackout_start_s = real(imp["blackout_start_s"], P + "impairment.blackout_start_s", 0.0, 0.0, 1e6);
-  s.blackout_length_s = real(imp["blackout_length_s"], P + "impairment.blackout_length_s", 0.0, 0.0, 1e6);
+  if (!tf.empty()) {
+    try {
+      s.trace = load_delay_trace(tf);
+    } catch (const std::invalid_argument& e) {
+      bad(P + "impairment.trace_file = \"" + tf + "\"", std::string("a readable delay trace (ms per line): ") + e.what());
+    }
+  }
+  s.blackout_start_s = option(imp, "net.impairment", "blackout_start_s", P).real;
+  s.blackout_length_s = option(imp, "net.impairment", "blackout_length_s", P).real;
   return s;
+}
+
+// A peer's UDP address (key k): parsed, a port other than 0 and not this station's own bind.
+void check_peer_address(const NetConfig& c, const std::string& k, const std::string& P) {
+  const std::string& text_address = c.udp_peers.back().address;
+  socklen_t len = 0, bind_len = 0;
+  const sockaddr_storage a = parse_udp_address(text_address, k, len);
+  const auto port = [](const sockaddr_storage& s) {
+    return ntohs(s.ss_family == AF_INET ? reinterpret_cast<const sockaddr_in*>(&s)->sin_port : reinterpret_cast<const sockaddr_in6*>(&s)->sin6_port);
+  };
+  if (port(a) == 0) bad(k + " = \"" + text_address + "\"", "a neighbour's address with its port (1..65535), not port 0");
+  const sockaddr_storage own = parse_udp_address(c.bind, P + "bind", bind_len);
+  if (len == bind_len && std::memcmp(&a, &own, len) == 0)
+    bad(k + " = \"" + text_address + "\"", "another station's address, not this station's own " + P + "bind");
 }
 
 // One entry of net.peers (key k, e.g. "net.peers[2]"): id, impairment of our link to it, its
@@ -168,6 +197,11 @@ void parse_peer(const toml::node_view<const toml::node>& p, const std::string& k
     if (!p["public_key"]) bad(k + ".public_key", "set when " + P + "key_file is (the neighbour's public key, 64 hex digits)");
     l.public_key = public_key_from_hex(text(p["public_key"], k + ".public_key", ""), k + ".public_key");
     if (l.public_key == e.own_keys.public_key) bad(k + ".public_key", "the neighbour's key, not this station's own");
+    try {  // the agreement run does while probing: a key with no shared secret (all zero, a low-order point) fails here
+      (void)pair_keys(e.own_keys, self, l.public_key, l.station_id);
+    } catch (const std::invalid_argument&) {
+      bad(k + ".public_key", "a valid public key (`haptic-keygen` prints it): this one, e.g. all zero, agrees no key");
+    }
   } else if (p["public_key"]) {
     bad(k + ".public_key", "absent with " + P + "shared_session_key (public keys go with " + P + "key_file)");
   }
@@ -175,8 +209,7 @@ void parse_peer(const toml::node_view<const toml::node>& p, const std::string& k
   if (c.transport == "udp") {
     if (!p["address"]) bad(k + ".address", "set for transport = \"udp\"");
     c.udp_peers.push_back({l.station_id, text(p["address"], k + ".address", "")});
-    socklen_t len = 0;
-    parse_udp_address(c.udp_peers.back().address, k + ".address", len);
+    check_peer_address(c, k + ".address", P);
   } else {
     if (!p["mac"]) bad(k + ".mac", "set for transport = \"raw\"");
     c.raw_peers.push_back({l.station_id, parse_mac(text(p["mac"], k + ".mac", ""), k + ".mac")});

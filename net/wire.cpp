@@ -126,7 +126,7 @@ std::string fingerprint_difference(const Fingerprint& mine, const Fingerprint& t
   else if (material && !geometry) field("scene material (hash)", mine.scene_hash, theirs.scene_hash, false);
   else field("scene data (hash)", mine.scene_hash, theirs.scene_hash, false);
   field("period_ns", mine.period_ns, theirs.period_ns, true);
-  field("gains (hash)", mine.gains_hash, theirs.gains_hash, false);
+  field("gains or shared station options (hash)", mine.gains_hash, theirs.gains_hash, false);
   auto named = [&](const char* name, const char* a, const char* b) {
     if (std::strcmp(a, b) == 0) return;
     if (!out.empty()) out += "; ";

@@ -8,6 +8,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <cstdlib>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -191,13 +193,18 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
     const auto me = static_cast<std::size_t>(p->me);
     check_device_coupling(*p->coupling, p->built->t_min_s[me], p->built->t_max_s[me]);
     workspace_map_config(f, *caps);  // a bad map is a configuration error here too
+  } else if (const std::string absent = drivers::auto_device_absence(p->device); !absent.empty()) {
+    std::string found = absent.substr(0, absent.size() - 1);
+    std::replace(found.begin(), found.end(), '\n', ';');
+    throw drivers::DeviceMissing("device.kind = \"auto\": no device to start on this machine (" + found +
+                                 "; name the kind, or \"simulated\" for the scenario's scripted user)");
   } else {
     p->warnings.push_back("device.kind = \"auto\": eq. (26) on the device's damping is checked at start-up, once the device is open "
                           "(name the kind to have --check-config check it)");
   }
   plan_device_file_warnings(*p);
   p->ramp_in_ticks = ramp_in_ticks(f, spec.period_s);
-  p->fingerprint = scene_fingerprint(*p->built, f.loop.period_ns);
+  p->fingerprint = station_fingerprint(*p->built, f);
   p->net.endpoint.fingerprint = p->fingerprint;  // sent to every neighbour (net/)
   p->net.endpoint.io_priority = f.station.io_priority;  // the I/O thread's RtThread (SCHED_FIFO or 0)
   set_payload_envelope(*p->built, p->net);
@@ -330,6 +337,15 @@ SceneFingerprint scene_fingerprint(const BuiltScenario& b, std::int64_t period_n
     const std::uint64_t h = net::fingerprint_hash(band, sizeof band);
     fp.tx_deadband_hash = static_cast<std::uint16_t>((h ^ (h >> 16) ^ (h >> 32) ^ (h >> 48)) | 1u);  // 0 means off
   }
+  return fp;
+}
+
+SceneFingerprint station_fingerprint(const BuiltScenario& b, const StationFile& f) {
+  SceneFingerprint fp = scene_fingerprint(b, f.loop.period_ns);
+  Fnv1a g;
+  g.value(fp.gains_hash);
+  g.value(f.shared_options_hash);
+  fp.gains_hash = g.h;
   return fp;
 }
 
@@ -510,8 +526,12 @@ void check_out_dir_creatable(const std::string& dir, const std::string& key) {
   // The deepest existing ancestor must be a directory we may write into (or the directory itself).
   while (!fs::exists(p, ec) && p.has_parent_path() && p != p.parent_path()) p = p.parent_path();
   if (!fs::is_directory(p, ec)) bad(key + " = \"" + dir + "\" cannot be created: " + p.string() + " is not a directory");
-  if (::access(p.c_str(), W_OK | X_OK) != 0)
+  // Permission bits do not tell (root passes access() on /proc, where nothing can be created): make
+  // and remove a directory there, as the run's outputs would be made.
+  std::string probe = (p / ".haptic-check-XXXXXX").string();
+  if (::mkdtemp(probe.data()) == nullptr)
     bad(key + " = \"" + dir + "\" cannot be " + (p == fs::absolute(fs::path(dir), ec) ? "written" : "created") + ": " + p.string() + ": " + std::strerror(errno));
+  ::rmdir(probe.c_str());
 }
 
 StationTimes plan_times(const StationFile& f, const RunOverrides& o, const ScenarioSpec& spec, const ClockReading& now) {
@@ -551,6 +571,9 @@ PlanResult plan_station(const StationFile& file, const RunOverrides& overrides, 
   try {
     r.plan = make_plan(file, overrides, now);
     r.status = PhaseStatus::kOk;
+  } catch (const drivers::DeviceMissing& e) {  // run's open phase would fail the same way: exit 9
+    r.status = PhaseStatus::kDeviceMissing;
+    r.error = e.what();
   } catch (const std::exception& e) {
     r.status = PhaseStatus::kConfigError;
     r.error = e.what();

@@ -40,6 +40,9 @@ ScenarioSpec station_scenario_spec(const StationFile& file, const RunOverrides& 
 // station.tx_predict, the transmission deadband) and wire protocol.
 using SceneFingerprint = net::Fingerprint;
 SceneFingerprint scene_fingerprint(const BuiltScenario& built, std::int64_t period_ns);
+// The fingerprint a station sends: the scene's, with the hash of the station file's options declared
+// same-on-all-stations (StationFile::shared_options_hash, options.hpp) folded into gains_hash.
+SceneFingerprint station_fingerprint(const BuiltScenario& built, const StationFile& f);
 // The fingerprint in words, for session logs (station and simulator alike). Not RT-safe.
 std::string fingerprint_text(const SceneFingerprint& f);
 

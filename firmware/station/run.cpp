@@ -518,7 +518,7 @@ int check_station_config(const StationFile& file, const RunOverrides& overrides,
   const PlanResult pr = plan_station(file, overrides, read_clocks());
   if (pr.status != PhaseStatus::kOk) {
     err << "haptic-station run: error: " << pr.error << "\n";
-    return kExitConfigError;
+    return pr.status == PhaseStatus::kDeviceMissing ? kExitDeviceMissing : kExitConfigError;
   }
   const StationPlan& p = *pr.plan;
   const ScenarioSpec& spec = p.built->spec;
@@ -535,7 +535,7 @@ int run_station(const StationFile& f, const RunOverrides& o, std::atomic<bool>& 
   PlanResult plan = plan_station(f, o, read_clocks());
   if (plan.status != PhaseStatus::kOk) {
     log.error(plan.error);
-    return kExitConfigError;
+    return plan.status == PhaseStatus::kDeviceMissing ? kExitDeviceMissing : kExitConfigError;
   }
   StationResources res;
   PhaseResults pr;

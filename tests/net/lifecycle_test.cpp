@@ -222,7 +222,7 @@ TEST(Fingerprints, RoundTripAndFieldByFieldDifference) {
   STRCMP_EQUAL("period_ns: 2000000 here, 1000000 at the peer", fingerprint_difference(f, g).c_str());
   g = f;
   g.gains_hash ^= 1;
-  STRCMP_EQUAL("gains (hash) differs", fingerprint_difference(f, g).c_str());
+  STRCMP_EQUAL("gains or shared station options (hash) differs", fingerprint_difference(f, g).c_str());
   g = f;
   g.protocol_version = 3;
   STRCMP_EQUAL("protocol version: 2 here, 3 at the peer", fingerprint_difference(f, g).c_str());

@@ -164,7 +164,8 @@ TEST(DeviceCoupling, APositionInputDeviceHasNoForceFeedbackAndEq26DoesNotApply) 
 }
 
 TEST(DeviceCoupling, StartUpChecksEq26AgainWithTheOpenedDevicesFiguresAndUsesItsForceLimit) {
-  const PlanResult r = plan("kind = \"auto\"\n");  // auto: nothing known at planning
+  // auto: nothing known at planning (a hidraw node named: the plan cannot rule a device out)
+  const PlanResult r = plan("kind = \"auto\"\nhidraw_path = \"/dev/hidraw-test\"\n");
   CHECK_TEXT(r.status == PhaseStatus::kOk, r.error.c_str());
   CHECK_FALSE(r.plan->coupling.has_value());
   ProbeResult probe;

@@ -33,11 +33,13 @@ LinkBound link_bound_from_delay_model(const Eigen::MatrixXi& nbar, int i, int j)
 
 double round_trip_bound_s(double max_s, double margin_fraction, double margin_s) { return max_s * (1.0 + margin_fraction) + margin_s; }
 
-LinkBound link_bound_from_round_trip(int measured, int loss_round_trip, int deadband, int agreement) {
+LinkBound link_bound_from_round_trip(int measured, int loss_round_trip, int deadband, int agreement, rt::RxRule rule) {
   // The deadband may hold a state deadband ticks longer in EACH direction: each one-way guard
   // ceil(R/2) needs that much more, so the round trip grows by twice it.
   LinkBound b;
   b.round_trip_ticks = measured + loss_round_trip + 2 * deadband;
+  const int half_ms_ticks = index_guard_from_round_trip(b.round_trip_ticks);  // a one-way delay's largest, in ticks
+  b.round_trip_ticks += 2 * receive_rule_ticks(rule, 0.0, half_ms_ticks * 1.0, 1e-3);  // ticks as ms at T = 1 ms
   b.guard_ticks = index_guard_from_round_trip(b.round_trip_ticks);
   b.assumed_sum_ticks = assumed_round_trip_sum_ticks(b.round_trip_ticks, agreement);
   return b;

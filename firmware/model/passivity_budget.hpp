@@ -69,8 +69,10 @@ LinkBound link_bound_from_delay_model(const Eigen::MatrixXi& nbar_ticks, int i, 
 double round_trip_bound_s(double max_round_trip_s, double margin_fraction, double margin_s);
 // From a round trip the station measured (ticks, net/'s bound with its margin) and the link's agreed
 // loss allowance (ticks on the round trip) and deadband allowance (ticks per direction).
+// Under the paper's receive rule each direction adds its delay spread (model::receive_rule_ticks):
+// a one-way delay lies in [0, ceil(R/2)] ticks, so the spread is at most the guard: + ceil(R/2) + 1 ticks per direction.
 LinkBound link_bound_from_round_trip(int measured_round_trip_ticks, int loss_allowance_round_trip_ticks, int deadband_ticks,
-                                     int agreement_ticks);
+                                     int agreement_ticks, rt::RxRule rule = rt::RxRule::kNewestBySequence);
 
 // B_i and whether the passivity condition holds.
 struct Damping {

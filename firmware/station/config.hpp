@@ -45,6 +45,7 @@ struct StationSection {
   double setup_gap_s = 0.5;
   double damping_margin = 0.05;
   std::string consensus_passivity = "eq18";
+  std::string receive_rule = "newest";
   double pspm_reservoir_J = 0.001;
   int loss_allowance_ticks = -1;      // -1: from the probe's measured loss
   int loss_allowance_max_ticks = 16;  // the paper links measure 8-12 (tools/run4); a loaded machine far more

@@ -90,6 +90,9 @@ const std::vector<StationOption> kStation = {
     {R("station", "damping_margin", 0.05, 0, 10, "B_i = (1 + margin) x eq. (18) of the measured bounds"), HAPTIC_FIELD(station, damping_margin)},
     {T("station", "consensus_passivity", "eq18", "eq18: B_i from eq. (18) (the paper); pspm: passive set-position modulation per edge "
                                                  "(rt/set_position_modulation.hpp); same on all stations (in the fingerprint)", "eq18|pspm"), HAPTIC_FIELD(station, consensus_passivity)},
+    {T("station", "receive_rule", "newest", "newest: the newest packet by sequence is used; paper: the packet that arrived last (Fig. 4), "
+                                            "late data used; Nbar then adds the delay spread (each one-way guard doubles, +1 tick); same on all "
+                                            "stations (in the fingerprint)", "newest|paper").same_on_all_stations(), HAPTIC_FIELD(station, receive_rule)},
     {R("station", "pspm_reservoir_J", 0.001, 0, 1, "with pspm: each edge's initial energy reservoir E0, J"), HAPTIC_FIELD(station, pspm_reservoir_J)},
     {I("station", "loss_allowance_ticks", -1, 0, 1000, "ticks added to the measured round-trip bound (eq. 18); -1: from the loss measured "
                                                        "while probing (station/probe.hpp)").with_special(-1), HAPTIC_FIELD(station, loss_allowance_ticks)},

@@ -275,6 +275,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.damping_margin = s.damping_margin;
   spec.consensus_passivity = rt::parse_consensus_passivity(s.consensus_passivity, "station.consensus_passivity");
   spec.pspm_reservoir0_J = s.pspm_reservoir_J;
+  spec.receive_rule = rt::parse_rx_rule(s.receive_rule, "station.receive_rule");
   spec.loss_allowance_ticks = s.loss_allowance_ticks;
   spec.edge_energy_bound_J = s.edge_energy_bound_J;
   spec.edge_energy_leak_W = s.edge_energy_leak_W;

@@ -181,6 +181,10 @@ TEST(Model, a_link_bound_from_a_measured_round_trip_adds_the_loss_and_twice_the_
   CHECK_EQUAL(9, l.guard_ticks);
   CHECK_EQUAL(20, l.assumed_sum_ticks);
   CHECK_EQUAL(10, model::link_bound_from_round_trip(19, 0, 0, 0).guard_ticks);  // ceil(19 / 2)
+  // the paper's receive rule: each direction adds its spread, at most the one-way guard ceil(R/2) + 1
+  const model::LinkBound p = model::link_bound_from_round_trip(19, 0, 0, 0, rt::RxRule::kMostRecentlyReceived);
+  CHECK_EQUAL(19 + 2 * (10 + 1), p.round_trip_ticks);
+  CHECK_EQUAL(10 + (10 + 1), p.guard_ticks);
   Eigen::MatrixXi nbar(2, 2);
   nbar << 0, 7, 3, 0;
   const model::LinkBound m = model::link_bound_from_delay_model(nbar, 0, 1);

@@ -130,6 +130,20 @@ TEST(StationConfig, ScenarioKeysApplyAndAreChecked) {
   CHECK_THROWS(std::invalid_argument, station_scenario_spec(f, RunOverrides{}));
 }
 
+TEST(StationConfig, ThePapersReceiveRuleIsAKeyAndItsBoundsAddTheDelaySpread) {
+  // station.receive_rule = "paper": the core uses the paper's rule, and the bounds from a measured
+  // round trip add each direction's spread (at most the one-way guard, + 1): guard 6 -> 6 + 7.
+  StationFile f = parse_station_file("[station]\nid = 1\nreceive_rule = \"paper\"\n" + kNet);
+  const BuiltScenario b = build_scenario(station_scenario_spec(f, RunOverrides{}));
+  CHECK(b.station_config(0).rx_rule == haptic::rt::RxRule::kMostRecentlyReceived);
+  const MeasuredBounds paper = bounds_from_round_trips(b, 0, {10, 15, 3}, {1, 1, 1}, 0.05, -1);
+  LONGS_EQUAL(6 + 7, paper.index_guard_ticks[0]);
+  const BuiltScenario bn = build_scenario(station_scenario_spec(parse_station_file("[station]\nid = 1\n" + kNet), RunOverrides{}));
+  CHECK(bn.station_config(0).rx_rule == haptic::rt::RxRule::kNewestBySequence);
+  CHECK_TRUE(paper.damping_Ns_per_m > bounds_from_round_trips(bn, 0, {10, 15, 3}, {1, 1, 1}, 0.05, -1).damping_Ns_per_m);
+  CHECK_TRUE(error_of("[station]\nid = 1\nreceive_rule = \"latest\"\n" + kNet).find("station.receive_rule") != std::string::npos);
+}
+
 TEST(StationConfig, DampingFromMeasuredRoundTripsIsEq18WithTheSymmetricGuardAndAgreementTick) {
   ScenarioSpec spec = make_scenario("paper-best");
   const BuiltScenario b = build_scenario(spec);

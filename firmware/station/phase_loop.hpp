@@ -20,6 +20,7 @@ void run_phase(const Timeline& t, TickPhase phase, std::int64_t k_first, platfor
   loop.run(
       [&](const platform::TickInfo& info) -> bool {
         const std::int64_t k = t.tick_at(info.scheduled_ns);  // = k_first + info.cycle when on time
+        if (k < k_first) return true;  // woke before the phase's first tick: not the phase's yet
         if (t.phase_of(k) > phase) return false;
         return tick(k, info);
       },

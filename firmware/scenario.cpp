@@ -117,6 +117,11 @@ ScenarioSpec make_scenario(const std::string& name, const std::string& key) {
   return s;
 }
 
+std::pair<double, double> ScenarioSpec::delay_trace_range_ms() const {
+  const auto [lo, hi] = std::minmax_element(delay_trace->begin(), delay_trace->end());
+  return {*lo * 1e3, *hi * 1e3};
+}
+
 void ScenarioSpec::validate() const {
   if (users < 2 || users > 64) bad("users must be in [2, 64]");
   if (!(period_s >= 1e-4 && period_s <= 0.05)) bad("period_s must be in [0.0001, 0.05]");
@@ -248,10 +253,11 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
       spec.loss_allowance_ticks, spec.loss_model(), spec.duration_s, T, 2 * static_cast<int>(spec.topology.size()),
       spec.tx_deadband.added_index_delay_ticks(), model::ClockModel{spec.timer_jitter_s, spec.step_jitter, spec.clock_drift_ppm});
   b.loss_allowance_ticks = allow.loss_ticks;
-  b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T, allow.total(), spec.receive_rule);
   if (spec.delay_trace) {
-    const auto [lo, hi] = std::minmax_element(spec.delay_trace->begin(), spec.delay_trace->end());
-    b.nbar_ticks = model::index_delay_bounds_ticks_from_range(spec.delay_ms, *lo * 1e3, *hi * 1e3, T, allow.total(), spec.receive_rule);
+    const auto [lo_ms, hi_ms] = spec.delay_trace_range_ms();
+    b.nbar_ticks = model::index_delay_bounds_ticks_from_range(spec.delay_ms, lo_ms, hi_ms, T, allow.total(), spec.receive_rule);
+  } else {
+    b.nbar_ticks = model::index_delay_bounds_ticks(spec.delay_ms, spec.jitter_fraction, T, allow.total(), spec.receive_rule);
   }
   const Eigen::VectorXd half_sums = model::round_trip_half_sums_ms(spec.topology, b.nbar_ticks, T);
   b.round_trip_sum_ms.assign(half_sums.data(), half_sums.data() + half_sums.size());

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -85,6 +86,7 @@ struct ScenarioSpec {
   // --delay-trace: recorded one-way delays (s) every link replays in place of the uniform draw
   // (net::LinkImpairment::delay_trace; Nbar then from the trace's range); empty: the delay model.
   std::shared_ptr<const std::vector<double>> delay_trace;
+  std::pair<double, double> delay_trace_range_ms() const;  // its smallest and largest delay (a trace is given)
   // Gilbert-Elliott burst loss on every link (net::LinkImpairment; off when burst_enter_probability = 0):
   // --burst-enter (good -> bad per packet), --burst-length (mean packets in the bad state), --burst-loss.
   double burst_enter_probability = 0;

@@ -51,17 +51,25 @@ inline RxVerdict hand_in(StationCore& core, std::int64_t k0, const ReceivedState
                                    : core.rx(p.link).offer(index, p.send_time_s, p.x_hat, p.v_hat, p.count);
 }
 
+// The offer a tick's packet source calls: hand_in at index seq - k0, then observer.offered(packet,
+// index, verdict); returns the verdict. drive_tick and a caller that drains packets without
+// stepping (the station's receive stage) use the same one. RT-safe.
+template <class Observer>
+auto offer_to(StationCore& core, std::int64_t k0, Observer& observer) {
+  return [&core, k0, &observer](const ReceivedState& p) {
+    const RxVerdict v = hand_in(core, k0, p);
+    observer.offered(p, p.seq - k0, v);
+    return v;
+  };
+}
+
 // The tick: packets(offer) calls offer(const ReceivedState&) once per packet received for this tick
 // (offer returns the link's verdict); each is handed to its link (hand_in) and then
 // observer.offered(packet, index, verdict) is called; after the last, observer.stepping(); then
 // core.tick(k, device_position_m, step_s). Returns the tick's output. RT-safe as above.
 template <class Packets, class Observer = NoTickObserver>
 StationCore::TickOutput drive_tick(StationCore& core, const TickDrive& in, Packets&& packets, Observer&& observer = Observer{}) {
-  packets([&](const ReceivedState& p) {
-    const RxVerdict v = hand_in(core, in.k0, p);
-    observer.offered(p, p.seq - in.k0, v);
-    return v;
-  });
+  packets(offer_to(core, in.k0, observer));
   observer.stepping();
   return core.tick(in.k, in.device_position_m, in.step_s);
 }

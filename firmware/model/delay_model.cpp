@@ -72,13 +72,7 @@ int index_delay_bound_ticks(double max_delay_ms, double period_s, int loss_allow
 }
 
 int loss_allowance_from_loss(double p, double ticks, int directed_links, double per_run) {
-  if (!(p >= 0 && p < 1)) bad("loss probability must be in [0, 1)");
-  if (!(per_run > 0 && per_run < 1)) bad("over-bound chance per run must be in (0, 1)");
-  const double events = std::max(1.0, ticks) * std::max(1, directed_links);
-  int L = 0;
-  // p^(L+1) events <= per_run; the cap keeps absurd inputs finite (p -> 1)
-  while (L < 1000 && std::pow(p, L + 1) * events > per_run) ++L;
-  return L;
+  return loss_allowance_from_loss(LossModel{p}, ticks, directed_links, per_run);
 }
 
 double consecutive_loss_probability(const LossModel& m, int n) {
@@ -101,10 +95,11 @@ double consecutive_loss_probability(const LossModel& m, int n) {
 }
 
 int loss_allowance_from_loss(const LossModel& m, double ticks, int directed_links, double per_run) {
-  if (!m.bursty()) return loss_allowance_from_loss(m.p, ticks, directed_links, per_run);
+  (void)consecutive_loss_probability(m, 1);  // the model's ranges first, then the target's
   if (!(per_run > 0 && per_run < 1)) bad("over-bound chance per run must be in (0, 1)");
   const double events = std::max(1.0, ticks) * std::max(1, directed_links);
   int L = 0;
+  // P(L+1 lost in a row) events <= per_run; the cap keeps absurd inputs finite (p -> 1)
   while (L < 1000 && consecutive_loss_probability(m, L + 1) * events > per_run) ++L;
   return L;
 }
@@ -124,12 +119,14 @@ int loss_allowance_from_measured_loss(long long lost, long long expected, double
   return loss_allowance_from_loss(p, ticks, directed_links, per_run);
 }
 
+int receive_rule_ticks(rt::RxRule rule, int spread_ticks) { return rule == rt::RxRule::kNewestBySequence ? 0 : spread_ticks + 1; }
+
 int receive_rule_ticks(rt::RxRule rule, double min_delay_ms, double max_delay_ms, double period_s) {
   if (rule == rt::RxRule::kNewestBySequence) return 0;
   if (!(period_s > 0)) bad("period: T must be > 0 s");
   if (!(min_delay_ms >= 0 && min_delay_ms <= max_delay_ms) || !std::isfinite(max_delay_ms))
     bad("delay: a link's delays must satisfy 0 <= min <= max < inf");
-  return static_cast<int>(std::ceil((max_delay_ms - min_delay_ms) * 1e-3 / period_s - 1e-9)) + 1;
+  return receive_rule_ticks(rule, static_cast<int>(std::ceil((max_delay_ms - min_delay_ms) * 1e-3 / period_s - 1e-9)));
 }
 
 Eigen::MatrixXi index_delay_bounds_ticks(const Eigen::MatrixXd& mean_delay_ms, double jitter_fraction, double period_s,

@@ -73,6 +73,8 @@ int index_delay_bound_ticks(double max_delay_ms, double period_s, int loss_allow
 // and N = k - s* <= (k T - a* + max) / T. The held packet can be older by the delay spread:
 // ceil((max - min) / T) + 1 ticks (the + 1: whole ticks).
 int receive_rule_ticks(rt::RxRule rule, double min_delay_ms, double max_delay_ms, double period_s);
+// The same for a spread already in whole ticks: 0 (newest) or spread_ticks + 1 (paper).
+int receive_rule_ticks(rt::RxRule rule, int spread_ticks);
 // The same for every ordered pair of a mean delay matrix with uniform jitter (delays in
 // mean [1 - jitter_fraction, 1 + jitter_fraction]) under the receive rule in force; diagonal 0.
 Eigen::MatrixXi index_delay_bounds_ticks(const Eigen::MatrixXd& mean_delay_ms, double jitter_fraction, double period_s,

@@ -38,8 +38,8 @@ LinkBound link_bound_from_round_trip(int measured, int loss_round_trip, int dead
   // ceil(R/2) needs that much more, so the round trip grows by twice it.
   LinkBound b;
   b.round_trip_ticks = measured + loss_round_trip + 2 * deadband;
-  const int half_ms_ticks = index_guard_from_round_trip(b.round_trip_ticks);  // a one-way delay's largest, in ticks
-  b.round_trip_ticks += 2 * receive_rule_ticks(rule, 0.0, half_ms_ticks * 1.0, 1e-3);  // ticks as ms at T = 1 ms
+  // each direction's spread is at most its largest one-way delay, the guard ceil(R/2)
+  b.round_trip_ticks += 2 * receive_rule_ticks(rule, index_guard_from_round_trip(b.round_trip_ticks));
   b.guard_ticks = index_guard_from_round_trip(b.round_trip_ticks);
   b.assumed_sum_ticks = assumed_round_trip_sum_ticks(b.round_trip_ticks, agreement);
   return b;

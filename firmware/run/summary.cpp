@@ -39,10 +39,10 @@ json scenario_json(const BuiltScenario& b) {
   j["snapshot_times_s"] = snapshot_times_s(s);
   j["damping_margin"] = s.damping_margin;
   j["loss_allowance_ticks"] = b.loss_allowance_ticks;  // the one used (given, or from the loss model)
-  if (s.delay_trace)
-    j["delay_trace"] = {{"delays", s.delay_trace->size()},
-                        {"min_ms", 1e3 * *std::min_element(s.delay_trace->begin(), s.delay_trace->end())},
-                        {"max_ms", 1e3 * *std::max_element(s.delay_trace->begin(), s.delay_trace->end())}};
+  if (s.delay_trace) {
+    const auto [lo_ms, hi_ms] = s.delay_trace_range_ms();
+    j["delay_trace"] = {{"delays", s.delay_trace->size()}, {"min_ms", lo_ms}, {"max_ms", hi_ms}};
+  }
   if (s.burst_enter_probability > 0)
     j["burst_loss"] = {{"enter_probability", s.burst_enter_probability}, {"mean_packets", s.burst_mean_packets},
                        {"loss_probability", s.burst_loss_probability}};

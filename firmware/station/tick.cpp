@@ -189,11 +189,7 @@ void TickRecords::reserve(std::size_t trace_rows, std::size_t state_rows, int do
 
 void receive_packets(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {
   RunTickObserver observer{in, cnt, kr};
-  drain_rx(in, cnt, [&](const rt::ReceivedState& p) {
-    const rt::RxVerdict v = rt::hand_in(*in.core, in.run_k0, p);
-    observer.offered(p, p.seq - in.run_k0, v);
-    return v;
-  });
+  drain_rx(in, cnt, rt::offer_to(*in.core, in.run_k0, observer));
 }
 
 bool any_neighbour_within_bound(rt::StationCore& core, std::int64_t kr) {

@@ -80,11 +80,12 @@ class PeriodicLoop {
   }
 
   // Runs until tick() returns false, stop becomes true, or max_ticks ticks ran. The first
-  // deadline is one period from now. RT-safe apart from what tick() does.
+  // deadline is first_deadline_ns (a grid the caller keeps, e.g. a timeline's ticks) or, when 0,
+  // one period from now. RT-safe apart from what tick() does.
   template <class Tick>
-  void run(Tick&& tick, const std::atomic<bool>& stop) {
+  void run(Tick&& tick, const std::atomic<bool>& stop, std::int64_t first_deadline_ns = 0) {
     const std::int64_t period = config_.period_ns;
-    std::int64_t next = clock_.now_ns() + period;
+    std::int64_t next = first_deadline_ns != 0 ? first_deadline_ns : clock_.now_ns() + period;
     std::int64_t prev_exec = -1;
     std::int64_t window_start = next;
     std::int64_t storm_window_start = next;
@@ -134,6 +135,10 @@ class PeriodicLoop {
           storm_pending = true;
         }
       }
+      if (regrid_ns_ != kNoRegrid) {  // move_grid(): the next deadline on the new grid, the first one after this tick
+        following = regrid_ns_ > end ? regrid_ns_ : regrid_ns_ + ((end - regrid_ns_) / period + 1) * period;
+        regrid_ns_ = kNoRegrid;
+      }
       next = following;
 
       if (end - window_start >= config_.report_interval_ns) {
@@ -145,6 +150,12 @@ class PeriodicLoop {
     }
     publish_report();
   }
+
+  // Called from tick(): the loop moves onto the grid through deadline_ns (its deadlines become
+  // deadline_ns + m period), the next deadline being the first of them after this tick ends, for a
+  // station that learns another epoch while its loop runs (a rejoin). The move is no overrun and
+  // skips no counted cycle. RT-safe.
+  void move_grid(std::int64_t deadline_ns) { regrid_ns_ = deadline_ns; }
 
   // Totals. Read from the loop's thread, or from any thread after run() returned.
   const LoopStats& stats() const { return stats_; }
@@ -185,9 +196,11 @@ class PeriodicLoop {
     reports_.writer_publish(r);
   }
 
+  static constexpr std::int64_t kNoRegrid = INT64_MIN;
   LoopConfig config_;
   Clock clock_;
   LoopStats stats_;
+  std::int64_t regrid_ns_ = kNoRegrid;
   Window window_;
   LatestMailbox<LoopReport> reports_;
 };

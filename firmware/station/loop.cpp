@@ -1,53 +1,18 @@
 #include "firmware/station/loop.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <exception>
-#include <semaphore>
-
-#include "firmware/station/phase_loop.hpp"
-#include "platform/rt_thread.hpp"
 
 namespace haptic::firmware {
 
 namespace {
 
-// What the RT thread leaves for the non-RT side (written before `done` is released).
-struct LoopOutcome {
-  std::int64_t first_run_k = -1;
-  std::int64_t last_kr = -1;
-  bool exception = false;
-  char what[256] = {};
-  platform::LoopStats stats{};
-};
+LoopCounts counts_of(const platform::LoopStats& s) { return {s.ticks, s.overruns, s.missed_cycles, s.overrun_storms}; }
 
-// The RtThread body: wait for the run epoch, run the loop; the one catch of the run phase.
-void loop_body(const StationPlan& plan, drivers::HapticDevice* device, const RunTickFn& tick, platform::PeriodicLoop<>& loop,
-               std::atomic<bool>& stop, LoopOutcome& out) {
-  const StationTimes& t = plan.times;
-  try {
-    // From kr = 0, or for a station past the run start (rejoining) the next tick of the session's
-    // grid, to the end of the run.
-    run_phase(
-        t, TickPhase::kRun, t.run_k0, loop,
-        [&](std::int64_t k, const platform::TickInfo& info) -> bool {
-          const std::int64_t kr = k - t.run_k0;
-          if (out.first_run_k < 0) out.first_run_k = k;
-          out.last_kr = kr;
-          tick(k, kr, info);
-          return !stop.load(std::memory_order_acquire);
-        },
-        stop);
-  } catch (const std::exception& e) {
-    enter_safe_state(device);
-    out.exception = true;
-    std::strncpy(out.what, e.what(), sizeof out.what - 1);
-  } catch (...) {
-    enter_safe_state(device);
-    out.exception = true;
-    std::strncpy(out.what, "unknown exception", sizeof out.what - 1);
-  }
-  out.stats = loop.stats();
+LoopCounts minus(const LoopCounts& a, const LoopCounts& b) {
+  return {a.ticks - b.ticks, a.overruns - b.overruns, a.missed_cycles - b.missed_cycles, a.overrun_storms - b.overrun_storms};
 }
 
 }  // namespace
@@ -61,51 +26,170 @@ void enter_safe_state(drivers::HapticDevice* device) noexcept {
   }
 }
 
-RunPhaseResult run_periodic(const StationPlan& plan, drivers::HapticDevice* device, const RunTickFn& tick, std::atomic<bool>& stop,
-                            const RunObserver& observer) {
-  RunPhaseResult r;
-  platform::PeriodicLoop<> loop(plan.file.loop);
-  LoopOutcome out;
-  std::binary_semaphore done(0);
+StationLoop::StationLoop(const StationPlan& plan, drivers::HapticDevice* device, const std::atomic<bool>& stop)
+    : plan_(plan), device_(device), stop_(stop), loop_(plan.file.loop) {}
+
+StationLoop::~StationLoop() { finish(); }
+
+void StationLoop::start(LoopStage first, const RunObserver& observer) {
+  stages_[0] = std::move(first);
+  published_.store(1, std::memory_order_release);
+  thread_ = std::make_unique<platform::RtThread>(plan_.file.rt, [this](const platform::RtReport&) { body(); });
+  rt_summary_ = thread_->setup_summary();
+  rt_warnings_ = thread_->setup_warnings();
+  if (observer.rt_ready) observer.rt_ready(rt_summary_, rt_warnings_);
+}
+
+int StationLoop::hand_over(LoopStage next) {
+  const int i = published_.load(std::memory_order_relaxed);
+  if (i >= kMaxStages) throw std::logic_error("StationLoop: more than kMaxStages stages");
+  stages_[i] = std::move(next);
+  published_.store(i + 1, std::memory_order_release);
+  return i;
+}
+
+// The RT thread: the loop from the first stage's first tick; the loop-boundary catch.
+void StationLoop::body() {
+  // The first deadline is the first stage's first tick (a loop that starts late: the next tick of the
+  // grid at least one period ahead), and every deadline after it is on the timeline's grid.
+  const Timeline& t = stages_[0].timeline;
+  const std::int64_t first_deadline = t.time_of(t.first_tick_from(stages_[0].k_first, loop_.clock().now_ns()));
   try {
-    platform::RtThread rt_thread(plan.file.rt, [&](const platform::RtReport&) {
-      loop_body(plan, device, tick, loop, stop, out);
-      done.release();
-    });
-    r.rt_summary = rt_thread.setup_summary();
-    r.rt_warnings = rt_thread.setup_warnings();
-    if (observer.rt_ready) observer.rt_ready(r.rt_summary, r.rt_warnings);
-    const auto interval = std::min<std::chrono::nanoseconds>(std::chrono::nanoseconds(plan.file.loop.report_interval_ns),
-                                                             std::chrono::milliseconds(100));
-    platform::LoopReport rep;
-    while (!done.try_acquire_for(interval)) {
-      if (observer.report && loop.take_report(rep)) observer.report(rep);
-      if (observer.idle) observer.idle();
-    }
-    rt_thread.join();
-  } catch (const std::exception& e) {  // RtThread set-up refused (rt.require_rt)
-    r.status = PhaseStatus::kFailed;
-    r.message = std::string("real-time set-up: ") + e.what();
-    return r;
+    loop_.run([this](const platform::TickInfo& info) { return on_tick(info); }, stop_, first_deadline);
+  } catch (const std::exception& e) {
+    enter_safe_state(device_);
+    exception_ = true;
+    std::strncpy(what_, e.what(), sizeof what_ - 1);
+  } catch (...) {
+    enter_safe_state(device_);
+    exception_ = true;
+    std::strncpy(what_, "unknown exception", sizeof what_ - 1);
   }
-  r.loop = out.stats;
-  r.first_run_k = out.first_run_k;
-  r.loop_exception = out.exception;
-  r.loop_exception_what = out.what;
-  r.stopped_by_signal = stop.load(std::memory_order_acquire) && out.last_kr + 1 < plan.times.run_ticks;
+  StageOutcome& o = outcomes_[current_];
+  if (!current_done_ && o.ran) o.counts = minus(counts_of(loop_.stats()), o.counts);  // ended by stop or an exception
+  ended_.store(true, std::memory_order_release);
+  events_.release();
+}
+
+// One deadline of the loop: a tick of the current stage, or a set-up tick between two stages. RT-safe
+// apart from what a stage's tick does.
+bool StationLoop::on_tick(const platform::TickInfo& info) {
+  if (abort_.load(std::memory_order_acquire)) return false;
+  if (current_done_) {
+    const Timeline& t = stages_[current_].timeline;
+    if (current_ + 1 >= published_.load(std::memory_order_acquire))  // nothing handed over yet: a set-up tick
+      return t.phase_of(t.tick_at(info.scheduled_ns)) != TickPhase::kAfter;
+    ++current_;
+    current_done_ = false;
+    const LoopStage& s = stages_[current_];
+    if (s.new_grid) {  // onto the new timeline's grid: its next tick at least one period from now
+      loop_.move_grid(s.timeline.time_of(s.timeline.first_tick_from(s.k_first, loop_.clock().now_ns())));
+      return true;
+    }
+  }
+  const LoopStage& s = stages_[current_];
+  StageOutcome& o = outcomes_[current_];
+  const std::int64_t k = s.timeline.tick_at(info.scheduled_ns);  // the one time-to-tick rule
+  if (k < s.k_first) return true;
+  bool more = s.timeline.phase_of(k) <= s.last_phase;
+  if (more) {
+    if (!o.ran) {
+      o.ran = true;
+      o.first_k = k;
+      o.counts = counts_of(loop_.stats());  // the stage's start; its share at the end
+    }
+    o.last_k = k;
+    more = s.tick(k, info);
+  }
+  if (more) return true;
+  o.counts = o.ran ? minus(counts_of(loop_.stats()), o.counts) : LoopCounts{};
+  o.ended = true;
+  current_done_ = true;
+  stages_ended_.store(current_ + 1, std::memory_order_release);
+  events_.release();
+  return !s.ends_loop;
+}
+
+void StationLoop::serve(const RunObserver& observer) {
+  platform::LoopReport rep;
+  if (observer.report && loop_.take_report(rep)) observer.report(rep);
+  if (observer.idle) observer.idle();
+}
+
+bool StationLoop::wait_stage(int index, const RunObserver& observer) {
+  const auto interval = std::min<std::chrono::nanoseconds>(std::chrono::nanoseconds(plan_.file.loop.report_interval_ns), std::chrono::milliseconds(100));
+  for (;;) {
+    if (stages_ended_.load(std::memory_order_acquire) > index) return true;
+    if (ended_.load(std::memory_order_acquire)) return stages_ended_.load(std::memory_order_acquire) > index;
+    events_.try_acquire_for(interval);
+    serve(observer);
+  }
+}
+
+void StationLoop::finish() {
+  abort_.store(true, std::memory_order_release);
+  if (thread_) thread_->join();
+}
+
+RunPhaseResult StationLoop::run_result(int run_index, const RunObserver& observer) {
+  RunPhaseResult r;
+  r.rt_summary = rt_summary_;
+  r.rt_warnings = rt_warnings_;
+  const auto interval = std::min<std::chrono::nanoseconds>(std::chrono::nanoseconds(plan_.file.loop.report_interval_ns), std::chrono::milliseconds(100));
+  while (!ended_.load(std::memory_order_acquire)) {
+    events_.try_acquire_for(interval);
+    serve(observer);
+  }
+  if (thread_) thread_->join();
+  const StageOutcome& o = outcomes_[run_index];
+  r.loop = o.counts;
+  r.first_run_k = o.ran ? o.first_k : -1;
+  r.loop_exception = exception_;
+  r.loop_exception_what = what_;
+  const Timeline& t = stages_[run_index].timeline;
+  r.stopped_by_signal = stop_.load(std::memory_order_acquire) && (!o.ran || o.last_k + 1 < t.run_end_k());
   if (r.loop_exception) {
     r.status = PhaseStatus::kFailed;
     r.message = "the run loop caught an exception (safe state: zero force): " + r.loop_exception_what;
+  } else if (r.stopped_by_signal) {
+    r.status = PhaseStatus::kStopped;
+  } else if (!o.ran) {
+    r.status = PhaseStatus::kFailed;
+    r.message = "no run tick ran: the run's ticks had passed when the core was handed to the loop";
   } else {
-    r.status = r.stopped_by_signal ? PhaseStatus::kStopped : PhaseStatus::kOk;
+    r.status = PhaseStatus::kOk;
   }
   return r;
 }
 
-RunPhaseResult run_loop(const StationPlan& plan, const TickInputs& in, TickRecords& rec, TickCounters& cnt, std::atomic<bool>& stop,
-                        const RunObserver& observer) {
-  const RunTickFn tick = [&](std::int64_t k, std::int64_t kr, const platform::TickInfo& info) { run_tick(in, rec, cnt, k, kr, info); };
-  return run_periodic(plan, in.device, tick, stop, observer);
+LoopStage run_stage(const StationPlan& plan, const RunTickFn& tick, const std::atomic<bool>& stop, bool new_grid) {
+  LoopStage s;
+  s.name = "run";
+  s.timeline = plan.times;
+  s.last_phase = TickPhase::kRun;
+  s.k_first = plan.times.run_k0;
+  s.new_grid = new_grid;
+  s.ends_loop = true;
+  const std::int64_t run_k0 = plan.times.run_k0;
+  s.tick = [&tick, &stop, run_k0](std::int64_t k, const platform::TickInfo& info) {
+    tick(k, k - run_k0, info);
+    return !stop.load(std::memory_order_acquire);
+  };
+  return s;
+}
+
+RunPhaseResult run_periodic(const StationPlan& plan, drivers::HapticDevice* device, const RunTickFn& tick, std::atomic<bool>& stop,
+                            const RunObserver& observer) {
+  StationLoop loop(plan, device, stop);
+  try {
+    loop.start(run_stage(plan, tick, stop, false), observer);
+  } catch (const std::exception& e) {  // RtThread set-up refused (rt.require_rt)
+    RunPhaseResult r;
+    r.status = PhaseStatus::kFailed;
+    r.message = std::string("real-time set-up: ") + e.what();
+    return r;
+  }
+  return loop.run_result(0, observer);
 }
 
 }  // namespace haptic::firmware

@@ -5,7 +5,6 @@
 #include <stdexcept>
 
 #include "platform/clock.hpp"
-#include "firmware/station/phase_loop.hpp"
 #include "platform/periodic_loop.hpp"
 #include "rt/gains.hpp"
 
@@ -23,12 +22,11 @@ std::string id_list(const std::vector<int>& ids) {
   return s;
 }
 
-// Neighbour packets into the tick grid; notes a neighbour already running the session (a run
-// packet, sequence number >= run_k0, further ahead of our tick than a grid offset within
-// station.clock_offset_limit_ms explains: its session started before ours). Not RT-safe.
-void take_neighbour_packets(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r) {
-  const std::int64_t k_now = (net::monotonic_ns() - plan.times.epoch_ns) / plan.times.period_ns;
-  const std::int64_t running_above = std::max(plan.times.run_k0, k_now + plan.clock_offset_limit_ticks());
+// Neighbour packets into the tick grid at probing tick k; notes a neighbour already running the
+// session (a run packet, sequence number >= run_k0, further ahead of tick k than a grid offset
+// within station.clock_offset_limit_ms explains: its session started before ours). Not RT-safe.
+void take_neighbour_packets(const StationPlan& plan, net::Endpoint& ep, std::int64_t k, ProbeResult& r) {
+  const std::int64_t running_above = std::max(plan.times.run_k0, k + plan.clock_offset_limit_ticks());
   ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
     const int n = plan.peers.sender_to_nbr[sender];
     r.grid.add(n, seq, send_time_s, plan.built->spec.period_s);  // the neighbour's tick grid
@@ -36,48 +34,6 @@ void take_neighbour_packets(const StationPlan& plan, net::Endpoint& ep, ProbeRes
     if (n >= 0 && static_cast<std::int64_t>(seq) >= running_above && r.running_session_from == 0) r.running_session_from = sender;
   });
 }
-
-// Until the epoch: watches for a neighbour that already runs the session. True when one does.
-bool session_already_running(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, ProbeResult& r) {
-  const std::int64_t until = plan.times.time_of(-1);
-  while (!stop.load(std::memory_order_acquire) && net::monotonic_ns() < until) {
-    take_neighbour_packets(plan, ep, r);
-    if (r.running_session_from != 0) return true;
-    platform::sleep_until_monotonic_ns(std::min(until, net::monotonic_ns() + 10'000'000));
-  }
-  return false;
-}
-
-// The probing ticks: the rest state every tick, zero coupling; whatever arrives is dropped.
-void send_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, ProbeResult& r) {
-  const StationTimes& t = plan.times;
-  const BuiltScenario& b = *plan.built;
-  const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);
-  if (session_already_running(plan, ep, stop, r)) return;
-  platform::LoopConfig lc = plan.file.loop;
-  platform::PeriodicLoop<> loop(lc);
-  bool frozen = false;
-  // From k = 0 (started late: the next tick of the grid) to the end of probing.
-  run_phase(
-      t, TickPhase::kProbe, 0, loop,
-      [&](std::int64_t k, const platform::TickInfo&) {
-        if (r.first_probe_k < 0) r.first_probe_k = k;
-        if (k >= probe_freeze_tick(t.probe_ticks) && !frozen) {  // the bounds freeze; the last third exchanges them
-          frozen = true;
-          r.all_bounds_at_freeze = ep.finish_probing();
-          fix_loss_allowances(plan, ep, r);  // travels with the frozen bounds
-        }
-        take_neighbour_packets(plan, ep, r);
-        if (r.running_session_from != 0) return false;
-        if (k >= 0 && !ep.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data())) ++r.push_failures;
-        return true;
-      },
-      stop);
-  r.loop_ticks = loop.stats().ticks;
-  r.loop_overruns = loop.stats().overruns;
-  r.loop_missed_cycles = loop.stats().missed_cycles;
-}
-
 
 // What the endpoint dropped while probing, by counted cause ("; counted: 120 bad_mac (forged or
 // wrong key), 3 future_sequence"), or "; nothing received at all".
@@ -139,26 +95,57 @@ void fix_loss_allowances(const StationPlan& plan, net::Endpoint& ep, ProbeResult
   }
 }
 
-ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
-  ProbeResult r;
+LoopStage probe_stage(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r, std::int64_t now_ns) {
   r.grid = NeighbourGrid(plan.neighbours().size());
   r.loss_counter = ProbeLossCounter(plan.neighbours().size());
-  send_probes(plan, ep, stop, r);
+  const BuiltScenario& b = *plan.built;
+  const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);
+  LoopStage s;
+  s.name = "probe";
+  s.timeline = plan.times;
+  s.last_phase = TickPhase::kProbe;
+  s.k_first = plan.times.tick_at(now_ns);  // from now: the ticks before the epoch watch for a running session
+  const std::int64_t freeze = probe_freeze_tick(plan.times.probe_ticks);
+  s.tick = [&plan, &ep, &r, x0, v0, freeze, frozen = false](std::int64_t k, const platform::TickInfo&) mutable {
+    if (k >= freeze && !frozen) {  // the bounds freeze; the last third exchanges them
+      frozen = true;
+      r.all_bounds_at_freeze = ep.finish_probing();
+      fix_loss_allowances(plan, ep, r);  // travels with the frozen bounds
+    }
+    take_neighbour_packets(plan, ep, k, r);
+    if (r.running_session_from != 0) return false;  // the caller rejoins the running session
+    if (k < 0) return true;                         // before the epoch: watching only
+    if (r.first_probe_k < 0) r.first_probe_k = k;
+    if (!ep.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data())) ++r.push_failures;
+    return true;
+  };
+  return s;
+}
+
+void end_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, const StageOutcome& o, ProbeResult& r) {
+  r.loop_ticks = o.counts.ticks;
+  r.loop_overruns = o.counts.overruns;
+  r.loop_missed_cycles = o.counts.missed_cycles;
   if (stop.load(std::memory_order_acquire)) {
     r.status = PhaseStatus::kStopped;
     r.message = "stopped by a signal while probing";
-    return r;
+    return;
+  }
+  if (!o.ended) {
+    r.status = PhaseStatus::kFailed;
+    r.message = "the station loop ended while probing";
+    return;
   }
   if (r.running_session_from != 0) {  // the caller rejoins the running session instead
     r.status = PhaseStatus::kOk;
     r.message = "station " + std::to_string(r.running_session_from) + " already runs the session (its run packets arrive before our probing ended)";
-    return r;
+    return;
   }
   if (r.first_probe_k < 0 || r.first_probe_k * 2 > plan.times.probe_ticks) {  // opening the device/endpoint took most of it
     r.status = PhaseStatus::kFailed;
     r.message = "probing began at tick " + std::to_string(r.first_probe_k) + " of " + std::to_string(plan.times.probe_ticks) +
                 ": the station was ready too late for the common epoch (station.start_at / --start-at, station.start_delay_s)";
-    return r;
+    return;
   }
   // A neighbour with too few round trips at the freeze gets its bound now, from all of probing (its
   // end then may not learn ours in time: the warning in collect_probe_result says so).
@@ -168,6 +155,21 @@ ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const s
   }
   collect_probe_result(plan, ep, r.all_bounds_at_freeze, "station.probe_s = " + std::to_string(plan.file.station.probe_s) + " s", r);
   if (r.status == PhaseStatus::kOk) check_clock(plan, plan.times.epoch_ns, r);
+}
+
+ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
+  ProbeResult r;
+  StationLoop loop(plan, nullptr, stop);
+  try {
+    loop.start(probe_stage(plan, ep, r, net::monotonic_ns()), RunObserver{});
+  } catch (const std::exception& e) {
+    r.status = PhaseStatus::kFailed;
+    r.message = std::string("real-time set-up: ") + e.what();
+    return r;
+  }
+  loop.wait_stage(0, RunObserver{});
+  loop.finish();
+  end_probe(plan, ep, stop, loop.stage(0), r);
   return r;
 }
 

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "firmware/station/device_coupling.hpp"
+#include "firmware/station/loop.hpp"
 #include "firmware/model/probe_loss.hpp"
 #include "firmware/station/neighbours.hpp"
 #include "firmware/station/phase.hpp"
@@ -47,7 +48,7 @@ struct ProbeResult {
   int running_session_from = 0;
   std::vector<int> missing;                     // neighbours (station ids) without a bound
   std::uint64_t push_failures = 0;
-  std::uint64_t loop_ticks = 0, loop_overruns = 0, loop_missed_cycles = 0;  // the probing loop's counters
+  std::uint64_t loop_ticks = 0, loop_overruns = 0, loop_missed_cycles = 0;  // the loop's counters over the probing stage
   std::int64_t first_probe_k = -1;              // epoch index of the first probing tick (0 when on time)
   net::EndpointStats stats_at_end{};            // the endpoint's statistics when probing ended
   NeighbourGrid grid;                           // each neighbour's tick grid, from the probes it sent
@@ -55,14 +56,21 @@ struct ProbeResult {
   std::vector<std::string> warnings;            // e.g. a clock offset above the bound (not refused)
 };
 
-// Runs the probing ticks on the calling thread (absolute deadlines from the plan's epoch; the
-// endpoint must be started and in probing mode). Round trips are measured over the first two
-// thirds (then probing is finished: the bounds freeze); in the last third each end learns the
-// other's frozen bound (net/ fingerprint messages), so both use the same, the larger. kNoNeighbour when no
-// neighbour answered at all, kFailed when some did not, kStopped on `stop`.
-// Before any round-trip complaint it compares the neighbours' fingerprints (refusing, kFailed,
-// with the fields that differ) and, after, checks the clock offset of each neighbour's tick grid
-// (warning, or kFailed with station.clock_offset_refuse).
+// The probing stage of the station's loop (loop.hpp), into r (which must outlive the loop): from
+// the tick due at now_ns (ticks before the epoch only watch for a neighbour already running the
+// session, which ends the stage: r.running_session_from) to the end of probing, the rest state
+// every tick k in [0, probe_ticks) (the endpoint must be started and in probing mode). Round trips
+// are measured over the first two thirds (then probing is finished: the bounds freeze); in the
+// last third each end learns the other's frozen bound (net/ fingerprint messages), so both use the
+// same, the larger. Its ticks are not RT-safe (nothing is coupled yet).
+LoopStage probe_stage(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r, std::int64_t now_ns);
+// After the probing stage `o` ended (or the loop did): r's status. kNoNeighbour when no neighbour
+// answered at all, kFailed when some did not, kStopped on `stop`. Before any round-trip complaint
+// it compares the neighbours' fingerprints (refusing, kFailed, with the fields that differ) and,
+// after, checks the clock offset of each neighbour's tick grid (warning, or kFailed with
+// station.clock_offset_refuse). Not RT-safe.
+void end_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, const StageOutcome& o, ProbeResult& r);
+// Both on a loop of their own (a station alone; tests of probing).
 ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop);
 // The probing tick at which the round-trip bounds freeze: after two thirds of the probing ticks.
 std::int64_t probe_freeze_tick(std::int64_t probe_ticks);

@@ -3,48 +3,16 @@
 #include <time.h>
 
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Core>
 
-#include "firmware/station/phase_loop.hpp"
 
 namespace haptic::firmware {
 
 namespace {
 
-
-// Step 1's loop: provisional pushes every period, neighbours' packets into the grid. The session's
-// epoch is not known yet: the provisional ticks run on a timeline of their own, its tick 0 one
-// period from now, on the same loop and rule as probe and run (phase_loop.hpp).
-void provisional_probes(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, RejoinResult& r) {
-  const BuiltScenario& b = *plan.built;
-  const Eigen::VectorXd& x0 = b.scene.x_d;  // the rest state
-  const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(b.scene.dofs);
-  const double T = b.spec.period_s;
-  Timeline own;
-  own.period_ns = plan.times.period_ns;
-  own.epoch_ns = net::monotonic_ns() + own.period_ns;
-  own.probe_ticks = std::llround(plan.file.station.rejoin_probe_s / T);
-  platform::PeriodicLoop<> loop(plan.file.loop);
-  run_phase(
-      own, TickPhase::kProbe, 0, loop,
-      [&](std::int64_t, const platform::TickInfo&) {
-        ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
-          r.probe.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, T);
-          r.probe.loss_counter.add(plan.peers.sender_to_nbr[sender], seq);
-        });
-        // Provisional sequence numbers stay below the session's run_k0: the neighbours' ticks ignore them.
-        if (static_cast<std::int64_t>(r.provisional_pushes) < plan.times.run_k0 - 1 &&
-            ep.push_state(r.provisional_pushes, net::monotonic_s(), x0.data(), v0.data()))
-          ++r.provisional_pushes;
-        return true;
-      },
-      stop);
-  r.probe.loop_ticks = r.provisional_pushes;
-  r.probe.loop_overruns = loop.stats().overruns;
-  r.probe.loop_missed_cycles = loop.stats().missed_cycles;
-}
 
 // Step 1's result: the session epoch from the neighbour with the most certain clock offset.
 bool learn_epoch(const StationPlan& plan, RejoinResult& r) {
@@ -68,31 +36,58 @@ bool learn_epoch(const StationPlan& plan, RejoinResult& r) {
 
 }  // namespace
 
-RejoinResult rejoin_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop) {
-  RejoinResult r;
+LoopStage rejoin_stage(const StationPlan& plan, net::Endpoint& ep, RejoinResult& r, std::int64_t now_ns) {
   r.probe.grid = NeighbourGrid(plan.neighbours().size());
   r.probe.loss_counter = ProbeLossCounter(plan.neighbours().size());
-  provisional_probes(plan, ep, stop, r);
-  if (stop.load(std::memory_order_acquire)) {
-    r.probe.status = PhaseStatus::kStopped;
-    r.probe.message = "stopped by a signal while rejoining";
-    return r;
+  const BuiltScenario& b = *plan.built;
+  const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);  // the rest state
+  const double T = b.spec.period_s;
+  LoopStage s;
+  s.name = "rejoin";
+  s.timeline.period_ns = plan.times.period_ns;
+  s.timeline.epoch_ns = now_ns + plan.times.period_ns;
+  s.timeline.probe_ticks = std::llround(plan.file.station.rejoin_probe_s / T);
+  s.timeline.run_k0 = std::numeric_limits<std::int64_t>::max() / 4;  // no run on this timeline: set-up ticks until the session's stage
+  s.last_phase = TickPhase::kProbe;
+  s.k_first = 0;
+  s.new_grid = true;
+  s.tick = [&plan, &ep, &r, x0, v0, T](std::int64_t, const platform::TickInfo&) {
+    ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
+      r.probe.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, T);
+      r.probe.loss_counter.add(plan.peers.sender_to_nbr[sender], seq);
+    });
+    // Provisional sequence numbers stay below the session's run_k0: the neighbours' ticks ignore them.
+    if (static_cast<std::int64_t>(r.provisional_pushes) < plan.times.run_k0 - 1 &&
+        ep.push_state(r.provisional_pushes, net::monotonic_s(), x0.data(), v0.data()))
+      ++r.provisional_pushes;
+    return true;
+  };
+  return s;
+}
+
+void end_rejoin_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, const StageOutcome& o, RejoinResult& r) {
+  r.probe.loop_ticks = r.provisional_pushes;
+  r.probe.loop_overruns = o.counts.overruns;
+  r.probe.loop_missed_cycles = o.counts.missed_cycles;
+  if (stop.load(std::memory_order_acquire) || !o.ended) {
+    r.probe.status = stop.load(std::memory_order_acquire) ? PhaseStatus::kStopped : PhaseStatus::kFailed;
+    r.probe.message = stop.load(std::memory_order_acquire) ? "stopped by a signal while rejoining" : "the station loop ended while rejoining";
+    return;
   }
   const bool all = ep.finish_probing();
   // Our allowance from the loss of the running neighbours' packets; theirs arrives in their
   // fingerprints (their cores were built before we came: they keep their own, agreement_ticks covers it).
   fix_loss_allowances(plan, ep, r.probe);
   collect_probe_result(plan, ep, all, "station.rejoin_probe_s = " + std::to_string(plan.file.station.rejoin_probe_s) + " s", r.probe);
-  if (r.probe.status != PhaseStatus::kOk) return r;
+  if (r.probe.status != PhaseStatus::kOk) return;
   if (!learn_epoch(plan, r)) {
     r.probe.status = PhaseStatus::kNoNeighbour;
     r.probe.message = "rejoin: no neighbour is running the session (no packet with a sequence number >= the run start " +
                       std::to_string(plan.times.run_k0) + " and an echo), so there is no session to rejoin";
-    return r;
+    return;
   }
   // The tick-grid check against the learned epoch (the planned one may be far off).
   check_clock(plan, r.epoch_ns, r.probe);
-  return r;
 }
 
 AdoptedState adopt_neighbour_state(const StationPlan& plan, net::Endpoint& ep, rt::StationCore& core, double wait_s) {

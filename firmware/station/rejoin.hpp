@@ -3,8 +3,8 @@
 // SIGKILL; StationTimes::rejoin) joins the running session instead of probing from k = 0
 // (DESIGN.md "The station process"). Its new incarnation (net/) makes its
 // neighbours accept it afresh. In order, on the calling (non-RT) thread, before the RT thread:
-//   1. rejoin_probe(): for station.rejoin_probe_s it sends its rest state every period (a phase
-//      loop on a timeline of its own, phase_loop.hpp) with provisional sequence numbers 0, 1, ...
+//   1. rejoin_stage(): for station.rejoin_probe_s it sends its rest state every period (a stage of
+//      the station's loop, loop.hpp, on a timeline of its own) with provisional sequence numbers 0, 1, ...
 //      below the session's run_k0 (the neighbours' ticks ignore them, their endpoints echo them), measures the round trips from its own send records
 //      and the clock offset to each neighbour, and learns the session's epoch from the neighbours'
 //      packets: epoch = min(send stamp - seq T) - clock offset, from the neighbour whose clock
@@ -12,7 +12,7 @@
 //   2. build (station/probe.hpp) on those round trips.
 //   3. adopt_neighbour_state(): the newest neighbour packet's x_hat, v_hat become the core's
 //      x, v (rt::StationCore::set_state), so nobody feels a jolt when it couples;
-//   4. only then the run loop, on the session's tick grid from the current k on.
+//   4. only then the run stage, the loop moved onto the session's tick grid, from the current k on.
 // Not RT-safe.
 #include <atomic>
 #include <cstdint>
@@ -20,6 +20,7 @@
 
 #include <Eigen/Core>
 
+#include "firmware/station/loop.hpp"
 #include "firmware/station/neighbours.hpp"
 #include "firmware/station/plan.hpp"
 #include "firmware/station/probe.hpp"
@@ -36,7 +37,11 @@ struct RejoinResult {
   int epoch_from_station = 0;         // whose packets gave it
   std::uint64_t provisional_pushes = 0;
 };
-RejoinResult rejoin_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop);
+// Step 1 as a stage of the station's loop, into r (which must outlive the loop): a timeline of its
+// own, tick 0 one period after now_ns (the session's epoch is not known yet).
+LoopStage rejoin_stage(const StationPlan& plan, net::Endpoint& ep, RejoinResult& r, std::int64_t now_ns);
+// After that stage ended: round trips, the session's epoch, the clock check (r.probe.status).
+void end_rejoin_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, const StageOutcome& o, RejoinResult& r);
 
 struct AdoptedState {
   bool ok = false;

@@ -214,12 +214,8 @@ void say_after_run(const StationPlan& plan, StationResources& res, PhaseResults&
   }
 }
 
-void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
-  const double late_s = static_cast<double>(read_clocks().monotonic_ns - plan.times.run_epoch_ns()) * 1e-9;
-  if (late_s > 1.0 && !plan.times.rejoin) {
-    pr.fail(PhaseStatus::kFailed, "the station core was ready " + std::to_string(late_s) + " s after the run start (station.setup_gap_s too short?)");
-    return;
-  }
+// The output side of the run (recorder, live view) and the tick's inputs; false on a failure.
+bool prepare_run(const StationPlan& plan, StationResources& res, PhaseResults& pr, TickInputs& in, const Log& log) {
   pr.records.reserve(plan.trace_capacity, plan.state_capacity, plan.built->scene.dofs);
   if (plan.file.record.enabled) {
     try {
@@ -227,7 +223,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
       log.say("recording the session to " + res.recorder->path());
     } catch (const std::exception& e) {
       pr.fail(PhaseStatus::kFailed, std::string("session log: ") + e.what());
-      return;
+      return false;
     }
   }
   if (plan.file.view.port > 0) {
@@ -236,20 +232,28 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
       log.say("live view at " + res.view_server->url());
     } catch (const std::exception& e) {
       pr.fail(PhaseStatus::kFailed, e.what());
-      return;
+      return false;
     }
   }
-  TickInputs in = tick_inputs(plan, res, pr.build.core.get(), &pr.build.tx_deadband, &pr.build.map);
+  in = tick_inputs(plan, res, pr.build.core.get(), &pr.build.tx_deadband, &pr.build.map);
   if (!pr.build.max_age_s.empty()) in.max_age_s = pr.build.max_age_s.data();  // the age guard
   if (pr.probe.clock.shift_ticks.size() == plan.neighbours().size()) in.seq_shift_ticks = pr.probe.clock.shift_ticks.data();  // grid offsets
-  RunObserver observer;
-  observer.rt_ready = [&](const std::string& summary, const std::vector<std::string>& warnings) {
-    if (!summary.empty() && !log.quiet) std::cerr << summary << (summary.back() == '\n' ? "" : "\n");
-    for (const auto& w : warnings) log.say("warning: " + w + " (running anyway; rt.require_rt = false)");
-  };
-  observer.report = [&](const platform::LoopReport& rep) {
-    if (rep.window_overruns > 0) log.say(platform::format_report(rep));
-  };
+  return true;
+}
+
+// run: refuses a core that is ready more than a second after the run start; else hands the run
+// stage to the station's loop (a rejoining station's moves the loop onto the session's grid) and
+// waits for the loop to end, logging neighbour events meanwhile.
+void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, StationLoop& loop, const RunObserver& base, std::atomic<bool>& stop,
+               const Log& log) {
+  const double late_s = static_cast<double>(read_clocks().monotonic_ns - plan.times.run_epoch_ns()) * 1e-9;
+  if (late_s > 1.0 && !plan.times.rejoin) {
+    pr.fail(PhaseStatus::kFailed, "the station core was ready " + std::to_string(late_s) + " s after the run start (station.setup_gap_s too short?)");
+    return;
+  }
+  TickInputs in;
+  if (!prepare_run(plan, res, pr, in, log)) return;
+  RunObserver observer = base;
   // Neighbours going silent and coming back: logged once each (station id, session time).
   PeerEventLog events(plan, plan.times.run_epoch_ns(), plan.net.endpoint.peer_silence_s + 0.1);
   nlohmann::json& ev = pr.lifecycle["neighbour_events"] = nlohmann::json::array();
@@ -260,21 +264,18 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
     }
   };
   res.ep->sending_resumes(net::monotonic_ns());  // echoes held through the set-up gap are no round trips
-  if (plan.times.rejoin) {
-    // A rejoining station refreshes the adopted state at its first tick (RT-safe, preallocated).
-    Eigen::VectorXd x = pr.build.core->x(), v = pr.build.core->v();
-    bool first = true;
-    const RunTickFn tick = [&](std::int64_t k, std::int64_t kr, const platform::TickInfo& info) {
-      if (first) {
-        refresh_adopted_state(plan, *res.ep, *pr.build.core, x, v, pr.adopted);
-        first = false;
-      }
-      run_tick(in, pr.records, pr.counters, k, kr, info);
-    };
-    pr.run = run_periodic(plan, in.device, tick, stop, observer);
-  } else {
-    pr.run = run_loop(plan, in, pr.records, pr.counters, stop, observer);
-  }
+  // A rejoining station refreshes the adopted state at its first tick (RT-safe, preallocated).
+  Eigen::VectorXd x = pr.build.core->x(), v = pr.build.core->v();
+  bool first = plan.times.rejoin;
+  const RunTickFn tick = [&](std::int64_t k, std::int64_t kr, const platform::TickInfo& info) {
+    if (first) {
+      refresh_adopted_state(plan, *res.ep, *pr.build.core, x, v, pr.adopted);
+      first = false;
+    }
+    run_tick(in, pr.records, pr.counters, k, kr, info);
+  };
+  const int run_index = loop.hand_over(run_stage(plan, tick, stop, plan.times.rejoin));
+  pr.run = loop.run_result(run_index, observer);
   pr.ran = true;
   say_after_run(plan, res, pr, ev, log);
   pr.lifecycle["device"]["outside_workspace_ticks"] = pr.counters.outside_workspace_ticks;
@@ -305,10 +306,12 @@ void note_probe(const StationPlan& plan, PhaseResults& pr, const Log& log) {
   pr.lifecycle["clock_offset_exceeded"] = pr.probe.clock.exceeded;
 }
 
-// rejoin (instead of probe): learn the session's epoch, measure round trips; the plan's epoch
-// becomes the learned one.
-bool rejoin_session(StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
-  pr.rejoin = rejoin_probe(plan, *res.ep, stop);
+// rejoin (instead of probe): the loop's stage `index` (rejoin_stage) learns the session's epoch and
+// measures round trips; the plan's epoch becomes the learned one.
+bool rejoin_session(StationPlan& plan, StationResources& res, PhaseResults& pr, StationLoop& loop, int index, const RunObserver& obs,
+                    std::atomic<bool>& stop, const Log& log) {
+  loop.wait_stage(index, obs);
+  end_rejoin_probe(plan, *res.ep, stop, loop.stage(index), pr.rejoin);
   pr.probe = pr.rejoin.probe;
   pr.probed = true;
   if (pr.probe.status == PhaseStatus::kStopped) return false;
@@ -342,8 +345,8 @@ bool adopt_state(const StationPlan& plan, StationResources& res, PhaseResults& p
 }
 
 // The device's current position (device frame) before the core is built, to place the virtual
-// proxy there: the newest sample, waiting up to 0.2 s for a first one. Non-RT (the tick thread
-// does not exist yet, so this thread is the mailbox's only reader).
+// proxy there: the newest sample, waiting up to 0.2 s for a first one. Non-RT (the loop reads the
+// device only in run ticks, which have not begun, so this thread is the mailbox's only reader).
 bool initial_device_position(drivers::HapticDevice& dev, double out[3]) {
   drivers::DeviceSample s{};
   for (int i = 0; i < 100; ++i) {
@@ -385,7 +388,61 @@ void note_device_coupling(const StationPlan& plan, PhaseResults& pr, const Log& 
   d["ramp_in_s"] = static_cast<double>(plan.ramp_in_ticks) * plan.built->spec.period_s;
 }
 
-// open -> probe (or rejoin) -> build -> run; each phase's failure ends the sequence.
+// What the non-RT side does with the loop's set-up report and its throttled reports.
+RunObserver loop_observer(const Log& log) {
+  RunObserver observer;
+  observer.rt_ready = [&log](const std::string& summary, const std::vector<std::string>& warnings) {
+    if (!summary.empty() && !log.quiet) std::cerr << summary << (summary.back() == '\n' ? "" : "\n");
+    for (const auto& w : warnings) log.say("warning: " + w + " (running anyway; rt.require_rt = false)");
+  };
+  observer.report = [&log](const platform::LoopReport& rep) {
+    if (rep.window_overruns > 0) log.say(platform::format_report(rep));
+  };
+  return observer;
+}
+
+// probe (or rejoin): the loop's first stages. The loop starts here, with probing (or, for a station
+// planned as a rejoin, the provisional probes) and keeps running, on the timeline's grid, through
+// the build to the end of the run. False when the sequence ends here.
+bool probe_phase(StationPlan& plan, StationResources& res, PhaseResults& pr, StationLoop& loop, const RunObserver& obs, std::atomic<bool>& stop,
+                 const Log& log) {
+  const char* probe_only_late = "probe only: the session already runs (or its probing is over); give every station the same future --start-at";
+  if (plan.times.rejoin && plan.overrides.probe_only) {  // never joins a running session
+    pr.fail(PhaseStatus::kFailed, probe_only_late);
+    return false;
+  }
+  try {
+    const std::int64_t now = net::monotonic_ns();
+    loop.start(plan.times.rejoin ? rejoin_stage(plan, *res.ep, pr.rejoin, now) : probe_stage(plan, *res.ep, pr.probe, now), obs);
+  } catch (const std::exception& e) {  // RtThread set-up refused (rt.require_rt)
+    pr.fail(PhaseStatus::kFailed, std::string("real-time set-up: ") + e.what());
+    return false;
+  }
+  if (plan.times.rejoin) return rejoin_session(plan, res, pr, loop, 0, obs, stop, log);
+  loop.wait_stage(0, obs);
+  end_probe(plan, *res.ep, stop, loop.stage(0), pr.probe);
+  pr.probed = true;
+  if (pr.probe.status == PhaseStatus::kStopped) return false;
+  if (pr.probe.status != PhaseStatus::kOk) {
+    pr.fail(pr.probe.status, pr.probe.message);
+    return false;
+  }
+  if (pr.probe.running_session_from == 0) return true;
+  // a restart with a fresh epoch (relative start_delay_s): rejoin
+  if (plan.overrides.probe_only) {
+    pr.fail(PhaseStatus::kFailed, probe_only_late);
+    return false;
+  }
+  log.say("rejoining: " + pr.probe.message + "; this station is a restart, its own epoch is not the session's");
+  plan.times.rejoin = true;
+  pr.lifecycle["rejoin_detected_from_station"] = pr.probe.running_session_from;
+  const int index = loop.hand_over(rejoin_stage(plan, *res.ep, pr.rejoin, net::monotonic_ns()));
+  return rejoin_session(plan, res, pr, loop, index, obs, stop, log);
+}
+
+// open -> probe (or rejoin) -> build -> run; each phase's failure ends the sequence. Probe, rejoin
+// and run are stages of one loop (loop.hpp); the build runs on this thread while the loop keeps
+// the grid with set-up ticks.
 void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
   try {
     open_resources(plan, res, log);
@@ -400,23 +457,9 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
                             {"name", res.dev.device->capabilities().name},
                             {"simulated_user", plan.device.kind == "simulated"}};
   say_plan(plan, log);
-  const char* probe_only_late = "probe only: the session already runs (or its probing is over); give every station the same future --start-at";
-  if (plan.times.rejoin) {
-    if (plan.overrides.probe_only) return pr.fail(PhaseStatus::kFailed, probe_only_late);  // never joins a running session
-    if (!rejoin_session(plan, res, pr, stop, log)) return;
-  } else {
-    pr.probe = probe_neighbours(plan, *res.ep, stop);
-    pr.probed = true;
-    if (pr.probe.status == PhaseStatus::kStopped) return;
-    if (pr.probe.status != PhaseStatus::kOk) return pr.fail(pr.probe.status, pr.probe.message);
-    if (pr.probe.running_session_from != 0) {  // a restart with a fresh epoch (relative start_delay_s): rejoin
-      if (plan.overrides.probe_only) return pr.fail(PhaseStatus::kFailed, probe_only_late);
-      log.say("rejoining: " + pr.probe.message + "; this station is a restart, its own epoch is not the session's");
-      plan.times.rejoin = true;
-      pr.lifecycle["rejoin_detected_from_station"] = pr.probe.running_session_from;
-      if (!rejoin_session(plan, res, pr, stop, log)) return;
-    }
-  }
+  StationLoop loop(plan, res.dev.device.get(), stop);  // ends (joined) when this function returns
+  const RunObserver obs = loop_observer(log);
+  if (!probe_phase(plan, res, pr, loop, obs, stop, log)) return;
   note_probe(plan, pr, log);
   if (plan.overrides.probe_only) {  // --probe-only: reachability, round trips, loss and clock offsets measured; nothing coupled
     pr.lifecycle["probe_only"] = true;
@@ -432,7 +475,7 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
   note_device_coupling(plan, pr, log);
   say_bounds(plan, pr.build, log);
   if (plan.times.rejoin && !adopt_state(plan, res, pr, log)) return;
-  run_phase(plan, res, pr, stop, log);
+  run_phase(plan, res, pr, loop, obs, stop, log);
 }
 
 nlohmann::json recording_json(const RecorderStats& s, const std::string& path) {

@@ -8,8 +8,11 @@
 //   rejoin  (station/rejoin.hpp) instead of probe when started after the probing phase: learn the
 //                               session's epoch, round trips; after build adopt a neighbour's state
 //   build   (station/probe.hpp) B_i from eq. (18) on the measured bounds, eq. (26), rt::StationCore
-//   run     (station/loop.hpp)  k in [P+G, P+G+run): run_tick() (station/tick.hpp) on RtThread
+//   run     (station/tick.hpp)  k in [P+G, P+G+run): run_tick()
 //   report  (station/report.hpp) station-<id>.json/-trace.csv/-state.csv, the exit code
+// Probe, rejoin and run are stages of the station's one periodic loop (station/loop.hpp: one
+// RtThread, one PeriodicLoop on the timeline's grid, from the first probing tick to the last run
+// tick); build runs on the calling thread while the loop ticks the set-up gap.
 // Times are on CLOCK_MONOTONIC; k is the tick index since the common epoch, the same on every
 // station, so N_ij^k = k - seq is meaningful across processes.
 #include <atomic>

@@ -28,7 +28,7 @@ namespace {
 // `station_keys`: further [station] lines.
 StationFile star_station_file(int id, int nodes, double probe_s, const std::string& scene = "", const std::string& station_keys = "") {
   std::string text = "[station]\nid = " + std::to_string(id) + (scene.empty() ? "\nnodes = " + std::to_string(nodes) : std::string()) +
-                     "\nprobe_s = " + std::to_string(probe_s) + "\nloss_allowance_ticks = 1\nout_dir = \"/tmp\"\n" + station_keys + scene + "[device]\nkind = \"simulated\"\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:1\"\n"
+                     "\nprobe_s = " + std::to_string(probe_s) + "\nloss_allowance_ticks = 1\nout_dir = \"/tmp\"\n" + station_keys + scene + "[device]\nkind = \"simulated\"\n[rt]\nlock_memory = false\n[net]\ntransport = \"udp\"\nbind = \"127.0.0.1:1\"\n"
                      "shared_session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\nrtt_min_probe_samples = 5\n";
   for (int j : id == 1 ? std::vector<int>{2, 3, 4} : std::vector<int>{1})
     text += "[[net.peers]]\nid = " + std::to_string(j) + "\naddress = \"127.0.0.1:9\"\n";

@@ -46,9 +46,32 @@ std::string text_of(View t, const char* key, const std::string& P) { return opti
 }  // namespace
 
 namespace {
+// net.revoked_keys: public keys (64 hex each) separated by spaces or commas.
+std::vector<PublicKey> parse_revoked_keys(View net, const std::string& P) {
+  std::vector<PublicKey> keys;
+  const std::string list = text_of(net, "revoked_keys", P);
+  std::size_t i = 0, n = 0;
+  while (i < list.size()) {
+    if (list[i] == ' ' || list[i] == ',' || list[i] == '\t' || list[i] == '\n') {
+      ++i;
+      continue;
+    }
+    const std::size_t end = list.find_first_of(" ,\t\n", i);
+    const std::string one = list.substr(i, end == std::string::npos ? std::string::npos : end - i);
+    keys.push_back(public_key_from_hex(one, P + "revoked_keys (key " + std::to_string(++n) + ")"));
+    i = end == std::string::npos ? list.size() : end;
+  }
+  return keys;
+}
+bool revoked(const std::vector<PublicKey>& list, const PublicKey& k) {
+  for (const auto& r : list)
+    if (r == k) return true;
+  return false;
+}
+
 // net.key_file (pairwise keys) or net.shared_session_key (one key for the whole session).
 void parse_keys(const toml::node_view<const toml::node>& net, const std::string& P, const std::string& config_file,
-                EndpointConfig& e) {
+                EndpointConfig& e, const std::vector<PublicKey>& revoked_keys) {
   const bool demo = boolean(net["demo_keys"], P + "demo_keys", false);
   if (net["session_key"])
     bad(P + "session_key", "gone: set " + P + "key_file (this station's key pair, `haptic-keygen FILE`; each of " + P +
@@ -61,6 +84,10 @@ void parse_keys(const toml::node_view<const toml::node>& net, const std::string&
     std::string path = text(net["key_file"], P + "key_file", "");
     if (path.empty()) bad(P + "key_file", "a file name");
     e.own_keys = read_key_file(platform::config::path_beside(path, config_file), P + "key_file", demo);
+    if (revoked(revoked_keys, e.own_keys.public_key))
+      bad(P + "key_file = \"" + path + "\"",
+          "a key that is not revoked: its public key " + to_hex(e.own_keys.public_key.data(), e.own_keys.public_key.size()) + " is in " + P +
+              "revoked_keys (make this station a new key pair: haptic-keygen, or haptic-lab rotate-keys)");
     return;
   }
   if (!net["shared_session_key"])
@@ -195,7 +222,12 @@ void parse_peer(const toml::node_view<const toml::node>& p, const std::string& k
   }
   if (e.pairwise_keys) {
     if (!p["public_key"]) bad(k + ".public_key", "set when " + P + "key_file is (the neighbour's public key, 64 hex digits)");
-    l.public_key = public_key_from_hex(text(p["public_key"], k + ".public_key", ""), k + ".public_key");
+    const std::string written = text(p["public_key"], k + ".public_key", "");
+    l.public_key = public_key_from_hex(written, k + ".public_key");
+    if (revoked(c.revoked_keys, l.public_key))
+      bad(k + ".public_key = \"" + written + "\"", "a key that is not revoked: it is in " + P + "revoked_keys (station " +
+                                                      std::to_string(l.station_id) + "'s key was revoked: give it a new key pair and "
+                                                      "this file its public key, e.g. haptic-lab rotate-keys)");
     if (l.public_key == e.own_keys.public_key) bad(k + ".public_key", "the neighbour's key, not this station's own");
     try {  // the agreement run does while probing: a key with no shared secret (all zero, a low-order point) fails here
       (void)pair_keys(e.own_keys, self, l.public_key, l.station_id);
@@ -232,7 +264,8 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
   else e.wire.station_id = integer<std::uint16_t>(std::as_const(doc)["station"]["id"], "station.id", 0, 0, 65534);
 
   parse_transport(net, P, c);
-  parse_keys(net, P, config_file, e);
+  c.revoked_keys = parse_revoked_keys(net, P);
+  parse_keys(net, P, config_file, e, c.revoked_keys);
   parse_io_options(net, P, c);
   parse_local_address(net, P, c);
   const ImpairmentSection imp = parse_impairment(net, P, c);

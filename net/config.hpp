@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "net/endpoint.hpp"
+#include "net/keys.hpp"
 #include "net/transport_raw.hpp"
 #include "net/transport_udp.hpp"
 
@@ -28,6 +29,9 @@ struct NetConfig {
   bool impairment_seed_given = false;  // the key was in the file
   bool listen_any = false;             // net.listen_any: binding the wildcard address is allowed
   double envelope_radii = 3.0;         // net.envelope_radii (the station turns it into metres)
+  // net.revoked_keys: public keys no station of the session may use (this station's own key or a
+  // neighbour's public_key in it is refused at start-up, naming the key as written).
+  std::vector<PublicKey> revoked_keys;
   // Opens the socket (throws std::system_error, e.g. without CAP_NET_RAW for "raw").
   std::unique_ptr<Transport> make_transport() const;
 };

@@ -224,6 +224,11 @@ void Endpoint::publish_stats() {
     p.received.fill(ps);
     p.liveness.fill(ps);
     p.keys.fill(ps);
+    const IncarnationWatch w = decoder_.incarnations(p.link.station_id);
+    ps.refused_incarnation = w.refused;
+    ps.refused_incarnation_datagrams = w.refused_datagrams;
+    ps.key_compromise = w.compromised;
+    ps.key_compromise_s = static_cast<double>(w.compromised_ns) * 1e-9;
     p.box.writer_publish(ps);
   }
   counters_.drops = decoder_.drops();
@@ -253,6 +258,7 @@ void Endpoint::io_step(std::int64_t now_ns, bool rx, bool caught_spinning) {
   if (rx) handle_rx(now_ns);
   handle_tx(now_ns, caught_spinning);
   if (now_ns >= next_hello_ns_) send_wanted_hellos(pushes_sent_, now_ns, now_ns);
+  send_keepalive(now_ns);
   delay_.release_due(monotonic_ns(), [this](std::uint16_t dest, const std::uint8_t* d, std::size_t len) {
     const int pi = find_peer(dest);
     if (pi >= 0) send_now(dest, d, len, *peers_[static_cast<std::size_t>(pi)]);
@@ -281,6 +287,7 @@ void Endpoint::run() {
     wake_at = std::min(wake_at, now + silence_ns_ / 2);  // notice a silent neighbour in time
     wake_at = std::min(wake_at, delay_.next_release_ns());
     if (pairwise_ && hellos_wanted()) wake_at = std::min(wake_at, next_hello_ns_);
+    if (pairwise_) wake_at = std::min(wake_at, std::max(next_keepalive_ns_, last_push_ns_ + silence_ns_ / 3));
     const TxSpinSchedule::Plan plan = spin_.plan(now);
     if (plan.spin) {
       spin_for_push(plan.until_ns);  // without a push, the loop moves on to the next slot
@@ -344,6 +351,8 @@ DecodeLimits Endpoint::rx_limits(int source, std::int64_t now_ns) const {
   lim.source_station = source;
   lim.max_sequence = ceiling_.ceiling(now_ns);
   if (envelope_.active()) lim.envelope = &envelope_;
+  lim.now_ns = now_ns;
+  lim.incarnation_quiet_ns = silence_ns_;  // a restart is accepted only after net.peer_silence_s of silence
   return lim;
 }
 
@@ -398,6 +407,9 @@ void Endpoint::on_authentic(PeerState& p, std::uint64_t incarnation, std::int64_
     p.round_trip.restart();
     p.stats.peer_rtt_probe_bound_s = 0.0;
     p.stats.peer_loss_allowance_ticks = -1;
+    // The decoder accepted it after net.peer_silence_s of silence: the old one is down (if the
+    // periodic check has not said so yet), the new one comes up below.
+    p.liveness.check(now_ns, silence_ns_);
   }
   p.liveness.on_receive(now_ns);
 }
@@ -467,12 +479,12 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
 
 // ------------------------------------------------------------------ sending
 
-void Endpoint::send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns) {
+void Endpoint::send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns, bool all) {
   if (fingerprint_.scene_nodes == 0) return;
   // The first pushes, then every 25th (20 Hz at a 2 ms tick): a neighbour that starts or
   // restarts later learns it within 50 ms. Pairwise keys: only to a neighbour whose keys are
   // agreed, and at once after an agreement.
-  const bool scheduled = pushes_sent_ <= 8 || pushes_sent_ % 25 == 0;
+  const bool scheduled = all || pushes_sent_ <= 8 || pushes_sent_ % 25 == 0;
   for (auto& pp : peers_) {
     PeerState& p = *pp;
     if (pairwise_ && !p.keys.agreed()) continue;
@@ -483,6 +495,14 @@ void Endpoint::send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns) {
         pairwise_ ? &p.keys.tx_traffic() : nullptr, p.own_loss_allowance.load(std::memory_order_acquire));
     if (len) send_now(p.link.station_id, tx_buf_.data(), len, p);
   }
+}
+
+void Endpoint::send_keepalive(std::int64_t now_ns) {
+  if (!pairwise_ || fingerprint_.scene_nodes == 0) return;
+  const std::int64_t every = silence_ns_ / 3;
+  if (now_ns - last_push_ns_ < every || now_ns < next_keepalive_ns_) return;
+  next_keepalive_ns_ = now_ns + every;
+  send_fingerprints(pushes_sent_, now_ns, true);
 }
 
 void Endpoint::send_hellos(std::uint64_t seq, std::int64_t stamp_ns) {
@@ -539,6 +559,7 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
     send_wanted_hellos(m.seq, stamp, now_ns);
     send_fingerprints(m.seq, stamp);
     ++pushes_sent_;
+    last_push_ns_ = now_ns;
     for (auto& pp : peers_) {
       PeerState& p = *pp;
       if (pairwise_ && !p.keys.agreed()) {  // no state leaves before the pair has agreed

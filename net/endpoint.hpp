@@ -316,7 +316,11 @@ class Endpoint {
   // Sending: per push the wanted hellos, fingerprints and the state to every neighbour.
   void handle_tx(std::int64_t now_ns, bool caught_spinning = false);
   void send_state(PeerState& p, const OutgoingState& o, std::int64_t now_ns);  // impaired, fragmented
-  void send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns);
+  void send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns, bool all = false);  // all: not only the scheduled ones
+  // While no push comes (the planned pause between probing and the run), a fingerprint to every
+  // agreed neighbour every net.peer_silence_s / 3: under this run's traffic key it keeps this
+  // incarnation alive for them, so a newer one announced meanwhile is refused, never taken for a restart.
+  void send_keepalive(std::int64_t now_ns);
   void send_hellos(std::uint64_t seq, std::int64_t stamp_ns);
   bool hellos_wanted() const;  // a neighbour without agreed keys, or one that asked for a hello
   // With pairwise keys, the hellos hellos_wanted() asks for, and the hello timer restarted from
@@ -360,6 +364,7 @@ class Endpoint {
   SourceRateLimit rate_limit_;
   PayloadEnvelope envelope_;
   std::uint64_t pushes_sent_ = 0;
+  std::int64_t last_push_ns_ = 0, next_keepalive_ns_ = 0;  // send_keepalive
   // Hellos also go out on a timer (one period, 2 ms without one) while hellos_wanted(): a station
   // that does not push yet (probing before its k = 0) still agrees keys with a running neighbour.
   std::int64_t hello_interval_ns_ = 2'000'000, next_hello_ns_ = 0;

@@ -37,6 +37,9 @@ std::vector<OptionDecl> make_net_options() {
                                             "(any key holder can forge any station); example keys are refused unless demo_keys"),
       text("net", "session_key", "", "refused: the old name of shared_session_key (the error names both)"),
       flag("net", "demo_keys", false, "accept example keys (demonstrations only)"),
+      text("net", "revoked_keys", "", "public keys (64 hex each, separated by spaces or commas) no station may use: this station's own "
+                                      "key or a peer's public_key in it is refused at start-up, naming the key (a stolen key: "
+                                      "net/README.md \"Incarnations and restarts\"; haptic-lab rotate-keys)"),
       text("net", "encoding", "float32", "state values on the wire (float32: one datagram for 33 nodes)", "float32|float64"),
       integer("net", "max_datagram_bytes", double(kDefaultDatagramBytes), double(kMinDatagramBytes + 8), double(kMaxDatagramBytes),
               "largest datagram sent (and <= the transport's MTU)"),
@@ -45,7 +48,8 @@ std::vector<OptionDecl> make_net_options() {
       flag("net", "tx_spin", false, "tick-synchronous TX (net/endpoint.hpp): the I/O thread spins around each push"),
       real("net", "tx_spin_lead_us", 100, 0, 1e6, "with tx_spin: spin from this long before the next push is due (lead + tail < the tick period)"),
       real("net", "tx_spin_tail_us", 300, 1, 1e6, "with tx_spin: spin until this long after it"),
-      real("net", "peer_silence_s", 0.25, 0.01, 60, "a neighbour with no authentic datagram for this long is marked down"),
+      real("net", "peer_silence_s", 0.25, 0.01, 60, "a neighbour with no authentic datagram for this long is marked down; a newer incarnation of it (a restart) "
+                                                   "is accepted only after this long without a sign of life of the current one (net/README.md)"),
       integer("net", "delay_queue_datagrams", 8192, 16, 1 << 20, "capacity of the impairment emulator's delay queue"),
       real("net", "rtt_margin_fraction", 0.25, 0, 10, "round-trip bound = measured x (1 + this) + rtt_margin_s"),
       real("net", "rtt_margin_s", 0.004, 0, 10, "added to the measured round trip's bound"),

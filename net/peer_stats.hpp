@@ -38,6 +38,13 @@ struct PeerStats {
   int peer_loss_allowance_ticks = -1;
   // Incarnation of the neighbour (0 before its first packet) and how often it changed.
   std::uint64_t incarnation = 0, incarnation_changes = 0;
+  // The incarnation rule (net/README.md "Incarnations and restarts", Decoder::incarnations): the
+  // newest newer incarnation refused because the current one still spoke (0: none) and its datagrams;
+  // key_compromise: two live incarnations of this neighbour were seen (at key_compromise_s,
+  // monotonic_s()), and every datagram of it is dropped for the rest of the run.
+  std::uint64_t refused_incarnation = 0, refused_incarnation_datagrams = 0;
+  bool key_compromise = false;
+  double key_compromise_s = 0.0;
   // Up/down: up after its first packet, down after peer_silence_s without one.
   bool up = false;
   std::uint64_t up_events = 0, down_events = 0;

@@ -58,6 +58,8 @@ const char* to_string(DropReason r) {
     case DropReason::rate_limited: return "rate_limited";
     case DropReason::zero_length: return "zero_length";
     case DropReason::keys_not_agreed: return "keys_not_agreed";
+    case DropReason::incarnation_while_live: return "incarnation_while_live";
+    case DropReason::key_compromise: return "key_compromise";
     case DropReason::count_: break;
   }
   return "?";
@@ -429,18 +431,32 @@ DecodeStatus Decoder::drop(DropReason r) {
   return DecodeStatus::dropped;
 }
 
-bool Decoder::check_incarnation(Peer& p, std::uint64_t incarnation, bool& raised) {
+bool Decoder::check_incarnation(Peer& p, std::uint64_t incarnation, const DecodeLimits& lim, bool& raised,
+                                DropReason& why) {
   raised = false;
+  why = DropReason::old_incarnation;
   if (!p.has_incarnation) {
     p.has_incarnation = true;
     p.incarnation = incarnation;
+    p.heard = false;  // the first datagram may be a replay of an earlier run (a hello): no sign of life yet
     return true;
   }
-  if (incarnation < p.incarnation) return false;
+  if (incarnation < p.incarnation) return false;  // alone never a compromise: cross-run replays would be a DoS
   if (incarnation == p.incarnation) return true;
+  if (lim.incarnation_quiet_ns > 0 && p.heard && lim.now_ns - p.heard_ns <= lim.incarnation_quiet_ns) {
+    // The current one spoke within the quiet time: a restart is accepted only after it has gone
+    // silent. Refused and remembered: if the current one speaks again while this one does, both live.
+    p.challenger = std::max(p.challenger, incarnation);
+    p.challenger_ns = lim.now_ns;
+    ++p.challenger_datagrams;
+    why = DropReason::incarnation_while_live;
+    return false;
+  }
   // A restarted sender: its sequence numbers start afresh, so forget its replay window and
   // its partial packets (all of the old incarnation).
   p.incarnation = incarnation;
+  p.heard = false;  // its hellos come first; its states (or fingerprints) will say it is live
+  p.challenger = 0;
   p.any = false;
   p.newest = 0;
   p.window = {};
@@ -449,6 +465,25 @@ bool Decoder::check_incarnation(Peer& p, std::uint64_t incarnation, bool& raised
   p.raise_pending = true;
   raised = true;
   return true;
+}
+
+bool Decoder::note_current(Peer& p, const DecodeLimits& lim, bool fresh) {
+  if (fresh && p.challenger != 0 && lim.incarnation_quiet_ns > 0 && lim.now_ns - p.challenger_ns <= lim.incarnation_quiet_ns) {
+    // Two live incarnations of one station: only a second holder of its key can make that.
+    p.compromised = true;
+    p.compromised_ns = lim.now_ns;
+    return false;
+  }
+  p.heard = true;
+  p.heard_ns = lim.now_ns;
+  return true;
+}
+
+IncarnationWatch Decoder::incarnations(std::uint16_t sender) const {
+  const int pi = peer_index(sender);
+  if (pi < 0) throw std::invalid_argument("decoder: station " + std::to_string(sender) + " is not a neighbour");
+  const Peer& p = peers_[static_cast<std::size_t>(pi)];
+  return {p.has_incarnation ? p.incarnation : 0, p.challenger, p.challenger_datagrams, p.compromised, p.compromised_ns};
 }
 
 void Decoder::report(DecodedState& out, const HeaderView& h, Peer& peer, bool raised, PayloadKind kind) {
@@ -489,6 +524,8 @@ Decoder::Peer* Decoder::authenticate(const std::uint8_t* d, std::size_t len, Hea
   why = DropReason::wrong_destination;
   if (h.dest != cfg_.station_id) return nullptr;
   Peer& peer = peers_[static_cast<std::size_t>(pi)];
+  why = DropReason::key_compromise;  // two live incarnations seen: nothing of this sender is used again
+  if (peer.compromised) return nullptr;
   // Pairwise keys: a hello verifies with the pair's static key, everything else with this run's
   // traffic key; before the run's keys are agreed nothing but hellos can be of this run.
   const bool is_hello = h.kind == static_cast<std::uint8_t>(PayloadKind::hello);
@@ -502,14 +539,17 @@ Decoder::Peer* Decoder::authenticate(const std::uint8_t* d, std::size_t len, Hea
   return &peer;
 }
 
-DecodeStatus Decoder::decode_hello(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out) {
+DecodeStatus Decoder::decode_hello(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out,
+                                   const DecodeLimits& lim) {
   if (!peer.pairwise || (h.flags & ~kFlagHelloAgreed) != 0 || !single_control_fragment(h, kHelloBytes))
     return drop(DropReason::garbled);
   // Hellos obey the incarnation rule (a hello of an earlier process, e.g. replayed from an
   // earlier run, is dropped once a newer one was seen) but not the replay window: they are
-  // idempotent, and the nonce they echo decides whether they count (net/endpoint.cpp).
+  // idempotent, and the nonce they echo decides whether they count (net/endpoint.cpp). Signed with
+  // the pair's static key, an earlier run's replay them: no sign of life (note_current).
   bool raised = false;
-  if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
+  DropReason why{};
+  if (!check_incarnation(peer, h.incarnation, lim, raised, why)) return drop(why);
   out = DecodedState{};
   report(out, h, peer, raised, PayloadKind::hello);
   std::memcpy(out.hello_nonce.data(), d + kHeaderBytes, kRunNonceBytes);
@@ -519,10 +559,15 @@ DecodeStatus Decoder::decode_hello(const std::uint8_t* d, const HeaderView& h, P
   return DecodeStatus::hello;
 }
 
-DecodeStatus Decoder::decode_fingerprint(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out) {
+DecodeStatus Decoder::decode_fingerprint(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out,
+                                         const DecodeLimits& lim) {
   if (h.flags != 0 || !single_control_fragment(h, kFingerprintBytes)) return drop(DropReason::garbled);
   bool raised = false;
-  if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
+  DropReason why{};
+  if (!check_incarnation(peer, h.incarnation, lim, raised, why)) return drop(why);
+  // Under this run's pairwise traffic key: alive (no other run can replay it), yet idempotent, so no
+  // proof next to a challenger (a replay within the run is possible). The shared key: neither.
+  if (peer.pairwise) note_current(peer, lim, false);
   const std::uint8_t* p = d + kHeaderBytes;
   out = DecodedState{};
   report(out, h, peer, raised, PayloadKind::fingerprint);
@@ -627,8 +672,10 @@ DecodeStatus Decoder::decode_state(const std::uint8_t* d, const HeaderView& h, P
   // future sequence would otherwise move the replay window and make every genuine packet stale).
   if (h.seq > lim.max_sequence) return drop(DropReason::future_sequence);
   bool raised = false;
-  if (!check_incarnation(peer, h.incarnation, raised)) return drop(DropReason::old_incarnation);
+  if (!check_incarnation(peer, h.incarnation, lim, raised, why)) return drop(why);
   if (seen(peer, h.seq, why)) return drop(why);  // never after a raise: the window is empty
+  // A sequence never seen: the current incarnation speaks (a replay cannot: the window refused it).
+  if (!note_current(peer, lim, true)) return drop(DropReason::key_compromise);
   const std::size_t vb = (h.flags & kFlagFloat32) ? 4 : 8;
 
   // Authentic junk (non-finite, outside the envelope) is dropped before mark(): it never uses up a sequence.
@@ -667,8 +714,8 @@ DecodeStatus Decoder::decode(const std::uint8_t* d, std::size_t len, DecodedStat
   Peer* peer = authenticate(d, len, h, lim, why);
   if (peer == nullptr) return drop(why);
   // Authenticated from here on; still validate every field before touching state.
-  if (h.kind == static_cast<std::uint8_t>(PayloadKind::hello)) return decode_hello(d, h, *peer, out);
-  if (h.kind == static_cast<std::uint8_t>(PayloadKind::fingerprint)) return decode_fingerprint(d, h, *peer, out);
+  if (h.kind == static_cast<std::uint8_t>(PayloadKind::hello)) return decode_hello(d, h, *peer, out, lim);
+  if (h.kind == static_cast<std::uint8_t>(PayloadKind::fingerprint)) return decode_fingerprint(d, h, *peer, out, lim);
   if (h.kind != static_cast<std::uint8_t>(PayloadKind::state)) return drop(DropReason::garbled);
   return decode_state(d, h, *peer, out, lim);
 }

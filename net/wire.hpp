@@ -95,6 +95,8 @@ enum class DropReason : std::uint8_t {
   rate_limited,       // over the per-source datagram rate (net.rx_rate_limit_per_s), dropped unread
   zero_length,        // an empty datagram
   keys_not_agreed,    // pairwise keys: a state/fingerprint datagram from a neighbour before this run's keys are agreed
+  incarnation_while_live,  // authentic, a newer incarnation while the current one spoke within the quiet time (refused, remembered)
+  key_compromise,     // from a neighbour with two live incarnations (key compromise suspected): every datagram, for the rest of the run
   count_
 };
 inline constexpr std::size_t kDropReasonCount = static_cast<std::size_t>(DropReason::count_);
@@ -251,6 +253,24 @@ struct DecodeLimits {
   // The station id configured at the datagram's source address, kSourceUnknown, or
   // kSourceUnchecked; a sender field that disagrees with a known source is wrong_source.
   int source_station = kSourceUnchecked;
+  // The incarnation rule (net/README.md "Incarnations and restarts"): the receive time (any clock,
+  // ns) and the quiet time (net.peer_silence_s). A newer incarnation is accepted only when the current
+  // one has been silent for more than the quiet time, else refused (incarnation_while_live) and
+  // remembered; the current one speaking again (a state sequence never seen) while that challenger
+  // spoke within the quiet time makes two live incarnations: key compromise suspected, and every
+  // datagram of that sender is dropped from then on (key_compromise). 0: off (any newer incarnation
+  // is accepted at once: tests and the fuzz target).
+  std::int64_t now_ns = 0;
+  std::int64_t incarnation_quiet_ns = 0;
+};
+
+// One sender's incarnations as the decoder judged them (Decoder::incarnations).
+struct IncarnationWatch {
+  std::uint64_t current = 0;       // accepted (0: none yet)
+  std::uint64_t refused = 0;       // the newest newer one refused while the current spoke (0: none)
+  std::uint64_t refused_datagrams = 0;
+  bool compromised = false;        // two live incarnations: every datagram of the sender is dropped
+  std::int64_t compromised_ns = 0; // DecodeLimits::now_ns when it was found
 };
 
 // fingerprint: an authentic fingerprint message (out.fingerprint); complete: a state packet.
@@ -287,6 +307,9 @@ class Decoder {
   std::uint64_t accepted_datagrams() const { return accepted_datagrams_; }
   std::uint64_t completed_packets() const { return completed_; }
   std::uint64_t incarnation_changes() const { return incarnation_changes_; }
+  // The incarnation rule's view of one sender (IncarnationWatch); throws std::invalid_argument for an
+  // unknown sender. Not for the RT thread (the I/O thread's own state: call it there, or when stopped).
+  IncarnationWatch incarnations(std::uint16_t sender) const;
 
  private:
   struct Slot {
@@ -309,6 +332,13 @@ class Decoder {
     bool has_incarnation = false;
     std::uint64_t incarnation = 0;
     bool raise_pending = false;  // raised; not yet reported with a delivered packet
+    bool heard = false;          // the current incarnation gave a sign of life no other run can replay (note_current)
+    std::int64_t heard_ns = 0;   // its newest (DecodeLimits::now_ns)
+    std::uint64_t challenger = 0;          // a newer incarnation refused while the current one spoke (0: none)
+    std::int64_t challenger_ns = 0;        // its newest datagram
+    std::uint64_t challenger_datagrams = 0;
+    bool compromised = false;
+    std::int64_t compromised_ns = 0;
     bool any = false;
     std::uint64_t newest = 0;  // newest delivered sequence (of the current incarnation)
     std::array<std::uint64_t, kReplayWindow / 64> window{};  // bit (newest - seq) set = seen
@@ -320,14 +350,21 @@ class Decoder {
   bool seen(const Peer& p, std::uint64_t seq, DropReason& why) const;
   void mark(Peer& p, std::uint64_t seq);
   DecodeStatus drop(DropReason r);
-  bool check_incarnation(Peer& p, std::uint64_t incarnation, bool& raised);  // false: drop
+  // The incarnation rule (DecodeLimits): false and why to drop; raised when it replaced the current one.
+  bool check_incarnation(Peer& p, std::uint64_t incarnation, const DecodeLimits& lim, bool& raised, DropReason& why);
+  // A sign of life of the current incarnation that no other run can replay: a fingerprint under this
+  // run's pairwise traffic key (alive), or a state sequence not seen before (fresh: nor can a replay of
+  // this run). Hellos are none (the pair's static key: an earlier run's replay them). false: the current
+  // one spoke freshly while a refused newer one is live: two live incarnations, compromised.
+  bool note_current(Peer& p, const DecodeLimits& lim, bool fresh);
   // Sender, incarnation (and whether it was raised), kind, seq and send time into `out`.
   static void report(DecodedState& out, const HeaderView& h, Peer& peer, bool raised, PayloadKind kind);
   // Framing, session, sender, source, destination and MAC (the steps of decode, in order): the
   // sending neighbour of an authentic datagram, or nullptr and why it is dropped. Reads `h`.
   Peer* authenticate(const std::uint8_t* d, std::size_t len, HeaderView& h, const DecodeLimits& lim, DropReason& why);
-  DecodeStatus decode_hello(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out);
-  DecodeStatus decode_fingerprint(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out);
+  DecodeStatus decode_hello(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out, const DecodeLimits& lim);
+  DecodeStatus decode_fingerprint(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out,
+                                  const DecodeLimits& lim);
   DecodeStatus decode_state(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out,
                             const DecodeLimits& lim);
   // A state fragment's flags, value count and fragment geometry agree with each other.

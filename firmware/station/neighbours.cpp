@@ -89,7 +89,28 @@ PeerEventLog::PeerEventLog(const StationPlan& plan, std::int64_t run_epoch_ns, d
       quiet_until_s_(epoch_s_ + quiet_s),
       downs_(plan.neighbours().size(), 0),
       ups_(plan.neighbours().size(), 0),
-      incarnation_changes_(plan.neighbours().size(), 0) {}
+      incarnation_changes_(plan.neighbours().size(), 0),
+      refused_(plan.neighbours().size(), 0),
+      compromised_(plan.neighbours().size(), false) {}
+
+namespace {
+std::string key_compromise_message(int station, const net::PeerStats& p) {
+  return "key compromise suspected: station " + std::to_string(station) + " has two live incarnations (" + std::to_string(p.incarnation) +
+         " and " + std::to_string(p.refused_incarnation) +
+         "): both refused for the rest of the run (net/README.md \"Incarnations and restarts\"); revoke its key (net.revoked_keys) "
+         "and rotate the lab's keys (haptic-lab rotate-keys)";
+}
+}  // namespace
+
+std::vector<std::string> key_compromise_messages(const StationPlan& plan, const net::EndpointStats& stats) {
+  std::vector<std::string> lines;
+  const auto& nbrs = plan.neighbours();
+  for (std::size_t n = 0; n < nbrs.size(); ++n) {
+    const net::PeerStats& p = peer_of(plan, stats, n);
+    if (p.key_compromise) lines.push_back(key_compromise_message(nbrs[n] + 1, p));
+  }
+  return lines;
+}
 
 std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::StationCore& core) {
   std::vector<std::string> lines;
@@ -145,14 +166,29 @@ std::vector<std::string> PeerEventLog::poll(const net::EndpointStats& stats) {
         lines.push_back(who + " went silent at " + at(p.last_down_s) + " (no packet for net.peer_silence_s)");
       }
     }
+    const bool restarted = p.incarnation_changes > incarnation_changes_[n];
+    incarnation_changes_[n] = p.incarnation_changes;
+    const std::string new_incarnation = "restarted: new incarnation " + std::to_string(p.incarnation);
     if (p.up_events > ups_[n]) {
-      const bool restarted = p.incarnation_changes > incarnation_changes_[n];
       ups_[n] = p.up_events;
-      incarnation_changes_[n] = p.incarnation_changes;
       if (p.last_up_s >= quiet_until_s_) {
         ++events_;
-        lines.push_back(who + " is back at " + at(p.last_up_s) + (restarted ? " (restarted: new incarnation)" : ""));
+        lines.push_back(who + " is back at " + at(p.last_up_s) + (restarted ? " (" + new_incarnation + ")" : ""));
       }
+    } else if (restarted && p.last_receive_s >= quiet_until_s_) {  // replaced without a silence the periodic check saw
+      ++events_;
+      lines.push_back(who + " " + new_incarnation + " at " + at(p.last_receive_s));
+    }
+    if (p.refused_incarnation != 0 && p.refused_incarnation != refused_[n] && !p.key_compromise) {
+      refused_[n] = p.refused_incarnation;
+      ++events_;
+      lines.push_back(who + " announced a new incarnation " + std::to_string(p.refused_incarnation) + " while its current one " +
+                      std::to_string(p.incarnation) + " still spoke: refused until the current one has been silent for net.peer_silence_s");
+    }
+    if (p.key_compromise && !compromised_[n]) {
+      compromised_[n] = true;
+      ++events_;
+      lines.push_back(key_compromise_message(nbrs[n] + 1, p) + " (found at " + at(p.key_compromise_s) + ")");
     }
   }
   return lines;

@@ -49,7 +49,9 @@ ClockCheck check_clock_offsets(const StationPlan& plan, const net::EndpointStats
 // `run_epoch_ns`: "neighbour 2 went silent at run time 5.214 s (no packet for net.peer_silence_s)").
 // Events before run_epoch_ns + quiet_s are counted silently: the first up of each neighbour
 // (probing found it) and the pause between probing and the run (no packets are sent while the
-// core is built) are not events.
+// core is built) are not events. A restart says its new incarnation ("(restarted: new incarnation
+// I)"); a newer incarnation refused while the current one spoke, and a key compromise
+// (key_compromise_messages), are logged whenever they happen, probing included.
 // The per-edge energy bound's trips (rt::EdgeEnergyGate, net/README.md "Bounded damage from an
 // authenticated peer"), one line per neighbour that tripped: "neighbour 3: energy bound 0.1 J
 // tripped 1 time(s) ...". Called after the run loop ended (reads the core). Not RT-safe.
@@ -62,6 +64,11 @@ std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::
 std::vector<std::string> round_trip_over_bound_events(const StationPlan& plan, const net::EndpointStats& stats,
                                                       const std::vector<int>& bound_ticks);
 
+// One line per neighbour found with two live incarnations (net/README.md "Incarnations and
+// restarts": a second holder of its key; PeerStats::key_compromise): "key compromise suspected:
+// station 2 has two live incarnations (I1 and I2); ...". Not RT-safe.
+std::vector<std::string> key_compromise_messages(const StationPlan& plan, const net::EndpointStats& stats);
+
 class PeerEventLog {
  public:
   PeerEventLog(const StationPlan& plan, std::int64_t run_epoch_ns, double quiet_s);
@@ -71,7 +78,8 @@ class PeerEventLog {
  private:
   const StationPlan* plan_;
   double epoch_s_, quiet_until_s_;
-  std::vector<std::uint64_t> downs_, ups_, incarnation_changes_;
+  std::vector<std::uint64_t> downs_, ups_, incarnation_changes_, refused_;
+  std::vector<bool> compromised_;
   std::uint64_t events_ = 0;
 };
 

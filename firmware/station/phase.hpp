@@ -19,6 +19,9 @@ enum class PhaseStatus {
 // several conditions hold, the code is the first of this list that holds:
 //   2 configuration error, 9 device missing (device.kind names a device that could not be
 //   started; a station never substitutes a simulated user), 4 diverged, 5 safe state latched, 6 passivity condition not met,
+//   12 key compromise suspected (a neighbour's key in two live incarnations: net/ refused both for the rest of the run
+//      and the station ran without it; before 11 and 7, which that loss of a neighbour may also cause: the theft is the
+//      cause; the systemd unit does not restart it, so the station does not forget the suspicion: the operator revokes the key),
 //   11 missed cycles (the run loop skipped more than station.max_missed_cycles periods in all: the
 //      host stalled the station; before 7, because a stalled station's neighbours see it silent and it may in turn
 //      see them out of bound: the stall is the cause, and the stalled station is the one that must say so),
@@ -46,6 +49,7 @@ enum ExitCode : int {
   kExitDeviceMissing = 9,
   kExitHeldByGate = 10,
   kExitMissedCycles = 11,
+  kExitKeyCompromise = 12,
 };
 
 // Safety stops: the exits after which force output stays off until the operator has looked (only

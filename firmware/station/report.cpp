@@ -1,5 +1,7 @@
 #include "firmware/station/report.hpp"
 
+#include "firmware/station/neighbours.hpp"
+
 #include "firmware/run/summary.hpp"
 #include "firmware/model/delay_model.hpp"
 
@@ -256,6 +258,7 @@ std::vector<std::string> RunConditions::names() const {
   if (diverged) n.push_back("diverged");
   if (safe_state_latched) n.push_back("safe_state_latched");
   if (passivity_not_met) n.push_back("passivity_condition_not_met");
+  if (key_compromise) n.push_back("key_compromise_suspected");
   if (missed_cycles) n.push_back("missed_cycles");
   if (no_neighbour) n.push_back("no_neighbour");
   if (failed) n.push_back("failed");
@@ -276,6 +279,8 @@ RunConditions run_conditions(const StationOutcome& o) {
   // the run loop's only: the probing loop's ticks do start-up work (key agreement) and skip ~190 on a loaded machine
   c.missed_cycles_total = o.run ? o.run->loop.missed_cycles : 0;
   c.missed_cycles = c.missed_cycles_total > static_cast<std::uint64_t>(p.file.station.max_missed_cycles);
+  if (o.endpoint) c.key_compromise_messages = key_compromise_messages(p, o.endpoint->stats());
+  c.key_compromise = !c.key_compromise_messages.empty();
   if (k && k->ticks_run > 0) c.no_neighbour_fraction = static_cast<double>(k->no_neighbour_ticks) / static_cast<double>(k->ticks_run);
   c.no_neighbour = o.failure_status == PhaseStatus::kNoNeighbour ||
                    (c.no_neighbour_fraction && *c.no_neighbour_fraction > p.file.station.max_no_neighbour_fraction);
@@ -299,6 +304,7 @@ int exit_code(const RunConditions& c) {
   if (c.diverged) return kExitDiverged;
   if (c.safe_state_latched) return kExitSafeState;
   if (c.passivity_not_met) return kExitPassivityNotMet;
+  if (c.key_compromise) return kExitKeyCompromise;
   if (c.missed_cycles) return kExitMissedCycles;
   if (c.no_neighbour) return kExitNoNeighbour;
   if (c.failed) return kExitRunFailed;
@@ -318,6 +324,8 @@ nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c) 
   j["max_no_neighbour_fraction"] = o.plan->file.station.max_no_neighbour_fraction;
   j["missed_cycles_total"] = c.missed_cycles_total;  // the run loop's (loop.missed_cycles)
   j["max_missed_cycles"] = o.plan->file.station.max_missed_cycles;
+  j["key_compromise"] = c.key_compromise_messages;  // [] when none
+  j["incarnation"] = o.endpoint ? o.endpoint->incarnation() : 0;  // ours, as announced to the neighbours
   j["conditions"] = c.names();
   j["exit_code"] = exit_code(c);
   j["wall_time_s"] = o.wall_time_s;

@@ -83,6 +83,8 @@ void open_resources(const StationPlan& plan, StationResources& res, const Log& l
   if (!log.quiet && !res.dev.report.empty()) std::cerr << res.dev.report << (res.dev.report.back() == '\n' ? "" : "\n");
   // its sequence ceiling lets a neighbour's grid run up to station.clock_offset_limit_ms ahead of ours
   res.ep = std::make_unique<net::Endpoint>(plan.endpoint_config(), plan.net.make_transport());
+  log.say("incarnation " + std::to_string(res.ep->incarnation()) + " announced to the neighbours (a restart announces a newer one; they " +
+          "accept it once this one has been silent for net.peer_silence_s)");
   res.gpio = std::make_unique<platform::GpioToggler>(plan.file.gpio);
   if (!plan.file.telemetry.path.empty()) {
     platform::TelemetryConfig tc = plan.file.telemetry;
@@ -517,6 +519,7 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
   if (!pr.failure.empty()) log.error(pr.failure);
   const RunConditions c = run_conditions(o);
   const int code = exit_code(c);
+  for (const auto& m : c.key_compromise_messages) log.error(m);
   if (c.missed_cycles)
     log.error("missed " + std::to_string(c.missed_cycles_total) + " cycles (more than station.max_missed_cycles = " +
               std::to_string(plan.file.station.max_missed_cycles) + "): the host stalled this station (SIGSTOP, swap, a starved CPU); " +
@@ -549,6 +552,8 @@ std::string exit_code_help() {
          "device.kind = \"simulated\" asks for one); "
          "4 diverged; 5 safe state latched (loop exception or device fault); 6 passivity condition not met (B_i below eq. (18) on the measured "
          "round-trip bounds); 4, 5 and 6 are safety stops: the systemd unit does not restart them, the operator re-arms; "
+         "12 key compromise suspected (a neighbour's key was seen in two live incarnations: both refused for the rest of the run, the station "
+         "ran without that neighbour; station-<id>.json \"key_compromise\" names it; not restarted by the systemd unit: revoke the key); "
          "11 missed cycles (the run loop skipped more than station.max_missed_cycles periods: the host stalled the station; not a safety stop, "
          "the systemd unit restarts it); 7 no neighbour (none answered probing, or none within its bound for more than station.max_no_neighbour_fraction "
          "of the run); 3 other run-time failure; 8 the run ended before the scripted release (e.g. --duration shorter than station.release_s); "

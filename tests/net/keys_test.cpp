@@ -146,7 +146,12 @@ struct Run {
     e0->start();
   }
   void start1() {  // also a restart of station 1: a new process (incarnation, nonce)
-    if (e1) e1->stop();
+    if (e1) {
+      // A killed process is silent: its restart is accepted once the old one has been silent for
+      // the quiet time (net.peer_silence_s, the incarnation rule), as a real restart takes longer.
+      e1->stop();
+      std::this_thread::sleep_for(std::chrono::duration<double>(c0.peer_silence_s + 0.05));
+    }
     e1.reset();
     auto b = std::make_unique<PairTransport>(sv[1], false);
     t1 = b.get();
@@ -257,6 +262,30 @@ TEST(Keys, ExampleKeysAreRefusedOutsideDemoMode) {
   // A random key is fine.
   CHECK(error_of([&] { parse_net_config(head + "shared_session_key = \"5f0c9e1a77d24b3c8e6f0a19d2b4c6e8a1f3b5d7092c4e6a8b0d2f4a6c8e0b1d\"\n" + peer, 99); })
             .empty());
+}
+
+// net.revoked_keys (a stolen key, revoked in the lab file): a station whose own key is revoked, or
+// whose neighbour's public_key is, is refused at start-up with the key named as written.
+TEST(Keys, ARevokedKeyIsRefusedAtStartUpNamingTheKeyAsWritten) {
+  const std::string dir = temp_dir("revoked");
+  const std::string own = write_new_key_file(dir + "/s.key");
+  const std::string theirs = to_hex(generate_key_pair().public_key.data(), kPublicKeyBytes);
+  const std::string other = to_hex(generate_key_pair().public_key.data(), kPublicKeyBytes);
+  auto doc = [&](const std::string& revoked) {
+    return "[station]\nid = 1\n[net]\nbind = \"127.0.0.1:47001\"\nkey_file = \"" + dir + "/s.key\"\nrevoked_keys = \"" + revoked +
+           "\"\n[[net.peers]]\nid = 2\naddress = \"127.0.0.1:47002\"\npublic_key = \"" + theirs + "\"\n";
+  };
+  CHECK(error_of([&] { parse_net_config(doc(""), 99); }).empty());
+  CHECK(error_of([&] { parse_net_config(doc(other), 99); }).empty());
+  std::string e = error_of([&] { parse_net_config(doc(other + ", " + theirs), 99); });
+  STRCMP_CONTAINS(("net.peers[0].public_key = \"" + theirs + "\"").c_str(), e.c_str());
+  STRCMP_CONTAINS("revoked_keys", e.c_str());
+  e = error_of([&] { parse_net_config(doc(own + " " + other), 99); });
+  STRCMP_CONTAINS(("net.key_file = \"" + dir + "/s.key\"").c_str(), e.c_str());
+  STRCMP_CONTAINS(own.c_str(), e.c_str());
+  e = error_of([&] { parse_net_config(doc(other + " 12ab"), 99); });  // not a key: named with its place in the list
+  STRCMP_CONTAINS("net.revoked_keys (key 2)", e.c_str());
+  fs::remove_all(dir);
 }
 
 TEST(Keys, BothEndsOfAPairDeriveTheSameDirectedKeysAndEachRunItsOwn) {
@@ -474,6 +503,65 @@ TEST(Keys, ARestartedNeighbourAgreesAgainWithItsNewNonce) {
   CHECK_EQUAL(1u, s0.peers[0].incarnation_changes);
 }
 
+// A stolen key (station 1's secret) announcing a restart while the real station 1 runs: the
+// greeting is refused (no re-keying with the attacker), and the real one's next states make two
+// live incarnations: both refused from then on, and station 0's statistics say so.
+TEST(Keys, AStolenKeysRestartWhileTheRealStationTalksIsRefusedAndBothAreCutOff) {
+  KeyFiles k("stolen");
+  Run r(k);
+  std::uint64_t corrupt = 0;
+  CHECK(r.exchange(1, 60, corrupt).size() >= 40);
+  const std::uint64_t real = r.e1->incarnation();
+  WireConfig w1 = r.c1.wire;
+  w1.incarnation = real + 1;  // "restarted"
+  std::vector<std::uint8_t> d(kDefaultDatagramBytes);
+  const std::size_t n = Encoder(w1).encode_hello(0, 1, monotonic_ns(), new_run_nonce(), RunNonce{}, false,
+                                                 pair_keys(k.k1, 1, k.k0.public_key, 0).tx, d.data(), d.size());
+  const EndpointStats before = r.e0->stats();
+  r.t1->inject(std::vector<std::uint8_t>(d.begin(), d.begin() + static_cast<long>(n)));
+  const auto got = r.exchange(61, 60, corrupt);  // the real station 1 keeps talking
+  const EndpointStats s = r.e0->stats();
+  CHECK_TRUE(s.peers[0].key_compromise);
+  CHECK_EQUAL(w1.incarnation, s.peers[0].refused_incarnation);
+  CHECK_EQUAL(real, s.peers[0].incarnation);  // never replaced...
+  CHECK_EQUAL(0u, s.peers[0].incarnation_changes);
+  CHECK_EQUAL(1u, s.peers[0].key_agreements);  // ...nor re-keyed with the attacker
+  CHECK_EQUAL(before.drops[DropReason::incarnation_while_live] + 1, s.drops[DropReason::incarnation_while_live]);
+  CHECK(s.drops[DropReason::key_compromise] >= 50);  // every datagram after the real one's next state
+  CHECK_TEXT(got.size() <= 5, std::to_string(got.size()).c_str());  // at most the states in flight at the hello
+  CHECK_EQUAL(0u, corrupt);
+}
+
+// A station's pushes pause (the set-up gap between probing and the run, ~0.5 s): its endpoint keeps
+// its incarnation alive with fingerprints under this run's key, so a stolen key's "restart" in the
+// gap is refused too, and the real one's first states after the gap name the compromise.
+TEST(Keys, APauseInTheRealStationsPushesIsNoWindowForAStolenKeysRestart) {
+  KeyFiles k("pause");
+  Run r(k, true, nullptr, false);
+  r.c1.fingerprint.scene_nodes = 33;  // a station's endpoint (fingerprints on)
+  r.c1.fingerprint.period_ns = 2'000'000;
+  r.start1();
+  std::uint64_t corrupt = 0;
+  CHECK(r.exchange(1, 60, corrupt).size() >= 40);
+  std::this_thread::sleep_for(std::chrono::duration<double>(r.c0.peer_silence_s * 1.6));  // no pushes
+  const std::uint64_t real = r.e1->incarnation();
+  WireConfig w1 = r.c1.wire;
+  w1.incarnation = real + 1;
+  std::vector<std::uint8_t> d(kDefaultDatagramBytes);
+  const std::size_t n = Encoder(w1).encode_hello(0, 1, monotonic_ns(), new_run_nonce(), RunNonce{}, false,
+                                                 pair_keys(k.k1, 1, k.k0.public_key, 0).tx, d.data(), d.size());
+  r.t1->inject(std::vector<std::uint8_t>(d.begin(), d.begin() + static_cast<long>(n)));
+  std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  EndpointStats s = r.e0->stats();
+  CHECK_EQUAL(real, s.peers[0].incarnation);
+  CHECK_EQUAL(0u, s.peers[0].incarnation_changes);
+  CHECK_EQUAL(w1.incarnation, s.peers[0].refused_incarnation);
+  r.exchange(61, 30, corrupt);  // the gap ends
+  s = r.e0->stats();
+  CHECK_TRUE(s.peers[0].key_compromise);
+  CHECK_EQUAL(1u, s.peers[0].key_agreements);
+}
+
 TEST(Keys, ANewIncarnationForgetsThePairsKeysAndReplayStateAndTheOldOneIsRefused) {
   KeyFiles k("incarnation");
   Run r(k);
@@ -486,7 +574,8 @@ TEST(Keys, ANewIncarnationForgetsThePairsKeysAndReplayStateAndTheOldOneIsRefused
     if (kind_of(d) == static_cast<std::uint64_t>(PayloadKind::hello)) old_hellos.push_back(d);
   }
   CHECK(old_states.size() >= 40 && !old_hellos.empty());
-  r.e1->stop();  // station 1's process dies
+  r.e1->stop();  // station 1's process dies (and is silent for longer than net.peer_silence_s)
+  std::this_thread::sleep_for(std::chrono::duration<double>(r.c0.peer_silence_s + 0.05));
   // Its restarted process's first datagram: a hello of a new incarnation with a new nonce that
   // echoes nothing yet (it has not heard station 0's nonce), MAC'd with the static pair key.
   WireConfig w1 = r.c1.wire;

@@ -49,6 +49,18 @@ DecodeStatus decode_all(Decoder& dec, const std::vector<std::vector<std::uint8_t
   return s;
 }
 
+// decode_all at receive time now_ns with the incarnation rule's quiet time (net.peer_silence_s' default).
+constexpr std::int64_t kQuietNs = 250'000'000;
+DecodeStatus decode_at(Decoder& dec, const std::vector<std::vector<std::uint8_t>>& dgs, DecodedState& st, std::int64_t now_ns) {
+  DecodeLimits lim;
+  lim.now_ns = now_ns;
+  lim.incarnation_quiet_ns = kQuietNs;
+  DecodeStatus s = DecodeStatus::dropped;
+  for (const auto& d : dgs) s = dec.decode(d.data(), d.size(), st, lim);
+  return s;
+}
+constexpr std::int64_t ms(std::int64_t t) { return t * 1'000'000; }
+
 WireConfig wire_of(std::uint16_t station, std::uint64_t incarnation) {
   WireConfig w = exchange_wire(station);
   w.incarnation = incarnation;
@@ -174,6 +186,92 @@ TEST(Incarnation, IncarnationIsAuthenticated) {
   CHECK(dec.decode(d.data(), d.size(), st) == DecodeStatus::dropped);
   CHECK_EQUAL(1u, dec.drops()[DropReason::bad_mac]);
   CHECK_EQUAL(0u, dec.incarnation_changes());
+}
+
+// The incarnation rule (DecodeLimits::incarnation_quiet_ns): a stolen key's forged restart while the
+// real station talks is refused, and the real one speaking again makes two live incarnations.
+TEST(Incarnation, AForgedRestartWhileTheRealOneTalksRefusesBothForTheRestOfTheRun) {
+  Encoder real{wire_of(1, 100)}, forged{wire_of(1, 200)};
+  DecodedState st;
+  CHECK(decode_at(dec, encode_state(real, 0, 10, x), st, ms(1000)) == DecodeStatus::complete);
+  // The newer incarnation 2 ms after the real one spoke: refused (not taken for a restart)...
+  CHECK(decode_at(dec, encode_state(forged, 0, 1, x), st, ms(1002)) == DecodeStatus::dropped);
+  CHECK_EQUAL(2u, dec.drops()[DropReason::incarnation_while_live]);  // both datagrams of the packet
+  IncarnationWatch w = dec.incarnations(1);
+  CHECK_EQUAL(100u, w.current);
+  CHECK_EQUAL(200u, w.refused);
+  CHECK_FALSE(w.compromised);
+  CHECK_EQUAL(0u, dec.incarnation_changes());
+  // ...and the real one speaking again (a new sequence) while it is live: two live incarnations.
+  CHECK(decode_at(dec, encode_state(real, 0, 11, x), st, ms(1004)) == DecodeStatus::dropped);
+  w = dec.incarnations(1);
+  CHECK_TRUE(w.compromised);
+  CHECK_EQUAL(ms(1004), w.compromised_ns);
+  // Both refused from then on, whatever comes and however long after.
+  CHECK(decode_at(dec, encode_state(real, 0, 12, x), st, ms(9000)) == DecodeStatus::dropped);
+  CHECK(decode_at(dec, encode_state(forged, 0, 2, x), st, ms(9500)) == DecodeStatus::dropped);
+  CHECK(decode_at(dec, encode_state(Encoder{wire_of(1, 300)}, 0, 1, x), st, ms(20000)) == DecodeStatus::dropped);
+  CHECK_EQUAL(2u + 2u + 2u + 2u, dec.drops()[DropReason::key_compromise]);  // packet 11, then 3 more
+  CHECK_EQUAL(1u, dec.completed_packets());
+  CHECK_EQUAL(0u, dec.incarnation_changes());
+}
+
+TEST(Incarnation, ARestartIsAcceptedOnceTheOldIncarnationHasBeenSilentForTheQuietTime) {
+  Encoder first{wire_of(1, 100)}, restarted{wire_of(1, 200)};
+  DecodedState st;
+  CHECK(decode_at(dec, encode_state(first, 0, 5000, x), st, ms(1000)) == DecodeStatus::complete);
+  // A restart 0.1 s after the old one's last packet: too early (it might still be live)...
+  CHECK(decode_at(dec, encode_state(restarted, 0, 1, x), st, ms(1100)) == DecodeStatus::dropped);
+  CHECK_EQUAL(2u, dec.drops()[DropReason::incarnation_while_live]);
+  // ...accepted once the old one has been silent for more than the quiet time (0.25 s).
+  CHECK(decode_at(dec, encode_state(restarted, 0, 2, x), st, ms(1260)) == DecodeStatus::complete);
+  CHECK_TRUE(st.new_incarnation);
+  CHECK_EQUAL(200u, st.incarnation);
+  CHECK(decode_at(dec, encode_state(restarted, 0, 3, x), st, ms(1262)) == DecodeStatus::complete);
+  const IncarnationWatch w = dec.incarnations(1);
+  CHECK_EQUAL(200u, w.current);
+  CHECK_FALSE(w.compromised);
+  CHECK_EQUAL(1u, dec.incarnation_changes());
+}
+
+// Cross-run replays under a shared key, or a late datagram of the process that restarted: an old
+// incarnation alone is refused as such and never suspected as a second live one (else a replay
+// would be a denial of service).
+TEST(Incarnation, AnOldIncarnationAloneNeverMakesTwoLiveIncarnations) {
+  Encoder earlier_run{wire_of(1, 50)}, first{wire_of(1, 100)}, restarted{wire_of(1, 200)};
+  DecodedState st;
+  CHECK(decode_at(dec, encode_state(first, 0, 10, x), st, ms(1000)) == DecodeStatus::complete);
+  for (std::uint64_t q = 11; q < 20; ++q)  // an earlier run, new sequences, while the current one talks
+    CHECK(decode_at(dec, encode_state(earlier_run, 0, q, x), st, ms(1000) + static_cast<std::int64_t>(q)) == DecodeStatus::dropped);
+  CHECK(decode_at(dec, encode_state(restarted, 0, 1, x), st, ms(2000)) == DecodeStatus::complete);  // a real restart
+  for (std::uint64_t q = 11; q < 20; ++q) {  // the old process's (replayed) datagrams in between the new one's
+    CHECK(decode_at(dec, encode_state(first, 0, q, x), st, ms(2000) + static_cast<std::int64_t>(q)) == DecodeStatus::dropped);
+    CHECK(decode_at(dec, encode_state(restarted, 0, q, x), st, ms(2000) + static_cast<std::int64_t>(q)) == DecodeStatus::complete);
+  }
+  CHECK_EQUAL(2u * 9u * 2u, dec.drops()[DropReason::old_incarnation]);
+  CHECK_EQUAL(0u, dec.drops()[DropReason::key_compromise]);
+  CHECK_FALSE(dec.incarnations(1).compromised);
+  CHECK_EQUAL(0u, dec.incarnations(1).refused);
+}
+
+// A replay of the current incarnation's own packets cannot play the live second incarnation: only a
+// sequence never seen is a sign of life, so a real restart with replays around it is still accepted.
+TEST(Incarnation, ReplaysOfTheCurrentIncarnationCannotMakeItLookLiveNextToARestart) {
+  Encoder first{wire_of(1, 100)}, restarted{wire_of(1, 200)};
+  DecodedState st;
+  std::vector<std::vector<std::vector<std::uint8_t>>> captured;
+  for (std::uint64_t q = 1; q <= 5; ++q) {
+    captured.push_back(encode_state(first, 0, q, x));
+    CHECK(decode_at(dec, captured.back(), st, ms(1000) + static_cast<std::int64_t>(q)) == DecodeStatus::complete);
+  }
+  // The restarted process (0.1 s later) is refused for now; the old one's packets replayed meanwhile.
+  CHECK(decode_at(dec, encode_state(restarted, 0, 1, x), st, ms(1100)) == DecodeStatus::dropped);
+  for (const auto& c : captured) CHECK(decode_at(dec, c, st, ms(1102)) == DecodeStatus::dropped);
+  CHECK_EQUAL(2u * 5u, dec.drops()[DropReason::replayed]);
+  CHECK_FALSE(dec.incarnations(1).compromised);
+  CHECK(decode_at(dec, encode_state(restarted, 0, 2, x), st, ms(1300)) == DecodeStatus::complete);
+  CHECK_EQUAL(200u, dec.incarnations(1).current);
+  CHECK_EQUAL(0u, dec.drops()[DropReason::key_compromise]);
 }
 
 TEST(Incarnation, NewIncarnationsGrowAcrossCalls) {

@@ -16,6 +16,10 @@
 //   sniffs, which travel in the clear, and derives S's traffic keys like S does): authentic
 //   (valid MAC, S's incarnation, from S's address) states with NaN, far out of the physical
 //   envelope, or a sequence 10^6 ahead, each at the sequence S's next genuine packet will carry.
+//   keyed_restart (only when named in --classes: it is a takeover attempt, not a flood class): a
+//   hello in S's name from a newer incarnation (S's sniffed one + 1, a fresh nonce), as a second
+//   process holding S's key would announce itself while S runs (net/README.md "Incarnations and
+//   restarts": refused, and S's next states make two live incarnations).
 // --record FILE: sniff only (send nothing) and store every genuine station datagram (bounded).
 #include <arpa/inet.h>
 #include <linux/if_packet.h>
@@ -65,12 +69,13 @@ enum Class : int {
   keyed_nan,
   keyed_envelope,
   keyed_future,
+  keyed_restart,
   class_count
 };
 const char* kNames[class_count] = {"garbage",     "truncated",     "bad_mac",       "oversized",  "zero_length",
                                    "future_sequence_wrong_address",  "live_replay_wrong_address", "spoofed_bad_mac",
                                    "spoofed_future_sequence",        "live_replay",   "cross_run_replay",
-                                   "keyed_nan",   "keyed_out_of_envelope",          "keyed_future_sequence"};
+                                   "keyed_nan",   "keyed_out_of_envelope",          "keyed_future_sequence", "keyed_restart"};
 bool needs_root(int c) { return c >= spoof_bad_mac; }
 bool needs_sniff(int c) { return c == replay_wrong_addr || c == live_replay || c >= keyed_nan; }
 
@@ -327,6 +332,7 @@ Options finish(Options o) {
       bool ok = (!needs_root(c) || root) && (!needs_sniff(c) || o.sniff);
       if (c == cross_run_replay) ok = ok && !o.replay_file.empty();
       if (c >= keyed_nan) ok = ok && o.stolen_id >= 0;
+      if (c == keyed_restart) ok = false;  // a takeover attempt: only when named
       o.classes[static_cast<std::size_t>(c)] = ok;
     }
   }
@@ -573,6 +579,26 @@ class Flood {
                  enc, k);
   }
 
+  // A hello in the stolen station s's name to j from a newer incarnation than the one sniffed, with a
+  // fresh nonce (a second process holding s's key); 0 before the sniffer saw s's states to j.
+  std::size_t keyed_hello(std::uint16_t s, std::uint16_t j) {
+    if (static_cast<int>(s) != o_.stolen_id || !o_.public_keys.count(j)) return 0;
+    LinkView sv;
+    {
+      std::lock_guard<std::mutex> lk(sh_.m);
+      sv = sh_.links[{s, j}];
+    }
+    if (!sv.have_state) return 0;
+    if (forged_nonce_ == RunNonce{}) forged_nonce_ = new_run_nonce();
+    WireConfig w;
+    w.session_id = o_.session;
+    w.station_id = s;
+    w.incarnation = sv.incarnation + 1;
+    const SessionKey hello_key = pair_keys(stolen_, s, o_.public_keys.at(j), j).tx;
+    return Encoder(w).encode_hello(j, sv.newest_seq + 1, static_cast<std::int64_t>(elapsed() * 1e9), forged_nonce_, RunNonce{}, false,
+                                   hello_key, d_.data(), d_.size());
+  }
+
   // The datagram of class c on directed link li (the iter-th of the flood); n = 0: nothing to
   // send yet (nothing captured or learned), except for zero_length.
   Datagram build(int c, std::size_t li, std::uint64_t iter) {
@@ -611,6 +637,7 @@ class Flood {
       case keyed_nan:
       case keyed_envelope:
       case keyed_future: dg.n = keyed(c, s, j); break;
+      case keyed_restart: dg.n = keyed_hello(s, j); break;
       default: break;
     }
     return dg;
@@ -625,6 +652,7 @@ class Flood {
 
   std::vector<Captured> old_run_;
   StationKeyPair stolen_{};
+  RunNonce forged_nonce_{};  // keyed_restart: the forged process's run nonce
   std::unique_ptr<Spoofer> spoof_;
   int udp_ = -1;
   std::mt19937_64 rng_{0x464c4f4f44ull};  // "FLOOD": the same flood every run

@@ -12,6 +12,7 @@
 
 #include "firmware/station/neighbours.hpp"
 #include "firmware/station/probe.hpp"
+#include "firmware/station/report.hpp"
 #include "firmware/station/run.hpp"
 #include "net/transport_udp.hpp"
 #include "tests/firmware/scene/fixtures.hpp"
@@ -216,10 +217,50 @@ TEST(StationLifecycle, NeighbourSilenceAndReturnAreLoggedOnceEach) {
   p.up = true;
   p.up_events = 2;
   p.incarnation_changes = 1;
+  p.incarnation = 1796000000000000002ull;
   p.last_up_s = run0_s + 8.2;
   lines = log.poll(s);
   CHECK_EQUAL(1u, lines.size());
-  STRCMP_EQUAL("neighbour 1 is back at run time 8.200 s (restarted: new incarnation)", lines[0].c_str());
+  STRCMP_EQUAL("neighbour 1 is back at run time 8.200 s (restarted: new incarnation 1796000000000000002)", lines[0].c_str());
   CHECK(log.poll(s).empty());
   CHECK_EQUAL(2u, log.events());
+}
+
+// net/'s incarnation rule as the station reports it: a newer incarnation refused while the current
+// one spoke is logged once; two live incarnations are logged once, whenever they happen (probing
+// included), named in the report's conditions and exit 12 (before 11 and 7: the theft is the cause).
+TEST(StationLifecycle, AKeyCompromiseIsLoggedOnceAndNamedInTheExitStatus) {
+  Station a = open_station(star_station_file(2, 33, 0.3), soon_s());
+  const std::int64_t run0 = a.plan->times.run_epoch_ns();
+  PeerEventLog log(*a.plan, run0, 0.1);
+  haptic::net::EndpointStats s;
+  s.peers.resize(1);
+  auto& p = s.peers[0];
+  p.incarnation = 100;
+  p.refused_incarnation = 200;
+  auto lines = log.poll(s);
+  CHECK_EQUAL(1u, lines.size());
+  STRCMP_EQUAL("neighbour 1 announced a new incarnation 200 while its current one 100 still spoke: refused until the current one has "
+               "been silent for net.peer_silence_s", lines[0].c_str());
+  CHECK(key_compromise_messages(*a.plan, s).empty());
+  p.key_compromise = true;
+  p.key_compromise_s = static_cast<double>(run0) * 1e-9 - 0.5;  // while probing
+  lines = log.poll(s);
+  CHECK_EQUAL(1u, lines.size());
+  STRCMP_CONTAINS("key compromise suspected: station 1 has two live incarnations (100 and 200)", lines[0].c_str());
+  STRCMP_CONTAINS("run time -0.500 s", lines[0].c_str());
+  CHECK(log.poll(s).empty());
+  const auto m = key_compromise_messages(*a.plan, s);
+  CHECK_EQUAL(1u, m.size());
+  STRCMP_CONTAINS("key compromise suspected: station 1 has two live incarnations (100 and 200)", m[0].c_str());
+  RunConditions c;
+  c.key_compromise = true;
+  c.no_neighbour = c.missed_cycles = c.held_by_gate = true;
+  CHECK_EQUAL(12, exit_code(c));
+  c.passivity_not_met = true;  // a safety stop keeps its code
+  CHECK_EQUAL(6, exit_code(c));
+  c.passivity_not_met = false;
+  bool named = false;
+  for (const auto& n : c.names()) named = named || n == "key_compromise_suspected";
+  CHECK_TRUE(named);
 }

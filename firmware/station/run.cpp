@@ -56,6 +56,7 @@ struct PhaseResults {
   bool probed = false, built = false, ran = false;
   TickCounters counters;
   TickRecords records;
+  std::unique_ptr<RecordFiles> record_files;  // drains `records` into the CSV files during the run
   nlohmann::json lifecycle = nlohmann::json::object();  // rejoin, clock offsets, neighbour events
   std::string failure;
   PhaseStatus failure_status = PhaseStatus::kOk;
@@ -214,13 +215,37 @@ void say_after_run(const StationPlan& plan, StationResources& res, PhaseResults&
   }
 }
 
+// The record windows and their writer thread (station/records.hpp), before the RT thread exists.
+bool open_records(const StationPlan& plan, PhaseResults& pr) {
+  pr.records.reserve(plan.trace_capacity, plan.state_capacity, plan.built->scene.dofs);
+  try {
+    pr.record_files = std::make_unique<RecordFiles>(plan.base_path, plan.built->spec.period_s, pr.records);
+  } catch (const std::exception& e) {
+    pr.fail(PhaseStatus::kFailed, std::string("station records: ") + e.what());
+    return false;
+  }
+  return true;
+}
+
+// After the tick's last row: the writer drains the windows and closes the CSV files; rows the tick
+// dropped because the writer fell behind are said here (and counted in station-<id>.json "records").
+void finish_records(PhaseResults& pr, const Log& log) {
+  const std::string err = pr.record_files->finish();
+  if (!err.empty()) pr.fail(PhaseStatus::kFailed, "station records: " + err);
+  const TickRecords& r = pr.records;
+  if (r.trace_lost > 0 || r.state_lost > 0)
+    log.say("warning: the record writer fell behind the tick: " + std::to_string(r.trace_lost) + " trace rows and " + std::to_string(r.state_lost) +
+            " state rows were dropped (the tick never waits for it; the CSV files miss those ticks; windows of " + std::to_string(r.trace_window.slots()) +
+            " and " + std::to_string(r.state_window.slots()) + " rows)");
+}
+
 void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, std::atomic<bool>& stop, const Log& log) {
   const double late_s = static_cast<double>(read_clocks().monotonic_ns - plan.times.run_epoch_ns()) * 1e-9;
   if (late_s > 1.0 && !plan.times.rejoin) {
     pr.fail(PhaseStatus::kFailed, "the station core was ready " + std::to_string(late_s) + " s after the run start (station.setup_gap_s too short?)");
     return;
   }
-  pr.records.reserve(plan.trace_capacity, plan.state_capacity, plan.built->scene.dofs);
+  if (!open_records(plan, pr)) return;
   if (plan.file.record.enabled) {
     try {
       res.recorder = open_recorder(plan, pr.build);
@@ -276,6 +301,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
     pr.run = run_loop(plan, in, pr.records, pr.counters, stop, observer);
   }
   pr.ran = true;
+  finish_records(pr, log);
   say_after_run(plan, res, pr, ev, log);
   pr.lifecycle["device"]["outside_workspace_ticks"] = pr.counters.outside_workspace_ticks;
   if (plan.times.rejoin) {
@@ -450,6 +476,7 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
   o.run = pr.ran ? &pr.run : nullptr;
   o.counters = &pr.counters;
   o.records = &pr.records;
+  o.records_streamed = pr.record_files != nullptr;
   o.endpoint = res.ep.get();
   o.failure = pr.failure;
   o.failure_status = pr.failure_status;

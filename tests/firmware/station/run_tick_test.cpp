@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <fstream>
 #include <memory>
 #include <string>
 #include <thread>
@@ -20,6 +21,7 @@
 #include "firmware/station/run.hpp"
 #include "net/config.hpp"
 #include "tests/support/alloc_counter.hpp"
+#include "tests/firmware/station/station_files.hpp"
 
 using namespace haptic;
 
@@ -155,6 +157,39 @@ TEST(RunTick, OneLoopIterationAllocatesNothingAndUsesTheNeighboursPackets) {
   LONGS_EQUAL(ticks - 10, r.cnt.ticks_run);
   CHECK_FALSE(r.cnt.diverged);
   LONGS_EQUAL(0, r.cnt.device_fault_ticks);
+}
+
+// The tick's rows stream through the record windows while the writer thread drains them: the tick
+// allocates nothing, and every row it wrote is in the files. With no room (a writer that fell
+// behind) the tick does not wait: it drops the row and counts it.
+TEST(RunTick, TheRecordWindowsCostTheTickNoAllocationAndAFullWindowDropsRowsAndCountsThem) {
+  const std::string dir = test::fresh_dir("tick-records");
+  std::uint64_t allocations = 0;
+  {
+    OneStationRig r(64);
+    firmware::RecordFiles files(dir + "/s", r.b.spec.period_s, r.rec);
+    for (std::int64_t k = 0; k < 20; ++k) r.step(k);  // warm-up
+    {
+      test::AllocationCounter counter;
+      for (std::int64_t k = 20; k < 200; ++k) r.step(k);
+      allocations = counter.allocations();
+    }
+    STRCMP_EQUAL("", files.finish().c_str());
+    LONGS_EQUAL(200, r.rec.trace_rows + r.rec.trace_lost);
+    LONGS_EQUAL(200, r.rec.state_rows + r.rec.state_lost);
+    std::ifstream f(dir + "/s-trace.csv");
+    std::size_t lines = 0;
+    for (std::string line; std::getline(f, line);) ++lines;
+    LONGS_EQUAL(r.rec.trace_rows + 1, lines);
+  }
+  LONGS_EQUAL(0, allocations);
+  OneStationRig full(4);  // windows of 4 rows and no writer
+  for (std::int64_t k = 0; k < 10; ++k) full.step(k);
+  LONGS_EQUAL(4, full.rec.trace_rows);
+  LONGS_EQUAL(6, full.rec.trace_lost);
+  LONGS_EQUAL(4, full.rec.state_rows);
+  LONGS_EQUAL(6, full.rec.state_lost);
+  LONGS_EQUAL(10, full.cnt.ticks_run);
 }
 
 // The tick with the session recorder on still allocates nothing, and what it recorded (real UDP

@@ -10,6 +10,7 @@
 
 #include "firmware/station/plan.hpp"
 #include "firmware/station/records.hpp"
+#include "firmware/station/report.hpp"
 #include "tests/firmware/station/station_files.hpp"
 
 using namespace haptic;
@@ -115,4 +116,25 @@ TEST(StationRecords, AnUnwritableOutputIsAnErrorNamingTheFile) {
   } catch (const std::runtime_error& e) {
     STRCMP_CONTAINS("cannot write /proc/no-such-dir/station-1-trace.csv", e.what());
   }
+}
+
+// Rows the tick dropped because the writer fell behind are in station-<id>.json, never silent.
+TEST(StationRecords, RowsLostToAFullWindowAreInTheStationSummary) {
+  const StationPlan plan = plan_for(60);
+  TickRecords rec;
+  rec.reserve(plan.trace_capacity, plan.state_capacity, plan.built->scene.dofs);
+  rec.trace_rows = 1000;
+  rec.trace_lost = 3;
+  rec.state_rows = 200;
+  rec.state_lost = 1;
+  StationOutcome o;
+  o.plan = &plan;
+  o.records = &rec;
+  o.records_streamed = true;
+  const nlohmann::json j = station_summary(o, run_conditions(o));
+  LONGS_EQUAL(1000, j["records"]["trace_rows"].get<long>());
+  LONGS_EQUAL(3, j["records"]["trace_rows_lost"].get<long>());
+  LONGS_EQUAL(200, j["records"]["state_rows"].get<long>());
+  LONGS_EQUAL(1, j["records"]["state_rows_lost"].get<long>());
+  LONGS_EQUAL(plan.record_window_bytes(), j["records"]["window_bytes"].get<long>());
 }

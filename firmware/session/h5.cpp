@@ -98,8 +98,22 @@ Id::~Id() {
   id_ = -1;
 }
 
+// A file written for as long as a session runs: the metadata cache (which holds the chunk index's
+// nodes, and by default grows adaptively up to 32 MB) is fixed at kMetadataCacheBytes, so the
+// writer's memory does not grow with the length of the log (in 10-minute recordings what grew was
+// the chunk cache, Appendable; this bounds the index's share for longer logs).
 Id create_file(const std::string& path) {
-  return Id(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), Id::Kind::kFile, "cannot create " + path);
+  Id fapl(H5Pcreate(H5P_FILE_ACCESS), Id::Kind::kPlist, "file access properties of " + path);
+  H5AC_cache_config_t mdc;
+  mdc.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+  check(H5Pget_mdc_config(fapl.get(), &mdc), "metadata cache of " + path);
+  mdc.set_initial_size = true;
+  mdc.initial_size = mdc.min_size = mdc.max_size = kMetadataCacheBytes;
+  mdc.incr_mode = H5C_incr__off;
+  mdc.flash_incr_mode = H5C_flash_incr__off;
+  mdc.decr_mode = H5C_decr__off;
+  check(H5Pset_mdc_config(fapl.get(), &mdc), "metadata cache of " + path);
+  return Id(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), Id::Kind::kFile, "cannot create " + path);
 }
 Id open_file_read(const std::string& path) {
   return Id(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), Id::Kind::kFile, "cannot open " + path + " (not an HDF5 file?)");
@@ -196,7 +210,13 @@ Appendable::Appendable(hid_t loc, const std::string& name, Type ftype, std::uint
     check(H5Pset_shuffle(dcpl.get()), "shuffle on " + name);
     check(H5Pset_deflate(dcpl.get(), static_cast<unsigned>(deflate_level)), "deflate on " + name);
   }
-  ds_ = Id(H5Dcreate2(loc, name.c_str(), file_type(ftype), sp.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), Id::Kind::kDataset, "dataset " + name);
+  // The chunk cache holds the chunk being filled and one more (HDF5's default, 1 MB per dataset,
+  // keeps up to 1 MB of written chunks of each of a session log's 20 datasets: memory that grew
+  // for the first half hour of a recording); fully written chunks are evicted first (w0 = 1).
+  const std::size_t chunk_bytes = static_cast<std::size_t>(chunk[0] * (cols ? cols : 1)) * H5Tget_size(file_type(ftype));
+  Id dapl(H5Pcreate(H5P_DATASET_ACCESS), Id::Kind::kPlist, "access properties of " + name);
+  check(H5Pset_chunk_cache(dapl.get(), 521, 2 * chunk_bytes, 1.0), "chunk cache of " + name);
+  ds_ = Id(H5Dcreate2(loc, name.c_str(), file_type(ftype), sp.get(), H5P_DEFAULT, dcpl.get(), dapl.get()), Id::Kind::kDataset, "dataset " + name);
 }
 
 void Appendable::write_at(Type mtype, const void* data, std::uint64_t row0, std::uint64_t rows) {

@@ -6,6 +6,7 @@
 // it is used at start-up, on the recorder's writer thread and by replay tools.
 #include <hdf5.h>
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -34,6 +35,8 @@ class Id {
 // Element types of the datasets we write (file type little-endian, memory type native).
 enum class Type { kF64, kF32, kI64, kU64, kI32, kU32, kU8 };
 
+// The metadata cache of a file create_file() makes: fixed, whatever the file's size.
+inline constexpr std::size_t kMetadataCacheBytes = 2u << 20;
 Id create_file(const std::string& path);   // truncates
 Id open_file_read(const std::string& path);
 Id create_group(hid_t loc, const std::string& name);
@@ -74,6 +77,7 @@ class Appendable {
   std::uint64_t rows() const { return rows_; }            // rows in the dataset
   std::uint64_t total() const { return total_; }          // rows ever appended
   std::uint64_t next_row() const { return ring_ ? total_ % ring_ : rows_; }
+  hid_t id() const { return ds_.get(); }                  // the open dataset
 
  private:
   void write_at(Type mem_type, const void* data, std::uint64_t row0, std::uint64_t rows);

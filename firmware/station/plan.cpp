@@ -21,6 +21,7 @@
 #include <system_error>
 
 #include "firmware/station/link_impairment.hpp"
+#include "firmware/station/records.hpp"
 #include "firmware/session/recorder.hpp"
 #include "platform/toml_config.hpp"
 #include "net/transport_udp.hpp"
@@ -34,8 +35,7 @@ using platform::config::number_text;
 
 namespace {
 
-constexpr std::size_t kMaxTraceRecords = 4'000'000;
-constexpr std::size_t kMaxStateValues = 64'000'000;  // 512 MB of doubles: refuse above
+constexpr std::size_t kMaxStateValues = 64'000'000;  // 512 MB of doubles in the state window: refuse above
 
 using platform::clock_ns;
 
@@ -110,14 +110,15 @@ std::uint64_t record_ring_ticks(const StationPlan& p) {
 
 namespace {
 
+// The trace and state windows (station/records.hpp): kRecordWindowS of rows each, whatever the
+// planned duration; the writer thread empties them every 20 ms.
 void plan_records(StationPlan& p) {
   const StationSection& s = p.file.station;
-  const std::int64_t run_ticks = p.times.run_ticks;
-  p.trace_capacity = static_cast<std::size_t>(run_ticks / s.trace_every + 2);
-  p.state_capacity = static_cast<std::size_t>(run_ticks / s.state_every + 2);
-  if (p.trace_capacity > kMaxTraceRecords) bad("station.trace_every too small for duration_s (over 4e6 records)");
+  const double window_ticks = kRecordWindowS / p.built->spec.period_s;
+  p.trace_capacity = static_cast<std::size_t>(std::ceil(window_ticks / s.trace_every)) + 2;
+  p.state_capacity = static_cast<std::size_t>(std::ceil(window_ticks / s.state_every)) + 2;
   if (p.state_capacity * static_cast<std::size_t>(p.built->scene.dofs) > kMaxStateValues)
-    bad("station.state_every too small for duration_s and nodes (over 64e6 values)");
+    bad("station.state_every too small for the nodes (the state rows of " + number_text(kRecordWindowS) + " s would be over 64e6 values)");
   const RecordSection& r = p.file.record;
   if (r.enabled && r.ring_s > 0) {
     const bool f32 = p.net.endpoint.wire.encoding == net::ValueEncoding::float32;
@@ -581,6 +582,8 @@ PlanResult plan_station(const StationFile& file, const RunOverrides& overrides, 
   }
   return r;
 }
+
+std::size_t StationPlan::record_window_bytes() const { return TickRecords::window_bytes(trace_capacity, state_capacity, built->scene.dofs); }
 
 std::int64_t StationPlan::clock_offset_limit_ticks() const {
   return static_cast<std::int64_t>(std::ceil(file.station.clock_offset_limit_ms * 1e-3 / built->spec.period_s));

@@ -89,8 +89,12 @@ struct StationPlan {
   SceneFingerprint fingerprint;
   std::string out_dir;              // created by the run, checked creatable here
   std::string base_path;            // out_dir/station-<id>
-  std::size_t trace_capacity = 0;   // preallocated trace rows
-  std::size_t state_capacity = 0;   // preallocated state rows (x dofs values each)
+  // The record windows (station/records.hpp), rows of kRecordWindowS each: independent of the
+  // planned duration (the rows stream to the CSV files during the run).
+  std::size_t trace_capacity = 0;   // trace rows
+  std::size_t state_capacity = 0;   // state rows (x dofs values each)
+  // The bytes the record windows hold (TickRecords::window_bytes of the two capacities).
+  std::size_t record_window_bytes() const;
   bool ends_before_release = false; // the planned run ends at or before the scripted release
   std::vector<std::string> warnings;
   // station.clock_offset_limit_ms in whole ticks (rounded up): how far a neighbour's tick grid may
@@ -112,6 +116,10 @@ PlanResult plan_station(const StationFile& file, const RunOverrides& overrides, 
 
 // Ticks the session log's ring keeps (station.record_ring_s / T, at least 1), 0 = the whole run. Pure.
 std::uint64_t record_ring_ticks(const StationPlan& p);
+
+// Seconds of trace and state rows the record windows hold: how long the writer thread may fall
+// behind the tick before rows are lost (counted and reported).
+inline constexpr double kRecordWindowS = 8.0;
 
 // The individual checks (each throws std::invalid_argument naming the key; exposed for tests).
 PeerTable plan_peer_table(const StationFile& file, const BuiltScenario& built, int me, const net::NetConfig& net);

@@ -47,6 +47,18 @@ json station_scenario_json(const StationPlan& p) {
   return j;
 }
 
+// The record windows (station/records.hpp): rows streamed to the CSV files and rows the tick
+// dropped because the writer fell behind (0 unless the host starved the writer for a window).
+void add_records_json(const StationOutcome& o, json& j) {
+  const TickRecords* r = o.records_streamed ? o.records : nullptr;
+  j["records"] = {{"trace_rows", r ? r->trace_rows : 0},
+                  {"state_rows", r ? r->state_rows : 0},
+                  {"trace_rows_lost", r ? r->trace_lost : 0},
+                  {"state_rows_lost", r ? r->state_lost : 0},
+                  {"window_s", kRecordWindowS},
+                  {"window_bytes", o.plan->record_window_bytes()}};
+}
+
 void add_run_json(const StationOutcome& o, json& j) {
   const TickCounters* c = o.counters;
   const bool ran = c != nullptr && c->ticks_run > 0;
@@ -65,6 +77,7 @@ void add_run_json(const StationOutcome& o, json& j) {
   // the trace's flags carry kTraceStateSent (station/tick.hpp) on every trace_every-th tick
   j["trace_every"] = o.plan->file.station.trace_every;
   j["trace_marks_state_sent"] = true;
+  add_records_json(o, j);
   j["device_fault_ticks"] = c ? c->device_fault_ticks : 0;
   j["foreign_packets"] = c ? c->foreign_packets : 0;
   j["probe_packets_after_run"] = c ? c->probe_packets_after_run : 0;
@@ -221,33 +234,19 @@ void add_links_json(const StationOutcome& o, json& j) {
   j["links"] = links;
 }
 
-void write_trace_csv(const std::string& path, const TickRecords& rec, double T) {
-  std::FILE* tf = std::fopen(path.c_str(), "w");
-  if (!tf) throw std::runtime_error("cannot write " + path);
-  std::fprintf(tf, "k,t_s,node_x_m,node_y_m,node_z_m,force_x_N,force_y_N,force_z_N,vp_x_m,vp_y_m,vp_z_m,device_x_m,device_y_m,device_z_m,"
-                   "port_energy_J,controller_energy_J,vo_energy_J,contact,flags,max_speed_m_per_s,wake_latency_ns,step_s\n");
-  for (std::size_t i = 0; i < rec.trace_n; ++i) {
-    const TraceRec& r = rec.trace[i];
-    std::fprintf(tf, "%lld,%.4f,%.9g,%.9g,%.9g,%.7g,%.7g,%.7g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%d,%u,%.6g,%d,%.9g\n", static_cast<long long>(r.k),
-                 static_cast<double>(r.k + 1) * T, r.node[0], r.node[1], r.node[2], r.force[0], r.force[1], r.force[2], r.vp[0], r.vp[1], r.vp[2],
-                 r.device[0], r.device[1], r.device[2], r.port_J, r.ctrl_J, r.vo_J, r.contact, r.flags, r.max_speed, r.wake_latency_ns, r.step_s);
+// The CSV files of a run whose records never streamed (the run phase did not start): headers only.
+void write_empty_records(const std::string& base, int dofs) {
+  for (const bool trace : {true, false}) {
+    const std::string path = base + (trace ? "-trace.csv" : "-state.csv");
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    if (!f) throw std::runtime_error("cannot write " + path);
+    if (trace) {
+      write_station_trace_header(f);
+    } else {
+      write_station_state_header(f, dofs);
+    }
+    std::fclose(f);
   }
-  std::fclose(tf);
-}
-
-void write_state_csv(const std::string& path, const TickRecords& rec, int dofs) {
-  std::FILE* sf = std::fopen(path.c_str(), "w");
-  if (!sf) throw std::runtime_error("cannot write " + path);
-  std::fprintf(sf, "k");
-  for (int d = 0; d < dofs; ++d) std::fprintf(sf, ",x%d", d);
-  std::fprintf(sf, "\n");
-  for (std::size_t i = 0; i < rec.state_n; ++i) {
-    std::fprintf(sf, "%lld", static_cast<long long>(rec.state_k[i]));
-    const double* x = rec.state_x.data() + i * static_cast<std::size_t>(dofs);
-    for (int d = 0; d < dofs; ++d) std::fprintf(sf, ",%.10g", x[d]);
-    std::fprintf(sf, "\n");
-  }
-  std::fclose(sf);
 }
 
 }  // namespace
@@ -335,10 +334,7 @@ nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c) 
 void write_station_outputs(const StationOutcome& o, const RunConditions& c) {
   const std::string& base = o.plan->base_path;
   write_json_file(base + ".json", station_summary(o, c));
-  static const TickRecords kNone{};
-  const TickRecords& rec = o.records ? *o.records : kNone;
-  write_trace_csv(base + "-trace.csv", rec, o.plan->built->spec.period_s);
-  write_state_csv(base + "-state.csv", rec, o.plan->built->scene.dofs);
+  if (!o.records_streamed) write_empty_records(base, o.plan->built->scene.dofs);
 }
 
 }  // namespace haptic::firmware

@@ -27,6 +27,7 @@ struct StationOutcome {
   const RunPhaseResult* run = nullptr;
   const TickCounters* counters = nullptr;
   const TickRecords* records = nullptr;
+  bool records_streamed = false;    // the run's RecordFiles wrote the CSV files (else: headers only)
   const net::Endpoint* endpoint = nullptr;
   std::string failure;              // the first phase failure ("" none)
   PhaseStatus failure_status = PhaseStatus::kOk;

@@ -56,6 +56,7 @@ struct PhaseResults {
   bool probed = false, built = false, ran = false;
   TickCounters counters;
   TickRecords records;
+  std::unique_ptr<RecordFiles> record_files;  // drains `records` into the CSV files during the run
   nlohmann::json lifecycle = nlohmann::json::object();  // rejoin, clock offsets, neighbour events
   std::string failure;
   PhaseStatus failure_status = PhaseStatus::kOk;
@@ -216,9 +217,33 @@ void say_after_run(const StationPlan& plan, StationResources& res, PhaseResults&
   }
 }
 
-// The output side of the run (recorder, live view) and the tick's inputs; false on a failure.
-bool prepare_run(const StationPlan& plan, StationResources& res, PhaseResults& pr, TickInputs& in, const Log& log) {
+// The record windows and their writer thread (station/records.hpp), before the run stage is handed to the loop.
+bool open_records(const StationPlan& plan, PhaseResults& pr) {
   pr.records.reserve(plan.trace_capacity, plan.state_capacity, plan.built->scene.dofs);
+  try {
+    pr.record_files = std::make_unique<RecordFiles>(plan.base_path, plan.built->spec.period_s, pr.records);
+  } catch (const std::exception& e) {
+    pr.fail(PhaseStatus::kFailed, std::string("station records: ") + e.what());
+    return false;
+  }
+  return true;
+}
+
+// After the tick's last row: the writer drains the windows and closes the CSV files; rows the tick
+// dropped because the writer fell behind are said here (and counted in station-<id>.json "records").
+void finish_records(PhaseResults& pr, const Log& log) {
+  const std::string err = pr.record_files->finish();
+  if (!err.empty()) pr.fail(PhaseStatus::kFailed, "station records: " + err);
+  const TickRecords& r = pr.records;
+  if (r.trace_lost > 0 || r.state_lost > 0)
+    log.say("warning: the record writer fell behind the tick: " + std::to_string(r.trace_lost) + " trace rows and " + std::to_string(r.state_lost) +
+            " state rows were dropped (the tick never waits for it; the CSV files miss those ticks; windows of " + std::to_string(r.trace_window.slots()) +
+            " and " + std::to_string(r.state_window.slots()) + " rows)");
+}
+
+// The output side of the run (record windows, recorder, live view) and the tick's inputs; false on a failure.
+bool prepare_run(const StationPlan& plan, StationResources& res, PhaseResults& pr, TickInputs& in, const Log& log) {
+  if (!open_records(plan, pr)) return false;
   if (plan.file.record.enabled) {
     try {
       res.recorder = open_recorder(plan, pr.build);
@@ -279,6 +304,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
   const int run_index = loop.hand_over(run_stage(plan, tick, stop, plan.times.rejoin));
   pr.run = loop.run_result(run_index, observer);
   pr.ran = true;
+  finish_records(pr, log);
   say_after_run(plan, res, pr, ev, log);
   pr.lifecycle["device"]["outside_workspace_ticks"] = pr.counters.outside_workspace_ticks;
   if (plan.times.rejoin) {
@@ -495,6 +521,7 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
   o.run = pr.ran ? &pr.run : nullptr;
   o.counters = &pr.counters;
   o.records = &pr.records;
+  o.records_streamed = pr.record_files != nullptr;
   o.endpoint = res.ep.get();
   o.failure = pr.failure;
   o.failure_status = pr.failure_status;

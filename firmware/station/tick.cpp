@@ -82,8 +82,13 @@ double max_node_speed(const TickInputs& in) {
 
 void record_trace(const TickInputs& in, TickRecords& rec, std::int64_t kr, const double* F, const rt::Vec3& q, double vmax, std::uint32_t flags,
                   const platform::TickInfo& info) {
-  if (kr % in.trace_every != 0 || rec.trace_n >= rec.trace.size()) return;
-  TraceRec& r = rec.trace[rec.trace_n++];
+  if (kr % in.trace_every != 0) return;
+  const std::size_t slot = rec.trace_window.writer_slot();
+  if (slot == RowWindow::kNone) {  // the writer fell behind: dropped, counted, reported after the run
+    ++rec.trace_lost;
+    return;
+  }
+  TraceRec& r = rec.trace[slot];
   const auto& e = in.core->energy();
   r.k = kr;
   const auto xn = in.core->x().segment<3>(3 * in.trace_node);
@@ -102,14 +107,22 @@ void record_trace(const TickInputs& in, TickRecords& rec, std::int64_t kr, const
   r.flags = flags;
   r.wake_latency_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.wake_latency_ns, INT32_MAX));
   r.contact = in.core->in_contact() ? 1 : 0;
+  rec.trace_window.writer_commit();
+  ++rec.trace_rows;
 }
 
 void record_state(const TickInputs& in, TickRecords& rec, std::int64_t kr) {
-  if (kr % in.state_every != 0 || rec.state_n >= rec.state_k.size()) return;
-  rec.state_k[rec.state_n] = kr;
+  if (kr % in.state_every != 0) return;
+  const std::size_t slot = rec.state_window.writer_slot();
+  if (slot == RowWindow::kNone) {
+    ++rec.state_lost;
+    return;
+  }
+  rec.state_k[slot] = kr;
   const double* x = in.core->x().data();
-  std::copy(x, x + in.dofs, rec.state_x.data() + rec.state_n * static_cast<std::size_t>(in.dofs));
-  ++rec.state_n;
+  std::copy(x, x + in.dofs, rec.state_x.data() + slot * static_cast<std::size_t>(in.dofs));
+  rec.state_window.writer_commit();
+  ++rec.state_rows;
 }
 
 void record_telemetry(const TickInputs& in, const double* F, const rt::Vec3& q, std::uint32_t flags, const platform::TickInfo& info) {
@@ -178,13 +191,6 @@ void device_force_out(const TickInputs& in, const TickCounters& cnt, const rt::V
   } else {
     for (int a = 0; a < 3; ++a) out[a] = ramped[a];
   }
-}
-
-void TickRecords::reserve(std::size_t trace_rows, std::size_t state_rows, int dofs) {
-  trace.assign(trace_rows, TraceRec{});
-  state_k.assign(state_rows, 0);
-  state_x.assign(state_rows * static_cast<std::size_t>(dofs), 0.0);
-  trace_n = state_n = 0;
 }
 
 void receive_packets(const TickInputs& in, TickCounters& cnt, std::int64_t kr) {

@@ -1,7 +1,7 @@
 #pragma once
 // One run tick of `haptic-station run` (DESIGN.md, "One tick of station i") and what it
 // touches, split by lifetime: TickInputs (built at start-up, read by the tick), TickRecords
-// (preallocated rows the tick fills), TickCounters (what the tick counts; read by the report
+// (station/records.hpp: the windows of rows the tick fills), TickCounters (what the tick counts; read by the report
 // after the loop ended).
 #include <cstdint>
 #include <vector>
@@ -10,6 +10,7 @@
 #include "drivers/workspace_map.hpp"
 #include "drivers/simulated_device.hpp"
 #include "firmware/session/recorder.hpp"
+#include "firmware/station/records.hpp"
 #include "firmware/view/frame.hpp"
 #include "net/endpoint.hpp"
 #include "platform/gpio.hpp"
@@ -20,17 +21,6 @@
 #include "firmware/run/summary.hpp"
 
 namespace haptic::firmware {
-
-// One row of station-<id>-trace.csv (flat, preallocated).
-struct TraceRec {
-  std::int64_t k;
-  double node[3], force[3], vp[3], device[3];
-  double port_J, ctrl_J, vo_J, max_speed;
-  double step_s;  // T_k the core integrated this tick with (rt::StationCore::last_step_s)
-  std::uint32_t flags;
-  std::int32_t wake_latency_ns;
-  std::uint8_t contact;
-};
 
 // Built at start-up; the tick only reads these (the objects pointed to are the tick's to use).
 struct TickInputs {
@@ -56,16 +46,6 @@ struct TickInputs {
   const std::int64_t* seq_shift_ticks = nullptr;
   const drivers::WorkspaceMap* map = nullptr;  // device -> object frame; null = identity
   std::int64_t ramp_ticks = 0;                 // force ramp-in over this many coupled ticks (0 = none)
-};
-
-// Preallocated by reserve() (not RT-safe); the tick writes rows by index, never grows them.
-struct TickRecords {
-  std::vector<TraceRec> trace;
-  std::size_t trace_n = 0;
-  std::vector<std::int64_t> state_k;
-  std::vector<double> state_x;  // state_k.size() x dofs
-  std::size_t state_n = 0;
-  void reserve(std::size_t trace_rows, std::size_t state_rows, int dofs);
 };
 
 // Counted by the tick; read by the non-RT side after the loop ended.

@@ -1,5 +1,7 @@
 #include "firmware/station/report.hpp"
 
+#include "firmware/station/explain.hpp"
+
 #include "firmware/run/summary.hpp"
 #include "firmware/model/delay_model.hpp"
 
@@ -320,6 +322,8 @@ nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c) 
   j["max_missed_cycles"] = o.plan->file.station.max_missed_cycles;
   j["conditions"] = c.names();
   j["exit_code"] = exit_code(c);
+  j["host"] = host_json(host_timing(o));  // this host's timing: wake-up P99/max, overruns, skipped periods, starving
+  j["explanation"] = explain_exit(o, c, exit_code(c)).json;  // why a non-zero exit (firmware/station/explain.hpp)
   j["wall_time_s"] = o.wall_time_s;
   return j;
 }

@@ -530,15 +530,22 @@ TEST(StationPhases, AHubWhoseNeighboursLeaveEarlyExitsNoNeighbour) {
   CHECK(has(j["conditions"], "no_neighbour"));
   CHECK(number(j["no_neighbour_fraction"]) > 0.5);
   for (int i = 2; i <= 4; ++i) LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
-  // It says why: the longest span without a usable neighbour starts after the leaves' 0.3 s run and
-  // lasts to the hub's end (1.2 s), every leaf in it silent, with this host's figures.
+  // It says why: the longest span without a usable neighbour covers the time after the leaves' 0.3 s
+  // run to the hub's end (1.2 s; on a loaded host it may start earlier, with the leaves' last packets
+  // arriving late in it), each leaf named with the age of its newest data (from before 0.3 s) against
+  // N̄, SILENT when no packet of it arrived in the span, else LATE, and this host's figures.
   const json& span = j["explanation"]["no_neighbour_spans"]["longest"];
-  CHECK_TEXT(number(span["from_s"]) >= 0.25 && number(span["from_s"]) < 0.6, span.dump().c_str());
+  CHECK_TEXT(number(span["from_s"]) < 0.6, span.dump().c_str());
   DOUBLES_EQUAL(1.2, number(span["to_s"]), 0.01);
   LONGS_EQUAL(3, static_cast<long>(span["links"].size()));
-  for (const json& l : span["links"]) STRCMP_EQUAL("silent", l["cause"].get<std::string>().c_str());
   const std::string lines = j["explanation"]["lines"].dump();
-  for (int i = 2; i <= 4; ++i) STRCMP_CONTAINS(("station " + std::to_string(i) + " SILENT").c_str(), lines.c_str());
+  for (const json& l : span["links"]) {
+    const bool silent = number(l["packets"]) == 0;
+    STRCMP_EQUAL(silent ? "silent" : "late", l["cause"].get<std::string>().c_str());
+    CHECK_TEXT(number(l["age_ticks"]) >= 400 && number(l["age_ticks"]) > number(l["nbar_ticks"]), l.dump().c_str());  // 1.2 s - 0.3 s = 450 ticks
+    const std::string named = "station " + std::to_string(l["peer"].get<int>()) + (silent ? " SILENT" : " LATE");
+    STRCMP_CONTAINS(named.c_str(), lines.c_str());
+  }
   STRCMP_CONTAINS("this host over the run loop: wake-up P99", lines.c_str());
   CHECK(j["host"]["wake_p99_ms"].is_number());
   std::filesystem::remove_all(dir);
@@ -568,10 +575,15 @@ TEST(StationPhases, AHostStallIsNamedByTheStalledStationAndItsNeighboursSeeItSil
     const std::string who = "station " + std::to_string(i) + ": " + leaf["explanation"].dump();
     CHECK_TEXT(codes[static_cast<std::size_t>(i - 1)] == kExitNoNeighbour, who.c_str());
     const json& span = leaf["explanation"]["no_neighbour_spans"]["longest"];
-    CHECK_TEXT(number(span["from_s"]) >= 0.29 && number(span["from_s"]) < 0.45, who.c_str());  // the stall, plus N̄
-    CHECK_TEXT(number(span["to_s"]) > 1.4 && number(span["to_s"]) < 1.7, who.c_str());
-    STRCMP_EQUAL("silent", span["links"][0]["cause"].get<std::string>().c_str());
-    STRCMP_CONTAINS("station 1 SILENT", leaf["explanation"]["lines"].dump().c_str());
+    // it covers the stall (0.3-1.5 s, from N̄ after its start); on a loaded host it may begin earlier and
+    // end later (the hub's I/O thread and the age guard catching up)
+    CHECK_TEXT(number(span["from_s"]) < 0.45, who.c_str());
+    CHECK_TEXT(number(span["to_s"]) > 1.4 && number(span["to_s"]) <= 2.0, who.c_str());  // to the stall's end (1.5 s) or later on a loaded host
+    CHECK_TEXT(number(span["links"][0]["age_ticks"]) >= 550, who.c_str());  // the hub's newest data is from before the stall
+    const bool silent = number(span["links"][0]["packets"]) == 0;  // none arrived: certain when the span began with the stall
+    if (number(span["from_s"]) >= 0.29) CHECK_TEXT(silent, who.c_str());
+    STRCMP_EQUAL(silent ? "silent" : "late", span["links"][0]["cause"].get<std::string>().c_str());
+    STRCMP_CONTAINS(silent ? "station 1 SILENT" : "station 1 LATE", leaf["explanation"]["lines"].dump().c_str());
     // the leaf's own host verdict in the span follows its own measurements
     const bool missed = number(span["overruns"]) > 0 || number(span["missed_cycles"]) > 0 || number(span["wake_max_ms"]) >= 2.0;
     CHECK_EQUAL(missed, span["host_starving"].get<bool>());

@@ -70,6 +70,16 @@ struct LoopReport {
 };
 std::string format_report(const LoopReport& report);  // one line; not RT-safe
 
+// Whether the host could not keep the loop's period: it skipped at least 1 % of the periods
+// (missed cycles: ticks that overran into the next deadline, or a stall), or the 99th percentile of
+// the wake-up latency is a period or more (1 % of the ticks woke when the next deadline was already
+// due). The one rule for "a starving host" of the station's report, its live view and the merge.
+// RT-safe (arithmetic).
+inline bool host_starving(std::uint64_t ticks, std::uint64_t missed_cycles, std::int64_t wake_p99_ns, std::int64_t period_ns) {
+  if (ticks == 0) return false;
+  return 100 * missed_cycles >= ticks + missed_cycles || wake_p99_ns >= period_ns;
+}
+
 template <class Clock = MonotonicClock>
 class PeriodicLoop {
  public:

@@ -287,6 +287,34 @@ json steps_json(const StationFiles& f) {
   return {{"min_s", lo}, {"mean_s", sum / n}, {"max_s", hi}, {"integrated_minus_grid_s", every ? json(sum - n * T) : json(nullptr)}};
 }
 
+// What a reader must not miss in a merged run: a link whose index delay N went over its guard N̄
+// (the receiver used none of its data for those ticks; edge drops counted) and a station whose host
+// was starving (station-<id>.json "host", the one rule platform::host_starving), each in words.
+json merge_flags(const std::vector<StationFiles>& st) {
+  json flags = json::array();
+  for (const auto& f : st) {
+    const json& s = f.summary;
+    const int to = s["station"].get<int>();
+    for (const json& l : s["links"]) {
+      if (!l.contains("max_index_delay_ticks") || !l.contains("index_delay_bound_ticks")) continue;
+      const auto n = l["max_index_delay_ticks"].get<std::int64_t>(), nbar = l["index_delay_bound_ticks"].get<std::int64_t>();
+      if (n > nbar)
+        flags.push_back("link " + std::to_string(to) + "<-" + std::to_string(l["peer"].get<int>()) + ": N max " + std::to_string(n) + " > N̄ " +
+                        std::to_string(nbar) + " (" + std::to_string(l.value("bound_violations", std::uint64_t{0})) + " edge drops)");
+    }
+    const json& h = s.value("host", json(nullptr));
+    if (h.is_object() && h.value("starving", false)) {
+      char b[200];
+      std::snprintf(b, sizeof b, "station %d: host STARVING (wake-up P99 %.3g ms, max %.3g ms, %llu overruns, %llu skipped periods in %llu ticks)", to,
+                    h["wake_p99_ms"].is_number() ? h["wake_p99_ms"].get<double>() : 0.0, h["wake_max_ms"].is_number() ? h["wake_max_ms"].get<double>() : 0.0,
+                    static_cast<unsigned long long>(h["overruns"].get<std::uint64_t>()), static_cast<unsigned long long>(h["missed_cycles"].get<std::uint64_t>()),
+                    static_cast<unsigned long long>(h["ticks"].get<std::uint64_t>()));
+      flags.push_back(b);
+    }
+  }
+  return flags;
+}
+
 json station_rows(const std::vector<StationFiles>& st) {
   json rows = json::array();
   for (const auto& f : st) {
@@ -296,6 +324,7 @@ json station_rows(const std::vector<StationFiles>& st) {
                     {"fully_real_time", s["rt"]["fully_real_time"]}, {"rt_warnings", s["rt"]["warnings"]},
                     {"stopped_by_signal", s["stopped_by_signal"]}, {"device", s["device"]}, {"wall_time_s", s["wall_time_s"]},
                     {"exit_code", s.value("exit_code", json(nullptr))}, {"conditions", s.value("conditions", json::array())},
+                    {"host", s.value("host", json(nullptr))},
                     {"steps", steps_json(f)}});
   }
   return rows;
@@ -430,6 +459,7 @@ json merge_run(const std::string& dir) {
   j["link_stats"] = links;
   add_windowed_sends(st, j);
   j["stations"] = station_rows(st);
+  j["flags"] = merge_flags(st);  // N > N̄ on a link, a starving host: said on the result line too
   const GateSummary gate = merged_gate(st, j);
   j["gate"] = gate_json(gate);
   j["verdict"] = run_verdict(j.value("diverged", false), j.value("unstable", false), gate);
@@ -437,6 +467,16 @@ json merge_run(const std::string& dir) {
   write_merged_snapshots(st, s0["dt_s"].get<double>(), dir);
   return j;
 }
+
+namespace {
+// "; FLAGGED: link 2<-1: N max 74 > N̄ 12 (3 edge drops); station 2: host STARVING (...)", or "".
+std::string flags_clause(const json& s) {
+  if (!s.contains("flags") || s["flags"].empty()) return "";
+  std::string t = "; FLAGGED: ";
+  for (const auto& f : s["flags"]) t += f.get<std::string>() + "; ";
+  return t.substr(0, t.size() - 2);
+}
+}  // namespace
 
 std::string merge_result_line(const json& s) {
   auto num = [&](const char* k, double scale, const char* unit, const char* none) {
@@ -452,7 +492,8 @@ std::string merge_result_line(const json& s) {
          num("consensus_time_10pct_s", 1, " s", "never") + " (10 %), " + num("consensus_time_1pct_s", 1, " s", "never") +
          " (1 %), hold |sum u| " + num("hold_force_sum_N", 1, " N", "n/a") + " vs mean |u_i| " + num("hold_force_mean_N", 1, " N", "n/a") +
          ", min port energy " + num("port_energy_min_J", 1, " J", "n/a") + " (bound -" + num("passivity_bound_J", 1, " J", "n/a") + "), packets sent " +
-         std::to_string(s["packets"]["sent"].get<std::uint64_t>()) + " delivered " + std::to_string(s["packets"]["delivered"].get<std::uint64_t>());
+         std::to_string(s["packets"]["sent"].get<std::uint64_t>()) + " delivered " + std::to_string(s["packets"]["delivered"].get<std::uint64_t>()) +
+         flags_clause(s);
 }
 
 }  // namespace haptic::firmware

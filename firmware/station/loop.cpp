@@ -143,6 +143,7 @@ RunPhaseResult StationLoop::run_result(int run_index, const RunObserver& observe
   if (thread_) thread_->join();
   const StageOutcome& o = outcomes_[run_index];
   r.loop = o.counts;
+  r.whole_loop = loop_.stats();
   r.first_run_k = o.ran ? o.first_k : -1;
   r.loop_exception = exception_;
   r.loop_exception_what = what_;

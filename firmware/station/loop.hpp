@@ -36,6 +36,7 @@ struct RunPhaseResult {
   PhaseStatus status = PhaseStatus::kFailed;
   std::string message;
   LoopCounts loop{};                 // the run stage's share of the loop
+  platform::LoopStats whole_loop{};  // the loop's own statistics, probe to run (wake-up latency and execution histograms)
   std::string rt_summary;
   std::vector<std::string> rt_warnings;
   std::int64_t first_run_k = -1;     // epoch index of the first run tick (-1: none ran)

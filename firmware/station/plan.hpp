@@ -7,6 +7,7 @@
 // so every configuration error `run` can report is reported here (exit 2), naming the key as it
 // is written in the file. Nothing here is RT-safe.
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -29,6 +30,9 @@ struct RunOverrides {
   bool quiet = false;
   bool probe_only = false;   // --probe-only: plan, probe the neighbours (round trips, loss, clock offsets,
                              // fingerprints), report and stop; no coupling, no run (haptic-lab check)
+  // For in-process tests only, never set by the command line: called on the RT thread before each
+  // run tick with its run index (a test simulates a host stall by sleeping in it). Empty: not called.
+  std::function<void(std::int64_t kr)> test_tick_hook;
 };
 
 // Applies the file's [station] keys to the scenario (throws std::invalid_argument naming the key).

@@ -1,6 +1,7 @@
 #include "firmware/station/report.hpp"
 
 #include "firmware/station/neighbours.hpp"
+#include "firmware/station/explain.hpp"
 
 #include "firmware/run/summary.hpp"
 #include "firmware/model/delay_model.hpp"
@@ -327,6 +328,8 @@ nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c) 
   j["incarnation"] = o.endpoint ? o.endpoint->incarnation() : 0;  // ours, as announced to the neighbours
   j["conditions"] = c.names();
   j["exit_code"] = exit_code(c);
+  j["host"] = host_json(host_timing(o));  // this host's timing: wake-up P99/max, overruns, skipped periods, starving
+  j["explanation"] = explain_exit(o, c, exit_code(c)).json;  // why a non-zero exit (firmware/station/explain.hpp)
   j["wall_time_s"] = o.wall_time_s;
   return j;
 }

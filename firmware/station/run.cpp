@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "drivers/device_factory.hpp"
+#include "firmware/station/explain.hpp"
 #include "firmware/station/neighbours.hpp"
 #include "firmware/station/rejoin.hpp"
 #include "firmware/session/recorder.hpp"
@@ -294,11 +295,13 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
   // A rejoining station refreshes the adopted state at its first tick (RT-safe, preallocated).
   Eigen::VectorXd x = pr.build.core->x(), v = pr.build.core->v();
   bool first = plan.times.rejoin;
+  const auto& hook = plan.overrides.test_tick_hook;  // in-process tests only (a simulated host stall)
   const RunTickFn tick = [&](std::int64_t k, std::int64_t kr, const platform::TickInfo& info) {
     if (first) {
       refresh_adopted_state(plan, *res.ep, *pr.build.core, x, v, pr.adopted);
       first = false;
     }
+    if (hook) hook(kr);
     run_tick(in, pr.records, pr.counters, k, kr, info);
   };
   const int run_index = loop.hand_over(run_stage(plan, tick, stop, plan.times.rejoin));
@@ -551,6 +554,7 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
     log.error("missed " + std::to_string(c.missed_cycles_total) + " cycles (more than station.max_missed_cycles = " +
               std::to_string(plan.file.station.max_missed_cycles) + "): the host stalled this station (SIGSTOP, swap, a starved CPU); " +
               "its neighbours saw it silent meanwhile");
+  for (const auto& line : explain_exit(o, c, code).lines) log.error(line);  // the links, the times, the measured cause
   try {
     write_station_outputs(o, c);
   } catch (const std::exception& e) {
@@ -586,7 +590,10 @@ std::string exit_code_help() {
          "of the run); 3 other run-time failure; 8 the run ended before the scripted release (e.g. --duration shorter than station.release_s); "
          "10 held by the gate (the per-edge energy gate tripped: the run stayed bounded by the gate, not by eq. (18) alone). "
          "station-<id>.json names each condition under \"conditions\" (also edge_drop_rule_acted, which has no code of its own) "
-         "and what the gate did under \"gate\".";
+         "and what the gate did under \"gate\". Every non-zero exit prints why, as measured: this host's wake-up P99/max, overruns and "
+         "skipped periods (\"STARVING\" when it skipped 1 % of the periods or its wake-up P99 reached a period), and for 7 each span "
+         "without a usable neighbour with its times, each link SILENT or LATE against N-bar, and the host in it; for 11 the longest "
+         "stall (station-<id>.json \"explanation\" and \"host\").";
 }
 
 int check_station_config(const StationFile& file, const RunOverrides& overrides, std::ostream& out, std::ostream& err) {

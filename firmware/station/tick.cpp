@@ -153,7 +153,9 @@ double monitor(const TickInputs& in, TickCounters& cnt, std::int64_t kr, std::ui
   cnt.port_min_J = std::min(cnt.port_min_J, in.core->energy().port_J);
   const double vmax = max_node_speed(in);
   cnt.max_speed_m_per_s = std::max(cnt.max_speed_m_per_s, vmax);
-  if (!any_neighbour_within_bound(*in.core, kr)) ++cnt.no_neighbour_ticks;
+  const bool usable = any_neighbour_within_bound(*in.core, kr);
+  if (!usable) ++cnt.no_neighbour_ticks;
+  cnt.outages.on_tick(*in.core, kr, usable, info);
   if ((flags & rt::kDiverged) && !cnt.diverged) {
     cnt.diverged = true;
     cnt.diverged_at_s = static_cast<double>(kr) * in.period_s;
@@ -254,6 +256,7 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
     row.exec_ns = static_cast<std::int32_t>(std::min<std::int64_t>(info.prev_exec_ns, INT32_MAX));
     in.recorder->rt_tick(row);
   }
+  if (in.view) in.view->note_missed_cycles(info.missed_cycles);
   if (in.view) in.view->on_tick(*in.core, kr, in.period_s, q, out.device_force_N, out.flags, info.prev_exec_ns, info.wake_latency_ns);
   ++cnt.ticks_run;
   if (in.gpio) in.gpio->tick_low();

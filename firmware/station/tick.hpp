@@ -11,6 +11,7 @@
 #include "drivers/simulated_device.hpp"
 #include "firmware/session/recorder.hpp"
 #include "firmware/station/records.hpp"
+#include "firmware/station/outage.hpp"
 #include "firmware/view/frame.hpp"
 #include "net/endpoint.hpp"
 #include "platform/gpio.hpp"
@@ -58,6 +59,7 @@ struct TickCounters {
   std::int64_t last_wake_ns = 0;  // the previous tick's wake (the measured step T_k = wake - this)
   bool diverged = false;
   double diverged_at_s = -1, port_min_J = 0, max_speed_m_per_s = 0;
+  OutageTracker outages;  // spans without a usable neighbour and the host's stalls, for the report's explanation
 };
 
 // The tick's receive stage: drains the endpoint's RX ring into the receive links. The endpoint has

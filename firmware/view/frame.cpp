@@ -1,5 +1,7 @@
 #include "firmware/view/frame.hpp"
 
+#include "platform/periodic_loop.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -21,6 +23,7 @@ void ViewPublisher::on_tick(const rt::StationCore& core, std::int64_t kr, double
   wake_max_ = std::max<std::int32_t>(wake_max_, static_cast<std::int32_t>(std::min<std::int64_t>(wake_ns, INT32_MAX)));
   flags_ |= flags;
   port_min_J_ = std::min(port_min_J_, core.energy().port_J);
+  ++ticks_;
   if (kr % every_ != 0) return;
   ViewFrame& f = box_.writer_slot();
   const int n = static_cast<int>(core.x().size() / 3);
@@ -47,12 +50,15 @@ void ViewPublisher::on_tick(const rt::StationCore& core, std::int64_t kr, double
   const auto& e = core.energy();
   f.port_J = e.port_J, f.controller_J = e.controller_J, f.vo_J = e.vo_J;
   f.exec_max_ns = exec_max_, f.wake_max_ns = wake_max_, f.flags = flags_;
+  f.window_ticks = ticks_, f.window_missed_cycles = missed_;
+  f.period_ns = static_cast<std::int64_t>(period_s * 1e9 + 0.5);
   f.gate_trips = core.edge_gate().trips(), f.gate_removed_J = core.edge_gate().removed_J();
   f.edge_drops = core.edge_drop_events(), f.port_min_J = port_min_J_;
   f.in_contact = core.in_contact();
   box_.writer_publish_slot();
   exec_max_ = wake_max_ = 0;
   flags_ = 0;
+  ticks_ = missed_ = 0;
 }
 
 nlohmann::json view_scene_json(const rt::StationCore& core, int station_id, const std::string& mode) {
@@ -92,10 +98,16 @@ nlohmann::json view_frame_json(const ViewFrame& f) {
                       {"contact", f.in_contact}};
   nlohmann::json links = nlohmann::json::array(), copies = nlohmann::json::array();
   for (int n = 0; n < f.neighbours; ++n)
-    links.push_back({{"peer", f.peer[n] + 1}, {"index_delay", f.index_delay[n]}, {"bound", f.bound[n]}, {"within", f.index_delay[n] <= f.bound[n]}});
+    links.push_back({{"peer", f.peer[n] + 1}, {"index_delay", f.index_delay[n]}, {"bound", f.bound[n]}, {"within", f.index_delay[n] <= f.bound[n]},
+                     {"over_nbar", f.index_delay[n] > f.bound[n]}});
   for (int c = 0; c < f.copies; ++c) copies.push_back(micrometres(f.copy_x[c], 3 * f.nodes));
   j["links"] = links;
   j["copies_um"] = copies;
+  // this host since the previous frame, by the one starving-host rule (the largest wake-up as the
+  // P99 of a window this short); the replay and the simulator report no skipped periods
+  j["host"] = {{"starving", platform::host_starving(f.window_ticks, f.window_missed_cycles, f.wake_max_ns, f.period_ns)},
+               {"wake_max_ms", f.wake_max_ns * 1e-6}, {"skipped_periods", f.window_missed_cycles}, {"ticks", f.window_ticks},
+               {"period_ms", static_cast<double>(f.period_ns) * 1e-6}};
   j["gate"] = {{"trips", f.gate_trips}, {"removed_J", f.gate_removed_J}, {"edge_drops", f.edge_drops}, {"port_min_J", f.port_min_J},
                {"held", f.gate_trips > 0}};
   return j;

@@ -35,6 +35,10 @@ struct ViewFrame {
   // not the run's consensus error, which compares all copies at one instant
   double received_copy_distance_m = 0;
   std::int32_t exec_max_ns = 0, wake_max_ns = 0;  // largest tick time / wake-up latency since the last frame
+  // This host since the last frame: ticks run, periods the loop skipped, and the period (for the
+  // starving-host rule, platform::host_starving, with the largest wake-up as the P99 of so few)
+  std::uint32_t window_ticks = 0, window_missed_cycles = 0;
+  std::int64_t period_ns = 0;
   std::uint32_t flags = 0;       // TickFlags or-ed since the last frame
   // What the per-edge energy gate and the edge-drop rule did so far (firmware/run_summary.hpp
   // GateSummary): trips, the energy the gate removed, drop events, and the worst port energy.
@@ -51,6 +55,12 @@ class ViewPublisher {
   // and publishes a frame. RT-safe.
   void on_tick(const rt::StationCore& core, std::int64_t kr, double period_s, const rt::Vec3& q, const rt::Vec3& force, std::uint32_t flags,
                std::int64_t exec_ns, std::int64_t wake_ns);
+  // Before on_tick: the run loop's skipped periods so far (platform::TickInfo::missed_cycles). RT-safe.
+  void note_missed_cycles(std::uint64_t total) {
+    if (have_missed_ && total > missed_total_) missed_ += static_cast<std::uint32_t>(total - missed_total_);
+    missed_total_ = total;
+    have_missed_ = true;
+  }
   // Reader side (one non-RT thread): the newest frame, if a new one was published.
   bool take(ViewFrame& out) { return box_.reader_take(out); }
   int every() const { return every_; }
@@ -62,6 +72,9 @@ class ViewPublisher {
   std::int32_t exec_max_ = 0, wake_max_ = 0;
   std::uint32_t flags_ = 0;
   double port_min_J_ = 0;  // over every tick, not only the published ones
+  std::uint32_t ticks_ = 0, missed_ = 0;  // since the last frame
+  std::uint64_t missed_total_ = 0;
+  bool have_missed_ = false;
 };
 
 // The scene message (sent once per browser): rest positions, surface triangles, contact mesh,

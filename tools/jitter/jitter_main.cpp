@@ -114,6 +114,8 @@ int JitterOptions::parse(int argc, char** argv) {
   app.add_flag("--station", station_workload,
                "also measure each period with the real station tick as the workload (paper-best scene, user 1: 33 nodes, "
                "3 neighbours fed synthetic packets, simulated device)");
+  app.add_flag("--sched-other", [this](std::int64_t) { rt.sched_fifo = false; },
+               "measure at SCHED_OTHER, as a station's non-real-time threads run (its I/O thread at io_priority = 0, its start-up)");
   app.add_flag("--no-mlock", no_mlock, "don't mlockall/prefault (default: lock memory like cyclictest -m)");
   app.add_flag("--dma-latency", rt.hold_dma_latency, "hold /dev/cpu_dma_latency at 0 us during the runs");
   app.add_flag("--require-rt", rt.require_rt, "refuse to run without PREEMPT_RT, SCHED_FIFO and locked memory");

@@ -48,6 +48,8 @@ for n in neighbours:
         fail.append("status does not show neighbour %s: %r" % (n, status[:300]))
 if not re.search(r"(^|\|)gate: (not acted|HELD BY THE GATE|EDGES DROPPED)", status, re.M):  # never a run the gate held shown as plain stable
     fail.append("status does not say what the gate did: %r" % status[:300])
+if not re.search(r"(^|\|)host: (STARVING|keeps its)", status, re.M):  # a starving host is said, never left out
+    fail.append("status does not say whether the host keeps its period: %r" % status[:300])
 print("view check: canvas %.1f %% non-white, %d mesh pixels (%d canvas pixels) and %d plot pixels changed (%d coloured); status: %s" % (
     100 * nonwhite, changed_mesh, changed_canvas, changed_plots, curves, " | ".join(status.splitlines()[:6])))
 if fail:

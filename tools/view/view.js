@@ -197,6 +197,15 @@ function gateLine(g) {
     " removed, " + g.edge_drops + " edge drops; worst port energy " + J(g.port_min_J);
 }
 
+// This host since the previous frame (the station's one starving-host rule: 1 % of the periods
+// skipped, or a wake-up a period late).
+function hostLine(h) {
+  if (!h) return "host: (not reported)";
+  const ms = x => x.toFixed(2) + " ms";
+  if (h.starving) return "host: STARVING — woke up to " + ms(h.wake_max_ms) + " late, " + h.skipped_periods + " periods skipped (period " + ms(h.period_ms) + ")";
+  return "host: keeps its " + ms(h.period_ms) + " period (latest wake-up " + ms(h.wake_max_ms) + ")";
+}
+
 function status(f) {
   const lines = [];
   lines.push("station " + scene.station + " (" + scene.mode + ") · t = " + f.t.toFixed(2) + " s · tick " + f.k);
@@ -211,9 +220,12 @@ function status(f) {
     const st = linkState[l.peer] || {up: up, since: f.t};
     if (st.up !== up) { st.up = up; st.since = f.t; }
     linkState[l.peer] = st;
-    return "neighbour " + l.peer + ": " + (up ? "up" : "DOWN") + " since " + st.since.toFixed(2) + " s (N = " + l.index_delay + ", Nbar = " + l.bound + ")";
+    const over = l.index_delay > l.bound;  // its newest data is older than the guard: not used this tick
+    return "neighbour " + l.peer + ": " + (up ? "up" : "DOWN") + " since " + st.since.toFixed(2) + " s (N = " + l.index_delay +
+      (over ? " > Nbar = " + l.bound + ": OVER THE BOUND, its data is not used)" : ", Nbar = " + l.bound + ")");
   });
   lines.push("neighbours:\n  " + nb.join("\n  "));
+  lines.push(hostLine(f.host));
   const rate = arrivals.length / Math.min(2, Math.max(0.001, (performance.now() - opened) / 1000));  // frames per second
   lines.push("frames: " + framesSeen + " received (" + rate.toFixed(1) + "/s over the last 2 s), " + missed + " missed here" + (f.frames_dropped !== undefined ? ", " + f.frames_dropped + " replaced in the station's mailbox" : "") +
     (f.server_dropped !== undefined ? ", " + f.server_dropped + " not sent (browser busy)" : ""));

@@ -299,6 +299,32 @@ TEST(RunMerge, ARunTheGateHeldIsMergedAsHeldWithTheStationsFigures) {
   CHECK_TEXT(merge_result_line(d).find("stable with EDGES DROPPED") != std::string::npos, merge_result_line(d).c_str());
 }
 
+// The merge flags what a reader of a failed lab run must not miss: a link whose index delay went
+// over its guard (N > N̄) and a station whose host was starving (its station-<id>.json "host"), in
+// summary.json "flags" and on the result line; a clean run has none.
+TEST(RunMerge, ALinkOverItsIndexDelayBoundAndAStarvingHostAreFlagged) {
+  const std::string dir = write_two_stations("haptic-metrics-merge-flags", shrinking_gap);
+  CHECK_EQUAL(0u, merge_run(dir)["flags"].size());
+  CHECK_TEXT(merge_result_line(merge_run(dir)).find("FLAGGED") == std::string::npos, merge_result_line(merge_run(dir)).c_str());
+  json s1 = station_json(1, 2, 0.01), s2 = station_json(2, 2, 0.01);
+  s2["links"][0]["max_index_delay_ticks"] = 74;  // station 2 held station 1's data 74 ticks, N̄ = 3
+  s2["links"][0]["bound_violations"] = 5;
+  s1["links"][0]["max_index_delay_ticks"] = 3;   // at its bound: not flagged
+  s2["host"] = {{"loop", "run"}, {"ticks", 2000}, {"overruns", 30}, {"missed_cycles", 40}, {"wake_p99_ms", 4.2}, {"wake_max_ms", 13.6},
+                {"period_ms", 2.0}, {"starving", true}};
+  s1["host"] = {{"loop", "run"}, {"ticks", 2000}, {"overruns", 1}, {"missed_cycles", 1}, {"wake_p99_ms", 0.3}, {"wake_max_ms", 2.5},
+                {"period_ms", 2.0}, {"starving", false}};
+  std::ofstream(dir + "/station-1.json") << s1.dump();
+  std::ofstream(dir + "/station-2.json") << s2.dump();
+  const json s = merge_run(dir);
+  CHECK_EQUAL(2u, s["flags"].size());
+  STRCMP_EQUAL("link 2<-1: N max 74 > N̄ 3 (5 edge drops)", s["flags"][0].get<std::string>().c_str());
+  STRCMP_EQUAL("station 2: host STARVING (wake-up P99 4.2 ms, max 13.6 ms, 30 overruns, 40 skipped periods in 2000 ticks)",
+               s["flags"][1].get<std::string>().c_str());
+  CHECK_TRUE(s["stations"][1]["host"]["starving"].get<bool>());
+  STRCMP_CONTAINS("; FLAGGED: link 2<-1: N max 74 > N̄ 3 (5 edge drops); station 2: host STARVING", merge_result_line(s).c_str());
+}
+
 TEST(RunMerge, AMissingOrFailedStationIsRefusedNamingIt) {
   const std::string dir = write_two_stations("haptic-metrics-merge-bad", shrinking_gap);
   fs::remove(dir + "/station-2.json");

@@ -8,6 +8,8 @@ bin="$1"; out="$2"
 here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../../.." && pwd)"
 [ -x /usr/bin/python3 ] || { echo "SKIPPED: /usr/bin/python3 (Debian python3-numpy) missing for the merge"; exit 77; }
+source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loaded" skip, and the host after a failure
+quiet_host_or_skip "$(dirname "$bin")" "$out"
 rm -rf "$out"; mkdir -p "$out"
 "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out" --duration 3 --push-end 1 --release 2 \
   --probe 1.0 --seed 2 --no-plots --station record=true > "$out/run4.log" 2>&1 \

@@ -15,6 +15,8 @@
 # Usage: device_session_check.sh BUILD_BIN_DIR FAKE_LIBHD WORK_DIR
 set -euo pipefail
 bin="$1"; fakehd="$2"; work="$3"
+source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loaded" skip, and the host after a failure
+quiet_host_or_skip "$bin" "$work"
 rm -rf "$work"; mkdir -p "$work"
 export PATH="$bin:$PATH"
 plant="0.05,5,0.05"

@@ -18,6 +18,8 @@ repo="$(cd "$here/../../.." && pwd)"
 [ -x /usr/bin/python3 ] || { echo "SKIPPED: /usr/bin/python3 missing"; exit 77; }
 bin_dir="$(cd "$(dirname "$bin")" && pwd)"
 [ -x "$bin_dir/haptic-flood" ] || { echo "FAILED: $bin_dir/haptic-flood not built"; exit 1; }
+source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loaded" skip, and the host after a failure
+quiet_host_or_skip "$bin_dir" "$out"
 rm -rf "$out"
 /usr/bin/python3 "$repo/tools/flood/flood_run.py" --out "$out" --bin-dir "$bin_dir" --clean-runs 1 --damping 400 \
   --rate 4000 --max-datagrams 2000000

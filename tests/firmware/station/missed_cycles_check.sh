@@ -12,11 +12,13 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../../.." && pwd)"
 bin="$1"; work="$2"
+source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loaded" skip, and the host after a failure
+quiet_host_or_skip "$(dirname "$bin")" "$work"
 rm -rf "$work"; mkdir -p "$work"
 out="$work/run"
 stopped=""
 cleanup() { [ -n "$stopped" ] && kill -CONT "$stopped" 2>/dev/null || true; }
-trap cleanup EXIT
+QUIET_HOST_CLEANUP=cleanup  # run by quiet_host.sh's EXIT trap
 "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out" --duration 8 --push-end 2.5 --release 5 \
     --no-plots > "$work/run4.log" 2>&1 &
 run4=$!

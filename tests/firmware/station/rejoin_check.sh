@@ -16,6 +16,8 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../../.." && pwd)"
 bin="$1"; work="$2"
+source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loaded" skip, and the host after a failure
+quiet_host_or_skip "$(dirname "$bin")" "$work"
 rm -rf "$work"; mkdir -p "$work"
 rc=0
 for case in 2 1 2-fresh; do

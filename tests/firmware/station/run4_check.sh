@@ -13,6 +13,8 @@ if [ "$mode" = raw ]; then
   if ! command -v ip >/dev/null || ! ip netns list >/dev/null 2>&1; then echo "SKIPPED: 'ip netns' (iproute2) is not available"; exit 77; fi
 fi
 [ -x /usr/bin/python3 ] || { echo "SKIPPED: /usr/bin/python3 missing for the checks"; exit 77; }
+source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loaded" skip, and the host after a failure
+quiet_host_or_skip "$(dirname "$bin")" "$out"
 rm -rf "$out"; mkdir -p "$out"
 "$repo/tools/run4/run4.sh" --transport "$mode" --bin "$bin" --out "$out" --duration 4 --push-end 1.5 --release 2.5 \
   --probe 1.0 --seed 3 --no-plots --net tx_spin=true --net io_cpu=0

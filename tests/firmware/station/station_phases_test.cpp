@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -529,6 +530,64 @@ TEST(StationPhases, AHubWhoseNeighboursLeaveEarlyExitsNoNeighbour) {
   CHECK(has(j["conditions"], "no_neighbour"));
   CHECK(number(j["no_neighbour_fraction"]) > 0.5);
   for (int i = 2; i <= 4; ++i) LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
+  // It says why: the longest span without a usable neighbour covers the time after the leaves' 0.3 s
+  // run to the hub's end (1.2 s; on a loaded host it may start earlier, with the leaves' last packets
+  // arriving late in it), each leaf named with the age of its newest data (from before 0.3 s) against
+  // N̄, SILENT when no packet of it arrived in the span, else LATE, and this host's figures.
+  const json& span = j["explanation"]["no_neighbour_spans"]["longest"];
+  CHECK_TEXT(number(span["from_s"]) < 0.6, span.dump().c_str());
+  DOUBLES_EQUAL(1.2, number(span["to_s"]), 0.01);
+  LONGS_EQUAL(3, static_cast<long>(span["links"].size()));
+  const std::string lines = j["explanation"]["lines"].dump();
+  for (const json& l : span["links"]) {
+    const bool silent = number(l["packets"]) == 0;
+    STRCMP_EQUAL(silent ? "silent" : "late", l["cause"].get<std::string>().c_str());
+    CHECK_TEXT(number(l["age_ticks"]) >= 400 && number(l["age_ticks"]) > number(l["nbar_ticks"]), l.dump().c_str());  // 1.2 s - 0.3 s = 450 ticks
+    const std::string named = "station " + std::to_string(l["peer"].get<int>()) + (silent ? " SILENT" : " LATE");
+    STRCMP_CONTAINS(named.c_str(), lines.c_str());
+  }
+  STRCMP_CONTAINS("this host over the run loop: wake-up P99", lines.c_str());
+  CHECK(j["host"]["wake_p99_ms"].is_number());
+  std::filesystem::remove_all(dir);
+}
+
+// A host stall, simulated by the test hook (RunOverrides::test_tick_hook, not an option of the
+// station): the hub's tick sleeps 1.2 s at run tick 150. The hub names the stall (exit 11: how many
+// periods, from when to when) and its leaves name the hub silent over the same span (exit 7) with
+// their own host's figures in it.
+TEST(StationPhases, AHostStallIsNamedByTheStalledStationAndItsNeighboursSeeItSilentOverTheSameSpan) {
+  const std::string dir = test::fresh_dir("stall");
+  const std::string keys = "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 2.0\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 0.5\n";
+  const std::vector<int> codes = run_four(dir, 112, {keys, keys, keys, keys}, {"", "", "", ""}, [](int id, const std::string&, RunOverrides& o) {
+    if (id == 1) o.test_tick_hook = [](std::int64_t kr) {
+      if (kr == 150) std::this_thread::sleep_for(std::chrono::milliseconds(1200));
+    };
+  });
+  const json hub = station_json(dir, 1);
+  CHECK_TEXT(codes[0] == kExitMissedCycles, hub["explanation"].dump().c_str());
+  const json& stall = hub["explanation"]["longest_stall"];
+  CHECK_TEXT(number(stall["periods"]) >= 550 && number(stall["periods"]) <= 700, stall.dump().c_str());
+  DOUBLES_EQUAL(0.30, number(stall["from_s"]), 0.05);  // run tick 150
+  STRCMP_CONTAINS("the longest stall: ", hub["explanation"]["lines"].dump().c_str());
+  CHECK(hub["host"]["starving"].get<bool>());  // ~600 of ~1000 periods skipped
+  for (int i = 2; i <= 4; ++i) {
+    const json leaf = station_json(dir, i);
+    const std::string who = "station " + std::to_string(i) + ": " + leaf["explanation"].dump();
+    CHECK_TEXT(codes[static_cast<std::size_t>(i - 1)] == kExitNoNeighbour, who.c_str());
+    const json& span = leaf["explanation"]["no_neighbour_spans"]["longest"];
+    // it covers the stall (0.3-1.5 s, from N̄ after its start); on a loaded host it may begin earlier and
+    // end later (the hub's I/O thread and the age guard catching up)
+    CHECK_TEXT(number(span["from_s"]) < 0.45, who.c_str());
+    CHECK_TEXT(number(span["to_s"]) > 1.4 && number(span["to_s"]) <= 2.0, who.c_str());  // to the stall's end (1.5 s) or later on a loaded host
+    CHECK_TEXT(number(span["links"][0]["age_ticks"]) >= 550, who.c_str());  // the hub's newest data is from before the stall
+    const bool silent = number(span["links"][0]["packets"]) == 0;  // none arrived: certain when the span began with the stall
+    if (number(span["from_s"]) >= 0.29) CHECK_TEXT(silent, who.c_str());
+    STRCMP_EQUAL(silent ? "silent" : "late", span["links"][0]["cause"].get<std::string>().c_str());
+    STRCMP_CONTAINS(silent ? "station 1 SILENT" : "station 1 LATE", leaf["explanation"]["lines"].dump().c_str());
+    // the leaf's own host verdict in the span follows its own measurements
+    const bool missed = number(span["overruns"]) > 0 || number(span["missed_cycles"]) > 0 || number(span["wake_max_ms"]) >= 2.0;
+    CHECK_EQUAL(missed, span["host_starving"].get<bool>());
+  }
   std::filesystem::remove_all(dir);
 }
 

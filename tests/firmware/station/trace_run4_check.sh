@@ -12,6 +12,8 @@ bin="$1"; out="$2"
 here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../../.." && pwd)"
 [ -x /usr/bin/python3 ] || { echo "FAILED: /usr/bin/python3 (python3-bt2, numpy) missing"; exit 1; }
+source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loaded" skip, and the host after a failure
+quiet_host_or_skip "$(dirname "$bin")" "$out"
 rm -rf "$out"; mkdir -p "$out"
 set +e
 "$repo/tools/trace/record.sh" -o "$out/trace" -- "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out/run" \

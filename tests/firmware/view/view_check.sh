@@ -17,7 +17,13 @@ chrome=$(command -v chromium || true)
 rm -rf "$out"; mkdir -p "$out"
 pids=()
 cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; }
-trap cleanup EXIT
+if [ "$mode" = station ]; then  # four station processes: a measured "host too loaded" skip, and the host after a failure
+  source "$(dirname "$0")/../../support/quiet_host.sh"
+  QUIET_HOST_CLEANUP=cleanup
+  quiet_host_or_skip "$(dirname "$bin")" "$out"
+else
+  trap cleanup EXIT
+fi
 shot() {  # shot NAME URL: a screenshot after 6 s of page life; again after 15, 25, 40 s if the page had not drawn yet
   # (a slow, loaded machine: the canvas is still blank or uniformly black while the page is "connecting...")
   for ms in 6000 15000 25000 40000; do

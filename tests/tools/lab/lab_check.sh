@@ -16,6 +16,8 @@
 # Usage: lab_check.sh BUILD_BIN_DIR SOURCE_DIR WORK_DIR [raw8]
 set -euo pipefail
 bin="$1"; src="$2"; work="$3"; mode="${4:-udp}"
+source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loaded" skip, and the host after a failure
+quiet_host_or_skip "$bin" "$work"
 rm -rf "$work"; mkdir -p "$work"
 lab="$bin/haptic-lab"
 fail() { echo "FAIL: $*"; exit 1; }

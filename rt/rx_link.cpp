@@ -15,9 +15,7 @@ RxRule parse_rx_rule(const std::string& text, const std::string& key) {
 
 const char* rx_rule_name(RxRule rule) { return rule == RxRule::kNewestBySequence ? "newest" : "paper"; }
 
-namespace {
-// Copies n values and returns nonzero if some value is inf or NaN (exponent bits all ones), in one
-// branch-free pass that vectorizes: a payload (3n doubles) is read once. Integer work only (the
+// One branch-free pass that vectorizes: a payload (3n doubles) is read once. Integer work only (the
 // same result at any vector width): an AVX2 build (4 values a step) where the CPU has it.
 #if defined(__x86_64__)
 __attribute__((target_clones("avx2", "default")))
@@ -32,7 +30,6 @@ std::uint64_t copy_non_finite(const double* from, double* to, int n) {
   }
   return bad & 0x800u;
 }
-}  // namespace
 
 bool RxLink::was_used(std::int64_t seq) const {
   if (seq < 0 || seq > max_used_) return false;

@@ -28,6 +28,11 @@
 
 namespace haptic::rt {
 
+// Copies n values from `from` to `to` and returns nonzero if some value is inf or NaN (the check
+// offer() makes). For a feeder that copies a payload anyway (the simulator's sender) and can then
+// hand it in with take(). RT-safe.
+std::uint64_t copy_non_finite(const double* from, double* to, int n);
+
 enum class RxVerdict : std::uint8_t { kAccepted, kStale, kDuplicate, kBadSize, kNonFinite };
 enum class RxRule : std::uint8_t { kNewestBySequence, kMostRecentlyReceived };
 // "newest" / "paper" (throws std::invalid_argument naming `key`), and back.

@@ -66,9 +66,10 @@ auto offer_to(StationCore& core, std::int64_t k0, Observer& observer) {
 // The tick: packets(offer) calls offer(const ReceivedState&) once per packet received for this tick
 // (offer returns the link's verdict); each is handed to its link (hand_in) and then
 // observer.offered(packet, index, verdict) is called; after the last, observer.stepping(); then
-// core.tick(k, device_position_m, step_s). Returns the tick's output. RT-safe as above.
+// core.tick(k, device_position_m, step_s). Returns the tick's output. Always inlined into its caller
+// (the driver adds no call of its own around the packets' loop). RT-safe as above.
 template <class Packets, class Observer = NoTickObserver>
-StationCore::TickOutput drive_tick(StationCore& core, const TickDrive& in, Packets&& packets, Observer&& observer = Observer{}) {
+[[gnu::always_inline]] inline StationCore::TickOutput drive_tick(StationCore& core, const TickDrive& in, Packets&& packets, Observer&& observer = Observer{}) {
   packets(offer_to(core, in.k0, observer));
   observer.stepping();
   return core.tick(in.k, in.device_position_m, in.step_s);

@@ -29,6 +29,7 @@ struct InFlight {
   std::int64_t seq;
   double send_s;
   std::shared_ptr<const std::vector<double>> payload;  // x_hat then v_hat
+  bool finite;  // every value of the payload finite (checked once, by the sender's copy)
   bool operator>(const InFlight& o) const { return arrive_s != o.arrive_s ? arrive_s > o.arrive_s : order > o.order; }
 };
 
@@ -38,6 +39,10 @@ struct Channel {
   std::priority_queue<InFlight, std::vector<InFlight>, std::greater<>> queue;
   std::int64_t max_seq_delivered = -1;
   LinkStats stats;
+  // The payloads the receive link may read in place (RxLink::take): slot 0 or 1, the one it holds
+  // is held_slot (kNoSlot: none); kept alive here until the link gives the slot back.
+  std::shared_ptr<const std::vector<double>> held[2];
+  std::uint32_t held_slot = rt::RxLink::kNoSlot;
 };
 
 
@@ -191,6 +196,28 @@ Simulation::Simulation(const BuiltScenario& built, const SimOptions& options)
   std::sort(snap_times.begin(), snap_times.end());
 }
 
+// One arrived packet into channel c's receive link: a finite payload handed in place in a slot of
+// c.held (RxLink::take, the tick rules: the same verdicts and values as offer() for a finite payload
+// of the scene's size, without the copy), a non-finite one offered (checked: refused and counted).
+template <class Offer>
+void hand_in_packet(Channel& c, const InFlight& p, int dofs, Offer&& offer) {
+  const double* x = p.payload->data();
+  if (!p.finite) {
+    offer(rt::ReceivedState{c.rx_index, p.seq, p.send_s, x, x + dofs, dofs});
+    return;
+  }
+  const std::uint32_t slot = c.held_slot == 0 ? 1u : 0u;
+  c.held[slot] = p.payload;
+  std::uint32_t released = rt::RxLink::kNoSlot;
+  offer(rt::ReceivedState{c.rx_index, p.seq, p.send_s, x, x + dofs, dofs, slot, &released});
+  if (released == slot) {  // not used: the link keeps the packet it held
+    c.held[slot].reset();
+    return;
+  }
+  if (released != rt::RxLink::kNoSlot) c.held[released].reset();
+  c.held_slot = slot;
+}
+
 // 1. The packets that have arrived on station i's channels by t, each channel's in arrival order
 // (rt::drive_tick's source for station i's tick).
 template <class Offer>
@@ -206,7 +233,7 @@ void arrived_packets(Simulation& s, int i, double t, Offer&& offer) {
       c.stats.delay_max_s = std::max(c.stats.delay_max_s, d);
       if (p.seq < c.max_seq_delivered) ++c.stats.reordered;
       c.max_seq_delivered = std::max(c.max_seq_delivered, p.seq);
-      offer(rt::ReceivedState{c.rx_index, p.seq, p.send_s, p.payload->data(), p.payload->data() + s.dofs, s.dofs});
+      hand_in_packet(c, p, s.dofs, offer);
     }
   }
 }
@@ -254,8 +281,8 @@ void send_states(Simulation& s, double t) {
     const auto& core = *s.st[static_cast<std::size_t>(i)];
     if (!s.tx[static_cast<std::size_t>(i)].should_send(k, core.x_hat(), core.v_hat())) continue;
     auto payload = std::make_shared<std::vector<double>>(static_cast<std::size_t>(2 * s.dofs));
-    std::copy(core.x_hat(), core.x_hat() + s.dofs, payload->begin());
-    std::copy(core.v_hat(), core.v_hat() + s.dofs, payload->begin() + s.dofs);
+    const bool finite = (rt::copy_non_finite(core.x_hat(), payload->data(), s.dofs) |
+                         rt::copy_non_finite(core.v_hat(), payload->data() + s.dofs, s.dofs)) == 0;
     for (int ci : s.out_channels[static_cast<std::size_t>(i)]) {
       auto& c = s.ch[static_cast<std::size_t>(ci)];
       ++c.stats.sent;
@@ -264,7 +291,7 @@ void send_states(Simulation& s, double t) {
       const auto fate = c.link.fate(static_cast<std::uint64_t>(core.sequence()), t);
       if (fate.lost) ++c.stats.lost;
       if (fate.duplicated) ++c.stats.duplicated;
-      for (int cp = 0; cp < fate.copies; ++cp) c.queue.push(InFlight{t + fate.delay_s[cp], s.order++, core.sequence(), t, payload});
+      for (int cp = 0; cp < fate.copies; ++cp) c.queue.push(InFlight{t + fate.delay_s[cp], s.order++, core.sequence(), t, payload, finite});
     }
   }
 }

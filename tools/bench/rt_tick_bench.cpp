@@ -7,8 +7,9 @@
 //  - the worst case (neighbour set changing every tick while in contact);
 //  - start-up to the first tick, and the peak memory of a station by its neighbour count;
 //  - each size's floor: one pass reading as many bytes as its tick touches (BM_TickFloor).
-// Each tick includes what DESIGN.md's tick does in rt/: feeding the neighbours' newest packets to
-// the receive bookkeeping, the solve with contact active, energies and the state update.
+// Each tick includes what DESIGN.md's tick does in rt/: handing the neighbours' newest packets to
+// their receive links as a real station does (in place, RxBuffers below), the solve with contact
+// active, energies and the state update.
 #include <benchmark/benchmark.h>
 #include <malloc.h>
 #include <sys/wait.h>
@@ -234,21 +235,42 @@ struct World {
   }
 };
 
+// The neighbours' packets as a real station's tick gets them (firmware/station/tick.cpp): each in an
+// RX buffer of its own that the receive link reads in place (RxLink::take; the endpoint judged it
+// and its decoder wrote it, on the I/O thread), a new buffer every tick and the one replaced given
+// back. Two buffers per link, used alternately, each holding the state x then v.
+struct RxBuffers {
+  int dofs = 0;
+  std::vector<std::vector<double>> buf;  // link n, slot s at 2 n + s
+  RxBuffers(const std::vector<double>& x, const std::vector<double>& v, int links) : dofs(static_cast<int>(x.size())) {
+    for (int b = 0; b < 2 * links; ++b) {
+      std::vector<double> xv(x);
+      xv.insert(xv.end(), v.begin(), v.end());
+      buf.push_back(std::move(xv));
+    }
+  }
+};
+
 // One tick at k as every caller drives a core (rt::drive_tick): neighbour n's packet of tick k (the
-// state x, v) offered for every n < links (and for the last one too when last_too), then the step
+// state x, v) handed in for every n < links (and for the last one too when last_too), then the step
 // with the device at q over the nominal period.
-StationCore::TickOutput drive(StationCore& st, std::int64_t k, const Eigen::Vector3d& q, const std::vector<double>& x, const std::vector<double>& v,
-                              int links, bool last_too = true) {
-  const int dofs = static_cast<int>(x.size());
+StationCore::TickOutput drive(StationCore& st, std::int64_t k, const Eigen::Vector3d& q, const RxBuffers& rx, int links, bool last_too = true) {
   return drive_tick(st, TickDrive{k, 0, q, st.config().period_s}, [&](auto&& offer) {
-    for (int n = 0; n < links; ++n)
-      if (n + 1 < links || last_too) offer(ReceivedState{n, k, 0, x.data(), v.data(), dofs});
+    for (int n = 0; n < links; ++n) {
+      if (n + 1 == links && !last_too) continue;
+      const auto slot = static_cast<std::uint32_t>(2 * n + (k & 1));
+      const double* p = rx.buf[slot].data();
+      std::uint32_t released = RxLink::kNoSlot;
+      offer(ReceivedState{n, k, 0, p, p + rx.dofs, rx.dofs, slot, &released});
+    }
   });
 }
-// The strawman is no StationCore: the same packets by hand, then its tick.
-Eigen::Vector3d drive(DenseStationReference& st, std::int64_t k, const Eigen::Vector3d& q, const std::vector<double>& x, const std::vector<double>& v,
-                      int links) {
-  for (int n = 0; n < links; ++n) st.rx(n).offer(k, 0, x.data(), v.data(), static_cast<int>(x.size()));
+// The strawman is no StationCore: the same packets offered by hand (checked and copied), then its tick.
+Eigen::Vector3d drive(DenseStationReference& st, std::int64_t k, const Eigen::Vector3d& q, const RxBuffers& rx, int links) {
+  for (int n = 0; n < links; ++n) {
+    const double* p = rx.buf[static_cast<std::size_t>(2 * n + (k & 1))].data();
+    st.rx(n).offer(k, 0, p, p + rx.dofs, rx.dofs);
+  }
   return st.tick(q);
 }
 
@@ -259,15 +281,16 @@ void run_ticks(benchmark::State& state, Station& st, const World& w) {
   const int dofs = w.scene.dofs;
   const int nn = static_cast<int>(w.cfg.neighbors.size());
   std::vector<double> x(w.scene.x_d.data(), w.scene.x_d.data() + dofs), v(static_cast<std::size_t>(dofs), 1e-4);
+  const RxBuffers rx(x, v, nn);
   std::int64_t seq = 0;
   // settle into contact first
   for (int k = 0; k < 50; ++k) {
-    drive(st, seq, w.device_at(seq), x, v, nn);
+    drive(st, seq, w.device_at(seq), rx, nn);
     ++seq;
   }
   double iterations = 0, contact = 0, ticks = 0;
   for (auto _ : state) {
-    auto out = drive(st, seq, w.device_at(seq), x, v, nn);
+    auto out = drive(st, seq, w.device_at(seq), rx, nn);
     ++seq;
     benchmark::DoNotOptimize(out);
     if constexpr (requires { st.solver_last_iterations(); }) iterations += st.solver_last_iterations();
@@ -350,10 +373,11 @@ void BM_TickTolerance(benchmark::State& state) {
   const int dofs = w.scene.dofs;
   const int nn = static_cast<int>(w.cfg.neighbors.size());
   std::vector<double> x(w.scene.x_d.data(), w.scene.x_d.data() + dofs), v(static_cast<std::size_t>(dofs), 1e-4);
+  const RxBuffers rx(x, v, nn);
   std::int64_t seq = 0;
   auto one = [&] {
     const std::int64_t k = seq++;
-    return drive(st, k, w.device_at(k), x, v, nn);
+    return drive(st, k, w.device_at(k), rx, nn);
   };
   for (int k = 0; k < 50; ++k) one();
   const double res0 = st.energy().solver_residual_J, ctrl0 = st.energy().controller_J;
@@ -394,10 +418,11 @@ void BM_TickWorstCase(benchmark::State& state) {
   StationCore st(w.cfg);
   const int dofs = w.scene.dofs;
   std::vector<double> x(w.scene.x_d.data(), w.scene.x_d.data() + dofs), v(static_cast<std::size_t>(dofs), 1e-4);
+  const RxBuffers rx(x, v, 3);
   std::int64_t k = 0;
   std::uint64_t drops = 0;
   auto one = [&] {
-    const auto out = drive(st, k, w.device_at(k), x, v, 3, k % 2 == 0);  // neighbour 2 every other tick
+    const auto out = drive(st, k, w.device_at(k), rx, 3, k % 2 == 0);  // neighbour 2 every other tick
     ++k;
     return out;
   };
@@ -435,7 +460,8 @@ void run_ticks_child(StationCore& st, const World& w) {
   const int dofs = w.scene.dofs;
   const int nn = static_cast<int>(w.cfg.neighbors.size());
   std::vector<double> x(w.scene.x_d.data(), w.scene.x_d.data() + dofs), v(static_cast<std::size_t>(dofs), 1e-4);
-  for (std::int64_t k = 0; k < 100; ++k) drive(st, k, w.push_to, x, v, nn);
+  const RxBuffers rx(x, v, nn);
+  for (std::int64_t k = 0; k < 100; ++k) drive(st, k, w.push_to, rx, nn);
 }
 
 long hwm_kB() {  // peak resident set since the last clear_refs "5"

@@ -91,6 +91,9 @@ void add_run_json(const StationOutcome& o, json& j) {
     j["rt"] = {{"summary", o.run->rt_summary}, {"warnings", o.run->rt_warnings}, {"fully_real_time", o.run->rt_warnings.empty()}};
     j["loop"] = {{"ticks", o.run->loop.ticks}, {"overruns", o.run->loop.overruns}, {"missed_cycles", o.run->loop.missed_cycles},
                  {"overrun_storms", o.run->loop.overrun_storms}};
+    // the station's one loop over its whole life (probe, set-up gap and run: the ticks a tracer sees)
+    const platform::LoopStats& w = o.run->whole_loop;
+    j["station_loop"] = {{"ticks", w.ticks}, {"overruns", w.overruns}, {"missed_cycles", w.missed_cycles}, {"overrun_storms", w.overrun_storms}};
   } else {
     j["loop"] = {{"ticks", 0}, {"overruns", 0}, {"missed_cycles", 0}, {"overrun_storms", 0}};
   }

@@ -307,6 +307,7 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
   const int run_index = loop.hand_over(run_stage(plan, tick, stop, plan.times.rejoin));
   pr.run = loop.run_result(run_index, observer);
   pr.ran = true;
+  pr.counters.outages.finish();  // the loop ended: a span still open closes at the last tick
   finish_records(pr, log);
   say_after_run(plan, res, pr, ev, log);
   pr.lifecycle["device"]["outside_workspace_ticks"] = pr.counters.outside_workspace_ticks;

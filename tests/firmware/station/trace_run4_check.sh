@@ -40,8 +40,8 @@ if len(blocks) != 4:
 need = ["device_read", "rx_drain", "solve", "publish", "tx", "monitor"]
 used = set()
 for i, s in enumerate(stations, 1):
-    # The process traces both of its loops: the probing loop (probe_loop) and the run loop (loop).
-    loop = {k: s["loop"][k] + s.get("probe_loop", {}).get(k, 0) for k in ("ticks", "overruns", "missed_cycles")}
+    # The process traces its one loop over its whole life (probe, set-up gap, run): station_loop.
+    loop = {k: s["station_loop"][k] for k in ("ticks", "overruns", "missed_cycles")}
     match = [j for j, b in enumerate(blocks) if j not in used and b["ticks"] == loop["ticks"] and b["overruns"] == loop["overruns"]
              and b["missed_cycles"] == loop["missed_cycles"]]
     if not match:

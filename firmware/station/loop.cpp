@@ -11,10 +11,6 @@ namespace {
 
 LoopCounts counts_of(const platform::LoopStats& s) { return {s.ticks, s.overruns, s.missed_cycles, s.overrun_storms}; }
 
-LoopCounts minus(const LoopCounts& a, const LoopCounts& b) {
-  return {a.ticks - b.ticks, a.overruns - b.overruns, a.missed_cycles - b.missed_cycles, a.overrun_storms - b.overrun_storms};
-}
-
 }  // namespace
 
 void enter_safe_state(drivers::HapticDevice* device) noexcept {
@@ -48,6 +44,12 @@ int StationLoop::hand_over(LoopStage next) {
   return i;
 }
 
+// The loop's counters since `start` (a stage's share). The loop's thread, or after the loop ended.
+LoopCounts StationLoop::share_since(const LoopCounts& start) const {
+  const LoopCounts now = counts_of(loop_.stats());
+  return {now.ticks - start.ticks, now.overruns - start.overruns, now.missed_cycles - start.missed_cycles, now.overrun_storms - start.overrun_storms};
+}
+
 // The RT thread: the loop from the first stage's first tick; the loop-boundary catch.
 void StationLoop::body() {
   // The first deadline is the first stage's first tick (a loop that starts late: the next tick of the
@@ -66,7 +68,7 @@ void StationLoop::body() {
     std::strncpy(what_, "unknown exception", sizeof what_ - 1);
   }
   StageOutcome& o = outcomes_[current_];
-  if (!current_done_ && o.ran) o.counts = minus(counts_of(loop_.stats()), o.counts);  // ended by stop or an exception
+  if (!current_done_ && o.ran) o.counts = share_since(o.counts);  // ended by stop or an exception
   ended_.store(true, std::memory_order_release);
   events_.release();
 }
@@ -102,12 +104,17 @@ bool StationLoop::on_tick(const platform::TickInfo& info) {
     more = s.tick(k, info);
   }
   if (more) return true;
-  o.counts = o.ran ? minus(counts_of(loop_.stats()), o.counts) : LoopCounts{};
+  o.counts = o.ran ? share_since(o.counts) : LoopCounts{};
   o.ended = true;
   current_done_ = true;
   stages_ended_.store(current_ + 1, std::memory_order_release);
   events_.release();
   return !s.ends_loop;
+}
+
+// How long the non-RT side waits between two serve() calls: 100 ms, or the loop's report interval if shorter.
+std::chrono::nanoseconds StationLoop::serve_interval() const {
+  return std::min<std::chrono::nanoseconds>(std::chrono::nanoseconds(plan_.file.loop.report_interval_ns), std::chrono::milliseconds(100));
 }
 
 void StationLoop::serve(const RunObserver& observer) {
@@ -117,11 +124,10 @@ void StationLoop::serve(const RunObserver& observer) {
 }
 
 bool StationLoop::wait_stage(int index, const RunObserver& observer) {
-  const auto interval = std::min<std::chrono::nanoseconds>(std::chrono::nanoseconds(plan_.file.loop.report_interval_ns), std::chrono::milliseconds(100));
   for (;;) {
     if (stages_ended_.load(std::memory_order_acquire) > index) return true;
     if (ended_.load(std::memory_order_acquire)) return stages_ended_.load(std::memory_order_acquire) > index;
-    events_.try_acquire_for(interval);
+    events_.try_acquire_for(serve_interval());
     serve(observer);
   }
 }
@@ -135,9 +141,8 @@ RunPhaseResult StationLoop::run_result(int run_index, const RunObserver& observe
   RunPhaseResult r;
   r.rt_summary = rt_summary_;
   r.rt_warnings = rt_warnings_;
-  const auto interval = std::min<std::chrono::nanoseconds>(std::chrono::nanoseconds(plan_.file.loop.report_interval_ns), std::chrono::milliseconds(100));
   while (!ended_.load(std::memory_order_acquire)) {
-    events_.try_acquire_for(interval);
+    events_.try_acquire_for(serve_interval());
     serve(observer);
   }
   if (thread_) thread_->join();
@@ -165,7 +170,6 @@ RunPhaseResult StationLoop::run_result(int run_index, const RunObserver& observe
 
 LoopStage run_stage(const StationPlan& plan, const RunTickFn& tick, const std::atomic<bool>& stop, bool new_grid) {
   LoopStage s;
-  s.name = "run";
   s.timeline = plan.times;
   s.last_phase = TickPhase::kRun;
   s.k_first = plan.times.run_k0;

@@ -10,6 +10,7 @@
 // (around PeriodicLoop::run inside the RtThread body): an exception ends the loop and enters the safe
 // state (zero force to the device); the non-RT side reports it.
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -61,7 +62,6 @@ struct RunObserver {
 // stage early. Called on the RT thread; a run stage's tick must be RT-safe.
 using StageTickFn = std::function<bool(std::int64_t k, const platform::TickInfo& info)>;
 struct LoopStage {
-  const char* name = "";
   Timeline timeline;
   TickPhase last_phase = TickPhase::kRun;
   std::int64_t k_first = 0;
@@ -108,13 +108,13 @@ class StationLoop {
 
   const StageOutcome& stage(int index) const { return outcomes_[index]; }
   bool loop_ended() const { return ended_.load(std::memory_order_acquire); }
-  const std::string& rt_summary() const { return rt_summary_; }
-  const std::vector<std::string>& rt_warnings() const { return rt_warnings_; }
 
  private:
   bool on_tick(const platform::TickInfo& info);
   void body();
   void serve(const RunObserver& observer);
+  std::chrono::nanoseconds serve_interval() const;
+  LoopCounts share_since(const LoopCounts& start) const;
 
   const StationPlan& plan_;
   drivers::HapticDevice* device_;

@@ -101,7 +101,6 @@ LoopStage probe_stage(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r
   const BuiltScenario& b = *plan.built;
   const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);
   LoopStage s;
-  s.name = "probe";
   s.timeline = plan.times;
   s.last_phase = TickPhase::kProbe;
   s.k_first = plan.times.tick_at(now_ns);  // from now: the ticks before the epoch watch for a running session

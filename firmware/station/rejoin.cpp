@@ -43,7 +43,6 @@ LoopStage rejoin_stage(const StationPlan& plan, net::Endpoint& ep, RejoinResult&
   const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);  // the rest state
   const double T = b.spec.period_s;
   LoopStage s;
-  s.name = "rejoin";
   s.timeline.period_ns = plan.times.period_ns;
   s.timeline.epoch_ns = now_ns + plan.times.period_ns;
   s.timeline.probe_ticks = std::llround(plan.file.station.rejoin_probe_s / T);

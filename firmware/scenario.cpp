@@ -86,7 +86,7 @@ void set_step_bounds(BuiltScenario& b) {
 
 }  // namespace
 
-std::vector<std::string> scenario_names() { return {"paper-best", "paper-worst", "paper-unstable"}; }
+std::vector<std::string> scenario_names() { return {"paper-best", "paper-worst", "paper-unstable", "eq18-binds"}; }
 
 ScenarioSpec make_scenario(const std::string& name, const std::string& key) {
   ScenarioSpec s;
@@ -108,6 +108,24 @@ ScenarioSpec make_scenario(const std::string& name, const std::string& key) {
     s.topology = {{0, 1}, {0, 2}, {0, 3}};
     s.damping_Ns_per_m = std::vector<double>{14.0, 5.0, 4.0, 5.0};
     s.duration_s = 10.0;
+    s.script.kind = UserScriptSpec::Kind::kPerturb;
+  } else if (name == "eq18-binds") {
+    // The closed loop in which eq. (18) binds (rt/README.md "Where eq. (18) binds"): two users on one
+    // link, a heavy object (1 kg nodes: 33 kg) so that the consensus loop is slow against the delay,
+    // constant 9.9 ms one-way delays (Nbar = 5 ticks each way), no loss, D_ij = 0 and no energy gate;
+    // user 1 perturbs at 2.5 s. Measured: passive and converging at eq. (18), diverging at 0.8x of it.
+    s.users = 2;
+    s.topology = {{0, 1}};
+    s.delay_ms = Eigen::MatrixXd::Constant(2, 2, 9.9);
+    s.delay_ms.diagonal().setZero();
+    s.jitter_fraction = 0;
+    s.loss_probability = 0;
+    s.duplicate_probability = 0;
+    s.loss_allowance_ticks = 0;
+    s.d_gain_Ns_per_m = 0;
+    s.edge_energy_bound_J = 0;
+    s.scene.node_mass_kg = 1.0;
+    s.duration_s = 30.0;
     s.script.kind = UserScriptSpec::Kind::kPerturb;
   } else {
     std::string list;

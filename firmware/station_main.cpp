@@ -82,7 +82,7 @@ std::string sim_result_line(const std::string& name, const SimResult& r) {
                                                           fmt(std::exp(m.growth_rate_per_s.value_or(0)), 2) + " per s)" : std::string();
   const GateSummary g = sim_gate_summary(r);
   const std::string gate = gate_clause(g);
-  return "scenario " + name + ": " + (m.diverged ? "DIVERGED at " + fmt(m.diverged_at_s.value_or(0), 2) + " s" : verdict_words(run_verdict(false, m.unstable, g))) +
+  return "scenario " + name + ": " + (m.diverged ? "DIVERGED at " + fmt(m.diverged_at_s.value_or(0), 2) + " s" : verdict_words(sim_verdict(r))) +
          (gate.empty() ? "" : " (" + gate + ")") + growth +
          ", consensus error at end " + opt_fmt(m.consensus_error_m, 1e3, 4, " mm", "n/a") + ", consensus time after release " +
          opt_fmt(m.consensus_time_s, 1, 2, " s", "never") + " (< 1 mm), " + opt_fmt(m.consensus_time_10pct_s, 1, 2, " s", "never") + " (10 %), " +

@@ -48,6 +48,10 @@ echo "== no-damping (B_i = 0, D_ij = 1 I) =="
 # whether the run above was held by the gate).
 "$BUILD"/bin/haptic-station sim --scenario paper-unstable --topology "$BEST" --damping 0,0,0,0 --d-gain 1 \
   --seed "$SEED" --delay-matrix "$DELAYS" --edge-energy-bound 0 --out "$OUT/no-damping-gate-off" --trace-every 5 --no-plots
+# The closed loop where eq. (18) binds (rt/README.md): diverging at 0.8x of it, passive at 1.0x.
+for B in 8 10; do
+  "$BUILD"/bin/haptic-station sim --scenario eq18-binds --damping "$B,$B" --out "$OUT/eq18-binds-$B" --trace-every 50 --no-plots
+done
 # B_i with the paper's loss allowance (one lost packet per direction) for the report's side-by-side table.
 for s in paper-best paper-worst; do
   TOPO="$BEST"; [ "$s" = paper-worst ] && TOPO="$WORST"

@@ -84,4 +84,8 @@ double eq13_d2_J(std::span<const double> copy_energy_J, std::span<const double> 
   return d2 + reservoirs_J;
 }
 
+bool eq13_broken(const std::optional<double>& port_energy_min_J, double d2_J) {
+  return port_energy_min_J && *port_energy_min_J < -d2_J - 1e-9 - 1e-9 * d2_J;
+}
+
 }  // namespace haptic::model

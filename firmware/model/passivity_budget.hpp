@@ -16,6 +16,7 @@
 //             from the loss a station measured while probing (round_trip_loss_allowance, x 2: a round trip);
 //   deadband: the sender's transmission deadband may hold a state max_interval - 1 extra ticks;
 //   clock:    late wakes, drift and the wander of free-running tick counts (clock_allowance_ticks).
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -98,5 +99,10 @@ double consensus_spring_J(const rt::EdgeGains& gains, const double* x_p, const d
 double consensus_spring_bound_J(double lambda_max_P, const double* x_p, const double* x_q, int dofs);
 double pspm_reservoirs_J(rt::ConsensusPassivity law, int links, double reservoir0_J);
 double eq13_d2_J(std::span<const double> copy_energy_J, std::span<const double> link_spring_J, double reservoirs_J);
+// Eq. (13) broken: the users' ports took more energy out of the system than its initial d^2 (the
+// cumulative port energy's minimum below -d^2 beyond rounding, 1e-9 J + 1e-9 d^2): Theorem 1's
+// conclusion does not hold for the run, whatever its speeds did (a slow instability can stay under
+// the divergence speed and the growth detector's rate for a whole run). No port energy: false.
+bool eq13_broken(const std::optional<double>& port_energy_min_J, double d2_J);
 
 }  // namespace haptic::model

@@ -440,8 +440,10 @@ json merge_run(const std::string& dir) {
   if (s0.contains("consensus_passivity")) j["consensus_passivity"] = s0["consensus_passivity"];
   j["mode"] = "run (" + std::to_string(st.size()) + " processes, " + s0.value("transport", std::string("?")) + ")";
   double d2 = 0;
-  j.update(metrics_json(merged_metrics(st, dir, d2)));
+  const RunMetricsResult m = merged_metrics(st, dir, d2);
+  j.update(metrics_json(m));
   j["passivity_bound_J"] = d2;
+  j["eq13_broken"] = model::eq13_broken(m.port_energy_min_J, d2);
   add_station_arrays(st, j);
   json links = json::array();
   std::vector<LinkSummary> totals;
@@ -462,7 +464,7 @@ json merge_run(const std::string& dir) {
   j["flags"] = merge_flags(st);  // N > N̄ on a link, a starving host: said on the result line too
   const GateSummary gate = merged_gate(st, j);
   j["gate"] = gate_json(gate);
-  j["verdict"] = run_verdict(j.value("diverged", false), j.value("unstable", false), gate);
+  j["verdict"] = run_verdict(j.value("diverged", false), j.value("unstable", false), gate, j["eq13_broken"].get<bool>());
   write_json_file(dir + "/summary.json", j);
   write_merged_snapshots(st, s0["dt_s"].get<double>(), dir);
   return j;

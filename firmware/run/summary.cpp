@@ -170,10 +170,11 @@ GateSummary gate_from_json(const json& j) {
   return g;
 }
 
-std::string run_verdict(bool diverged, bool unstable, const GateSummary& g) {
+std::string run_verdict(bool diverged, bool unstable, const GateSummary& g, bool eq13_broken) {
   if (diverged) return "diverged";
   if (unstable) return "unstable";
   if (g.gate_tripped()) return "held_by_gate";
+  if (eq13_broken) return "not_passive";
   if (g.edge_dropped()) return "stable_with_edge_drops";
   return "stable";
 }
@@ -182,6 +183,7 @@ std::string verdict_words(const std::string& verdict) {
   if (verdict == "held_by_gate") return "HELD BY THE GATE";
   if (verdict == "stable_with_edge_drops") return "stable with EDGES DROPPED";
   if (verdict == "diverged") return "DIVERGED";
+  if (verdict == "not_passive") return "NOT PASSIVE (port energy below -d^2, eq. 13)";
   return verdict;
 }
 

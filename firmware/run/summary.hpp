@@ -72,8 +72,9 @@ GateSummary gate_summary(const rt::StationCore& core);  // port_energy_min_J lef
 nlohmann::json gate_json(const GateSummary& g);
 GateSummary gate_from_json(const nlohmann::json& gate);  // a station's "gate" (absent keys: 0 / null)
 // The run's verdict, summary.json's "verdict": "diverged", "unstable", "held_by_gate" (the energy
-// gate tripped), "stable_with_edge_drops" (the edge-drop rule acted, the gate did not) or "stable".
-std::string run_verdict(bool diverged, bool unstable, const GateSummary& g);
+// gate tripped), "not_passive" (model::eq13_broken, no gate trip: nothing held the energy the ports took),
+// "stable_with_edge_drops" (the edge-drop rule acted, the gate did not) or "stable".
+std::string run_verdict(bool diverged, bool unstable, const GateSummary& g, bool eq13_broken);
 // The words of a verdict for the one-line results ("HELD BY THE GATE", "stable with edge drops", ...).
 std::string verdict_words(const std::string& verdict);
 // What the gate did, for the one-line results: "" when neither it nor the drop rule acted, else e.g.

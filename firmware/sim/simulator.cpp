@@ -490,6 +490,10 @@ SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
   return finish(s, m);
 }
 
+std::string sim_verdict(const SimResult& r) {
+  return run_verdict(r.metrics.diverged, r.metrics.unstable, sim_gate_summary(r), model::eq13_broken(r.metrics.port_energy_min_J, r.passivity_bound_J));
+}
+
 GateSummary sim_gate_summary(const SimResult& r) {
   GateSummary g;
   for (const auto& l : r.links) {
@@ -521,6 +525,7 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["push_imbalance_ratio"] = b.push_imbalance_ratio;
   j.update(metrics_json(r.metrics));
   j["passivity_bound_J"] = r.passivity_bound_J;
+  j["eq13_broken"] = model::eq13_broken(r.metrics.port_energy_min_J, r.passivity_bound_J);
   j["port_energy_final_J"] = r.final_port_J;
   j["controller_energy_final_J"] = r.final_controller_J;
   j["solver"] = r.solver;
@@ -531,7 +536,7 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   const GateSummary gate = sim_gate_summary(r);
   j["edge_energy_trips"] = gate.trips;
   j["gate"] = gate_json(gate);
-  j["verdict"] = run_verdict(r.metrics.diverged, r.metrics.unstable, gate);
+  j["verdict"] = sim_verdict(r);
   const double run_s = r.metrics.simulated_s;
   const auto& ct = r.metrics.consensus_time_s;
   const double settled_from_s = ct ? r.metrics.release_time_s + *ct : run_s;

@@ -73,6 +73,8 @@ net::SendImpairment simulator_channel(const ScenarioSpec& spec, int receiver, in
 // What the energy gate and the edge-drop rule did over all stations (summary.json's "gate"), with
 // the run's worst port energy. Not RT-safe.
 GateSummary sim_gate_summary(const SimResult& r);
+// The run's verdict (run_verdict over its metrics, gate and eq. 13 against its d^2): summary.json's and the result line's.
+std::string sim_verdict(const SimResult& r);
 
 // summary.json contract (firmware/README.md, firmware/run/summary.hpp): writes path. Not RT-safe.
 void write_summary_json(const std::string& path, const BuiltScenario& b, const SimResult& r);

@@ -115,7 +115,7 @@ void add_run_json(const StationOutcome& o, json& j) {
     GateSummary g = gate_summary(*core);
     if (ran) g.port_energy_min_J = c->port_min_J;
     j["gate"] = gate_json(g);
-    j["verdict"] = run_verdict(c && c->diverged, false, g);
+    j["verdict"] = run_verdict(c && c->diverged, false, g, false);  // eq. (13) is a sum over all stations: the merge decides it
   }
   j["safe_state_ticks"] = core ? json(core->safe_state_ticks()) : json(nullptr);
   j["steps_clamped"] = core ? json(core->step_clamped_ticks()) : json(nullptr);  // measured T_k outside period_min_s..period_max_s

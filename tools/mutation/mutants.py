@@ -19,6 +19,8 @@ _SC_PASSIVE = "test_scenario:Theorem1Scenario.controller_passive_eq14_at_the_sce
 _SC_BOUND = "test_scenario:Theorem1Scenario.no_index_delay_the_network_allows_exceeds_the_bound_eq18_was_computed_with"
 _CL_BOUND = "test_sim:ClosedLoop.no_index_delay_exceeds_its_bound_in_the_paper_runs"
 _CL_PASSIVE = "test_sim:ClosedLoop.n_port_passive_eq13_and_controller_passive_eq14_under_the_impaired_network"
+_CL_BINDS = "test_sim:Theorem1ClosedLoop.where_eq18_binds_the_loop_is_passive_and_converges_at_eq18"
+_CL_NOT_PASSIVE = "test_sim:Theorem1ClosedLoop.where_eq18_binds_a_slow_instability_at_0_85_of_it_is_reported_not_passive_never_stable"
 _RULE_LATE = "test_sim:ReceiveRule.the_papers_rule_uses_late_data_so_index_delays_grow_on_the_worst_topology"
 _VC_PASSIVE = "test_rt:VirtualCoupling.passive_eq25_at_the_largest_gains_eq26_accepts_under_adversarial_hand_motion"
 _RT_NPMI_BALANCE = "test_rt:VariableStep.npmi_energy_balance_eq12_holds_with_a_different_step_every_tick"
@@ -29,7 +31,7 @@ MUTANTS = [
     dict(name="eq18_x0.5", what="eq. (18) at 0.5x", file="rt/gains.cpp",
          old="  return std::max(0.0, lambda_max(acc));\n}",
          new="  return 0.5 * std::max(0.0, lambda_max(acc));\n}",
-         tests=[_RT_PASSIVE, _RT_PASSIVE_VARYING_P, _SC_PASSIVE]),
+         tests=[_RT_PASSIVE, _RT_PASSIVE_VARYING_P, _SC_PASSIVE, _CL_BINDS]),
     dict(name="eq18_x0.9", what="eq. (18) at 0.9x", file="rt/gains.cpp",
          old="  return std::max(0.0, lambda_max(acc));\n}",
          new="  return 0.9 * std::max(0.0, lambda_max(acc));\n}",
@@ -88,10 +90,15 @@ MUTANTS = [
          file="firmware/model/passivity_budget.cpp",
          old="  b.assumed_sum_ticks = b.round_trip_ticks;\n",
          new="  b.assumed_sum_ticks = b.round_trip_ticks - 2;\n",
-         tests=[_SC_PASSIVE]),
+         tests=[_SC_PASSIVE, _CL_BINDS]),
     dict(name="loss_allowance_minus_1", what="loss allowance one tick smaller (guard and eq. 18)",
          file="firmware/model/passivity_budget.hpp",
          old="int total() const { return loss_ticks + deadband_ticks + clock_ticks; }",
          new="int total() const { return loss_ticks - 1 + deadband_ticks + clock_ticks; }",
          tests=[_SC_BOUND, _SC_PASSIVE, _CL_BOUND]),
+    dict(name="eq13_verdict_off", what="the verdict ignores a port energy below -d^2 (eq. 13 broken reads as stable)",
+         file="firmware/model/passivity_budget.cpp",
+         old="  return port_energy_min_J && *port_energy_min_J < -d2_J - 1e-9 - 1e-9 * d2_J;",
+         new="  return false && port_energy_min_J && *port_energy_min_J < -d2_J - 1e-9 - 1e-9 * d2_J;",
+         tests=[_CL_NOT_PASSIVE]),
 ]

@@ -78,6 +78,9 @@ def stability_text(r):
         return "stable with the edge-drop rule acting: %s; %s" % (gate, speed)
     if verdict == "unstable":
         return "unstable (growing consensus error; %s)" % speed
+    if verdict == "not_passive":
+        return "NOT PASSIVE: the users' ports took %s J out, beyond -d^2 = -%s J (eq. 13 broken, no gate acted); %s" % (
+            fmt(r["port_energy_min_J"]), fmt(r["passivity_bound_J"]), speed)
     return "stable (%s; the energy gate never tripped, no edge dropped)" % speed
 
 
@@ -116,6 +119,30 @@ def damping_side_by_side(out, runs, w):
           " / ".join(fmt(d["duration_s"]) for d in ds), " / ".join("%d" % round(d["duration_s"] / d["dt_s"]) for d in ds),
           " / ".join("%d" % (2 * len(d["topology"])) for d in ds), " / ".join(str(d.get("loss_allowance_ticks")) for d in ds),
           " / ".join(str(l1.get("verdict")) for _, l1, _ in rows), l1_drops(rows)))
+    w("")
+
+
+def where_eq18_binds(out, w):
+    """The closed loop in which eq. (18) binds (OUT/eq18-binds-F/summary.json from `sim --scenario eq18-binds --damping B,B`)."""
+    rows = []
+    for d in sorted(os.listdir(out)):
+        path = os.path.join(out, d, "summary.json")
+        if d.startswith("eq18-binds-") and os.path.exists(path):
+            r = json.load(open(path))
+            rows.append((r["damping_Ns_per_m"][0] / r["damping_min_Ns_per_m"][0], r))
+    if not rows:
+        return
+    w("## Where eq. (18) binds")
+    w("")
+    w("Two users on one link, a heavy object (1 kg nodes), constant 9.9 ms delays, no loss, D_ij = 0, no energy gate"
+      " (`haptic-station sim --scenario eq18-binds --damping B,B`; rt/README.md, \"Where eq. (18) binds\", says why the paper's"
+      " star needs much less). Eq. (18) asks %s N s/m of each station." % fmt(rows[0][1]["damping_min_Ns_per_m"][0]))
+    w("")
+    w("| B_i / eq. (18) | verdict | max controller energy (14) | min port energy (13) vs -d^2 |")
+    w("|---|---|---|---|")
+    for f, r in sorted(rows, key=lambda x: x[0]):
+        w("| %s | %s | %s J | %s J vs -%s J |" % (fmt(f, 2), stability_text(r), fmt(r["controller_energy_max_J"]),
+                                               fmt(r["port_energy_min_J"]), fmt(r["passivity_bound_J"])))
     w("")
 
 
@@ -192,6 +219,7 @@ def main(out):
       " sufficient condition, and the stability maps in tools/study/ show where the system does lose stability." % "/".join(str(a) for a in allowance))
     w("")
     damping_side_by_side(out, runs, w)
+    where_eq18_binds(out, w)
     nd = os.path.join(out, "no-damping", "summary.json")
     if os.path.exists(nd):
         r = json.load(open(nd))
@@ -203,7 +231,7 @@ def main(out):
           " minimum cumulative port energy %s J against the bound -%s J%s." % (
               "1", stability_text(r),
               fmt(r["port_energy_min_J"]), fmt(r["passivity_bound_J"]),
-              " (energy was generated: N-port passivity (13) broken)" if r["port_energy_min_J"] < -r["passivity_bound_J"] - 1e-12 else ""))
+              " (energy was generated: N-port passivity (13) broken)" if r.get("eq13_broken") else ""))
         w("")
         off = os.path.join(out, "no-damping-gate-off", "summary.json")
         if os.path.exists(off):

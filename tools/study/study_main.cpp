@@ -420,9 +420,7 @@ void consensus_cell(const StudyOptions& o, std::ofstream& f, json& summary, doub
   const auto r = firmware::run_simulation(built, firmware::SimOptions{});
   const auto& m = r.metrics;
   const double port_min = m.port_energy_min_J.value_or(0.0);
-  const std::string cls = m.diverged ? "diverged"
-                          : port_min < -r.passivity_bound_J ? "energy-generated"
-                                                                      : "stable";
+  const std::string cls = m.diverged ? "diverged" : model::eq13_broken(m.port_energy_min_J, r.passivity_bound_J) ? "energy-generated" : "stable";
   std::uint64_t violations = 0, lost = 0;
   for (const auto& l : r.links) {
     violations += l.bound_violations;

@@ -226,6 +226,15 @@ TEST(Model, d2_of_eq13_counts_the_copies_the_consensus_springs_and_under_pspm_th
   DOUBLES_EQUAL(0.5 + 0.25 + 0.125 + 0.012, model::eq13_d2_J(copies, springs, 0.012), 1e-15);
 }
 
+TEST(Model, eq13_is_broken_when_the_port_energy_goes_below_minus_d2_beyond_rounding_only) {
+  CHECK_FALSE(model::eq13_broken(std::nullopt, 0.0));                // nothing measured: no claim
+  CHECK_FALSE(model::eq13_broken(0.0, 0.0));
+  CHECK_FALSE(model::eq13_broken(-0.5 * 1e-9, 0.0));                 // rounding
+  CHECK_TRUE(model::eq13_broken(-2e-9, 0.0));
+  CHECK_FALSE(model::eq13_broken(-0.012, 0.012));                     // at -d^2: passive
+  CHECK_TRUE(model::eq13_broken(-0.012 - 1e-6, 0.012));
+}
+
 // The run metrics' quantities (firmware/model/metrics.hpp), one definition each.
 TEST(Model, the_consensus_error_is_the_largest_pairwise_node_distance_and_differs_from_the_distance_to_the_mean_shape) {
   const double x0[6] = {0, 0, 0, 1, 0, 0}, x1[6] = {0, 0, 0, 1, 0, 0}, x2[6] = {0, 0, 0.3, 1, 0, 0};

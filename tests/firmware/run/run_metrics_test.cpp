@@ -299,6 +299,22 @@ TEST(RunMerge, ARunTheGateHeldIsMergedAsHeldWithTheStationsFigures) {
   CHECK_TEXT(merge_result_line(d).find("stable with EDGES DROPPED") != std::string::npos, merge_result_line(d).c_str());
 }
 
+// The verdict's order: what acted or broke is named before "stable", the most severe first; a run
+// whose ports took out more than d^2 with no gate to hold it is "not_passive" (eq. 13 broken).
+TEST(RunMerge, TheVerdictNamesABrokenEq13UnlessTheGateHeldTheRunOrItDiverged) {
+  GateSummary none, gate, drops;
+  gate.trips = 1;
+  drops.edge_drop_events = 1;
+  CHECK_EQUAL(std::string("stable"), run_verdict(false, false, none, false));
+  CHECK_EQUAL(std::string("not_passive"), run_verdict(false, false, none, true));
+  CHECK_EQUAL(std::string("not_passive"), run_verdict(false, false, drops, true));
+  CHECK_EQUAL(std::string("stable_with_edge_drops"), run_verdict(false, false, drops, false));
+  CHECK_EQUAL(std::string("held_by_gate"), run_verdict(false, false, gate, true));  // the gate's clause gives the port energy
+  CHECK_EQUAL(std::string("unstable"), run_verdict(false, true, none, true));
+  CHECK_EQUAL(std::string("diverged"), run_verdict(true, true, gate, true));
+  CHECK_TEXT(verdict_words("not_passive").find("NOT PASSIVE") != std::string::npos, verdict_words("not_passive").c_str());
+}
+
 // The merge flags what a reader of a failed lab run must not miss: a link whose index delay went
 // over its guard (N > N̄) and a station whose host was starving (its station-<id>.json "host"), in
 // summary.json "flags" and on the result line; a clean run has none.

@@ -14,6 +14,7 @@ TEST_GROUP(Scenario){};
 
 TEST(Scenario, paper_scenarios_match_section_v) {
   for (const auto& name : scenario_names()) {
+    if (name.rfind("paper-", 0) != 0) continue;  // eq18-binds: theorem1_closed_loop_test.cpp
     const auto s = make_scenario(name);
     CHECK_EQUAL(4, s.users);
     CHECK_EQUAL(3u, s.topology.size());

@@ -86,7 +86,7 @@ TEST(ClosedLoop, no_index_delay_exceeds_its_bound_in_the_paper_runs) {
       CHECK_TRUE(l.max_index_delay > 0);
     }
   // neither the gate nor the drop rule acted: the verdict is plain "stable"
-  for (const SimResult* r : {&rb, &rw}) CHECK_EQUAL(std::string("stable"), run_verdict(r->metrics.diverged, r->metrics.unstable, sim_gate_summary(*r)));
+  for (const SimResult* r : {&rb, &rw}) CHECK_EQUAL(std::string("stable"), sim_verdict(*r));
 }
 
 TEST(ClosedLoop, the_honest_paper_best_run_never_trips_the_per_edge_energy_bound) {
@@ -100,7 +100,7 @@ TEST(ClosedLoop, the_honest_paper_best_run_never_trips_the_per_edge_energy_bound
     CHECK_EQUAL(0u, l.edge_energy.gated_ticks);
     CHECK_TRUE(l.edge_energy.peak_J < 0.5 * l.edge_energy.bound_J);
   }
-  CHECK_TRUE(run_verdict(r.metrics.diverged, r.metrics.unstable, sim_gate_summary(r)) != "held_by_gate");
+  CHECK_TRUE(sim_verdict(r) != "held_by_gate");
 }
 
 // A run the per-edge energy gate held never reads "stable" in summary.json. Fig. 10's set-up with no
@@ -137,7 +137,7 @@ TEST(ClosedLoop, a_run_the_gate_held_is_written_as_held_by_the_gate_never_as_sta
   const SimResult off = run_simulation(build_scenario(s), SimOptions{});
   CHECK_EQUAL(0u, sim_gate_summary(off).trips);
   CHECK_EQUAL(0.0, sim_gate_summary(off).removed_J);
-  CHECK_EQUAL(std::string("diverged"), run_verdict(off.metrics.diverged, off.metrics.unstable, sim_gate_summary(off)));
+  CHECK_EQUAL(std::string("diverged"), sim_verdict(off));
 }
 
 TEST(ClosedLoop, consensus_after_release_eq19) {

@@ -92,6 +92,67 @@ TEST(Theorem1ClosedLoop, paper_worst_deforms_as_far_at_least_twice_as_fast_under
   for (const auto& l : b.links) CHECK_TRUE(l.edge_energy.peak_J <= 1e-3 + 1e-12);
 }
 
+// Where eq. (18) binds in closed loop (scenario eq18-binds; rt/README.md "Where eq. (18) binds"): two
+// copies of a heavy object (33 kg) on one link, constant delays of 5 ticks each way, D_ij = 0, no
+// loss, no gate. The loop's own mode is then the slow antiphase motion of the two copies that eq.
+// (18)'s worst case assumes, so the simulated boundary sits between 0.8x and 0.9x of eq. (18)
+// (measured: 0.7x diverges at 10.9 s, 0.8x at 20.0 s, 0.9x and 1.0x passive), where the paper's
+// four-user star needs at most 0.5x-0.6x.
+namespace {
+ScenarioSpec binds_spec(std::optional<double> factor_of_eq18) {
+  ScenarioSpec s = make_scenario("eq18-binds");
+  if (factor_of_eq18) {
+    const BuiltScenario b = build_scenario(s);
+    std::vector<double> d;
+    for (double m : b.damping_min) d.push_back(*factor_of_eq18 * m);
+    s.damping_Ns_per_m = d;
+  }
+  return s;
+}
+}  // namespace
+
+TEST(Theorem1ClosedLoop, where_eq18_binds_eq18_asks_10_Ns_per_m_by_an_independent_evaluation) {
+  // Nbar = ceil(9.9 ms / 2 ms) + 0 = 5 ticks each way; (5 + 5)/2 x 0.002 s x lambda_max(P) = 1000 N/m.
+  for (double m : build_scenario(binds_spec(std::nullopt)).damping_min) DOUBLES_EQUAL(10.0, m, 1e-9);
+}
+
+TEST(Theorem1ClosedLoop, where_eq18_binds_the_loop_is_passive_and_converges_at_eq18) {
+  for (const std::optional<double> f : {std::optional<double>(), std::optional<double>(1.0)}) {
+    const SimResult r = run_simulation(build_scenario(binds_spec(f)), SimOptions{});
+    CHECK_FALSE(r.metrics.diverged);
+    CHECK_EQUAL(std::string("stable"), sim_verdict(r));
+    CHECK_TRUE(*r.metrics.controller_energy_max_J <= r.passivity_bound_J + 1e-9);  // eq. (14)
+    CHECK_TRUE(*r.metrics.port_energy_min_J >= -r.passivity_bound_J - 1e-9);      // eq. (13)
+    CHECK_TRUE(*r.metrics.max_consensus_error_m > 1e-5);  // the perturbation moved user 1's copy
+    CHECK_TRUE(*r.metrics.consensus_error_m < 0.01 * *r.metrics.max_consensus_error_m);
+  }
+}
+
+TEST(Theorem1ClosedLoop, where_eq18_binds_0_8_of_it_makes_the_controller_generate_energy_and_the_loop_diverge) {
+  for (double f : {0.8, 0.5}) {
+    const BuiltScenario b = build_scenario(binds_spec(f));
+    CHECK_FALSE(b.passivity_condition_met);
+    const SimResult r = run_simulation(b, SimOptions{});
+    CHECK_TEXT(r.metrics.diverged, ("at " + std::to_string(f) + "x eq. (18)").c_str());
+    CHECK_EQUAL(std::string("diverged"), sim_verdict(r));
+    CHECK_TRUE(*r.metrics.controller_energy_max_J > r.passivity_bound_J + 1.0);  // eq. (14) broken
+    CHECK_TRUE(*r.metrics.port_energy_min_J < -r.passivity_bound_J - 1.0);      // eq. (13) broken
+  }
+}
+
+// Between the two: at 0.85x the loop grows too slowly for the divergence speed (50 m/s) and the growth
+// detector (1.5x per 0.5 s) within the run (measured: consensus error 0.17 -> 23.5 mm in 30 s), yet the
+// users' ports took energy out beyond -d^2. Such a run is never reported "stable": its verdict says
+// eq. (13) was broken.
+TEST(Theorem1ClosedLoop, where_eq18_binds_a_slow_instability_at_0_85_of_it_is_reported_not_passive_never_stable) {
+  const SimResult r = run_simulation(build_scenario(binds_spec(0.85)), SimOptions{});
+  CHECK_TRUE(*r.metrics.port_energy_min_J < -r.passivity_bound_J - 1e-6);
+  CHECK_TRUE(*r.metrics.consensus_error_m > 10.0 * *r.metrics.consensus_error_at_release_m);  // growing, not settling
+  const std::string v = sim_verdict(r);
+  CHECK_TRUE(v != "stable");
+  if (!r.metrics.diverged && !r.metrics.unstable) CHECK_EQUAL(std::string("not_passive"), v);
+}
+
 TEST_GROUP(ReceiveRule){};
 
 TEST(ReceiveRule, the_papers_rule_uses_late_data_so_index_delays_grow_on_the_worst_topology) {

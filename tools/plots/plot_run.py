@@ -1,15 +1,23 @@
 #!/usr/bin/python3
 """Figures of one haptic-station run directory (in the spirit of the paper's Figs. 8-10).
 
-usage: /usr/bin/python3 tools/plots/plot_run.py RUN_DIR
+usage: /usr/bin/python3 tools/plots/plot_run.py [--after-go] RUN_DIR
 
 Reads RUN_DIR/trace.csv, series.csv, summary.json and (if present) snapshots.json, written alike by
 `haptic-station sim` and by `haptic-station merge` after a real (multi-process) run, and writes
 fig_node_position.png (the traced node's displacement from rest), fig_device_force.png,
 fig_energy.png, fig_consensus.png and fig_snapshots.png (the copies coloured by their distance
 from the mean shape) into RUN_DIR.
+
+Speed (tools/bench/results/README.md "Figures"): one process imports matplotlib once, reads the CSV
+files with numpy's C parser, draws each time series min/max-decimated to the figure's resolution
+(every drawn point is a sample; each pixel column's extremes are kept) and draws the figures in
+parallel (forked workers, one per CPU this process may use). --after-go imports first and then
+waits for a line "go" on stdin before reading RUN_DIR: `haptic-station sim` starts it before the
+simulation, so the import overlaps the run; end of input without "go" (the run failed) draws nothing.
 """
 import json
+import multiprocessing
 import os
 import sys
 
@@ -21,11 +29,43 @@ import numpy as np  # noqa: E402
 from matplotlib import cm, colors  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
-MAX_COPIES_DRAWN = 8  # a 64-user run: the snapshot figure draws users 1-8 (the mean shape uses all)
+MAX_COPIES_DRAWN = 8  # a 64-user run: the snapshot figure draws users 1-8 and says so (the mean shape uses all)
+LINE_BUCKETS = 1000  # a time axis is at most 880 px wide (8 in at 110 dpi): min and max of 1000 columns per line
 
 
 def load_csv(path):
-    return np.genfromtxt(path, delimiter=",", names=True)
+    """The CSV's columns by header name, as float arrays (np.loadtxt's C parser: a fraction of
+    genfromtxt's time and memory)."""
+    with open(path) as f:
+        names = f.readline().strip().split(",")
+    a = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if a.size == 0:
+        a = np.zeros((0, len(names)))
+    return {n: a[:, i] for i, n in enumerate(names)}
+
+
+def decimate(t, y, buckets=LINE_BUCKETS):
+    """(t, y) with at most two samples per bucket of equal sample count: each bucket's lowest and
+    highest, in time order, and the first and last sample. Every drawn point is a sample and every
+    bucket's extremes are drawn, so at the figure's resolution the line looks the same."""
+    t, y = np.asarray(t), np.asarray(y)
+    n = len(y)
+    if n <= 2 * buckets:
+        return t, y
+    k = n // buckets
+    m = k * buckets
+    block = y[:m].reshape(buckets, k)
+    base = np.arange(buckets) * k
+    idx = [base + block.argmin(axis=1), base + block.argmax(axis=1), [0, n - 1]]
+    if m < n:
+        idx.append([m + int(np.argmin(y[m:])), m + int(np.argmax(y[m:]))])
+    keep = np.unique(np.concatenate(idx))
+    return t[keep], y[keep]
+
+
+def plot_line(ax, t, y, *args, **kw):
+    """ax.plot of a time series, decimated (decimate())."""
+    return ax.plot(*decimate(t, y), *args, **kw)
 
 
 def run_title(summary):
@@ -72,7 +112,7 @@ def fig_node(summary, tr, contacts):
         m = tr["user"] == u
         x = tr["node_x_m"][m]
         x0 = rest[0] if rest is not None else (x[0] if len(x) else 0.0)
-        ax.plot(tr["t_s"][m], 1e3 * (x - x0), lw=1, label="user %d's copy" % u)
+        plot_line(ax, tr["t_s"][m], 1e3 * (x - x0), lw=1, label="user %d's copy" % u)
     ax.axhline(0, color="0.8", lw=0.6)
     mark_events(ax, summary)
     owners = contact_owner(node, contacts)
@@ -92,13 +132,13 @@ def fig_force(summary, tr, se):
     fig, axs = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     for u in range(1, users + 1):
         m = tr["user"] == u
-        axs[0].plot(tr["t_s"][m], tr["force_x_N"][m], lw=1, label="u_x user %d" % u)
-    axs[0].plot(se["t_s"], se["force_sum_x_N"], "k", lw=1.2, label="sum u_x")
+        plot_line(axs[0], tr["t_s"][m], tr["force_x_N"][m], lw=1, label="u_x user %d" % u)
+    plot_line(axs[0], se["t_s"], se["force_sum_x_N"], "k", lw=1.2, label="sum u_x")
     axs[0].set_ylabel("device force x (N)")
     if users <= 8:
         axs[0].legend(fontsize=7, ncol=3, loc="lower right")
     axs[0].set_title(run_title(summary), fontsize=9)
-    axs[1].plot(se["t_s"], se["force_sum_norm_N"], "k", lw=1)
+    plot_line(axs[1], se["t_s"], se["force_sum_norm_N"], "k", lw=1)
     axs[1].set_ylabel("|sum_i u_i| (N)")
     axs[1].set_xlabel("time (s)")
     mark_events(axs[0], summary)
@@ -112,8 +152,8 @@ def fig_energy(summary, tr, se):
     fig, axs = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     for u in range(1, users + 1):
         m = tr["user"] == u
-        axs[0].plot(tr["t_s"][m], 1e3 * tr["port_energy_J"][m], lw=1, label="user %d" % u)
-    axs[0].plot(se["t_s"], 1e3 * se["port_energy_total_J"], "k", lw=1.4, label="total")
+        plot_line(axs[0], tr["t_s"][m], 1e3 * tr["port_energy_J"][m], lw=1, label="user %d" % u)
+    plot_line(axs[0], se["t_s"], 1e3 * se["port_energy_total_J"], "k", lw=1.4, label="total")
     bound = -1e3 * summary["passivity_bound_J"]
     axs[0].axhline(bound, color="r", ls=":", lw=1, label="-d^2 (eq. 13)")
     axs[0].annotate("passivity bound -d^2 = %.3g mJ (eq. 13)" % bound, xy=(0.01, bound), xycoords=("axes fraction", "data"),
@@ -122,7 +162,7 @@ def fig_energy(summary, tr, se):
     if users <= 8:
         axs[0].legend(fontsize=7, ncol=3, loc="lower right")
     axs[0].set_title(run_title(summary), fontsize=9)
-    axs[1].plot(se["t_s"], 1e3 * se["controller_energy_total_J"], "k", lw=1.2, label="consensus controller (eq. 14)")
+    plot_line(axs[1], se["t_s"], 1e3 * se["controller_energy_total_J"], "k", lw=1.2, label="consensus controller (eq. 14)")
     axs[1].set_ylabel("controller energy (mJ)")
     axs[1].set_xlabel("time (s)")
     axs[1].legend(fontsize=7)
@@ -146,8 +186,9 @@ def threshold_lines(summary):
 def fig_consensus(summary, se):
     fig, ax = plt.subplots(figsize=(8, 3.8))
     floor = 1e-15
-    ax.semilogy(se["t_s"], 1e3 * np.maximum(se["consensus_error_m"], floor), lw=1, label="consensus error max |x_i - x_j|")
-    ax.semilogy(se["t_s"], 1e3 * np.maximum(se["deformation_m"], floor), lw=1, label="shape deformation, rms")
+    plot_line(ax, se["t_s"], 1e3 * np.maximum(se["consensus_error_m"], floor), lw=1, label="consensus error max |x_i - x_j|")
+    plot_line(ax, se["t_s"], 1e3 * np.maximum(se["deformation_m"], floor), lw=1, label="shape deformation, rms")
+    ax.set_yscale("log")
     for v, label, c, ls in threshold_lines(summary):
         ax.axhline(1e3 * v, color=c, ls=ls, lw=0.9)
         ax.annotate(label % (1e3 * v), xy=(0.99, 1e3 * v), xycoords=("axes fraction", "data"), xytext=(0, 2), textcoords="offset points",
@@ -231,35 +272,119 @@ def fig_snapshots(summary, sn):
     cb = fig.colorbar(cm.ScalarMappable(norm=norm, cmap=cmap), cax=cax)
     cb.set_label("distance from the mean shape\n(of the %d copies), mm" % users, fontsize=7)
     cb.ax.tick_params(labelsize=6)
-    fig.suptitle("%s\ncopies about their centroids (mm), deformation x%d; colour: distance from the mean shape;"
-                 " VP red, contact nodes black" % (run_title(summary), factor), fontsize=8)
+    fig.suptitle("%s\n%s about their centroids (mm), deformation x%d; colour: distance from the mean shape;"
+                 " VP red, contact nodes black" % (run_title(summary), copies_shown(users, cols), factor), fontsize=8)
     return fig
 
 
-def figures(run):
-    """The run's figures as {file name: matplotlib Figure} (tests inspect them)."""
+def copies_shown(users, cols):
+    """Which copies a snapshot figure of `cols` columns shows, said in its title."""
+    if cols >= users:
+        return "all %d copies" % users
+    return "users 1-%d's copies (of %d users; the mean shape and the colour scale use all %d)" % (cols, users, users)
+
+
+FIGURES = ("fig_snapshots.png", "fig_node_position.png", "fig_device_force.png", "fig_energy.png", "fig_consensus.png")  # slowest first
+
+
+def load_run(run):
+    """A run directory's files: (summary, trace columns, series columns, snapshots or None)."""
     summary = json.load(open(os.path.join(run, "summary.json")))
     tr = load_csv(os.path.join(run, "trace.csv"))
     se = load_csv(os.path.join(run, "series.csv"))
     snap_path = os.path.join(run, "snapshots.json")
     sn = json.load(open(snap_path)) if os.path.exists(snap_path) else None
-    out = {"fig_node_position.png": fig_node(summary, tr, sn["contact_nodes"] if sn else None),
-           "fig_device_force.png": fig_force(summary, tr, se),
-           "fig_energy.png": fig_energy(summary, tr, se),
-           "fig_consensus.png": fig_consensus(summary, se)}
-    if sn and sn["snapshots"]:
-        out["fig_snapshots.png"] = fig_snapshots(summary, sn)
-    return out
+    return summary, tr, se, sn
+
+
+def figure(name, data):
+    """One figure of FIGURES from load_run()'s data, None when the run has nothing for it."""
+    summary, tr, se, sn = data
+    if name == "fig_snapshots.png":
+        return fig_snapshots(summary, sn) if sn and sn["snapshots"] else None
+    if name == "fig_node_position.png":
+        return fig_node(summary, tr, sn["contact_nodes"] if sn else None)
+    if name == "fig_device_force.png":
+        return fig_force(summary, tr, se)
+    if name == "fig_energy.png":
+        return fig_energy(summary, tr, se)
+    return fig_consensus(summary, se)
+
+
+def figures(run):
+    """The run's figures as {file name: matplotlib Figure} (tests inspect them)."""
+    data = load_run(run)
+    out = {name: figure(name, data) for name in FIGURES}
+    return {name: fig for name, fig in out.items() if fig is not None}
+
+
+def save(fig, run, name):
+    fig.savefig(os.path.join(run, name), dpi=100 if name == "fig_snapshots.png" else 110)
+    plt.close(fig)
+
+
+_DRAW = None  # (run, data) for the forked workers: they inherit it, nothing is pickled but the name
+
+
+def draw_one(name):
+    run, data = _DRAW
+    fig = figure(name, data)
+    if fig is not None:
+        save(fig, run, name)
+    return name
+
+
+def workers():
+    """Processes to draw with: the CPUs this process may use, at most one per figure."""
+    return max(1, min(len(os.sched_getaffinity(0)), len(FIGURES)))
 
 
 def main(run):
-    for name, fig in figures(run).items():
-        fig.savefig(os.path.join(run, name), dpi=100 if name == "fig_snapshots.png" else 110)
-        plt.close(fig)
+    """Draws every figure of `run`: the data read once, the figures in forked workers, the slowest first."""
+    global _DRAW
+    _DRAW = (run, load_run(run))
+    n = workers()
+    if n == 1:
+        for name in FIGURES:
+            draw_one(name)
+        return
+    with multiprocessing.get_context("fork").Pool(n) as pool:
+        list(pool.imap_unordered(draw_one, FIGURES, chunksize=1))
+
+
+def warm_up():
+    """What every figure needs and no run's data changes, done while the run is still going: the
+    fonts, the mathtext parser of a log axis's labels, a 3D panel and the PNG writer (the forked
+    workers inherit it all)."""
+    import io
+    fig = plt.figure(figsize=(2, 2))
+    ax = fig.add_subplot(1, 2, 1)
+    ax.semilogy([0, 1], [1e-3, 1e-1])
+    ax.set_title("warm-up x (mm)", fontsize=8)
+    ax3 = fig.add_subplot(1, 2, 2, projection="3d")
+    ax3.add_collection3d(Poly3DCollection([[(0, 0, 0), (1, 0, 0), (0, 1, 0)]]))
+    ax3.text2D(0, 0, "t = 0 s", fontsize=7)
+    fig.tight_layout()
+    fig.savefig(io.BytesIO(), format="png", dpi=20)
+    plt.close(fig)
+
+
+def wait_for_go():
+    """True when stdin says "go" (the run's files are written); False at end of input (no run)."""
+    line = sys.stdin.readline()
+    return line.strip() == "go"
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2 or sys.argv[1] in ("-h", "--help"):
+    args = sys.argv[1:]
+    after_go = bool(args) and args[0] == "--after-go"
+    if after_go:
+        args = args[1:]
+    if len(args) != 1 or args[0] in ("-h", "--help"):
         print(__doc__)
-        sys.exit(0 if len(sys.argv) == 2 else 2)
-    main(sys.argv[1])
+        sys.exit(0 if len(args) == 1 else 2)
+    if after_go:
+        warm_up()
+        if not wait_for_go():
+            sys.exit(0)
+    main(args[0])

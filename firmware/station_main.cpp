@@ -8,8 +8,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <iostream>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "firmware/run/merge.hpp"
 #include "firmware/run/summary.hpp"
@@ -36,26 +43,76 @@ using haptic::platform::kNonNegative;
 using haptic::platform::kNonNegativeInteger;
 using haptic::platform::kPositive;
 
-// Runs the matplotlib figure script on a run directory; explains plainly when it cannot.
-bool make_plots(const std::string& dir) {
-  const std::string script = haptic::platform::tools_dir() + "/plots/plot_run.py";
-  if (!fs::exists(script)) {
-    std::cerr << "haptic-station: no figures: " << script
-              << " not found (looked next to this executable's ../share/haptic/tools; set HAPTIC_TOOLS_DIR)\n";
+// The figure script (tools/plots/plot_run.py --after-go --expect SNAPSHOTS USERS DIR), started
+// before the simulation: it imports matplotlib, warms up and makes the figures' empty axes while the
+// run goes, and draws DIR's figures once told that the run's files are written. Explains plainly
+// when it cannot run. Not RT-safe.
+class FigureDrawer {
+ public:
+  FigureDrawer(const std::string& dir, std::size_t snapshots, int users) {
+    const std::string script = haptic::platform::tools_dir() + "/plots/plot_run.py";
+    if (!fs::exists(script)) {
+      std::cerr << "haptic-station: no figures: " << script
+                << " not found (looked next to this executable's ../share/haptic/tools; set HAPTIC_TOOLS_DIR)\n";
+      return;
+    }
+    if (!fs::exists(kPython)) {
+      std::cerr << "haptic-station: no figures: " << kPython << " is missing (apt-get install python3-matplotlib)\n";
+      return;
+    }
+    std::vector<std::string> args{kPython, script, "--after-go", "--expect", std::to_string(snapshots), std::to_string(users), dir};
+    for (const auto& x : args) command_ += (command_.empty() ? "" : " ") + x;
+    int fds[2];
+    if (pipe2(fds, O_CLOEXEC) != 0) return;
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_adddup2(&fa, fds[0], STDIN_FILENO);  // dup2 clears close-on-exec on stdin
+    std::vector<char*> argv;
+    for (auto& x : args) argv.push_back(x.data());
+    argv.push_back(nullptr);
+    std::fflush(nullptr);
+    const int rc = posix_spawn(&pid_, kPython, &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    close(fds[0]);
+    if (rc != 0) {
+      close(fds[1]);
+      pid_ = -1;
+      std::cerr << "haptic-station: no figures: could not start " << command_ << "\n";
+      return;
+    }
+    go_fd_ = fds[1];
+  }
+  FigureDrawer(const FigureDrawer&) = delete;
+  FigureDrawer& operator=(const FigureDrawer&) = delete;
+  // Not told to draw (the run failed): stopped at once, nothing drawn.
+  ~FigureDrawer() {
+    if (pid_ <= 0) return;
+    close(go_fd_);
+    kill(pid_, SIGTERM);
+    waitpid(pid_, nullptr, 0);
+  }
+  // Tells the script to draw and waits for it: true when it drew.
+  bool draw() {
+    if (pid_ <= 0) return false;
+    const auto previous = std::signal(SIGPIPE, SIG_IGN);  // a script that already ended: a failed write, not our end
+    const bool told = write(go_fd_, "go\n", 3) == 3;
+    std::signal(SIGPIPE, previous);
+    close(go_fd_);
+    int status = 0;
+    const bool waited = waitpid(pid_, &status, 0) == pid_;
+    pid_ = -1;
+    if (told && waited && WIFEXITED(status) && WEXITSTATUS(status) == 0) return true;
+    std::cerr << "haptic-station: figure script failed (" << (!told ? "it ended before the run did" : "exit " + std::to_string(WEXITSTATUS(status)))
+              << "): " << command_ << "\n";
     return false;
   }
-  if (!fs::exists("/usr/bin/python3")) {
-    std::cerr << "haptic-station: no figures: /usr/bin/python3 is missing (apt-get install python3-matplotlib)\n";
-    return false;
-  }
-  const std::string cmd = "/usr/bin/python3 '" + script + "' '" + dir + "'";
-  const int rc = std::system(cmd.c_str());
-  if (rc != 0) {
-    std::cerr << "haptic-station: figure script failed (exit " << rc << "): " << cmd << "\n";
-    return false;
-  }
-  return true;
-}
+
+ private:
+  static constexpr const char* kPython = "/usr/bin/python3";
+  std::string command_;
+  pid_t pid_ = -1;
+  int go_fd_ = -1;
+};
 
 std::atomic<bool> g_stop{false};
 void on_stop_signal(int) { g_stop.store(true, std::memory_order_release); }
@@ -468,6 +525,8 @@ int sim_command(const SimArgs& a) {
       for (double b : built.damping_min) std::cerr << " " << fmt(b, 2);
       std::cerr << (built.passivity_condition_met ? "  (met)\n" : "  (VIOLATED)\n");
     }
+    std::optional<FigureDrawer> figures;
+    if (!a.no_plots) figures.emplace(a.out, opt.snapshot_times_s.size(), spec.users);  // imports matplotlib while the simulation runs
     const SimResult r = run_simulation(built, opt);
     if (!a.quiet) std::cerr << "  solver of the linear step: " << r.solver.front() << " (station 1; summary.json \"solver\")\n";
     write_summary_json(a.out + "/summary.json", built, r);
@@ -480,7 +539,7 @@ int sim_command(const SimArgs& a) {
                    "tools/study/hold_balance.py OUT shows the time constant)\n";
     std::cout << "wrote " << a.out << "/summary.json, trace.csv, series.csv, snapshots.json\n";
     if (a.record) std::cout << "wrote " << a.out << "/station-<i>.h5 (session logs)\n";
-    if (!a.no_plots && make_plots(a.out)) std::cout << "wrote " << a.out << "/*.png\n";
+    if (figures && figures->draw()) std::cout << "wrote " << a.out << "/*.png\n";
     if (a.view_port > 0) {
       if (!a.record) throw std::invalid_argument("--view-port needs --record (the view replays the recorded session)");
       if (a.view_station < 1 || a.view_station > spec.users) throw std::invalid_argument("--view-station must be 1.." + std::to_string(spec.users));

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Figures of one haptic-station run directory (in the spirit of the paper's Figs. 8-10).
 
-usage: /usr/bin/python3 tools/plots/plot_run.py [--after-go] RUN_DIR
+usage: /usr/bin/python3 tools/plots/plot_run.py [--after-go [--expect SNAPSHOTS USERS]] RUN_DIR
 
 Reads RUN_DIR/trace.csv, series.csv, summary.json and (if present) snapshots.json, written alike by
 `haptic-station sim` and by `haptic-station merge` after a real (multi-process) run, and writes
@@ -11,13 +11,13 @@ from the mean shape) into RUN_DIR.
 
 Speed (tools/bench/results/README.md "Figures"): one process imports matplotlib once, reads the CSV
 files with numpy's C parser, draws each time series min/max-decimated to the figure's resolution
-(every drawn point is a sample; each pixel column's extremes are kept) and draws the figures in
-parallel (forked workers, one per CPU this process may use). --after-go imports first and then
-waits for a line "go" on stdin before reading RUN_DIR: `haptic-station sim` starts it before the
-simulation, so the import overlaps the run; end of input without "go" (the run failed) draws nothing.
+(every drawn point is a sample; each pixel column's extremes are kept) and, with two CPUs, draws the
+snapshot figure in a forked child while it draws the others. --after-go imports, warms up and makes
+the figures' empty axes (the snapshot figure's when --expect says how many snapshots and users) first,
+then waits for a line "go" on stdin before reading RUN_DIR: `haptic-station sim` starts it before
+the simulation, so all that overlaps the run; end of input without "go" (the run failed) draws nothing.
 """
 import json
-import multiprocessing
 import os
 import sys
 
@@ -103,11 +103,43 @@ def contact_owner(node, contacts):
     return [u + 1 for u, c in enumerate(contacts or []) if node in c]
 
 
+_PREBUILT = {}  # figure name -> (figure, axes) made while the run was still going (prebuild())
+
+
+def make_figure(name, panels=None):
+    """The empty figure `name` and its axes: what no run's data changes (panels: the snapshot
+    figure's (rows, columns) of 3D axes)."""
+    if name == "fig_snapshots.png":
+        rows, cols = panels
+        fig = plt.figure(figsize=(2.3 * cols + 1.0, 2.2 * rows + 0.5))
+        return fig, [fig.add_subplot(rows, cols, i + 1, projection="3d", computed_zorder=False)  # markers on top
+                     for i in range(rows * cols)]
+    if name in ("fig_node_position.png", "fig_consensus.png"):
+        return plt.subplots(figsize=(8, 3.8))
+    return plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+
+
+def new_figure(name, panels=None):
+    """make_figure(name, panels), or the one prebuild() made for it when it has these panels."""
+    made = _PREBUILT.pop((name, panels), None)
+    return made if made is not None else make_figure(name, panels)
+
+
+def prebuild(panels):
+    """Makes every figure's empty axes ahead of the data (the snapshot figure's when its panels,
+    (snapshots, copies drawn), are known)."""
+    for name in FIGURES:
+        if name != "fig_snapshots.png":
+            _PREBUILT[(name, None)] = make_figure(name)
+        elif panels:
+            _PREBUILT[(name, panels)] = make_figure(name, panels)
+
+
 def fig_node(summary, tr, contacts):
     users = int(summary["users"])
     node = int(summary.get("trace_node", 0))
     rest = summary.get("trace_node_rest_m")
-    fig, ax = plt.subplots(figsize=(8, 3.8))
+    fig, ax = new_figure("fig_node_position.png")
     for u in range(1, users + 1):
         m = tr["user"] == u
         x = tr["node_x_m"][m]
@@ -129,7 +161,7 @@ def fig_node(summary, tr, contacts):
 
 def fig_force(summary, tr, se):
     users = int(summary["users"])
-    fig, axs = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    fig, axs = new_figure("fig_device_force.png")
     for u in range(1, users + 1):
         m = tr["user"] == u
         plot_line(axs[0], tr["t_s"][m], tr["force_x_N"][m], lw=1, label="u_x user %d" % u)
@@ -149,7 +181,7 @@ def fig_force(summary, tr, se):
 
 def fig_energy(summary, tr, se):
     users = int(summary["users"])
-    fig, axs = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    fig, axs = new_figure("fig_energy.png")
     for u in range(1, users + 1):
         m = tr["user"] == u
         plot_line(axs[0], tr["t_s"][m], 1e3 * tr["port_energy_J"][m], lw=1, label="user %d" % u)
@@ -184,7 +216,7 @@ def threshold_lines(summary):
 
 
 def fig_consensus(summary, se):
-    fig, ax = plt.subplots(figsize=(8, 3.8))
+    fig, ax = new_figure("fig_consensus.png")
     floor = 1e-15
     plot_line(ax, se["t_s"], 1e3 * np.maximum(se["consensus_error_m"], floor), lw=1, label="consensus error max |x_i - x_j|")
     plot_line(ax, se["t_s"], 1e3 * np.maximum(se["deformation_m"], floor), lw=1, label="shape deformation, rms")
@@ -238,11 +270,11 @@ def fig_snapshots(summary, sn):
     norm = colors.Normalize(0, vmax)
     cmap = plt.get_cmap("viridis")
     rows, cols = len(snaps), min(users, MAX_COPIES_DRAWN)
-    fig = plt.figure(figsize=(2.3 * cols + 1.0, 2.2 * rows + 0.5))
+    fig, panels = new_figure("fig_snapshots.png", (rows, cols))
     lim = 1e3 * radius * 1.15
     for r, s in enumerate(snaps):
         for u in range(cols):
-            ax = fig.add_subplot(rows, cols, r * cols + u + 1, projection="3d", computed_zorder=False)  # markers on top
+            ax = panels[r * cols + u]
             x = 1e3 * (ref_c + factor * defo[r][u])
             face = dist[r][u][surf].mean(axis=1)
             ax.add_collection3d(Poly3DCollection(x[surf], facecolors=cmap(norm(face), alpha=0.85), edgecolors="0.25",
@@ -323,33 +355,34 @@ def save(fig, run, name):
     plt.close(fig)
 
 
-_DRAW = None  # (run, data) for the forked workers: they inherit it, nothing is pickled but the name
-
-
-def draw_one(name):
-    run, data = _DRAW
-    fig = figure(name, data)
-    if fig is not None:
-        save(fig, run, name)
-    return name
-
-
-def workers():
-    """Processes to draw with: the CPUs this process may use, at most one per figure."""
-    return max(1, min(len(os.sched_getaffinity(0)), len(FIGURES)))
+def draw(run, data, names):
+    """Draws and saves the figures `names` of load_run()'s data; returns how many failed."""
+    failed = 0
+    for name in names:
+        try:
+            fig = figure(name, data)
+            if fig is not None:
+                save(fig, run, name)
+        except Exception as e:  # the other figures still get drawn; the exit status says it
+            print("plot_run.py: %s: %s: %s" % (name, type(e).__name__, e), file=sys.stderr)
+            failed += 1
+    return failed
 
 
 def main(run):
-    """Draws every figure of `run`: the data read once, the figures in forked workers, the slowest first."""
-    global _DRAW
-    _DRAW = (run, load_run(run))
-    n = workers()
-    if n == 1:
-        for name in FIGURES:
-            draw_one(name)
-        return
-    with multiprocessing.get_context("fork").Pool(n) as pool:
-        list(pool.imap_unordered(draw_one, FIGURES, chunksize=1))
+    """Draws every figure of `run` from its files read once. With two CPUs or more, a forked child
+    draws the snapshot figure (the slowest: 3D panels) while this process draws the time series.
+    Returns the exit status: 0 when every figure was drawn."""
+    data = load_run(run)
+    if len(os.sched_getaffinity(0)) < 2:
+        return 1 if draw(run, data, FIGURES) else 0
+    sys.stdout.flush(), sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:
+        os._exit(1 if draw(run, data, FIGURES[:1]) else 0)
+    failed = draw(run, data, FIGURES[1:])
+    _, status = os.waitpid(pid, 0)
+    return 1 if failed or os.waitstatus_to_exitcode(status) != 0 else 0
 
 
 def warm_up():
@@ -370,21 +403,33 @@ def warm_up():
 
 
 def wait_for_go():
-    """True when stdin says "go" (the run's files are written); False at end of input (no run)."""
+    """True when stdin says "go" (the run's files are written); False at end of input (no run).
+    Anything else is a caller's mistake: exit 2 saying so."""
     line = sys.stdin.readline()
+    if line and line.strip() != "go":
+        print("plot_run.py --after-go: expected 'go' on stdin, got %r" % line.strip(), file=sys.stderr)
+        sys.exit(2)
     return line.strip() == "go"
 
 
-if __name__ == "__main__":
-    args = sys.argv[1:]
+def parse_args(args):
+    """(run dir, after_go, snapshot panels or None) from [--after-go [--expect SNAPSHOTS USERS]] RUN_DIR."""
     after_go = bool(args) and args[0] == "--after-go"
-    if after_go:
-        args = args[1:]
+    args = args[1:] if after_go else args
+    panels = None
+    if after_go and len(args) >= 3 and args[0] == "--expect":
+        panels, args = (int(args[1]), min(int(args[2]), MAX_COPIES_DRAWN)), args[3:]
     if len(args) != 1 or args[0] in ("-h", "--help"):
         print(__doc__)
         sys.exit(0 if len(args) == 1 else 2)
+    return args[0], after_go, panels
+
+
+if __name__ == "__main__":
+    run_dir, after_go, panels = parse_args(sys.argv[1:])
     if after_go:
         warm_up()
+        prebuild(panels)
         if not wait_for_go():
             sys.exit(0)
-    main(args[0])
+    sys.exit(main(run_dir))

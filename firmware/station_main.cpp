@@ -161,7 +161,8 @@ struct SimArgs {
   std::uint64_t push_seed = 1;
   double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1, push_end = -1, release = -1;
   std::uint64_t seed = 1;
-  int nodes = -1, trace_every = 1, allowance = -1, trace_node = -1, tx_interval = 1;
+  int nodes = -1, allowance = -1, trace_node = -1, tx_interval = 1;
+  std::optional<int> trace_every;  // unset: trace.csv at default_trace_every(users), series.csv every tick
   double tx_deadband_mm = 0, edge_energy_bound = -1, edge_energy_leak = -1;
   std::string scene;                          // --scene FILE
   std::string solver = "auto";                // --solver
@@ -218,7 +219,9 @@ void add_scene_options(CLI::App& sim, SimArgs& a, CLI::Option* nodes) {
 // The `sim` options of the script times (--push-end, --release) and of what a run writes (traces, figures,
 // live view, session logs) into `a`. Not RT-safe.
 void add_sim_output_options(CLI::App* sim, SimArgs& a) {
-  sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
+  sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default: series.csv every tick, trace.csv "
+                                                  "every ceil(N/8)-th tick for N users: every tick up to 8 users, every 8th at 64)")
+      ->check(kPositive);
   sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)")
       ->check(kNonNegative);
   sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)")->check(kNonNegative);
@@ -509,7 +512,8 @@ int sim_command(const SimArgs& a) {
     fs::create_directories(a.out);
     SimOptions opt;
     opt.out_dir = a.out;
-    opt.trace_every = a.trace_every;
+    opt.trace_every = a.trace_every.value_or(default_trace_every(spec.users));
+    opt.series_every = a.trace_every.value_or(1);
     opt.progress = !a.quiet;
     opt.record = a.record;
     opt.record_ring_s = a.record_ring_s;

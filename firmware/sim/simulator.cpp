@@ -173,7 +173,7 @@ Simulation::Simulation(const BuiltScenario& built, const SimOptions& options)
       forces(static_cast<std::size_t>(built.spec.users), Eigen::Vector3d::Zero()),
       metrics(metrics_windows(built.spec.script), built.spec.period_s),
       snap_times(options.snapshot_times_s) {
-  if (opt.trace_every < 1) throw std::invalid_argument("--trace-every must be >= 1");
+  if (opt.trace_every < 1 || opt.series_every < 1) throw std::invalid_argument("--trace-every must be >= 1");
   due.assign(static_cast<std::size_t>(N), 0);
   for (int i = 0; i < N; ++i)
     clk.emplace_back(T, b.clock_rate[static_cast<std::size_t>(i)], b.spec.step_jitter, b.spec.timer_jitter_s,
@@ -320,7 +320,9 @@ SeriesRow measure(Simulation& s, std::int64_t k) {
 }
 
 void write_trace(Simulation& s, std::int64_t k, const SeriesRow& row) {
-  if (!s.trace || k % s.opt.trace_every != 0) return;
+  if (!s.trace) return;
+  if (k % s.opt.series_every == 0) write_series_row(s.series.get(), row);
+  if (k % s.opt.trace_every != 0) return;
   for (int i = 0; i < s.N; ++i) {
     const auto& core = *s.st[static_cast<std::size_t>(i)];
     TraceRow r;
@@ -339,7 +341,6 @@ void write_trace(Simulation& s, std::int64_t k, const SeriesRow& row) {
     r.contact = core.in_contact();
     write_trace_row(s.trace.get(), r);
   }
-  write_series_row(s.series.get(), row);
 }
 
 // Node positions of every copy and every proxy at the requested times.
@@ -421,6 +422,8 @@ SimResult finish(Simulation& s, std::int64_t ticks_run) {
   }
   for (auto& recorder : s.rec) recorder->finish();
   r.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - s.wall0).count();
+  r.trace_every = s.opt.trace_every;
+  r.series_every = s.opt.series_every;
   if (!s.opt.out_dir.empty() && !s.snap_times.empty())
     write_snapshots_json(s.opt.out_dir + "/snapshots.json", s.b.scene.mesh.surface, s.b.contact_nodes, s.snapshots);
   return r;
@@ -470,6 +473,8 @@ net::SendImpairment simulator_channel(const ScenarioSpec& spec, int receiver, in
   const LinkSetup ls = scenario_link(spec, receiver, sender, spec.seed);
   return net::SendImpairment(ls.model, ls.seed, 0);
 }
+
+int default_trace_every(int users) { return std::max(1, (users + 7) / 8); }
 
 SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
   Simulation s(b, opt);
@@ -550,6 +555,8 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   pk["after_consensus_s"] = run_s - settled_from_s;
   j["packets"] = pk;
   j["link_stats"] = links;
+  j["trace_every"] = r.trace_every;
+  j["series_every"] = r.series_every;
   j["wall_time_s"] = r.wall_time_s;
   write_json_file(path, j);
 }

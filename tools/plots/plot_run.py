@@ -443,7 +443,8 @@ def parse_args(args):
 if __name__ == "__main__":
     run_dir, after_go, panels = parse_args(sys.argv[1:])
     if after_go:
-        warm_up()
+        if idle_cpus() >= 1:  # else it would only add to a busy machine's load (drawing warms up anyway)
+            warm_up()
         prebuild(panels)
         if not wait_for_go():
             sys.exit(0)

@@ -19,7 +19,13 @@ the simulation, so all that overlaps the run; end of input without "go" (the run
 """
 import json
 import os
+import signal
 import sys
+
+if sys.argv[1:2] == ["--after-go"]:
+    # Ctrl-C in the terminal reaches the run and this script alike, even while it imports: the run
+    # ends, and with it this script's input (end of input: nothing drawn, no traceback)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 import matplotlib
 
@@ -448,4 +454,5 @@ if __name__ == "__main__":
         prebuild(panels)
         if not wait_for_go():
             sys.exit(0)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     sys.exit(main(run_dir))

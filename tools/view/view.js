@@ -246,8 +246,10 @@ function status(f) {
   lines.push(gateLine(f.gate));
   const nb = f.links.map(l => {
     const up = l.up !== undefined ? l.up : l.within;
+    // since when: the server's (links[].since_s, over every frame since the run began), else this page's own
     const st = linkState[l.peer] || {up: up, since: f.t};
     if (st.up !== up) { st.up = up; st.since = f.t; }
+    if (l.since_s !== undefined) st.since = l.since_s;
     linkState[l.peer] = st;
     const over = l.index_delay > l.bound;  // its newest data is older than the guard: not used this tick
     return "neighbour " + l.peer + ": " + (up ? "up" : "DOWN") + " since " + st.since.toFixed(2) + " s (N = " + l.index_delay +

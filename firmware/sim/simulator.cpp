@@ -249,9 +249,15 @@ void tick_stations(Simulation& s, double t) {
     const auto& q = s.users[static_cast<std::size_t>(i)].position_m();
     const double step_s = ck.step();
     SessionRecorder* recorder = s.rec.empty() ? nullptr : s.rec[static_cast<std::size_t>(i)].get();
+    const auto began = recorder ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
     const auto out = rt::drive_tick(core, rt::TickDrive{k, 0, q, step_s}, [&](auto&& offer) { arrived_packets(s, i, t, offer); },
                                     RecordOffered{recorder, k});
-    if (recorder) recorder->rt_tick(make_tick_record(core, k, q, out, step_s));
+    if (recorder) {  // the log's exec_ns: this step's time on this host (its packets in, the solve), as a station's tick records its own
+      TickRecord row = make_tick_record(core, k, q, out, step_s);
+      const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - began).count();
+      row.exec_ns = static_cast<std::int32_t>(std::min<std::int64_t>(ns, INT32_MAX));
+      recorder->rt_tick(row);
+    }
     s.forces[static_cast<std::size_t>(i)] = out.device_force_N;
     if ((out.flags & rt::kDiverged) && !s.diverged_at_s) {
       s.diverged_at_s = t;

@@ -8,8 +8,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <iostream>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "firmware/run/merge.hpp"
 #include "firmware/run/summary.hpp"
@@ -36,26 +43,76 @@ using haptic::platform::kNonNegative;
 using haptic::platform::kNonNegativeInteger;
 using haptic::platform::kPositive;
 
-// Runs the matplotlib figure script on a run directory; explains plainly when it cannot.
-bool make_plots(const std::string& dir) {
-  const std::string script = haptic::platform::tools_dir() + "/plots/plot_run.py";
-  if (!fs::exists(script)) {
-    std::cerr << "haptic-station: no figures: " << script
-              << " not found (looked next to this executable's ../share/haptic/tools; set HAPTIC_TOOLS_DIR)\n";
+// The figure script (tools/plots/plot_run.py --after-go --expect SNAPSHOTS USERS DIR), started
+// before the simulation: it imports matplotlib, warms up and makes the figures' empty axes while the
+// run goes, and draws DIR's figures once told that the run's files are written. Explains plainly
+// when it cannot run. Not RT-safe.
+class FigureDrawer {
+ public:
+  FigureDrawer(const std::string& dir, std::size_t snapshots, int users) {
+    const std::string script = haptic::platform::tools_dir() + "/plots/plot_run.py";
+    if (!fs::exists(script)) {
+      std::cerr << "haptic-station: no figures: " << script
+                << " not found (looked next to this executable's ../share/haptic/tools; set HAPTIC_TOOLS_DIR)\n";
+      return;
+    }
+    if (!fs::exists(kPython)) {
+      std::cerr << "haptic-station: no figures: " << kPython << " is missing (apt-get install python3-matplotlib)\n";
+      return;
+    }
+    std::vector<std::string> args{kPython, script, "--after-go", "--expect", std::to_string(snapshots), std::to_string(users), dir};
+    for (const auto& x : args) command_ += (command_.empty() ? "" : " ") + x;
+    int fds[2];
+    if (pipe2(fds, O_CLOEXEC) != 0) return;
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_adddup2(&fa, fds[0], STDIN_FILENO);  // dup2 clears close-on-exec on stdin
+    std::vector<char*> argv;
+    for (auto& x : args) argv.push_back(x.data());
+    argv.push_back(nullptr);
+    std::fflush(nullptr);
+    const int rc = posix_spawn(&pid_, kPython, &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    close(fds[0]);
+    if (rc != 0) {
+      close(fds[1]);
+      pid_ = -1;
+      std::cerr << "haptic-station: no figures: could not start " << command_ << "\n";
+      return;
+    }
+    go_fd_ = fds[1];
+  }
+  FigureDrawer(const FigureDrawer&) = delete;
+  FigureDrawer& operator=(const FigureDrawer&) = delete;
+  // Not told to draw (the run failed): stopped at once, nothing drawn.
+  ~FigureDrawer() {
+    if (pid_ <= 0) return;
+    close(go_fd_);
+    kill(pid_, SIGTERM);
+    waitpid(pid_, nullptr, 0);
+  }
+  // Tells the script to draw and waits for it: true when it drew.
+  bool draw() {
+    if (pid_ <= 0) return false;
+    const auto previous = std::signal(SIGPIPE, SIG_IGN);  // a script that already ended: a failed write, not our end
+    const bool told = write(go_fd_, "go\n", 3) == 3;
+    std::signal(SIGPIPE, previous);
+    close(go_fd_);
+    int status = 0;
+    const bool waited = waitpid(pid_, &status, 0) == pid_;
+    pid_ = -1;
+    if (told && waited && WIFEXITED(status) && WEXITSTATUS(status) == 0) return true;
+    std::cerr << "haptic-station: figure script failed (" << (!told ? "it ended before the run did" : "exit " + std::to_string(WEXITSTATUS(status)))
+              << "): " << command_ << "\n";
     return false;
   }
-  if (!fs::exists("/usr/bin/python3")) {
-    std::cerr << "haptic-station: no figures: /usr/bin/python3 is missing (apt-get install python3-matplotlib)\n";
-    return false;
-  }
-  const std::string cmd = "/usr/bin/python3 '" + script + "' '" + dir + "'";
-  const int rc = std::system(cmd.c_str());
-  if (rc != 0) {
-    std::cerr << "haptic-station: figure script failed (exit " << rc << "): " << cmd << "\n";
-    return false;
-  }
-  return true;
-}
+
+ private:
+  static constexpr const char* kPython = "/usr/bin/python3";
+  std::string command_;
+  pid_t pid_ = -1;
+  int go_fd_ = -1;
+};
 
 std::atomic<bool> g_stop{false};
 void on_stop_signal(int) { g_stop.store(true, std::memory_order_release); }
@@ -104,7 +161,8 @@ struct SimArgs {
   std::uint64_t push_seed = 1;
   double duration = -1, loss = -1, dup = -1, margin = -1, p_gain = -1, d_gain = -1, push_end = -1, release = -1;
   std::uint64_t seed = 1;
-  int nodes = -1, trace_every = 1, allowance = -1, trace_node = -1, tx_interval = 1;
+  int nodes = -1, allowance = -1, trace_node = -1, tx_interval = 1;
+  std::optional<int> trace_every;  // unset: trace.csv at default_trace_every(users), series.csv every tick
   double tx_deadband_mm = 0, edge_energy_bound = -1, edge_energy_leak = -1;
   std::string scene;                          // --scene FILE
   std::string solver = "auto";                // --solver
@@ -161,7 +219,9 @@ void add_scene_options(CLI::App& sim, SimArgs& a, CLI::Option* nodes) {
 // The `sim` options of the script times (--push-end, --release) and of what a run writes (traces, figures,
 // live view, session logs) into `a`. Not RT-safe.
 void add_sim_output_options(CLI::App* sim, SimArgs& a) {
-  sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default 1)");
+  sim->add_option("--trace-every", a.trace_every, "Write every k-th tick to trace.csv and series.csv (default: series.csv every tick, trace.csv "
+                                                  "every ceil(N/8)-th tick for N users: every tick up to 8 users, every 8th at 64)")
+      ->check(kPositive);
   sim->add_option("--trace-node", a.trace_node, "Node (0-based) whose position trace.csv records (default: first node of user 2's contact mesh)")
       ->check(kNonNegative);
   sim->add_option("--push-end", a.push_end, "Push-hold-release script: end of the push in s (default: the scenario's, 3)")->check(kNonNegative);
@@ -452,7 +512,8 @@ int sim_command(const SimArgs& a) {
     fs::create_directories(a.out);
     SimOptions opt;
     opt.out_dir = a.out;
-    opt.trace_every = a.trace_every;
+    opt.trace_every = a.trace_every.value_or(default_trace_every(spec.users));
+    opt.series_every = a.trace_every.value_or(1);
     opt.progress = !a.quiet;
     opt.record = a.record;
     opt.record_ring_s = a.record_ring_s;
@@ -468,6 +529,8 @@ int sim_command(const SimArgs& a) {
       for (double b : built.damping_min) std::cerr << " " << fmt(b, 2);
       std::cerr << (built.passivity_condition_met ? "  (met)\n" : "  (VIOLATED)\n");
     }
+    std::optional<FigureDrawer> figures;
+    if (!a.no_plots) figures.emplace(a.out, opt.snapshot_times_s.size(), spec.users);  // imports matplotlib while the simulation runs
     const SimResult r = run_simulation(built, opt);
     if (!a.quiet) std::cerr << "  solver of the linear step: " << r.solver.front() << " (station 1; summary.json \"solver\")\n";
     write_summary_json(a.out + "/summary.json", built, r);
@@ -480,7 +543,7 @@ int sim_command(const SimArgs& a) {
                    "tools/study/hold_balance.py OUT shows the time constant)\n";
     std::cout << "wrote " << a.out << "/summary.json, trace.csv, series.csv, snapshots.json\n";
     if (a.record) std::cout << "wrote " << a.out << "/station-<i>.h5 (session logs)\n";
-    if (!a.no_plots && make_plots(a.out)) std::cout << "wrote " << a.out << "/*.png\n";
+    if (figures && figures->draw()) std::cout << "wrote " << a.out << "/*.png\n";
     if (a.view_port > 0) {
       if (!a.record) throw std::invalid_argument("--view-port needs --record (the view replays the recorded session)");
       if (a.view_station < 1 || a.view_station > spec.users) throw std::invalid_argument("--view-station must be 1.." + std::to_string(spec.users));

@@ -173,7 +173,7 @@ Simulation::Simulation(const BuiltScenario& built, const SimOptions& options)
       forces(static_cast<std::size_t>(built.spec.users), Eigen::Vector3d::Zero()),
       metrics(metrics_windows(built.spec.script), built.spec.period_s),
       snap_times(options.snapshot_times_s) {
-  if (opt.trace_every < 1) throw std::invalid_argument("--trace-every must be >= 1");
+  if (opt.trace_every < 1 || opt.series_every < 1) throw std::invalid_argument("--trace-every must be >= 1");
   due.assign(static_cast<std::size_t>(N), 0);
   for (int i = 0; i < N; ++i)
     clk.emplace_back(T, b.clock_rate[static_cast<std::size_t>(i)], b.spec.step_jitter, b.spec.timer_jitter_s,
@@ -249,9 +249,15 @@ void tick_stations(Simulation& s, double t) {
     const auto& q = s.users[static_cast<std::size_t>(i)].position_m();
     const double step_s = ck.step();
     SessionRecorder* recorder = s.rec.empty() ? nullptr : s.rec[static_cast<std::size_t>(i)].get();
+    const auto began = recorder ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
     const auto out = rt::drive_tick(core, rt::TickDrive{k, 0, q, step_s}, [&](auto&& offer) { arrived_packets(s, i, t, offer); },
                                     RecordOffered{recorder, k});
-    if (recorder) recorder->rt_tick(make_tick_record(core, k, q, out, step_s));
+    if (recorder) {  // the log's exec_ns: this step's time on this host (its packets in, the solve), as a station's tick records its own
+      TickRecord row = make_tick_record(core, k, q, out, step_s);
+      const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - began).count();
+      row.exec_ns = static_cast<std::int32_t>(std::min<std::int64_t>(ns, INT32_MAX));
+      recorder->rt_tick(row);
+    }
     s.forces[static_cast<std::size_t>(i)] = out.device_force_N;
     if ((out.flags & rt::kDiverged) && !s.diverged_at_s) {
       s.diverged_at_s = t;
@@ -320,7 +326,9 @@ SeriesRow measure(Simulation& s, std::int64_t k) {
 }
 
 void write_trace(Simulation& s, std::int64_t k, const SeriesRow& row) {
-  if (!s.trace || k % s.opt.trace_every != 0) return;
+  if (!s.trace) return;
+  if (k % s.opt.series_every == 0) write_series_row(s.series.get(), row);
+  if (k % s.opt.trace_every != 0) return;
   for (int i = 0; i < s.N; ++i) {
     const auto& core = *s.st[static_cast<std::size_t>(i)];
     TraceRow r;
@@ -339,7 +347,6 @@ void write_trace(Simulation& s, std::int64_t k, const SeriesRow& row) {
     r.contact = core.in_contact();
     write_trace_row(s.trace.get(), r);
   }
-  write_series_row(s.series.get(), row);
 }
 
 // Node positions of every copy and every proxy at the requested times.
@@ -421,6 +428,8 @@ SimResult finish(Simulation& s, std::int64_t ticks_run) {
   }
   for (auto& recorder : s.rec) recorder->finish();
   r.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - s.wall0).count();
+  r.trace_every = s.opt.trace_every;
+  r.series_every = s.opt.series_every;
   if (!s.opt.out_dir.empty() && !s.snap_times.empty())
     write_snapshots_json(s.opt.out_dir + "/snapshots.json", s.b.scene.mesh.surface, s.b.contact_nodes, s.snapshots);
   return r;
@@ -470,6 +479,8 @@ net::SendImpairment simulator_channel(const ScenarioSpec& spec, int receiver, in
   const LinkSetup ls = scenario_link(spec, receiver, sender, spec.seed);
   return net::SendImpairment(ls.model, ls.seed, 0);
 }
+
+int default_trace_every(int users) { return std::max(1, (users + 7) / 8); }
 
 SimResult run_simulation(const BuiltScenario& b, const SimOptions& opt) {
   Simulation s(b, opt);
@@ -555,6 +566,8 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   pk["after_consensus_s"] = run_s - settled_from_s;
   j["packets"] = pk;
   j["link_stats"] = links;
+  j["trace_every"] = r.trace_every;
+  j["series_every"] = r.series_every;
   j["wall_time_s"] = r.wall_time_s;
   write_json_file(path, j);
 }

@@ -40,6 +40,7 @@ struct SimResult {
   std::uint64_t ticks = 0;
   std::uint64_t steps_clamped = 0;  // T_k outside [T^min, T^max] over all stations (0 with the clock model's own bounds)
   double wall_time_s = 0;
+  int trace_every = 1, series_every = 1;  // the rates trace.csv and series.csv were written at (SimOptions)
   std::vector<double> final_port_J, final_controller_J;
   // Per station: the linear step's solver (rt/step_solver: "direct" or "iterative"), the energy its
   // residual put in (EnergyMonitor::solver_residual_J, counted in the balance) and the ticks that
@@ -53,7 +54,8 @@ struct SimResult {
 
 struct SimOptions {
   std::string out_dir;        // empty: write nothing
-  int trace_every = 1;        // write every k-th tick to trace.csv
+  int trace_every = 1;        // write every k-th tick to trace.csv (sim's default: default_trace_every(users))
+  int series_every = 1;       // write every k-th tick to series.csv
   bool progress = false;      // progress lines on stderr
   std::vector<double> snapshot_times_s;  // node positions of every copy at these times
   bool record = false;        // session logs out_dir/station-<i>.h5 (firmware/session/log.hpp), lossless
@@ -62,6 +64,12 @@ struct SimOptions {
   int record_deflate = 0;     // HDF5 shuffle + deflate level of the logs' packet values (0: none; station.record_deflate)
   std::string command_line;   // stored in each log as its config_text
 };
+
+// trace.csv's default rate for `users` users: every ceil(users / 8)-th tick, so that the file holds
+// at most 8 rows per tick (the size of an 8-user run traced every tick, ~0.75 MB per simulated
+// second): every tick up to 8 users, every 8th (16 ms) at 64, where every tick wrote 118 MB for the
+// paper's 20 s. series.csv (one row per tick whatever the users) stays at every tick.
+int default_trace_every(int users);
 
 // Runs the scenario for its duration (or until 0.5 s after a divergence). Not RT-safe.
 SimResult run_simulation(const BuiltScenario& scenario, const SimOptions& options);

@@ -167,7 +167,7 @@ std::unique_ptr<SessionRecorder> open_recorder(const StationPlan& plan, const Bu
 
 // One frame for the browsers: the tick's frame plus the endpoint's per-link delay, loss and up/down.
 // Called on the view server's thread. Not RT-safe.
-bool station_view_frame(const StationPlan& plan, StationResources& res, ViewFrame& f, std::uint64_t& missed, std::string& out) {
+bool station_view_frame(const StationPlan& plan, StationResources& res, ViewFrame& f, std::uint64_t& missed, LinkSince& since, std::string& out) {
   const std::uint64_t before = f.seq;
   if (!res.view->take(f)) return false;
   if (before > 0 && f.seq > before + 1) missed += f.seq - before - 1;
@@ -180,6 +180,7 @@ bool station_view_frame(const StationPlan& plan, StationResources& res, ViewFram
     j["links"][n]["loss"] = st.peers[p].loss_fraction;
     j["links"][n]["up"] = st.peers[p].up;
   }
+  since.annotate(j);
   j["frames_dropped"] = missed;  // frames the tick published that this thread never took (the server adds its own count)
   out = j.dump();
   return true;
@@ -198,7 +199,8 @@ void open_view(const StationPlan& plan, StationResources& res, const BuildResult
   auto missed = std::make_shared<std::uint64_t>(0);
   ViewCallbacks cb;
   cb.scene = [scene_text] { return scene_text; };
-  cb.next_frame = [&plan, &res, frame, missed](std::string& out) { return station_view_frame(plan, res, *frame, *missed, out); };
+  auto since = std::make_shared<LinkSince>();
+  cb.next_frame = [&plan, &res, frame, missed, since](std::string& out) { return station_view_frame(plan, res, *frame, *missed, *since, out); };
   ViewServerConfig vc;
   vc.bind = plan.file.view.bind;
   vc.port = plan.file.view.port;

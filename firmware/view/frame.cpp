@@ -113,4 +113,14 @@ nlohmann::json view_frame_json(const ViewFrame& f) {
   return j;
 }
 
+void LinkSince::annotate(nlohmann::json& frame) {
+  const double t = frame.value("t", 0.0);
+  for (auto& l : frame["links"]) {
+    const bool up = l.contains("up") ? l["up"].get<bool>() : l.value("within", false);
+    const auto [it, first] = state_.try_emplace(l.value("peer", 0), up, t);
+    if (!first && it->second.first != up) it->second = {up, t};
+    l["since_s"] = it->second.second;
+  }
+}
+
 }  // namespace haptic::firmware

@@ -4,7 +4,9 @@
 // (platform/latest_mailbox.hpp): the tick never waits, an unread frame is replaced (counted by the
 // reader from the sequence numbers). The non-RT side turns frames into JSON for the browser.
 #include <cstdint>
+#include <map>
 #include <string>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -82,5 +84,16 @@ class ViewPublisher {
 nlohmann::json view_scene_json(const rt::StationCore& core, int station_id, const std::string& mode);
 // A frame as JSON (positions in micrometres as integers). Not RT-safe.
 nlohmann::json view_frame_json(const ViewFrame& f);
+
+// Each link's "since_s" in frames given in run order: the run time its state (links[].up where
+// the endpoint says, else within its bound) last changed, or the first frame's time it was seen
+// in, so that a page opened late says since when, not since it was opened. Not RT-safe.
+class LinkSince {
+ public:
+  void annotate(nlohmann::json& frame);
+
+ private:
+  std::map<int, std::pair<bool, double>> state_;  // peer -> (up, since_s)
+};
 
 }  // namespace haptic::firmware

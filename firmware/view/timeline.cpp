@@ -126,6 +126,8 @@ ReplayResult serve_timeline(const std::string& log, const ReplayOptions& replay,
   if (!kept.empty()) {
     LinkAges ages(log, static_cast<int>(kept.front()["links"].size()));
     for (auto& f : kept) ages.annotate(f);
+    LinkSince since;
+    for (auto& f : kept) since.annotate(f);
   }
   const std::size_t stride = kept.size() / 4000 + 1;
   nlohmann::json history = nlohmann::json::array();

@@ -8,7 +8,8 @@ usage: /usr/bin/python3 tools/plots/check_figures.py RUN_DIR
 - the node figure names the traced node and plots its x-DISPLACEMENT from rest:
   1e3 (node_x - rest_x) of trace.csv per user, not its position;
 - the release and push-end lines and the consensus threshold carry text labels;
-- the snapshot figure has axes ticks in mm, a colour bar, and colours each surface triangle by the
+- every drawn time series of the node figure is made of samples and keeps each time slice's extremes;
+- the snapshot figure says which users' copies it shows (all, or users 1-8 of N), has axes ticks in mm, a colour bar, and colours each surface triangle by the
   mean distance of its corners from the mean shape of ALL copies (snapshots.json's
   distance_from_mean_shape_m, written by the run), on one scale for the whole figure.
 Exit 0 when all hold, 1 with every failure listed.
@@ -39,10 +40,30 @@ def check_node(fig, summary, tr, fail):
         fail.append("node figure: %d user lines for %d users" % (len(lines), summary["users"]))
     for u, line in enumerate(lines, start=1):
         m = tr["user"] == u
-        want = 1e3 * (tr["node_x_m"][m] - rest_x)
-        if not np.allclose(line.get_ydata(), want, rtol=0, atol=1e-9):
-            fail.append("node figure: user %d's line is not 1e3 (node_x - rest_x) (max diff %.3g mm)" % (
-                u, np.max(np.abs(np.asarray(line.get_ydata()) - want))))
+        check_samples(line, tr["t_s"][m], 1e3 * (tr["node_x_m"][m] - rest_x), "node figure: user %d's line" % u, fail)
+
+
+def check_samples(line, t, want, what, fail):
+    """A drawn time series against its data: every drawn point is the sample at its time, and for
+    each of 200 equal time slices the drawn line, within a decimation bucket of it, reaches the
+    slice's lowest and highest sample (plot_run.decimate keeps each bucket's extremes)."""
+    x, y = np.asarray(line.get_xdata(), dtype=float), np.asarray(line.get_ydata(), dtype=float)
+    at = np.searchsorted(t, x)
+    if len(x) == 0 or np.any(at >= len(t)) or not np.allclose(t[np.minimum(at, len(t) - 1)], x, rtol=0, atol=1e-12):
+        fail.append("%s: drawn at times that are not sample times" % what)
+        return
+    if not np.allclose(y, want[at], rtol=0, atol=1e-9):
+        fail.append("%s is not 1e3 (node_x - rest_x) (max diff %.3g mm)" % (what, np.max(np.abs(y - want[at]))))
+        return
+    edges = np.linspace(t[0], t[-1], 201)
+    bucket = 1.5 * (t[-1] - t[0]) / plot_run.LINE_BUCKETS
+    for a, b in zip(edges[:-1], edges[1:]):
+        w = want[(t >= a) & (t < b)]
+        d = y[(x >= a - bucket) & (x < b + bucket)]
+        if len(w) and (len(d) == 0 or d.min() > w.min() or d.max() < w.max()):
+            fail.append("%s: %.3f-%.3f s: drawn range %s misses the samples' %.6g..%.6g (an extreme left out)" % (
+                what, a, b, "%.6g..%.6g" % (d.min(), d.max()) if len(d) else "empty", w.min(), w.max()))
+            return
 
 
 def check_labels(figs, summary, fail):
@@ -79,6 +100,10 @@ def check_snapshots(fig, summary, sn, fail):
     bars = [ax for ax in fig.axes if not hasattr(ax, "get_zlim") and "mean shape" in ax.get_ylabel()]
     if not bars:
         fail.append("snapshot figure: no colour bar labelled with the distance from the mean shape")
+    title = fig._suptitle.get_text() if fig._suptitle else ""
+    says = ("users 1-%d's copies (of %d users" % (cols, users)) if cols < users else ("all %d copies" % users)
+    if says not in title:
+        fail.append("snapshot figure: the title does not say which copies it shows (%r not in %r)" % (says, title))
     want = expected_face_colours(sn, users, cols)
     for i, ax in enumerate(panels):
         r, u = divmod(i, cols)

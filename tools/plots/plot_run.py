@@ -1,17 +1,31 @@
 #!/usr/bin/python3
 """Figures of one haptic-station run directory (in the spirit of the paper's Figs. 8-10).
 
-usage: /usr/bin/python3 tools/plots/plot_run.py RUN_DIR
+usage: /usr/bin/python3 tools/plots/plot_run.py [--after-go [--expect SNAPSHOTS USERS]] RUN_DIR
 
 Reads RUN_DIR/trace.csv, series.csv, summary.json and (if present) snapshots.json, written alike by
 `haptic-station sim` and by `haptic-station merge` after a real (multi-process) run, and writes
 fig_node_position.png (the traced node's displacement from rest), fig_device_force.png,
 fig_energy.png, fig_consensus.png and fig_snapshots.png (the copies coloured by their distance
 from the mean shape) into RUN_DIR.
+
+Speed (tools/bench/results/README.md "Figures"): one process imports matplotlib once, reads the CSV
+files with numpy's C parser, draws each time series min/max-decimated to the figure's resolution
+(every drawn point is a sample; each pixel column's extremes are kept), writes PNG at compression
+level 1 and, with a CPU idle, draws the snapshot figure in a forked child while it draws the others. --after-go imports, warms up and makes
+the figures' empty axes (the snapshot figure's when --expect says how many snapshots and users) first,
+then waits for a line "go" on stdin before reading RUN_DIR: `haptic-station sim` starts it before
+the simulation, so all that overlaps the run; end of input without "go" (the run failed) draws nothing.
 """
 import json
 import os
+import signal
 import sys
+
+if sys.argv[1:2] == ["--after-go"]:
+    # Ctrl-C in the terminal reaches the run and this script alike, even while it imports: the run
+    # ends, and with it this script's input (end of input: nothing drawn, no traceback)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 import matplotlib
 
@@ -21,11 +35,43 @@ import numpy as np  # noqa: E402
 from matplotlib import cm, colors  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
-MAX_COPIES_DRAWN = 8  # a 64-user run: the snapshot figure draws users 1-8 (the mean shape uses all)
+MAX_COPIES_DRAWN = 8  # a 64-user run: the snapshot figure draws users 1-8 and says so (the mean shape uses all)
+LINE_BUCKETS = 1000  # a time axis is at most 880 px wide (8 in at 110 dpi): min and max of 1000 columns per line
 
 
 def load_csv(path):
-    return np.genfromtxt(path, delimiter=",", names=True)
+    """The CSV's columns by header name, as float arrays (np.loadtxt's C parser: a fraction of
+    genfromtxt's time and memory)."""
+    with open(path) as f:
+        names = f.readline().strip().split(",")
+    a = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if a.size == 0:
+        a = np.zeros((0, len(names)))
+    return {n: a[:, i] for i, n in enumerate(names)}
+
+
+def decimate(t, y, buckets=LINE_BUCKETS):
+    """(t, y) with at most two samples per bucket of equal sample count: each bucket's lowest and
+    highest, in time order, and the first and last sample. Every drawn point is a sample and every
+    bucket's extremes are drawn, so at the figure's resolution the line looks the same."""
+    t, y = np.asarray(t), np.asarray(y)
+    n = len(y)
+    if n <= 2 * buckets:
+        return t, y
+    k = n // buckets
+    m = k * buckets
+    block = y[:m].reshape(buckets, k)
+    base = np.arange(buckets) * k
+    idx = [base + block.argmin(axis=1), base + block.argmax(axis=1), [0, n - 1]]
+    if m < n:
+        idx.append([m + int(np.argmin(y[m:])), m + int(np.argmax(y[m:]))])
+    keep = np.unique(np.concatenate(idx))
+    return t[keep], y[keep]
+
+
+def plot_line(ax, t, y, *args, **kw):
+    """ax.plot of a time series, decimated (decimate())."""
+    return ax.plot(*decimate(t, y), *args, **kw)
 
 
 def run_title(summary):
@@ -63,16 +109,57 @@ def contact_owner(node, contacts):
     return [u + 1 for u, c in enumerate(contacts or []) if node in c]
 
 
+_PREBUILT = {}  # figure name -> (figure, axes) made while the run was still going (prebuild())
+
+
+def make_figure(name, panels=None):
+    """The empty figure `name` and its axes: what no run's data changes (panels: the snapshot
+    figure's (rows, columns) of 3D axes)."""
+    if name == "fig_snapshots.png":
+        rows, cols = panels
+        fig = plt.figure(figsize=(2.3 * cols + 1.0, 2.2 * rows + 0.5))
+        return fig, [snapshot_panel(fig, rows, cols, i) for i in range(rows * cols)]
+    if name in ("fig_node_position.png", "fig_consensus.png"):
+        return plt.subplots(figsize=(8, 3.8))
+    return plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+
+
+def snapshot_panel(fig, rows, cols, i):
+    """Panel i of the snapshot figure: a cube of 3D axes with three ticks an axis (their values
+    come with the data), small labels."""
+    ax = fig.add_subplot(rows, cols, i + 1, projection="3d", computed_zorder=False)  # markers on top
+    ax.set_box_aspect((1, 1, 1))
+    ax.set_xticks([-1, 0, 1]), ax.set_yticks([-1, 0, 1]), ax.set_zticks([-1, 0, 1])
+    ax.tick_params(labelsize=5, pad=-2)
+    return ax
+
+
+def new_figure(name, panels=None):
+    """make_figure(name, panels), or the one prebuild() made for it when it has these panels."""
+    made = _PREBUILT.pop((name, panels), None)
+    return made if made is not None else make_figure(name, panels)
+
+
+def prebuild(panels):
+    """Makes every figure's empty axes ahead of the data (the snapshot figure's when its panels,
+    (snapshots, copies drawn), are known)."""
+    for name in FIGURES:
+        if name != "fig_snapshots.png":
+            _PREBUILT[(name, None)] = make_figure(name)
+        elif panels:
+            _PREBUILT[(name, panels)] = make_figure(name, panels)
+
+
 def fig_node(summary, tr, contacts):
     users = int(summary["users"])
     node = int(summary.get("trace_node", 0))
     rest = summary.get("trace_node_rest_m")
-    fig, ax = plt.subplots(figsize=(8, 3.8))
+    fig, ax = new_figure("fig_node_position.png")
     for u in range(1, users + 1):
         m = tr["user"] == u
         x = tr["node_x_m"][m]
         x0 = rest[0] if rest is not None else (x[0] if len(x) else 0.0)
-        ax.plot(tr["t_s"][m], 1e3 * (x - x0), lw=1, label="user %d's copy" % u)
+        plot_line(ax, tr["t_s"][m], 1e3 * (x - x0), lw=1, label="user %d's copy" % u)
     ax.axhline(0, color="0.8", lw=0.6)
     mark_events(ax, summary)
     owners = contact_owner(node, contacts)
@@ -89,16 +176,16 @@ def fig_node(summary, tr, contacts):
 
 def fig_force(summary, tr, se):
     users = int(summary["users"])
-    fig, axs = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    fig, axs = new_figure("fig_device_force.png")
     for u in range(1, users + 1):
         m = tr["user"] == u
-        axs[0].plot(tr["t_s"][m], tr["force_x_N"][m], lw=1, label="u_x user %d" % u)
-    axs[0].plot(se["t_s"], se["force_sum_x_N"], "k", lw=1.2, label="sum u_x")
+        plot_line(axs[0], tr["t_s"][m], tr["force_x_N"][m], lw=1, label="u_x user %d" % u)
+    plot_line(axs[0], se["t_s"], se["force_sum_x_N"], "k", lw=1.2, label="sum u_x")
     axs[0].set_ylabel("device force x (N)")
     if users <= 8:
         axs[0].legend(fontsize=7, ncol=3, loc="lower right")
     axs[0].set_title(run_title(summary), fontsize=9)
-    axs[1].plot(se["t_s"], se["force_sum_norm_N"], "k", lw=1)
+    plot_line(axs[1], se["t_s"], se["force_sum_norm_N"], "k", lw=1)
     axs[1].set_ylabel("|sum_i u_i| (N)")
     axs[1].set_xlabel("time (s)")
     mark_events(axs[0], summary)
@@ -109,11 +196,11 @@ def fig_force(summary, tr, se):
 
 def fig_energy(summary, tr, se):
     users = int(summary["users"])
-    fig, axs = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    fig, axs = new_figure("fig_energy.png")
     for u in range(1, users + 1):
         m = tr["user"] == u
-        axs[0].plot(tr["t_s"][m], 1e3 * tr["port_energy_J"][m], lw=1, label="user %d" % u)
-    axs[0].plot(se["t_s"], 1e3 * se["port_energy_total_J"], "k", lw=1.4, label="total")
+        plot_line(axs[0], tr["t_s"][m], 1e3 * tr["port_energy_J"][m], lw=1, label="user %d" % u)
+    plot_line(axs[0], se["t_s"], 1e3 * se["port_energy_total_J"], "k", lw=1.4, label="total")
     bound = -1e3 * summary["passivity_bound_J"]
     axs[0].axhline(bound, color="r", ls=":", lw=1, label="-d^2 (eq. 13)")
     axs[0].annotate("passivity bound -d^2 = %.3g mJ (eq. 13)" % bound, xy=(0.01, bound), xycoords=("axes fraction", "data"),
@@ -122,7 +209,7 @@ def fig_energy(summary, tr, se):
     if users <= 8:
         axs[0].legend(fontsize=7, ncol=3, loc="lower right")
     axs[0].set_title(run_title(summary), fontsize=9)
-    axs[1].plot(se["t_s"], 1e3 * se["controller_energy_total_J"], "k", lw=1.2, label="consensus controller (eq. 14)")
+    plot_line(axs[1], se["t_s"], 1e3 * se["controller_energy_total_J"], "k", lw=1.2, label="consensus controller (eq. 14)")
     axs[1].set_ylabel("controller energy (mJ)")
     axs[1].set_xlabel("time (s)")
     axs[1].legend(fontsize=7)
@@ -144,10 +231,11 @@ def threshold_lines(summary):
 
 
 def fig_consensus(summary, se):
-    fig, ax = plt.subplots(figsize=(8, 3.8))
+    fig, ax = new_figure("fig_consensus.png")
     floor = 1e-15
-    ax.semilogy(se["t_s"], 1e3 * np.maximum(se["consensus_error_m"], floor), lw=1, label="consensus error max |x_i - x_j|")
-    ax.semilogy(se["t_s"], 1e3 * np.maximum(se["deformation_m"], floor), lw=1, label="shape deformation, rms")
+    plot_line(ax, se["t_s"], 1e3 * np.maximum(se["consensus_error_m"], floor), lw=1, label="consensus error max |x_i - x_j|")
+    plot_line(ax, se["t_s"], 1e3 * np.maximum(se["deformation_m"], floor), lw=1, label="shape deformation, rms")
+    ax.set_yscale("log")
     for v, label, c, ls in threshold_lines(summary):
         ax.axhline(1e3 * v, color=c, ls=ls, lw=0.9)
         ax.annotate(label % (1e3 * v), xy=(0.99, 1e3 * v), xycoords=("axes fraction", "data"), xytext=(0, 2), textcoords="offset points",
@@ -197,11 +285,11 @@ def fig_snapshots(summary, sn):
     norm = colors.Normalize(0, vmax)
     cmap = plt.get_cmap("viridis")
     rows, cols = len(snaps), min(users, MAX_COPIES_DRAWN)
-    fig = plt.figure(figsize=(2.3 * cols + 1.0, 2.2 * rows + 0.5))
+    fig, panels = new_figure("fig_snapshots.png", (rows, cols))
     lim = 1e3 * radius * 1.15
     for r, s in enumerate(snaps):
         for u in range(cols):
-            ax = fig.add_subplot(rows, cols, r * cols + u + 1, projection="3d", computed_zorder=False)  # markers on top
+            ax = panels[r * cols + u]
             x = 1e3 * (ref_c + factor * defo[r][u])
             face = dist[r][u][surf].mean(axis=1)
             ax.add_collection3d(Poly3DCollection(x[surf], facecolors=cmap(norm(face), alpha=0.85), edgecolors="0.25",
@@ -213,10 +301,8 @@ def fig_snapshots(summary, sn):
             ax.scatter([vp[0]], [vp[1]], [vp[2]], color="r", s=12, depthshade=False, zorder=4)
             for setlim in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
                 setlim(-lim, lim)
-            ax.set_box_aspect((1, 1, 1))
             ticks = [-round(radius * 1e3), 0, round(radius * 1e3)]
-            ax.set_xticks(ticks), ax.set_yticks(ticks), ax.set_zticks(ticks)
-            ax.tick_params(labelsize=5, pad=-2)
+            ax.set_xticks(ticks), ax.set_yticks(ticks), ax.set_zticks(ticks)  # the panel's three ticks (snapshot_panel)
             if r == rows - 1 and u == 0:
                 ax.set_xlabel("x (mm)", fontsize=6, labelpad=-8)
                 ax.set_ylabel("y (mm)", fontsize=6, labelpad=-8)
@@ -231,35 +317,142 @@ def fig_snapshots(summary, sn):
     cb = fig.colorbar(cm.ScalarMappable(norm=norm, cmap=cmap), cax=cax)
     cb.set_label("distance from the mean shape\n(of the %d copies), mm" % users, fontsize=7)
     cb.ax.tick_params(labelsize=6)
-    fig.suptitle("%s\ncopies about their centroids (mm), deformation x%d; colour: distance from the mean shape;"
-                 " VP red, contact nodes black" % (run_title(summary), factor), fontsize=8)
+    fig.suptitle("%s\n%s about their centroids (mm), deformation x%d; colour: distance from the mean shape;"
+                 " VP red, contact nodes black" % (run_title(summary), copies_shown(users, cols), factor), fontsize=8)
     return fig
 
 
-def figures(run):
-    """The run's figures as {file name: matplotlib Figure} (tests inspect them)."""
+def copies_shown(users, cols):
+    """Which copies a snapshot figure of `cols` columns shows, said in its title."""
+    if cols >= users:
+        return "all %d copies" % users
+    return "users 1-%d's copies (of %d users; the mean shape and the colour scale use all %d)" % (cols, users, users)
+
+
+FIGURES = ("fig_snapshots.png", "fig_node_position.png", "fig_device_force.png", "fig_energy.png", "fig_consensus.png")  # slowest first
+
+
+def load_run(run):
+    """A run directory's files: (summary, trace columns, series columns, snapshots or None)."""
     summary = json.load(open(os.path.join(run, "summary.json")))
     tr = load_csv(os.path.join(run, "trace.csv"))
     se = load_csv(os.path.join(run, "series.csv"))
     snap_path = os.path.join(run, "snapshots.json")
     sn = json.load(open(snap_path)) if os.path.exists(snap_path) else None
-    out = {"fig_node_position.png": fig_node(summary, tr, sn["contact_nodes"] if sn else None),
-           "fig_device_force.png": fig_force(summary, tr, se),
-           "fig_energy.png": fig_energy(summary, tr, se),
-           "fig_consensus.png": fig_consensus(summary, se)}
-    if sn and sn["snapshots"]:
-        out["fig_snapshots.png"] = fig_snapshots(summary, sn)
-    return out
+    return summary, tr, se, sn
+
+
+def figure(name, data):
+    """One figure of FIGURES from load_run()'s data, None when the run has nothing for it."""
+    summary, tr, se, sn = data
+    if name == "fig_snapshots.png":
+        return fig_snapshots(summary, sn) if sn and sn["snapshots"] else None
+    if name == "fig_node_position.png":
+        return fig_node(summary, tr, sn["contact_nodes"] if sn else None)
+    if name == "fig_device_force.png":
+        return fig_force(summary, tr, se)
+    if name == "fig_energy.png":
+        return fig_energy(summary, tr, se)
+    return fig_consensus(summary, se)
+
+
+def figures(run):
+    """The run's figures as {file name: matplotlib Figure} (tests inspect them)."""
+    data = load_run(run)
+    out = {name: figure(name, data) for name in FIGURES}
+    return {name: fig for name, fig in out.items() if fig is not None}
+
+
+def save(fig, run, name):
+    """The figure as RUN/NAME, PNG compression level 1 (the same pixels as the default level 6,
+    ~10 % larger, a fraction of the encoding time)."""
+    fig.savefig(os.path.join(run, name), dpi=100 if name == "fig_snapshots.png" else 110, pil_kwargs={"compress_level": 1})
+    plt.close(fig)
+
+
+def draw(run, data, names):
+    """Draws and saves the figures `names` of load_run()'s data; returns how many failed."""
+    failed = 0
+    for name in names:
+        try:
+            fig = figure(name, data)
+            if fig is not None:
+                save(fig, run, name)
+        except Exception as e:  # the other figures still get drawn; the exit status says it
+            print("plot_run.py: %s: %s: %s" % (name, type(e).__name__, e), file=sys.stderr)
+            failed += 1
+    return failed
+
+
+def idle_cpus():
+    """CPUs this process may use minus the 1-minute load average: what a second process would get."""
+    return len(os.sched_getaffinity(0)) - os.getloadavg()[0]
 
 
 def main(run):
-    for name, fig in figures(run).items():
-        fig.savefig(os.path.join(run, name), dpi=100 if name == "fig_snapshots.png" else 110)
-        plt.close(fig)
+    """Draws every figure of `run` from its files read once. With a CPU idle, a forked child draws
+    the snapshot figure (the slowest: 3D panels) while this process draws the time series; on a
+    busy machine a second process would only add its own cost, so one process draws them all.
+    Returns the exit status: 0 when every figure was drawn."""
+    data = load_run(run)
+    if idle_cpus() < 1:
+        return 1 if draw(run, data, FIGURES) else 0
+    sys.stdout.flush(), sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:
+        os._exit(1 if draw(run, data, FIGURES[:1]) else 0)
+    failed = draw(run, data, FIGURES[1:])
+    _, status = os.waitpid(pid, 0)
+    return 1 if failed or os.waitstatus_to_exitcode(status) != 0 else 0
+
+
+def warm_up():
+    """What every figure needs and no run's data changes, done while the run is still going: the
+    fonts, the mathtext parser of a log axis's labels, a 3D panel and the PNG writer (the forked
+    workers inherit it all)."""
+    import io
+    fig = plt.figure(figsize=(2, 2))
+    ax = fig.add_subplot(1, 2, 1)
+    ax.semilogy([0, 1], [1e-3, 1e-1])
+    ax.set_title("warm-up x (mm)", fontsize=8)
+    ax3 = fig.add_subplot(1, 2, 2, projection="3d")
+    ax3.add_collection3d(Poly3DCollection([[(0, 0, 0), (1, 0, 0), (0, 1, 0)]]))
+    ax3.text2D(0, 0, "t = 0 s", fontsize=7)
+    fig.tight_layout()
+    fig.savefig(io.BytesIO(), format="png", dpi=20)
+    plt.close(fig)
+
+
+def wait_for_go():
+    """True when stdin says "go" (the run's files are written); False at end of input (no run).
+    Anything else is a caller's mistake: exit 2 saying so."""
+    line = sys.stdin.readline()
+    if line and line.strip() != "go":
+        print("plot_run.py --after-go: expected 'go' on stdin, got %r" % line.strip(), file=sys.stderr)
+        sys.exit(2)
+    return line.strip() == "go"
+
+
+def parse_args(args):
+    """(run dir, after_go, snapshot panels or None) from [--after-go [--expect SNAPSHOTS USERS]] RUN_DIR."""
+    after_go = bool(args) and args[0] == "--after-go"
+    args = args[1:] if after_go else args
+    panels = None
+    if after_go and len(args) >= 3 and args[0] == "--expect":
+        panels, args = (int(args[1]), min(int(args[2]), MAX_COPIES_DRAWN)), args[3:]
+    if len(args) != 1 or args[0] in ("-h", "--help"):
+        print(__doc__)
+        sys.exit(0 if len(args) == 1 else 2)
+    return args[0], after_go, panels
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2 or sys.argv[1] in ("-h", "--help"):
-        print(__doc__)
-        sys.exit(0 if len(sys.argv) == 2 else 2)
-    main(sys.argv[1])
+    run_dir, after_go, panels = parse_args(sys.argv[1:])
+    if after_go:
+        if idle_cpus() >= 1:  # else it would only add to a busy machine's load (drawing warms up anyway)
+            warm_up()
+        prebuild(panels)
+        if not wait_for_go():
+            sys.exit(0)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    sys.exit(main(run_dir))

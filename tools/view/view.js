@@ -1,15 +1,42 @@
 // Live view client: one WebSocket ("haptic-view") to the station; a scene message, then frames.
 "use strict";
 const COLORS = ["#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"];
+const COLOR_NAMES = ["red", "blue", "green", "purple", "orange", "brown"];  // COLORS in words, for the legend
 const WINDOW_S = 20;
 let scene = null, mesh = null, copies = [], vpMark = null, devMark = null, coupling = null, contactPts = null;
 let seekTo = null;  // a seek this page asked for: frames sent before the server applied it are stale and not shown
 let statusSent = 0, renderer, camera, world, geom, charts = {}, linkState = {}, framesSeen = 0, lastSeq = 0, missed = 0;
 let arrivals = [], opened = performance.now();  // arrival times (ms) of the frames of the last 2 s: the frame rate this page receives
 let lastPlotsDrawn = 0, lastStatusDrawn = 0;
-// ?exaggerate=E draws every copy's deformation (its displacement from rest) E times (display only; default 1)
-const EXAGGERATE = Math.max(1, Number(new URLSearchParams(location.search).get("exaggerate")) || 1);
+// ?exaggerate=E draws every copy's deformation (its displacement from rest) E times (display only;
+// default: defaultExaggeration of the scene, said in the legend)
+const ASKED_EXAGGERATION = Number(new URLSearchParams(location.search).get("exaggerate"));
+let EXAGGERATE = 1;
 let restMm = null;
+
+// The deformation's default scale: the smallest of 1, 2, 5 x 10^k that draws a 1 mm displacement as
+// at least a tenth of the object's radius (within 1 %; the paper's ball, radius 50 mm: x5, so its ~1.4 mm dent
+// shows as ~7 mm); at least 1. restMm: the rest positions (mm), x y z per node.
+function defaultExaggeration(restMm) {
+  const n = restMm.length / 3, c = [0, 0, 0];
+  for (let i = 0; i < 3 * n; ++i) c[i % 3] += restMm[i] / n;
+  let radius = 0;
+  for (let i = 0; i < n; ++i)
+    radius = Math.max(radius, Math.hypot(restMm[3 * i] - c[0], restMm[3 * i + 1] - c[1], restMm[3 * i + 2] - c[2]));
+  const want = 0.1 * radius / 1.0;
+  if (!(want > 1)) return 1;
+  const e = Math.pow(10, Math.floor(Math.log10(want)));
+  return [1, 2, 5, 10].map(f => f * e).find(v => v >= 0.99 * want);  // 1 %: a radius rounded to the micrometre stays x5
+}
+
+// The legend under the 3D view: what each colour is, each neighbour's by its station, and the scale
+// the deformation is drawn at.
+function legendText(neighbours, exaggerate, asked) {
+  const nb = neighbours.map((p, j) => "station " + p + " " + COLOR_NAMES[j % COLOR_NAMES.length]).join(", ");
+  return "grey: this copy · wireframes: the neighbours' last received copies (" + (nb || "none") + ")" +
+    " · red dots: contact mesh · blue: proxy · green: device · deformation drawn x" + exaggerate +
+    (asked ? " (?exaggerate)" : " (default; ?exaggerate=1 for true scale)");
+}
 const shown = (um, i) => restMm[i] + EXAGGERATE * (um * 1e-3 - restMm[i]);  // mm
 let cursorT = null;  // a recording: the plots hold the whole run, a vertical line marks the frame shown
 
@@ -33,7 +60,9 @@ function setup3d(s) {
   let c = [0, 0, 0];
   for (let i = 0; i < 3 * n; ++i) { rest[i] = s.rest_um[i] * 1e-3; c[i % 3] += rest[i] / n; }  // mm
   restMm = rest;
-  if (EXAGGERATE !== 1) document.getElementById("legend").textContent += " · deformation shown x" + EXAGGERATE;
+  const asked = ASKED_EXAGGERATION > 0;
+  EXAGGERATE = asked ? Math.max(1, ASKED_EXAGGERATION) : defaultExaggeration(rest);
+  document.getElementById("legend").textContent = legendText(s.neighbours, EXAGGERATE, asked);
   geom = new THREE.BufferGeometry();
   geom.setAttribute("position", new THREE.BufferAttribute(rest.slice(), 3));
   geom.setIndex(s.triangles);
@@ -217,8 +246,10 @@ function status(f) {
   lines.push(gateLine(f.gate));
   const nb = f.links.map(l => {
     const up = l.up !== undefined ? l.up : l.within;
+    // since when: the server's (links[].since_s, over every frame since the run began), else this page's own
     const st = linkState[l.peer] || {up: up, since: f.t};
     if (st.up !== up) { st.up = up; st.since = f.t; }
+    if (l.since_s !== undefined) st.since = l.since_s;
     linkState[l.peer] = st;
     const over = l.index_delay > l.bound;  // its newest data is older than the guard: not used this tick
     return "neighbour " + l.peer + ": " + (up ? "up" : "DOWN") + " since " + st.since.toFixed(2) + " s (N = " + l.index_delay +

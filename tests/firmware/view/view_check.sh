@@ -86,6 +86,10 @@ if [ "$mode" = replay ]; then
   t_b=$(sed -n 's/.* · t = \([0-9.]*\) s · .*/\1/p' "$out/status.txt")
   /usr/bin/python3 -c 'import sys; sys.exit(0 if sys.argv[1] and float(sys.argv[1]) > 4.0 else 1)' "$t_b" ||
     { echo "FAILED: the page opened at frame 140 (t ~ 4.8 s) showed t = ${t_b:-?} s"; cat "$out/status.txt"; exit 1; }
+  # "up since" is the run time the link came up (the server's, over every frame), not when the page opened
+  /usr/bin/python3 -c 'import re,sys; s = [float(x) for x in re.findall(r"neighbour \d+: (?:up|DOWN) since ([0-9.]+) s", open(sys.argv[1]).read())]
+sys.exit(0 if s and min(s) < float(sys.argv[2]) - 0.5 else 1)' "$out/status.txt" "$t_b" ||
+    { echo "FAILED: the page opened at t = $t_b s says its neighbours are up since then, not since the run time they came up"; cat "$out/status.txt"; exit 1; }
 else
   [ -s "$out/run4/station-1.json" ] || { echo "FAILED: station 1 wrote no station-1.json"; tail -20 "$out/run4.log"; exit 1; }
   /usr/bin/python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["recording"]["view"]["last_browser_status"])' "$out/run4/station-1.json" > "$out/status.txt"

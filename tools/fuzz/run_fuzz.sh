@@ -27,7 +27,15 @@ for t in "${targets[@]}"; do
   if [ "$t" = fuzz_wire ]; then cp -n "$here"/seeds/* "$corpus"/ 2>/dev/null || true
   else python3 "$here/make_session_seeds.py" "$corpus"; fi
   echo "== $t: $each s"
+  rc=0
   # shellcheck disable=SC2086
   "$build/$t" -max_total_time="$each" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
-    -artifact_prefix="$build/$t-" ${FUZZ_FLAGS:-} "$corpus" 2>&1 | tail -8
+    -artifact_prefix="$build/$t-" ${FUZZ_FLAGS:-} "$corpus" > "$build/$t.log" 2>&1 || rc=$?
+  if [ "$rc" -ne 0 ]; then
+    # libFuzzer exits 77 on a finding, which CTest could take for "skipped": always 1 here.
+    tail -40 "$build/$t.log"
+    echo "run_fuzz.sh: $t failed (libFuzzer exit $rc); the input is $build/$t-crash-* (or -leak-, -timeout-, -oom-)" >&2
+    exit 1
+  fi
+  tail -8 "$build/$t.log"
 done

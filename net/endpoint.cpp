@@ -257,14 +257,21 @@ void Endpoint::io_step(std::int64_t now_ns, bool rx, bool caught_spinning) {
   }
   if (rx) handle_rx(now_ns);
   handle_tx(now_ns, caught_spinning);
-  if (now_ns >= next_hello_ns_) send_wanted_hellos(pushes_sent_, now_ns, now_ns);
+  if (now_ns >= next_hello_ns_) send_wanted_hellos(now_ns, now_ns);
   send_keepalive(now_ns);
-  delay_.release_due(monotonic_ns(), [this](std::uint16_t dest, const std::uint8_t* d, std::size_t len) {
+  delay_.release_due(io_clock(), [this](std::uint16_t dest, const std::uint8_t* d, std::size_t len) {
     const int pi = find_peer(dest);
     if (pi >= 0) send_now(dest, d, len, *peers_[static_cast<std::size_t>(pi)]);
   });
-  check_silence(monotonic_ns());
+  check_silence(io_clock());
   publish_stats();
+}
+
+void Endpoint::step_without_thread(std::int64_t now_ns) {
+  if (io_.started()) throw std::logic_error("net: step_without_thread() on an endpoint whose I/O thread was started");
+  step_now_ns_ = now_ns;
+  io_step(now_ns, true);
+  step_now_ns_ = -1;
 }
 
 void Endpoint::check_silence(std::int64_t now_ns) {
@@ -457,7 +464,7 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
       // state back for thousands of datagrams (measured: round-trip bounds up by 2-3 ticks and
       // echoes missing at 20,000 junk datagrams/s, tools/flood).
       if (tx_.ready_size() > 0) return;
-      now_ns = monotonic_ns();  // each datagram's own receive time (echo slots, rate buckets)
+      now_ns = io_clock();  // each datagram's own receive time (echo slots, rate buckets)
     }
     int source = kSourceUnchecked;
     const long n = transport_->receive_from(rx_buf_.data(), rx_buf_.size(), source);
@@ -479,7 +486,7 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
 
 // ------------------------------------------------------------------ sending
 
-void Endpoint::send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns, bool all) {
+void Endpoint::send_fingerprints(std::int64_t stamp_ns, bool all) {
   if (fingerprint_.scene_nodes == 0) return;
   // The first pushes, then every 25th (20 Hz at a 2 ms tick): a neighbour that starts or
   // restarts later learns it within 50 ms. Pairwise keys: only to a neighbour whose keys are
@@ -490,7 +497,7 @@ void Endpoint::send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns, bool 
     if (pairwise_ && !p.keys.agreed()) continue;
     if (!p.keys.take_fingerprint_due() && !scheduled) continue;
     const std::size_t len = encoder_.encode_fingerprint(
-        p.link.station_id, seq, stamp_ns, fingerprint_, tx_buf_.data(), tx_buf_.size(),
+        p.link.station_id, ++control_seq_, stamp_ns, fingerprint_, tx_buf_.data(), tx_buf_.size(),
         static_cast<std::uint64_t>(std::llround(p.round_trip.estimator().probe_bound_s() * 1e9)),
         pairwise_ ? &p.keys.tx_traffic() : nullptr, p.own_loss_allowance.load(std::memory_order_acquire));
     if (len) send_now(p.link.station_id, tx_buf_.data(), len, p);
@@ -502,10 +509,10 @@ void Endpoint::send_keepalive(std::int64_t now_ns) {
   const std::int64_t every = silence_ns_ / 3;
   if (now_ns - last_push_ns_ < every || now_ns < next_keepalive_ns_) return;
   next_keepalive_ns_ = now_ns + every;
-  send_fingerprints(pushes_sent_, now_ns, true);
+  send_fingerprints(now_ns, true);
 }
 
-void Endpoint::send_hellos(std::uint64_t seq, std::int64_t stamp_ns) {
+void Endpoint::send_hellos(std::int64_t stamp_ns) {
   // Every push (and every hello_interval_ns_ without pushes) until the pair has agreed; after
   // that only when a hello of the peer asked for one (it lacks our nonce or our agreement), so
   // at most one hello per peer per push or interval.
@@ -513,7 +520,7 @@ void Endpoint::send_hellos(std::uint64_t seq, std::int64_t stamp_ns) {
     PeerState& p = *pp;
     if (!p.keys.hello_wanted()) continue;
     const PairAgreement::Hello h = p.keys.take_hello();
-    const std::size_t len = encoder_.encode_hello(p.link.station_id, seq, stamp_ns, p.keys.my_nonce(), *h.echo, h.agreed,
+    const std::size_t len = encoder_.encode_hello(p.link.station_id, ++control_seq_, stamp_ns, p.keys.my_nonce(), *h.echo, h.agreed,
                                                   p.keys.hello_tx_key(), tx_buf_.data(), tx_buf_.size());
     if (len == 0) continue;
     send_now(p.link.station_id, tx_buf_.data(), len, p);
@@ -521,9 +528,9 @@ void Endpoint::send_hellos(std::uint64_t seq, std::int64_t stamp_ns) {
   }
 }
 
-void Endpoint::send_wanted_hellos(std::uint64_t seq, std::int64_t stamp_ns, std::int64_t now_ns) {
+void Endpoint::send_wanted_hellos(std::int64_t stamp_ns, std::int64_t now_ns) {
   if (!pairwise_ || !hellos_wanted()) return;
-  send_hellos(seq, stamp_ns);
+  send_hellos(stamp_ns);
   next_hello_ns_ = now_ns + hello_interval_ns_;
 }
 
@@ -556,8 +563,8 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
     const std::int64_t stamp = m.send_time_s >= 0.0 ? to_ns(m.send_time_s) : now_ns;
     send_records_.record(m.seq, stamp);
     if (m.safe_state) ++counters_.tx_safe_state;
-    send_wanted_hellos(m.seq, stamp, now_ns);
-    send_fingerprints(m.seq, stamp);
+    send_wanted_hellos(stamp, now_ns);
+    send_fingerprints(stamp);
     ++pushes_sent_;
     last_push_ns_ = now_ns;
     for (auto& pp : peers_) {

@@ -257,6 +257,12 @@ class Endpoint {
   // Snapshot of the statistics; never blocks the I/O thread. Not RT-safe (allocates).
   EndpointStats stats() const;
   std::uint64_t incarnation() const { return incarnation_; }
+  // The I/O thread's work once, on the calling thread, at now_ns (CLOCK_MONOTONIC ns or a clock the
+  // caller plays): receive what the transport holds, then send what is due, every clock read of the
+  // step being now_ns. For a harness that drives the receive path without a thread (the session
+  // fuzz target, tools/fuzz). Only when start() was never called: throws std::logic_error otherwise.
+  // Not RT-safe.
+  void step_without_thread(std::int64_t now_ns);
   // The I/O thread's set-up warnings (e.g. SCHED_FIFO refused), after start(). Not RT-safe.
   const std::vector<std::string>& io_setup_warnings() const { return io_.warnings(); }
   // "SCHED_FIFO <p>" or "SCHED_OTHER" (after start()).
@@ -300,6 +306,8 @@ class Endpoint {
   bool spin_for_push(std::int64_t until_ns);  // tick-synchronous TX window
   void io_step(std::int64_t now_ns, bool rx, bool caught_spinning = false);  // rx, tx, release, publish
   void check_silence(std::int64_t now_ns);
+  // monotonic_ns(), or the caller's clock during step_without_thread().
+  std::int64_t io_clock() const { return step_now_ns_ >= 0 ? step_now_ns_ : monotonic_ns(); }
   void apply_probe_command();
   void publish_stats();
   // Receiving: the loop, then per datagram the rate limit of its source (false: dropped), the
@@ -316,16 +324,16 @@ class Endpoint {
   // Sending: per push the wanted hellos, fingerprints and the state to every neighbour.
   void handle_tx(std::int64_t now_ns, bool caught_spinning = false);
   void send_state(PeerState& p, const OutgoingState& o, std::int64_t now_ns);  // impaired, fragmented
-  void send_fingerprints(std::uint64_t seq, std::int64_t stamp_ns, bool all = false);  // all: not only the scheduled ones
+  void send_fingerprints(std::int64_t stamp_ns, bool all = false);  // all: not only the scheduled ones
   // While no push comes (the planned pause between probing and the run), a fingerprint to every
   // agreed neighbour every net.peer_silence_s / 3: under this run's traffic key it keeps this
   // incarnation alive for them, so a newer one announced meanwhile is refused, never taken for a restart.
   void send_keepalive(std::int64_t now_ns);
-  void send_hellos(std::uint64_t seq, std::int64_t stamp_ns);
+  void send_hellos(std::int64_t stamp_ns);
   bool hellos_wanted() const;  // a neighbour without agreed keys, or one that asked for a hello
   // With pairwise keys, the hellos hellos_wanted() asks for, and the hello timer restarted from
   // now_ns (called with each push and when the timer is due).
-  void send_wanted_hellos(std::uint64_t seq, std::int64_t stamp_ns, std::int64_t now_ns);
+  void send_wanted_hellos(std::int64_t stamp_ns, std::int64_t now_ns);
   void send_now(std::uint16_t dest, const std::uint8_t* d, std::size_t len, PeerState& p);
   int find_peer(std::uint16_t id) const;
 
@@ -358,12 +366,16 @@ class Endpoint {
   TxSpinSchedule spin_;
   double epoch_s_;  // impairment epoch
   std::int64_t silence_ns_;
+  std::int64_t step_now_ns_ = -1;  // step_without_thread()'s clock (-1: the I/O thread's, monotonic_ns())
   std::vector<std::uint8_t> rx_buf_, tx_buf_;
   DelayQueue delay_;
   SendRecords send_records_;
   SourceRateLimit rate_limit_;
   PayloadEnvelope envelope_;
   std::uint64_t pushes_sent_ = 0;
+  // Sequence of our control messages (fingerprints, hellos): one more for each one sent, so a
+  // receiver's control replay window refuses any repeat (wire.hpp, Decoder).
+  std::uint64_t control_seq_ = 0;
   std::int64_t last_push_ns_ = 0, next_keepalive_ns_ = 0;  // send_keepalive
   // Hellos also go out on a timer (one period, 2 ms without one) while hellos_wanted(): a station
   // that does not push yet (probing before its k = 0) still agrees keys with a running neighbour.

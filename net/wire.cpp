@@ -60,6 +60,8 @@ const char* to_string(DropReason r) {
     case DropReason::keys_not_agreed: return "keys_not_agreed";
     case DropReason::incarnation_while_live: return "incarnation_while_live";
     case DropReason::key_compromise: return "key_compromise";
+    case DropReason::replayed_fingerprint: return "replayed_fingerprint";
+    case DropReason::replayed_hello: return "replayed_hello";
     case DropReason::count_: break;
   }
   return "?";
@@ -379,7 +381,7 @@ int Decoder::peer_index(std::uint16_t id) const {
   return -1;
 }
 
-bool Decoder::seen(const Peer& p, std::uint64_t seq, DropReason& why) const {
+bool Decoder::seen(const ReplayWindow& p, std::uint64_t seq, DropReason& why) {
   if (!p.any || seq > p.newest) return false;
   const std::uint64_t back = p.newest - seq;
   if (back >= kReplayWindow) {
@@ -393,7 +395,7 @@ bool Decoder::seen(const Peer& p, std::uint64_t seq, DropReason& why) const {
   return false;
 }
 
-void Decoder::mark(Peer& p, std::uint64_t seq) {
+void Decoder::mark(ReplayWindow& p, std::uint64_t seq) {
   if (!p.any) {
     p.any = true;
     p.newest = seq;
@@ -424,6 +426,13 @@ void Decoder::mark(Peer& p, std::uint64_t seq) {
     const std::uint64_t back = p.newest - seq;
     p.window[back / 64] |= (std::uint64_t{1} << (back % 64));
   }
+}
+
+bool Decoder::control_replayed(Peer& p, std::uint64_t seq) {
+  DropReason why{};
+  if (seen(p.control, seq, why)) return true;  // replayed or stale alike: idempotent, nothing lost
+  mark(p.control, seq);
+  return false;
 }
 
 DecodeStatus Decoder::drop(DropReason r) {
@@ -457,9 +466,8 @@ bool Decoder::check_incarnation(Peer& p, std::uint64_t incarnation, const Decode
   p.incarnation = incarnation;
   p.heard = false;  // its hellos come first; its states (or fingerprints) will say it is live
   p.challenger = 0;
-  p.any = false;
-  p.newest = 0;
-  p.window = {};
+  p.states = {};
+  p.control = {};
   for (std::size_t i = 0; i < slots_per_peer_; ++i) slots_[p.first_slot + i].used = false;
   ++incarnation_changes_;
   p.raise_pending = true;
@@ -544,12 +552,13 @@ DecodeStatus Decoder::decode_hello(const std::uint8_t* d, const HeaderView& h, P
   if (!peer.pairwise || (h.flags & ~kFlagHelloAgreed) != 0 || !single_control_fragment(h, kHelloBytes))
     return drop(DropReason::garbled);
   // Hellos obey the incarnation rule (a hello of an earlier process, e.g. replayed from an
-  // earlier run, is dropped once a newer one was seen) but not the replay window: they are
-  // idempotent, and the nonce they echo decides whether they count (net/endpoint.cpp). Signed with
-  // the pair's static key, an earlier run's replay them: no sign of life (note_current).
+  // earlier run, is dropped once a newer one was seen) and the control replay window (a hello of
+  // this incarnation replayed within it). Signed with the pair's static key, an earlier run's replay
+  // them: no sign of life (note_current); the nonce they echo decides whether they count.
   bool raised = false;
   DropReason why{};
   if (!check_incarnation(peer, h.incarnation, lim, raised, why)) return drop(why);
+  if (control_replayed(peer, h.seq)) return drop(DropReason::replayed_hello);
   out = DecodedState{};
   report(out, h, peer, raised, PayloadKind::hello);
   std::memcpy(out.hello_nonce.data(), d + kHeaderBytes, kRunNonceBytes);
@@ -565,8 +574,11 @@ DecodeStatus Decoder::decode_fingerprint(const std::uint8_t* d, const HeaderView
   bool raised = false;
   DropReason why{};
   if (!check_incarnation(peer, h.incarnation, lim, raised, why)) return drop(why);
-  // Under this run's pairwise traffic key: alive (no other run can replay it), yet idempotent, so no
-  // proof next to a challenger (a replay within the run is possible). The shared key: neither.
+  // A replay within the incarnation: refused before it can count as a sign of life.
+  if (control_replayed(peer, h.seq)) return drop(DropReason::replayed_fingerprint);
+  // Under this run's pairwise traffic key: alive (no other run can replay it, nor, the control
+  // window refusing it, this one). No proof next to a challenger yet (note_current's `fresh`: states
+  // only, as the rule was written). The shared key: neither.
   if (peer.pairwise) note_current(peer, lim, false);
   const std::uint8_t* p = d + kHeaderBytes;
   out = DecodedState{};
@@ -673,7 +685,7 @@ DecodeStatus Decoder::decode_state(const std::uint8_t* d, const HeaderView& h, P
   if (h.seq > lim.max_sequence) return drop(DropReason::future_sequence);
   bool raised = false;
   if (!check_incarnation(peer, h.incarnation, lim, raised, why)) return drop(why);
-  if (seen(peer, h.seq, why)) return drop(why);  // never after a raise: the window is empty
+  if (seen(peer.states, h.seq, why)) return drop(why);  // never after a raise: the window is empty
   // A sequence never seen: the current incarnation speaks (a replay cannot: the window refused it).
   if (!note_current(peer, lim, true)) return drop(DropReason::key_compromise);
   const std::size_t vb = (h.flags & kFlagFloat32) ? 4 : 8;
@@ -681,7 +693,7 @@ DecodeStatus Decoder::decode_state(const std::uint8_t* d, const HeaderView& h, P
   // Authentic junk (non-finite, outside the envelope) is dropped before mark(): it never uses up a sequence.
   if (h.frag_count == 1) {
     if (junk(d + kHeaderBytes, h.frag_len / vb, h, lim, why)) return drop(why);
-    mark(peer, h.seq);
+    mark(peer.states, h.seq);
     ++accepted_datagrams_;
     ++completed_;
     report_state(out, h, peer, raised, d + kHeaderBytes);
@@ -698,7 +710,7 @@ DecodeStatus Decoder::decode_state(const std::uint8_t* d, const HeaderView& h, P
 
   slot->used = false;
   if (junk(slot->buffer, 2ull * h.value_count, h, lim, why)) return drop(why);
-  mark(peer, h.seq);
+  mark(peer.states, h.seq);
   // Report the header fields stored with the slot (from its first fragment) and its buffer.
   ++completed_;
   report_state(out, h, peer, raised, slot->buffer);

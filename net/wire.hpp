@@ -97,6 +97,8 @@ enum class DropReason : std::uint8_t {
   keys_not_agreed,    // pairwise keys: a state/fingerprint datagram from a neighbour before this run's keys are agreed
   incarnation_while_live,  // authentic, a newer incarnation while the current one spoke within the quiet time (refused, remembered)
   key_compromise,     // from a neighbour with two live incarnations (key compromise suspected): every datagram, for the rest of the run
+  replayed_fingerprint,  // authentic fingerprint whose control sequence was already seen (or is older than the window): a replay
+  replayed_hello,        // the same for a hello
   count_
 };
 inline constexpr std::size_t kDropReasonCount = static_cast<std::size_t>(DropReason::count_);
@@ -327,6 +329,13 @@ class Decoder {
     std::int64_t echo_hold_ns = 0;
     std::uint8_t* buffer = nullptr;  // into storage_
   };
+  // Sequences seen, 1024 wide behind the newest (bit b set = newest - b seen). One per sender for its
+  // state packets, one for its control messages (fingerprints, hellos: their own sequence space).
+  struct ReplayWindow {
+    bool any = false;
+    std::uint64_t newest = 0;
+    std::array<std::uint64_t, kReplayWindow / 64> window{};
+  };
   struct Peer {
     std::uint16_t id = kNoStation;
     bool has_incarnation = false;
@@ -339,16 +348,18 @@ class Decoder {
     std::uint64_t challenger_datagrams = 0;
     bool compromised = false;
     std::int64_t compromised_ns = 0;
-    bool any = false;
-    std::uint64_t newest = 0;  // newest delivered sequence (of the current incarnation)
-    std::array<std::uint64_t, kReplayWindow / 64> window{};  // bit (newest - seq) set = seen
+    ReplayWindow states;   // delivered state sequences (of the current incarnation)
+    ReplayWindow control;  // accepted fingerprint and hello sequences (of the current incarnation)
     std::size_t first_slot = 0;
     bool pairwise = false, has_traffic_key = false;
     SessionKey hello_key{}, traffic_key{};
   };
   int peer_index(std::uint16_t id) const;
-  bool seen(const Peer& p, std::uint64_t seq, DropReason& why) const;
-  void mark(Peer& p, std::uint64_t seq);
+  static bool seen(const ReplayWindow& p, std::uint64_t seq, DropReason& why);
+  static void mark(ReplayWindow& p, std::uint64_t seq);
+  // A control message (fingerprint, hello) seen before in this incarnation (a replay, or older than
+  // the window): counted as `replayed` of its kind. Else its sequence is marked seen.
+  bool control_replayed(Peer& p, std::uint64_t seq);
   DecodeStatus drop(DropReason r);
   // The incarnation rule (DecodeLimits): false and why to drop; raised when it replaced the current one.
   bool check_incarnation(Peer& p, std::uint64_t incarnation, const DecodeLimits& lim, bool& raised, DropReason& why);

@@ -637,3 +637,46 @@ TEST(Keys, ANewIncarnationForgetsThePairsKeysAndReplayStateAndTheOldOneIsRefused
   r.e0->drain([&](auto...) { ++delivered; });
   CHECK_EQUAL(0u, delivered);
 }
+
+// Within one run, every kind of a neighbour's datagrams replayed (its hellos, its fingerprints, its
+// keep-alives among them, its state fragments) is refused and counted under its kind, and nothing it
+// carries counts again: no hello, fingerprint or state is taken twice.
+TEST(Keys, EveryKindOfThisRunsDatagramsReplayedIsRefusedAndCountedUnderItsKind) {
+  KeyFiles k("replay-kinds");
+  Run r(k, true, nullptr, false);
+  r.c1.fingerprint.scene_nodes = 33;  // a station's endpoint: fingerprints, and keep-alives while pushes pause
+  r.c1.fingerprint.period_ns = 2'000'000;
+  r.start1();
+  std::uint64_t corrupt = 0;
+  CHECK(r.exchange(1, 60, corrupt).size() >= 40);
+  std::this_thread::sleep_for(std::chrono::duration<double>(r.c1.peer_silence_s * 0.7));  // keep-alives
+  r.e1->stop();  // nothing new from station 1 from here on
+  const auto capture = r.t1->sent();
+  std::uint64_t kinds[4] = {0, 0, 0, 0};
+  for (const auto& d : capture) ++kinds[kind_of(d) & 3];
+  const std::uint64_t states = kinds[1], fingerprints = kinds[2], hellos = kinds[3];
+  CHECK(states >= 80 && fingerprints >= 10 && hellos >= 1);
+  CHECK_EQUAL(capture.size(), states + fingerprints + hellos);
+  // Once, so that what station 0 dropped the first time (sent before it had agreed) has been taken...
+  const std::uint64_t d0 = r.e0->stats().drops.total();
+  for (const auto& d : capture) r.t1->inject(d);
+  CHECK(wait_drops(*r.e0, d0, 1));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  r.e0->drain([](auto...) {});
+  // ...then again: every datagram refused, each counted once under its kind.
+  const EndpointStats before = r.e0->stats();
+  for (const auto& d : capture) r.t1->inject(d);
+  CHECK_TRUE(wait_drops(*r.e0, before.drops.total(), capture.size()));
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const EndpointStats after = r.e0->stats();
+  CHECK_EQUAL(before.drops.total() + capture.size(), after.drops.total());
+  CHECK_EQUAL(before.drops[DropReason::replayed_hello] + hellos, after.drops[DropReason::replayed_hello]);
+  CHECK_EQUAL(before.drops[DropReason::replayed_fingerprint] + fingerprints, after.drops[DropReason::replayed_fingerprint]);
+  CHECK_EQUAL(before.drops[DropReason::replayed] + states, after.drops[DropReason::replayed]);
+  CHECK_EQUAL(before.fingerprints_received, after.fingerprints_received);
+  CHECK_EQUAL(before.peers[0].hellos_received, after.peers[0].hellos_received);
+  CHECK_EQUAL(before.peers[0].packets_received, after.peers[0].packets_received);
+  std::size_t late = 0;
+  r.e0->drain([&](auto...) { ++late; });
+  CHECK_EQUAL(0u, late);
+}

@@ -419,3 +419,82 @@ TEST(Wire, SequenceBeyondTheCeilingIsDroppedAndMovesNothing) {
   for (const auto& d : p) last = dec.decode(d.data(), d.size(), st, right);
   CHECK(last == DecodeStatus::complete);
 }
+
+namespace {
+// One datagram written by `write` into a buffer of the default size, cut to the size it returns.
+template <class F>
+std::vector<std::uint8_t> datagram(F&& write) {
+  std::vector<std::uint8_t> d(kDefaultDatagramBytes);
+  d.resize(write(d.data(), d.size()));
+  return d;
+}
+}  // namespace
+
+// Replays of every message kind (a state of one datagram and of several, a fingerprint under the
+// shared key and under a pair's traffic key, a hello under the pair's static key) are refused and
+// each is counted under its own reason; nothing a replay carries is accepted twice. Fresh messages
+// of each kind (a new sequence, also a lower one never seen: reordered) still pass, a fingerprint
+// identical but for its sequence (a keep-alive) included.
+TEST(Wire, AReplayOfEveryMessageKindIsRefusedAndCountedUnderItsKind) {
+  // Station 1 with pairwise keys (hello key, this run's traffic key), station 2 on the shared key.
+  const SessionKey hello_key = test_key(40), traffic = test_key(80);
+  dec.set_peer_keys(1, hello_key, &traffic);
+  Encoder enc2{cfg_for(2)}, enc2_32{cfg_for(2, ValueEncoding::float32)};
+  Fingerprint f;
+  f.scene_nodes = 33;
+  f.period_ns = 2'000'000;
+  const RunNonce n1{1, 2, 3}, n0{9, 8, 7};
+  auto fp1 = [&](std::uint64_t seq) {
+    return datagram([&](std::uint8_t* d, std::size_t n) { return enc.encode_fingerprint(0, seq, 5, f, d, n, 0, &traffic); });
+  };
+  auto fp2 = [&](std::uint64_t seq) {
+    return datagram([&](std::uint8_t* d, std::size_t n) { return enc2.encode_fingerprint(0, seq, 5, f, d, n); });
+  };
+  auto hello1 = [&](std::uint64_t seq) {
+    return datagram([&](std::uint8_t* d, std::size_t n) { return enc.encode_hello(0, seq, 5, n1, n0, true, hello_key, d, n); });
+  };
+  const auto single = encode_all(enc2_32, scene.out(0, 10));  // one datagram
+  CHECK_EQUAL(1u, single.size());
+  std::vector<std::vector<std::uint8_t>> multi;                // two datagrams, station 1's traffic key
+  for (std::size_t i = 0; i < 2; ++i)
+    multi.push_back(datagram([&](std::uint8_t* d, std::size_t n) { return enc.encode_fragment(scene.out(0, 10), i, d, n, &traffic); }));
+  struct Case {
+    const char* what;
+    std::vector<std::uint8_t> first, fresh, reordered;
+    DecodeStatus accepted;
+    DropReason replay;
+  };
+  const Case cases[] = {
+      {"hello", hello1(20), hello1(21), hello1(19), DecodeStatus::hello, DropReason::replayed_hello},
+      {"fingerprint (pair key)", fp1(30), fp1(31), fp1(29), DecodeStatus::fingerprint, DropReason::replayed_fingerprint},
+      {"fingerprint (shared key)", fp2(30), fp2(31), fp2(29), DecodeStatus::fingerprint, DropReason::replayed_fingerprint},
+      {"state, one datagram", single[0], encode_all(enc2_32, scene.out(0, 11))[0], encode_all(enc2_32, scene.out(0, 9))[0],
+       DecodeStatus::complete, DropReason::replayed},
+  };
+  DecodedState st;
+  for (const Case& c : cases) {
+    CHECK_TEXT(dec.decode(c.first.data(), c.first.size(), st) == c.accepted, c.what);
+    const std::uint64_t accepted = dec.accepted_datagrams();
+    for (int again = 1; again <= 3; ++again) {
+      const auto before = dec.drops();
+      CHECK_TEXT(dec.decode(c.first.data(), c.first.size(), st) == DecodeStatus::dropped, c.what);
+      CHECK_EQUAL_TEXT(before[c.replay] + 1, dec.drops()[c.replay], c.what);
+      CHECK_EQUAL_TEXT(before.total() + 1, dec.drops().total(), c.what);
+    }
+    CHECK_EQUAL_TEXT(accepted, dec.accepted_datagrams(), c.what);  // nothing accepted twice
+    CHECK_TEXT(dec.decode(c.fresh.data(), c.fresh.size(), st) == c.accepted, c.what);
+    CHECK_TEXT(dec.decode(c.reordered.data(), c.reordered.size(), st) == c.accepted, c.what);
+  }
+  // A state of two datagrams: each fragment replayed after completion is refused as a state replay.
+  CHECK(dec.decode(multi[0].data(), multi[0].size(), st) == DecodeStatus::fragment_stored);
+  CHECK(dec.decode(multi[1].data(), multi[1].size(), st) == DecodeStatus::complete);
+  for (const auto& d : multi) expect_drop(dec, d, DropReason::replayed);
+  // The control window is its own: a state and a fingerprint may share a sequence number.
+  const auto f11 = fp2(11);
+  CHECK(dec.decode(f11.data(), f11.size(), st) == DecodeStatus::fingerprint);
+  CHECK_EQUAL(3u, dec.drops()[DropReason::replayed_hello]);
+  CHECK_EQUAL(6u, dec.drops()[DropReason::replayed_fingerprint]);
+  CHECK_EQUAL(5u, dec.drops()[DropReason::replayed]);
+  STRCMP_EQUAL("replayed_fingerprint", to_string(DropReason::replayed_fingerprint));
+  STRCMP_EQUAL("replayed_hello", to_string(DropReason::replayed_hello));
+}

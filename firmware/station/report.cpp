@@ -115,7 +115,7 @@ void add_run_json(const StationOutcome& o, json& j) {
     GateSummary g = gate_summary(*core);
     if (ran) g.port_energy_min_J = c->port_min_J;
     j["gate"] = gate_json(g);
-    j["verdict"] = run_verdict(c && c->diverged, false, g, false);  // eq. (13) is a sum over all stations: the merge decides it
+    j["verdict"] = station_verdict(o);
   }
   j["safe_state_ticks"] = core ? json(core->safe_state_ticks()) : json(nullptr);
   j["steps_clamped"] = core ? json(core->step_clamped_ticks()) : json(nullptr);  // measured T_k outside period_min_s..period_max_s
@@ -314,6 +314,13 @@ int exit_code(const RunConditions& c) {
   if (c.ended_before_release) return kExitBeforeRelease;
   if (c.held_by_gate) return kExitHeldByGate;
   return kExitOk;
+}
+
+std::string station_verdict(const StationOutcome& o) {
+  const rt::StationCore* core = o.build ? o.build->core.get() : nullptr;
+  if (core == nullptr) return "stable";
+  // eq. (13) is a sum over all stations: the merge decides it
+  return run_verdict(o.counters != nullptr && o.counters->diverged, false, gate_summary(*core), false);
 }
 
 nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c) {

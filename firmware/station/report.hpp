@@ -62,6 +62,10 @@ RunConditions run_conditions(const StationOutcome& o);
 // The process exit code for these conditions (the first that holds, in the documented order).
 int exit_code(const RunConditions& c);
 
+// The station's verdict (run_verdict over its core's gate and edge drops; eq. 13 is the merge's):
+// station-<id>.json's "verdict" and the words of its result line. "stable" when no core was built.
+std::string station_verdict(const StationOutcome& o);
+
 // station-<id>.json's content.
 nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c);
 

@@ -571,7 +571,7 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
   }
   std::cout << log.tag << ": " << (code == kExitOk ? "done" : "FAILED (" + names + ")") << ", " << pr.counters.ticks_run << " ticks, "
             << pr.run.loop.overruns << " overruns (" << c.missed_cycles_total << " missed cycles), "
-            << (pr.counters.diverged ? "DIVERGED" : c.held_by_gate ? "HELD BY THE GATE" : c.edge_drop_rule_acted ? "stable with EDGES DROPPED" : "stable")
+            << verdict_words(station_verdict(o))
             << ", B_i "
             << (pr.built ? std::to_string(pr.build.bounds.damping_Ns_per_m) : std::string("none")) << " N s/m; exit " << code << "; wrote "
             << plan.base_path << ".json, -trace.csv, -state.csv\n";

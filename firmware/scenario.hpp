@@ -163,6 +163,10 @@ model::Graph default_tree(int users);
 void apply_topology_file(ScenarioSpec& spec, const std::string& path, const std::string& key = "--topology-file");
 // "spread" | "asymmetric" (throws std::invalid_argument naming `key`).
 UserScriptSpec::PushPattern parse_push_pattern(const std::string& text, const std::string& key);
+// The users' script by name: "push-hold-release", "random" (every hand wanders through seeded random
+// keyframes over the whole run, so the object never comes to rest), "hold" (hands still); "" keeps the
+// scenario's. Throws std::invalid_argument naming `key`.
+void apply_script_kind(UserScriptSpec& script, const std::string& text, std::uint64_t seed, const std::string& key);
 
 // "1,2,3" (throws std::invalid_argument naming `what`). Topologies and delay matrices are parsed
 // by firmware/model (parse_graph_1based, parse_delay_matrix).

@@ -150,7 +150,7 @@ std::string sim_result_line(const std::string& name, const SimResult& r) {
 }
 
 struct SimArgs {
-  std::string scenario, out, topology, damping, delay_matrix, topology_file, pushes = "spread", receive_rule = "newest",
+  std::string scenario, out, topology, damping, delay_matrix, topology_file, pushes = "spread", script, receive_rule = "newest",
               consensus_passivity = "eq18";
   double pspm_reservoir_J = 0.0;
   double timer_jitter_ms = 0, step_jitter = 0, clock_drift_ppm = 0;  // station clocks (variable steps T_k)
@@ -276,7 +276,11 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   sim->add_option("--pushes", a.pushes,
                   "spread: push directions summing to zero by construction; asymmetric: each tilted by up to 30 deg and its depth "
                   "scaled in [0.5, 1.5] (seeded by --push-seed), so hold-force balance is measured (default spread)");
-  sim->add_option("--push-seed", a.push_seed, "Seed of the asymmetric pushes (default 1)")->check(kNonNegativeInteger);
+  sim->add_option("--push-seed", a.push_seed, "Seed of the asymmetric pushes and of --script random (default 1)")->check(kNonNegativeInteger);
+  sim->add_option("--script", a.script,
+                  "Users' script: push-hold-release, random (every hand wanders through seeded keyframes all run: the object never "
+                  "rests) or hold (default: the scenario's)")
+      ->check(CLI::IsMember({"push-hold-release", "random", "hold"}));
   sim->add_option("--topology", a.topology, "Links overriding the scenario's, users from 1, e.g. 1-2,1-3,1-4");
   sim->add_option("--damping", a.damping, "Local damping B_i in N s/m, one per user, e.g. 14,5,4,5 (default: eq. (18) plus the margin)");
   sim->add_option("--duration", a.duration, "Simulated time in s (default: the scenario's: 20, 80 or 10)")->check(kPositive);
@@ -457,6 +461,7 @@ ScenarioSpec sim_scenario_spec(const SimArgs& a) {
   }
   spec.script.push_pattern = parse_push_pattern(a.pushes, "--pushes");
   spec.script.push_seed = a.push_seed;
+  apply_script_kind(spec.script, a.script, a.push_seed, "--script");
   if (!a.delay_matrix.empty()) spec.delay_ms = haptic::model::parse_delay_matrix(a.delay_matrix, "--delay-matrix", spec.users);
   if (!a.topology.empty()) spec.topology = haptic::model::parse_graph_1based(a.topology, spec.users, "--topology");
   if (!a.damping.empty()) spec.damping_Ns_per_m = parse_list(a.damping, "--damping");

@@ -244,6 +244,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
     }
   }
   spec.script.push_pattern = parse_push_pattern(s.pushes, "station.pushes");
+  apply_script_kind(spec.script, s.script, s.push_seed, "station.script");
   spec.script.push_seed = s.push_seed;
   if (!s.topology.empty()) {
     try {

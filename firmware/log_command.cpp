@@ -264,7 +264,10 @@ void log_info(const std::string& path, std::ostream& out) {
     out << "  run: " << k.size() << " ticks";
     if (!k.empty()) out << " (k " << k.front() << " .. " << k.back() << ", run time " << (t.front() - (steps.empty() || steps.front() <= 0 ? period : steps.front()))
                         << " .. " << t.back() << " s)";
-    out << ", " << opt_i64(f, "packets").value_or(0) << " packets";
+    const auto packets_written = opt_i64(f, "packets").value_or(0);
+    const auto packet_rows = h5::exists(f, std::string(kPacketsGroup) + "/tick") ? static_cast<std::int64_t>(h5::shape(f, std::string(kPacketsGroup) + "/tick")[0]) : 0;
+    out << ", " << packet_rows << " packets";
+    if (packets_written != packet_rows) out << " (" << packets_written << " written)";
     const auto dropped = opt_i64(f, "dropped_records").value_or(0), trunc = opt_i64(f, "truncated_at_tick").value_or(-1);
     out << "; dropped records " << dropped << "; " << (trunc >= 0 ? "truncated at tick " + std::to_string(trunc) + " (size bound)" : "not truncated");
     const auto ring = opt_i64(f, "ring_ticks").value_or(0);

@@ -11,6 +11,7 @@ Checks, each against the file as h5py reads it (not against the tool's own outpu
 - `log export --field force,q,port_J` writes the header t_s,force_x_N,...,q_x_m,...,port_J and the
   values h5py reads, exactly; a /packets field has one column per dof; /ticks and /packets fields
   together are refused;
+- a wrapped ring log is exported in run order;
 - an unknown field is refused (exit 2) with "did you mean" and the log's fields;
 - not a file, a directory, not HDF5, an HDF5 file that is not a session log: exit 2, saying which;
 - a log written before units were stored (attributes removed) is described, saying so;
@@ -146,6 +147,16 @@ check(rc == 0 and "units not recorded (log written before" in so and "scenario n
 rc, so, se = run("log", "export", old, "--field", "force")
 check(rc == 0 and so.splitlines()[0] == "t_s,force_x_N,force_y_N,force_z_N" and "units not recorded" in se,
       "log export on a log without units: this program's units, and a note", "exit %d\n%s%s" % (rc, so[:200], se))
+
+# A ring log that wrapped (--record-ring-s): its rows are exported in run order (k consecutive, t_s rising).
+rc, so, se = run("sim", "--scenario", "paper-best", "--duration", "2", "--record", "--record-ring-s", "0.3", "--no-plots", "--quiet", "--out", out + "/ring")
+with h5py.File(out + "/ring/station-1.h5", "r") as f:
+    next_row = int(f["ticks"].attrs["ring_next_row"])
+rc, so, se = run("log", "export", out + "/ring/station-1.h5", "--field", "k")
+rows = [r.split(",") for r in so.split()[1:]]
+ks = [int(r[1]) for r in rows]
+check(rc == 0 and next_row > 0 and len(ks) == 150 and ks == list(range(850, 1000)),
+      "export of a wrapped ring log (ring_next_row %d): k 850..999 in run order" % next_row, "exit %d: %s %s" % (rc, ks[:5], se))
 
 # log plot: a run folder's stations on one run-time axis.
 try:

@@ -27,7 +27,7 @@ namespace haptic::firmware {
 
 namespace {
 
-const char* const kBeforeUnits = "log written before haptic-station stored units on its datasets (issue 24)";
+const char* const kBeforeUnits = "log written before haptic-station stored units on its datasets, issue 24";
 
 std::optional<std::string> opt_str(hid_t obj, const std::string& name) {
   if (!h5::has_attr(obj, name)) return std::nullopt;
@@ -244,8 +244,13 @@ void log_info(const std::string& path, std::ostream& out) {
     out << path << ": haptic session log, version " << version << ", written by " << opt_str(f, "source").value_or("?");
     if (auto b = opt_str(f, "build_id"); b && !b->empty()) out << " (build " << b->substr(0, 12) << ")";
     out << "\n";
-    out << "  station " << opt_i64(f, "station_id").value_or(0) << " of " << opt_i64(f, "users").value_or(0) << " users, scenario "
-        << opt_str(f, "scenario").value_or("not recorded") << "\n";
+    std::string scenario = opt_str(f, "scenario").value_or("");
+    if (scenario.empty()) {  // older logs: a simulator's fingerprint ends ", scenario NAME"
+      const std::string fp = opt_str(f, "fingerprint").value_or(""), tag = ", scenario ";
+      const auto at = fp.rfind(tag);
+      scenario = at == std::string::npos ? "not recorded" : fp.substr(at + tag.size()) + " (from the fingerprint)";
+    }
+    out << "  station " << opt_i64(f, "station_id").value_or(0) << " of " << opt_i64(f, "users").value_or(0) << " users, scenario " << scenario << "\n";
     const double period = opt_f64(f, "period_s").value_or(0);
     out << "  scene " << opt_i64(f, "nodes").value_or(0) << " nodes, " << opt_i64(f, "dofs").value_or(0) << " dofs; period " << period * 1e3
         << " ms; packet values " << opt_str(f, "packet_values").value_or("?") << "\n";

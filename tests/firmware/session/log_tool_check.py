@@ -142,7 +142,7 @@ with h5py.File(old, "r+") as f:
                 del obj.attrs[a]
     f.visititems(strip)
 rc, so, se = run("log", "info", old)
-check(rc == 0 and "units not recorded (log written before" in so and "scenario not recorded" in so and "this program's rt::kTickFlagNames" in so,
+check(rc == 0 and "units not recorded (log written before" in so and "scenario paper-best (from the fingerprint)" in so and "this program's rt::kTickFlagNames" in so,
       "log info on a log without units: exit 0, 'units not recorded (log written before ...)'", "exit %d\n%s%s" % (rc, so, se))
 rc, so, se = run("log", "export", old, "--field", "force")
 check(rc == 0 and so.splitlines()[0] == "t_s,force_x_N,force_y_N,force_z_N" and "units not recorded" in se,

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "firmware/log_command.hpp"
 #include "firmware/run/merge.hpp"
 #include "firmware/run/summary.hpp"
 #include "firmware/scenario.hpp"
@@ -366,7 +367,8 @@ CLI::App* add_run_options(CLI::App& app, RunArgs& a) {
 CLI::App* add_replay_options(CLI::App& app, ReplayArgs& a) {
   auto* rp = app.add_subcommand("replay", "Re-run a station's core from its session log (sim --record, [record] enabled) and compare every tick's state hash");
   rp->add_option("log", a.log, "Session log (station-<id>.h5)")->required()->check(CLI::ExistingFile);
-  rp->add_option("--damping", a.damping, "Re-run with this B_i in N s/m instead of the recorded one (no bit-exact comparison)")
+  rp->add_option("--damping", a.damping, "Re-run with this B_i in N s/m instead of the recorded one (no bit-exact comparison; open loop: the neighbours' "
+                                         "recorded states are replayed as they were, they do not react to the change)")
       ->check(CLI::Range(0.0, 1e6));
   rp->add_option("--p-scale", a.p_scale, "Re-run with P_ij scaled by this factor (default 1)");
   rp->add_option("--d-scale", a.d_scale, "Re-run with D_ij scaled by this factor (default 1)");
@@ -644,13 +646,14 @@ int main(int argc, char** argv) {
       "  sim  run N stations in one process in simulated time over the paper's stochastic network\n"
       "  run  run one station in real time over real sockets (--config FILE.toml)\n"
       "  replay  re-run a station's core from its session log, bit-exactly (LOG.h5)\n"
+      "  log  what a session log holds (log info LOG.h5) and its fields as CSV with units (log export LOG.h5 --field force,q)\n"
       "  merge  merge the outputs of N run processes into the simulator's summary.json, trace.csv, series.csv, snapshots.json\n"
       "  scenario  print a built-in scenario's users, links and delays as JSON\n"
       "  options  print every station-file option as a Markdown table"};
   app.require_subcommand(1);
   haptic::platform::add_version_flag(app, "haptic-station");
   app.footer("Exit status: 0 done; 2 bad options or configuration. `run` also: " + exit_code_help() +
-             " `replay`: see `replay --help`.");
+             " `replay`: see `replay --help`; `log`: see `log --help`.");
 
   SimArgs sim_args;
   RunArgs run_args;
@@ -658,6 +661,8 @@ int main(int argc, char** argv) {
   CLI::App* sim = add_sim_options(app, sim_args);
   CLI::App* run = add_run_options(app, run_args);
   CLI::App* replay = add_replay_options(app, replay_args);
+  LogArgs log_args;
+  const LogCommands log = add_log_options(app, log_args);
   for (int i = 0; i < argc; ++i) sim_args.command_line += (i ? " " : "") + std::string(argv[i]);
   std::string merge_dir;
   CLI::App* merge = add_merge_options(app, merge_dir);
@@ -674,6 +679,7 @@ int main(int argc, char** argv) {
   if (run->parsed()) return run_command(run_args);
   if (sim->parsed()) return sim_command(sim_args);
   if (replay->parsed()) return replay_command(replay_args);
+  if (log.log->parsed()) return log_command(log, log_args);
   if (merge->parsed()) return merge_command(merge_dir);
   if (scenario->parsed()) return scenario_command(scenario_query);
   if (options->parsed()) std::cout << options_markdown();

@@ -5,9 +5,10 @@
 #   2. once /lab.json says every station runs (its live view's /status.json), a screenshot of the page
 #      (console-USERS.png, not blank) and its DOM (--dump-dom): every station's row shows its state
 #      (running, t, tick, N / N-bar per neighbour, overruns); a missing or stale station fails, named;
-#   3. the page's stop-all (POST /stop with its token) ends every station (SIGTERM): `start` returns
+#   3. a station stopped with SIGSTOP turns "stale" and red (lab.json and the page);
+#   4. the page's stop-all (POST /stop with its token) ends every station (SIGTERM): `start` returns
 #      and every station wrote station-N.json;
-#   4. `haptic-lab console RUN` alone shows every station "done" with the exit code of its station-N.json.
+#   5. `haptic-lab console RUN` alone shows every station "done" with the exit code of its station-N.json.
 # Multi-process (run serially): a measured "host too loaded" skip (tests/support/quiet_host.sh); exit 77
 # without Debian's chromium.
 # Usage: console_check.sh BUILD_BIN_DIR SOURCE_DIR WORK_DIR USERS
@@ -18,7 +19,8 @@ chrome=$(command -v chromium || true)
 [ -n "$chrome" ] || { echo "SKIPPED: chromium is not installed (apt-get install chromium)"; exit 77; }
 rm -rf "$work"; mkdir -p "$work"
 pids=()
-cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; }
+spid=""
+cleanup() { [ -z "$spid" ] || kill -CONT "$spid" 2>/dev/null; for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; }  # a stopped station continued, then SIGTERM to start (it ends its stations)
 source "$here/../../support/quiet_host.sh"
 QUIET_HOST_CLEANUP=cleanup
 quiet_host_or_skip "$bin" "$work"
@@ -95,6 +97,25 @@ timeout 80 nice -n -10 "$chrome" --headless=new --no-sandbox --disable-gpu --hid
 sys.exit(0 if n.mean(n.any(a < 0.9, axis=2)) > 0.01 else 1)' "$work/console-$users.png" || fail "the screenshot console-$users.png is blank"
 /usr/bin/python3 "$here/console_dom.py" "$work/dom-running.html" "$users" running "$run" "$work/token" ||
   { tail -5 "$work/start.log"; fail "the console page does not show every station's state (screenshot $work/console-$users.png)"; }
+# a station that stops moving (SIGSTOP: its loop and its view frozen) turns "stale" and red within a few
+# seconds, the others still run; SIGCONT gives it back
+spid=$(sed -n 2p "$run/station-pids.txt")
+kill -STOP "$spid" || fail "cannot SIGSTOP station 2 (pid $spid)"
+/usr/bin/python3 - "$url" <<'PY'; stale_rc=$?
+import json, re, sys, time, urllib.request
+o = urllib.request.build_opener(urllib.request.ProxyHandler({}))
+t0 = time.monotonic()
+while time.monotonic() - t0 < 20:
+    rows = {r["station"]: r["state"] for r in json.loads(o.open(sys.argv[1] + "lab.json", timeout=5).read())["stations"]}
+    page = o.open(sys.argv[1], timeout=5).read().decode()
+    if rows[2] == "stale" and re.search(r'<tr class="station bad" id="station-2" data-station="2" data-state="stale">', page):
+        print("ok: station 2 stopped: 'stale' and red on the page after %.1f s (others: %s)" % (time.monotonic() - t0, sorted(set(v for k, v in rows.items() if k != 2))))
+        sys.exit(0)
+    time.sleep(0.5)
+sys.exit("FAILED: station 2 stopped, but the console still says %r" % rows[2])
+PY
+kill -CONT "$spid"
+[ "$stale_rc" -eq 0 ] || fail "a stopped station is not flagged stale"
 # stop-all: the page's form, with its token
 /usr/bin/python3 - "$url" "$(cat "$work/token")" <<'PY' || fail "POST /stop was refused"
 import sys, urllib.parse, urllib.request

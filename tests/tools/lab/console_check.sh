@@ -26,7 +26,7 @@ QUIET_HOST_CLEANUP=cleanup
 quiet_host_or_skip "$bin" "$work"
 lab="$bin/haptic-lab"
 fail() { echo "FAILED: $*"; exit 1; }
-base=$(( 47100 + ($$ % 40) * 20 ))  # station i's live view on base + i - 1 (private ports)
+base=$(( 23100 + ($$ % 40) * 20 ))  # station i's live view on base + i - 1 (below the ephemeral ports, 32768+)
 stations='view_rate_hz = 5                  # the console polls 2/s: a slow view keeps 16 stations light
 max_no_neighbour_fraction = 1.0   # this checks the console, not host timing (a loaded VM stalls)
 loss_allowance_ticks = 1'

@@ -50,7 +50,25 @@ void validate_graph(const Graph& g, int users, const std::string& key) {
     if (l.a < 0 || l.b < 0 || l.a >= users || l.b >= users || l.a == l.b)
       bad(key + ": link " + link_text(l) + " is not between two different users 1.." + std::to_string(users));
   (void)normalized(g, key);  // repeated links
-  if (!is_connected(g, users)) bad(key + " must connect all users (Theorem 1 needs a connected graph)");
+  if (!is_connected(g, users)) {
+    // name the users no path reaches from user 1 (the links are in range here)
+    std::vector<char> seen(static_cast<std::size_t>(users), 0);
+    std::vector<int> todo{0};
+    seen[0] = 1;
+    while (!todo.empty()) {
+      const int v = todo.back();
+      todo.pop_back();
+      for (const Link& l : g) {
+        const int w = l.a == v ? l.b : l.b == v ? l.a : -1;
+        if (w >= 0 && !seen[static_cast<std::size_t>(w)]) seen[static_cast<std::size_t>(w)] = 1, todo.push_back(w);
+      }
+    }
+    std::string cut;
+    for (int u = 0; u < users; ++u)
+      if (!seen[static_cast<std::size_t>(u)]) cut += (cut.empty() ? "" : ", ") + std::to_string(u + 1);
+    bad(key + " must connect all users (Theorem 1 needs a connected graph): no link path from user 1 reaches user" +
+        (cut.find(',') == std::string::npos ? " " : "s ") + cut);
+  }
 }
 
 Graph parse_graph_1based(const std::string& text, int users, const std::string& key) {

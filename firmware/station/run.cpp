@@ -168,7 +168,35 @@ std::unique_ptr<SessionRecorder> open_recorder(const StationPlan& plan, const Bu
 
 // One frame for the browsers: the tick's frame plus the endpoint's per-link delay, loss and up/down.
 // Called on the view server's thread. Not RT-safe.
-bool station_view_frame(const StationPlan& plan, StationResources& res, ViewFrame& f, std::uint64_t& missed, LinkSince& since, std::string& out) {
+// What GET /status.json answers (haptic-lab's console polls it): the latest frame's state, compact.
+// Built on the view server's thread from the frame the tick published (never on the RT thread).
+std::string station_status_json(const StationPlan& plan, const nlohmann::json& frame) {
+  const double duration = plan.built->spec.duration_s, t = frame.value("t", 0.0);
+  nlohmann::json links = nlohmann::json::array();
+  for (const auto& l : frame["links"])
+    links.push_back({{"peer", l["peer"]}, {"N", l["index_delay"]}, {"Nbar", l["bound"]}, {"within", l["within"]}, {"up", l.value("up", true)},
+                     {"delay_ms", l.value("delay_ms", 0.0)}, {"loss", l.value("loss", 0.0)}});
+  const nlohmann::json s = {{"station", plan.station_id},
+                            {"users", plan.built->spec.users},
+                            {"phase", t < duration ? "running" : "run over"},
+                            {"t", t},
+                            {"k", frame["k"]},
+                            {"seq", frame["seq"]},
+                            {"duration_s", duration},
+                            {"links", links},
+                            {"overruns", frame["loop"]["overruns"]},
+                            {"missed_cycles", frame["loop"]["missed_cycles"]},
+                            {"port_J", frame["port_J"]},
+                            {"controller_J", frame["controller_J"]},
+                            {"vo_J", frame["vo_J"]},
+                            {"gate", frame["gate"]},
+                            {"safe_state", frame["safe_state"]},
+                            {"host_starving", frame["host"]["starving"]}};
+  return s.dump();
+}
+
+bool station_view_frame(const StationPlan& plan, StationResources& res, ViewFrame& f, std::uint64_t& missed, LinkSince& since, std::string& out,
+                        std::string& status) {
   const std::uint64_t before = f.seq;
   if (!res.view->take(f)) return false;
   if (before > 0 && f.seq > before + 1) missed += f.seq - before - 1;
@@ -183,6 +211,7 @@ bool station_view_frame(const StationPlan& plan, StationResources& res, ViewFram
   }
   since.annotate(j);
   j["frames_dropped"] = missed;  // frames the tick published that this thread never took (the server adds its own count)
+  status = station_status_json(plan, j);
   out = j.dump();
   return true;
 }
@@ -201,7 +230,14 @@ void open_view(const StationPlan& plan, StationResources& res, const BuildResult
   ViewCallbacks cb;
   cb.scene = [scene_text] { return scene_text; };
   auto since = std::make_shared<LinkSince>();
-  cb.next_frame = [&plan, &res, frame, missed, since](std::string& out) { return station_view_frame(plan, res, *frame, *missed, *since, out); };
+  // the latest status (GET /status.json); both callbacks run on the view server's thread
+  auto status = std::make_shared<std::string>(
+      nlohmann::json({{"station", plan.station_id}, {"users", plan.built->spec.users}, {"phase", "starting"}, {"duration_s", plan.built->spec.duration_s}})
+          .dump());
+  cb.next_frame = [&plan, &res, frame, missed, since, status](std::string& out) {
+    return station_view_frame(plan, res, *frame, *missed, *since, out, *status);
+  };
+  cb.status = [status] { return *status; };
   ViewServerConfig vc;
   vc.bind = plan.file.view.bind;
   vc.port = plan.file.view.port;

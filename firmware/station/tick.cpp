@@ -257,6 +257,7 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
     in.recorder->rt_tick(row);
   }
   if (in.view) in.view->note_missed_cycles(info.missed_cycles);
+  if (in.view) in.view->note_overruns(info.overruns);
   if (in.view) in.view->on_tick(*in.core, kr, in.period_s, q, out.device_force_N, out.flags, info.prev_exec_ns, info.wake_latency_ns);
   ++cnt.ticks_run;
   if (in.gpio) in.gpio->tick_low();

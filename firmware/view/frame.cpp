@@ -52,6 +52,7 @@ void ViewPublisher::on_tick(const rt::StationCore& core, std::int64_t kr, double
   f.exec_max_ns = exec_max_, f.wake_max_ns = wake_max_, f.flags = flags_;
   f.window_ticks = ticks_, f.window_missed_cycles = missed_;
   f.period_ns = static_cast<std::int64_t>(period_s * 1e9 + 0.5);
+  f.overruns = overruns_total_, f.missed_cycles = missed_total_;
   f.gate_trips = core.edge_gate().trips(), f.gate_removed_J = core.edge_gate().removed_J();
   f.edge_drops = core.edge_drop_events(), f.port_min_J = port_min_J_;
   f.in_contact = core.in_contact();
@@ -108,6 +109,7 @@ nlohmann::json view_frame_json(const ViewFrame& f) {
   j["host"] = {{"starving", platform::host_starving(f.window_ticks, f.window_missed_cycles, f.wake_max_ns, f.period_ns)},
                {"wake_max_ms", f.wake_max_ns * 1e-6}, {"skipped_periods", f.window_missed_cycles}, {"ticks", f.window_ticks},
                {"period_ms", static_cast<double>(f.period_ns) * 1e-6}};
+  j["loop"] = {{"overruns", f.overruns}, {"missed_cycles", f.missed_cycles}};  // totals since the loop started
   j["gate"] = {{"trips", f.gate_trips}, {"removed_J", f.gate_removed_J}, {"edge_drops", f.edge_drops}, {"port_min_J", f.port_min_J},
                {"held", f.gate_trips > 0}};
   return j;

@@ -41,6 +41,8 @@ struct ViewFrame {
   // starving-host rule, platform::host_starving, with the largest wake-up as the P99 of so few)
   std::uint32_t window_ticks = 0, window_missed_cycles = 0;
   std::int64_t period_ns = 0;
+  // The run loop's totals so far (platform::TickInfo): overruns and skipped periods since the start
+  std::uint64_t overruns = 0, missed_cycles = 0;
   std::uint32_t flags = 0;       // TickFlags or-ed since the last frame
   // What the per-edge energy gate and the edge-drop rule did so far (firmware/run_summary.hpp
   // GateSummary): trips, the energy the gate removed, drop events, and the worst port energy.
@@ -63,6 +65,8 @@ class ViewPublisher {
     missed_total_ = total;
     have_missed_ = true;
   }
+  // Before on_tick: the run loop's overruns so far (platform::TickInfo::overruns). RT-safe.
+  void note_overruns(std::uint64_t total) { overruns_total_ = total; }
   // Reader side (one non-RT thread): the newest frame, if a new one was published.
   bool take(ViewFrame& out) { return box_.reader_take(out); }
   int every() const { return every_; }
@@ -75,7 +79,7 @@ class ViewPublisher {
   std::uint32_t flags_ = 0;
   double port_min_J_ = 0;  // over every tick, not only the published ones
   std::uint32_t ticks_ = 0, missed_ = 0;  // since the last frame
-  std::uint64_t missed_total_ = 0;
+  std::uint64_t missed_total_ = 0, overruns_total_ = 0;
   bool have_missed_ = false;
 };
 

@@ -21,14 +21,18 @@ struct Session {  // per browser (zeroed by lws)
   std::uint64_t sent_seq;
   bool scene_sent;
 };
+struct StatusSession {  // per GET /status.json (zeroed by lws)
+  std::string* body;
+};
 int view_callback(lws* wsi, lws_callback_reasons reason, void* user, void* in, size_t len);
+int status_callback(lws* wsi, lws_callback_reasons reason, void* user, void* in, size_t len);
 }  // namespace
 
 struct ViewServer::Impl {
   ViewServerConfig cfg;
   ViewCallbacks cb;
-  lws_protocols protocols[3] = {};
-  lws_http_mount m_root{}, m_three{}, m_chart{};
+  lws_protocols protocols[4] = {};
+  lws_http_mount m_root{}, m_three{}, m_chart{}, m_status{};
   lws_context* ctx = nullptr;
   std::atomic<bool> stop{false};
   std::thread service, timer;
@@ -120,6 +124,46 @@ int view_callback(lws* wsi, lws_callback_reasons reason, void* user, void* in, s
   return 0;
 }
 
+// GET /status.json: the status callback's JSON, answered on the server thread.
+int status_callback(lws* wsi, lws_callback_reasons reason, void* user, void* in, size_t len) {
+  auto* impl = static_cast<ViewServer::Impl*>(lws_context_user(lws_get_context(wsi)));
+  auto* ss = static_cast<StatusSession*>(user);
+  switch (reason) {
+    case LWS_CALLBACK_HTTP: {
+      delete ss->body;
+      ss->body = new std::string(impl->cb.status ? impl->cb.status() : std::string("{}"));
+      unsigned char buf[LWS_PRE + 512];
+      unsigned char *start = buf + LWS_PRE, *p = start, *end = buf + sizeof buf - 1;
+      static const char no_store[] = "no-store";
+      if (lws_add_http_common_headers(wsi, HTTP_STATUS_OK, "application/json", ss->body->size(), &p, end) ||
+          lws_add_http_header_by_token(wsi, WSI_TOKEN_HTTP_CACHE_CONTROL, reinterpret_cast<const unsigned char*>(no_store),
+                                       static_cast<int>(sizeof no_store - 1), &p, end) ||
+          lws_finalize_write_http_header(wsi, start, &p, end))
+        return 1;
+      lws_callback_on_writable(wsi);
+      return 0;
+    }
+    case LWS_CALLBACK_HTTP_WRITEABLE: {
+      if (ss->body == nullptr) break;
+      std::vector<unsigned char> buf(LWS_PRE + ss->body->size());
+      std::memcpy(buf.data() + LWS_PRE, ss->body->data(), ss->body->size());
+      const int n = lws_write(wsi, buf.data() + LWS_PRE, ss->body->size(), LWS_WRITE_HTTP_FINAL);
+      delete ss->body;
+      ss->body = nullptr;
+      if (n < 0) return -1;
+      if (lws_http_transaction_completed(wsi)) return -1;
+      return 0;
+    }
+    case LWS_CALLBACK_CLOSED_HTTP:
+      delete ss->body;
+      ss->body = nullptr;
+      break;
+    default:
+      break;
+  }
+  return lws_callback_http_dummy(wsi, reason, user, in, len);
+}
+
 void mount(lws_http_mount& m, const char* point, const std::string& origin, const char* def, const lws_http_mount* next) {
   m.mount_next = next;
   m.mountpoint = point;
@@ -156,8 +200,15 @@ ViewServer::ViewServer(const ViewServerConfig& config, ViewCallbacks callbacks) 
   mount(m.m_chart, "/chart", m.cfg.chart_dir, nullptr, nullptr);
   mount(m.m_three, "/three", m.cfg.three_dir, nullptr, &m.m_chart);
   mount(m.m_root, "/", m.cfg.assets_dir, "index.html", &m.m_three);
+  if (m.cb.status) {  // the most specific mount wins: /status.json before the page's "/"
+    static const std::string status_protocol = "haptic-status";
+    mount(m.m_status, "/status.json", status_protocol, nullptr, &m.m_chart);
+    m.m_status.origin_protocol = LWSMPRO_CALLBACK;
+    m.m_three.mount_next = &m.m_status;
+  }
   m.protocols[0] = {"http", lws_callback_http_dummy, 0, 0, 0, nullptr, 0};
   m.protocols[1] = {"haptic-view", view_callback, sizeof(Session), 4096, 0, nullptr, 0};
+  m.protocols[2] = {"haptic-status", status_callback, sizeof(StatusSession), 0, 0, nullptr, 0};
   lws_set_log_level(LLL_ERR, nullptr);
   lws_context_creation_info info;
   std::memset(&info, 0, sizeof info);

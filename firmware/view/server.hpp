@@ -5,7 +5,8 @@
 // WebSocket protocol "haptic-view": one scene message per browser, then frames at rate_hz. It
 // never touches the RT tick: frames come from a `FrameSource` called on the server thread (the
 // station's reads a latest-value mailbox the tick fills). A browser that is not ready for a frame
-// misses it (counted in frames_dropped). Listens on 127.0.0.1 unless configured otherwise.
+// misses it (counted in frames_dropped). With ViewCallbacks::status, GET /status.json answers its
+// JSON (no-store), also built on the server thread. Listens on 127.0.0.1 unless configured otherwise.
 // Nothing here is RT-safe.
 #include <atomic>
 #include <cstdint>
@@ -29,6 +30,9 @@ struct ViewCallbacks {
   std::function<std::string()> scene;                   // the scene message (JSON), once per browser
   std::function<bool(std::string& frame)> next_frame;   // a new frame (JSON) or false; rate_hz times per second
   std::function<void(const std::string& message)> on_message;  // a browser's message (e.g. the replay timeline), may be empty
+  // GET /status.json (machine-readable state for haptic-lab's console), called on the server thread;
+  // empty: no such path (404)
+  std::function<std::string()> status;
 };
 
 struct ViewServerStats {

@@ -85,7 +85,7 @@ expect lab_unknown_option 2 "--runs-dirr: did you mean --runs-dir\?" -- haptic-l
 expect lab_timeout_negative 2 "argument --timeout: -5 must be > 0 s" -- haptic-lab run lab.toml --timeout -5
 
 printf '[lab]\nusers = 4\n[topology]\nlinks = "1-2,3-4"\n' >"$work/split.toml"
-expect lab_plan_disconnected 2 "topology\.links = '1-2,3-4': .*must connect all users" -- \
+expect lab_plan_disconnected 2 "topology\.links = '1-2,3-4': .*must connect all users.*no link path from user 1 reaches users 3, 4" -- \
   haptic-lab plan "$work/split.toml" --runs-dir "$work/runs"
 [ ! -e "$work/runs" ] || bad "the refused plan left $(ls -A "$work/runs" | wc -l) entries in $work/runs"
 expect lab_plan_disconnected_run_dir 2 "must connect all users" -- haptic-lab plan "$work/split.toml" --run-dir "$work/exact"

@@ -32,6 +32,8 @@ TEST(Model, graph_parser_normalizes_and_names_the_key_on_bad_input) {
   CHECK_FALSE(model::is_connected(model::parse_graph_1based("1-2,3-4", 4), 4));
   CHECK_FALSE(model::is_connected({{0, 1}, {1, 7}}, 4));
   STRCMP_CONTAINS("must connect all users", error_of([] { model::validate_graph({{0, 1}, {2, 3}}, 4, "--topology"); }).c_str());
+  STRCMP_CONTAINS("no link path from user 1 reaches users 3, 4", error_of([] { model::validate_graph({{0, 1}, {2, 3}}, 4, "--topology"); }).c_str());
+  STRCMP_CONTAINS("reaches user 3", error_of([] { model::validate_graph({{0, 1}, {1, 3}}, 4, "--topology"); }).c_str());
 }
 
 TEST(Model, nbar_is_the_ceiling_of_the_largest_delay_in_ticks_plus_the_loss_allowance) {

@@ -77,6 +77,7 @@ HdLibrary::HdLibrary(const std::string& path) : path_(resolve_path(path)) {
   bind(hdGetIntegerv, "hdGetIntegerv", false);
   bind(hdDisable, "hdDisable", false);
   bind(hdUnschedule, "hdUnschedule", false);
+  bind(hdGetString, "hdGetString", false);
   if (!missing.empty()) {
     dlclose(handle_);
     handle_ = nullptr;

@@ -5,7 +5,7 @@
 //   hdInitDevice, hdGetError, hdEnable, hdStartScheduler, hdScheduleAsynchronous,
 //   hdBeginFrame, hdEndFrame, hdGetDoublev, hdSetDoublev, hdCheckCalibration,
 //   hdStopScheduler, hdDisableDevice                          (required)
-//   hdGetIntegerv, hdDisable, hdUnschedule                      (optional: used when present)
+//   hdGetIntegerv, hdDisable, hdUnschedule, hdGetString         (optional: used when present)
 // Types and constant values below are those of the public OpenHaptics 3.x headers hdDefines.h
 // and hdScheduler.h (values checked against copies of those headers in public repositories,
 // see drivers/README.md). Units of the HD API: positions in mm, velocities in mm/s, forces in N.
@@ -39,6 +39,12 @@ inline constexpr HDerror kDeviceFault = 0x0300;      // HD_DEVICE_FAULT
 inline constexpr HDenum kCurrentButtons = 0x2000;    // HD_CURRENT_BUTTONS (HDint)
 inline constexpr HDenum kCurrentPosition = 0x2050;   // HD_CURRENT_POSITION (3 x mm)
 inline constexpr HDenum kCurrentVelocity = 0x2051;   // HD_CURRENT_VELOCITY (3 x mm/s)
+inline constexpr HDenum kVersion = 0x2500;                 // HD_VERSION (hdGetString: the HD library's version)
+inline constexpr HDenum kDeviceModelType = 0x2501;         // HD_DEVICE_MODEL_TYPE (hdGetString)
+inline constexpr HDenum kDeviceDriverVersion = 0x2502;     // HD_DEVICE_DRIVER_VERSION (hdGetString)
+inline constexpr HDenum kDeviceVendor = 0x2503;            // HD_DEVICE_VENDOR (hdGetString)
+inline constexpr HDenum kDeviceSerialNumber = 0x2504;      // HD_DEVICE_SERIAL_NUMBER (hdGetString)
+inline constexpr HDenum kDeviceFirmwareVersion = 0x2505;   // HD_DEVICE_FIRMWARE_VERSION (hdGetDoublev)
 inline constexpr HDenum kUsableWorkspaceDimensions = 0x2551;  // 6 x mm: min xyz, max xyz
 inline constexpr HDenum kNominalMaxStiffness = 0x2602;        // N/mm
 inline constexpr HDenum kNominalMaxForce = 0x2603;            // N
@@ -52,6 +58,14 @@ inline constexpr HDushort kMaxSchedulerPriority = 0xFFFF;  // HD_MAX_SCHEDULER_P
 // hdScheduler.h
 inline constexpr HDCallbackCode kCallbackDone = 0;
 inline constexpr HDCallbackCode kCallbackContinue = 1;
+
+// The OpenHaptics release whose HD C ABI this binding targets: every signature, typedef and constant
+// above is as in the public hdDefines.h / hd.h / hdScheduler.h of OpenHaptics 3.00 (hdDefines.h:
+// HD_VERSION_MAJOR_NUMBER 3, HD_VERSION_MINOR_NUMBER 00, HD_VERSION_BUILD_NUMBER 66). Another major
+// version may change them: `haptic-devices check` compares hdGetString(HD_VERSION)'s major number.
+inline constexpr int kAbiMajorVersion = 3;
+inline constexpr const char* kAbiDescription =
+    "OpenHaptics 3.x HD C API (signatures and constants of hdDefines.h/hd.h/hdScheduler.h 3.00.66)";
 
 // Name of an HD error code ("HD_COMM_ERROR", ...) or "HD error" when unknown. RT-safe.
 const char* error_name(HDerror code);
@@ -97,6 +111,7 @@ class HdLibrary {
   void (*hdGetIntegerv)(HDenum pname, HDint* params) = nullptr;
   void (*hdDisable)(HDenum cap) = nullptr;
   void (*hdUnschedule)(HDSchedulerHandle h) = nullptr;
+  HDstring (*hdGetString)(HDenum pname) = nullptr;  // identification strings (HD_VERSION, HD_DEVICE_*)
 
  private:
   std::string path_;

@@ -65,7 +65,10 @@ void PhantomDevice::start() {
     caps.max_stiffness_N_per_m = v[0] * 1000.0;
   for (double& x : v) x = 0.0;
   lib_->hdGetDoublev(hd::kUsableWorkspaceDimensions, v);
+  identity_ = HdIdentity{};
   if (lib_->hdGetError().errorCode == hd::kSuccess) {
+    identity_.has_workspace_box = true;
+    for (int i = 0; i < 6; ++i) identity_.workspace_box_mm[i] = v[i];
     double r2 = 0.0;  // bound on |p| over the box: max over corners
     for (int i = 0; i < 3; ++i) {
       const double m = std::fmax(std::fabs(v[i]), std::fabs(v[i + 3])) * 1e-3;
@@ -74,6 +77,7 @@ void PhantomDevice::start() {
     if (r2 > 0.0 && std::isfinite(r2)) caps.workspace_radius_m = std::sqrt(r2);
   }
   set_capabilities(caps);
+  read_identity();
 
   lib_->hdEnable(hd::kForceOutput);
   calibrated_ = false;
@@ -90,6 +94,25 @@ void PhantomDevice::start() {
     stop();
     throw std::runtime_error(what);
   }
+}
+
+void PhantomDevice::read_identity() {
+  if (lib_->hdGetString != nullptr) {
+    identity_.reported = true;
+    auto text = [&](hd::HDenum what) {
+      const hd::HDstring t = lib_->hdGetString(what);
+      const bool ok = lib_->hdGetError().errorCode == hd::kSuccess;
+      return ok && t != nullptr ? std::string(t) : std::string();
+    };
+    identity_.hd_version = text(hd::kVersion);
+    identity_.model = text(hd::kDeviceModelType);
+    identity_.vendor = text(hd::kDeviceVendor);
+    identity_.driver_version = text(hd::kDeviceDriverVersion);
+    identity_.serial = text(hd::kDeviceSerialNumber);
+  }
+  double fw = 0.0;
+  lib_->hdGetDoublev(hd::kDeviceFirmwareVersion, &fw);
+  if (lib_->hdGetError().errorCode == hd::kSuccess && std::isfinite(fw)) identity_.firmware_version = fw;
 }
 
 hd::HDCallbackCode PhantomDevice::servo_trampoline(void* self) {

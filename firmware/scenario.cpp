@@ -409,6 +409,15 @@ UserScriptSpec::PushPattern parse_push_pattern(const std::string& text, const st
   bad(key + " = \"" + text + "\" must be \"spread\" or \"asymmetric\"");
 }
 
+void apply_script_kind(UserScriptSpec& script, const std::string& text, std::uint64_t seed, const std::string& key) {
+  if (text.empty()) return;  // the scenario's
+  if (text == "push-hold-release") script.kind = UserScriptSpec::Kind::kPushHoldRelease;
+  else if (text == "random") script.kind = UserScriptSpec::Kind::kRandom;
+  else if (text == "hold") script.kind = UserScriptSpec::Kind::kHold;
+  else bad(key + " = \"" + text + "\" must be \"push-hold-release\", \"random\" or \"hold\" (or \"\" for the scenario's)");
+  script.random_seed = seed;
+}
+
 model::Damping BuiltScenario::damping_eq18(int user, const std::vector<int>& round_trip_sum_ticks, double override_Ns_per_m,
                                            double margin) const {
   const auto& edges = neighbor_edge[static_cast<std::size_t>(user)];

@@ -159,7 +159,7 @@ void set_user_count(ScenarioSpec& spec, int users, const std::string& key = "--u
 model::Graph default_tree(int users);
 // `haptic-station solo`: one user and no links (no neighbour, so eq. (18) gives B_i = 0 through
 // the budget's own rule), its script kRandom so a simulated user keeps touching the object by
-// itself; anchor_N_per_m > 0: a ground spring K_gnd of that stiffness on every node (rt::SceneParams),
+// itself (the station then applies station.script over it, apply_script_kind); anchor_N_per_m > 0: a ground spring K_gnd of that stiffness on every node (rt::SceneParams),
 // so one hand cannot push the floating object away (0: the paper's floating object). The rest of the
 // spec (scene, gains, period, duration) is kept. Throws std::invalid_argument naming `key`. Not RT-safe.
 void make_solo(ScenarioSpec& spec, double anchor_N_per_m = 0, const std::string& key = "--anchor");
@@ -169,6 +169,10 @@ void make_solo(ScenarioSpec& spec, double anchor_N_per_m = 0, const std::string&
 void apply_topology_file(ScenarioSpec& spec, const std::string& path, const std::string& key = "--topology-file");
 // "spread" | "asymmetric" (throws std::invalid_argument naming `key`).
 UserScriptSpec::PushPattern parse_push_pattern(const std::string& text, const std::string& key);
+// The users' script by name: "push-hold-release", "random" (every hand wanders through seeded random
+// keyframes over the whole run, so the object never comes to rest), "hold" (hands still); "" keeps the
+// scenario's. Throws std::invalid_argument naming `key`.
+void apply_script_kind(UserScriptSpec& script, const std::string& text, std::uint64_t seed, const std::string& key);
 
 // "1,2,3" (throws std::invalid_argument naming `what`). Topologies and delay matrices are parsed
 // by firmware/model (parse_graph_1based, parse_delay_matrix).

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "firmware/log_command.hpp"
 #include "firmware/run/merge.hpp"
 #include "firmware/run/summary.hpp"
 #include "firmware/scenario.hpp"
@@ -150,7 +151,7 @@ std::string sim_result_line(const std::string& name, const SimResult& r) {
 }
 
 struct SimArgs {
-  std::string scenario, out, topology, damping, delay_matrix, topology_file, pushes = "spread", receive_rule = "newest",
+  std::string scenario, out, topology, damping, delay_matrix, topology_file, pushes = "spread", script, receive_rule = "newest",
               consensus_passivity = "eq18";
   double pspm_reservoir_J = 0.0;
   double timer_jitter_ms = 0, step_jitter = 0, clock_drift_ppm = 0;  // station clocks (variable steps T_k)
@@ -276,7 +277,11 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   sim->add_option("--pushes", a.pushes,
                   "spread: push directions summing to zero by construction; asymmetric: each tilted by up to 30 deg and its depth "
                   "scaled in [0.5, 1.5] (seeded by --push-seed), so hold-force balance is measured (default spread)");
-  sim->add_option("--push-seed", a.push_seed, "Seed of the asymmetric pushes (default 1)")->check(kNonNegativeInteger);
+  sim->add_option("--push-seed", a.push_seed, "Seed of the asymmetric pushes and of --script random (default 1)")->check(kNonNegativeInteger);
+  sim->add_option("--script", a.script,
+                  "Users' script: push-hold-release, random (every hand wanders through seeded keyframes all run: the object never "
+                  "rests) or hold (default: the scenario's)")
+      ->check(CLI::IsMember({"push-hold-release", "random", "hold"}));
   sim->add_option("--topology", a.topology, "Links overriding the scenario's, users from 1, e.g. 1-2,1-3,1-4");
   sim->add_option("--damping", a.damping, "Local damping B_i in N s/m, one per user, e.g. 14,5,4,5 (default: eq. (18) plus the margin)");
   sim->add_option("--duration", a.duration, "Simulated time in s (default: the scenario's: 20, 80 or 10)")->check(kPositive);
@@ -362,7 +367,8 @@ CLI::App* add_run_options(CLI::App& app, RunArgs& a) {
 CLI::App* add_replay_options(CLI::App& app, ReplayArgs& a) {
   auto* rp = app.add_subcommand("replay", "Re-run a station's core from its session log (sim --record, [record] enabled) and compare every tick's state hash");
   rp->add_option("log", a.log, "Session log (station-<id>.h5)")->required()->check(CLI::ExistingFile);
-  rp->add_option("--damping", a.damping, "Re-run with this B_i in N s/m instead of the recorded one (no bit-exact comparison)")
+  rp->add_option("--damping", a.damping, "Re-run with this B_i in N s/m instead of the recorded one (no bit-exact comparison; open loop: the neighbours' "
+                                         "recorded states are replayed as they were, they do not react to the change)")
       ->check(CLI::Range(0.0, 1e6));
   rp->add_option("--p-scale", a.p_scale, "Re-run with P_ij scaled by this factor (default 1)");
   rp->add_option("--d-scale", a.d_scale, "Re-run with D_ij scaled by this factor (default 1)");
@@ -449,7 +455,7 @@ int run_command(const RunArgs& a) {
 // `haptic-station solo`'s options: each a key of the station file (an override of --config's), so the
 // station's own parser checks it; its errors name the option as the user wrote it.
 struct SoloArgs {
-  std::string config, out, device, scene;
+  std::string config, out, device, scene, script;
   int view_port = 0, nodes = 0;
   double duration = -1;
   double anchor = -1;
@@ -477,6 +483,9 @@ CLI::App* add_solo_options(CLI::App& app, SoloArgs& a) {
   solo->add_option("--scene", a.scene, "Scene from a mesh file (scene.file: .msh, .node/.ele, .vtk, .obj/.stl/.off)")
       ->excludes(nodes)
       ->check(CLI::ExistingFile);
+  solo->add_option("--script", a.script, "The simulated user's script (station.script; default: --config's, else random: the hand wanders "
+                                         "around the contact point and leans in, all run)")
+      ->check(CLI::IsMember({"random", "push-hold-release", "hold"}));
   solo->add_option("--anchor", a.anchor, "Ground spring on every node, N/m (the scene's K_gnd): alone, one hand would push the paper's floating "
                                          "object away; 0 = floating (default " + fmt(kSoloDefaultAnchorNPerM, 1) + ")")
       ->check(CLI::Range(0.0, 1e4));
@@ -498,6 +507,7 @@ int solo_command(const SoloArgs& a) {
   if (!a.device.empty()) set("device.kind", "\"" + a.device + "\"", "--device");
   else if (a.config.empty()) set("device.kind", "\"simulated\"", "--device");
   if (a.view_port > 0) set("station.view_port", std::to_string(a.view_port), "--view-port");
+  if (!a.script.empty()) set("station.script", "\"" + a.script + "\"", "--script");
   if (a.nodes != 0) set("station.nodes", std::to_string(a.nodes), "--nodes");
   if (!a.scene.empty()) set("scene.file", nlohmann::json(std::filesystem::absolute(a.scene).string()).dump(), "--scene");  // not relative to --config
   StationFile file;
@@ -536,6 +546,7 @@ ScenarioSpec sim_scenario_spec(const SimArgs& a) {
   }
   spec.script.push_pattern = parse_push_pattern(a.pushes, "--pushes");
   spec.script.push_seed = a.push_seed;
+  apply_script_kind(spec.script, a.script, a.push_seed, "--script");
   if (!a.delay_matrix.empty()) spec.delay_ms = haptic::model::parse_delay_matrix(a.delay_matrix, "--delay-matrix", spec.users);
   if (!a.topology.empty()) spec.topology = haptic::model::parse_graph_1based(a.topology, spec.users, "--topology");
   if (!a.damping.empty()) spec.damping_Ns_per_m = parse_list(a.damping, "--damping");
@@ -719,13 +730,14 @@ int main(int argc, char** argv) {
       "  run  run one station in real time over real sockets (--config FILE.toml)\n"
       "  solo  one station, one user, no network: touch the object with your device and the live view\n"
       "  replay  re-run a station's core from its session log, bit-exactly (LOG.h5)\n"
+      "  log  what a session log holds (log info LOG.h5) and its fields as CSV with units (log export LOG.h5 --field force,q)\n"
       "  merge  merge the outputs of N run processes into the simulator's summary.json, trace.csv, series.csv, snapshots.json\n"
       "  scenario  print a built-in scenario's users, links and delays as JSON\n"
       "  options  print every station-file option as a Markdown table"};
   app.require_subcommand(1);
   haptic::platform::add_version_flag(app, "haptic-station");
   app.footer("Exit status: 0 done; 2 bad options or configuration. `run` also: " + exit_code_help() +
-             " `replay`: see `replay --help`.");
+             " `replay`: see `replay --help`; `log`: see `log --help`.");
 
   SimArgs sim_args;
   RunArgs run_args;
@@ -735,6 +747,8 @@ int main(int argc, char** argv) {
   CLI::App* replay = add_replay_options(app, replay_args);
   SoloArgs solo_args;
   CLI::App* solo = add_solo_options(app, solo_args);
+  LogArgs log_args;
+  const LogCommands log = add_log_options(app, log_args);
   for (int i = 0; i < argc; ++i) sim_args.command_line += (i ? " " : "") + std::string(argv[i]);
   std::string merge_dir;
   CLI::App* merge = add_merge_options(app, merge_dir);
@@ -752,6 +766,7 @@ int main(int argc, char** argv) {
   if (solo->parsed()) return solo_command(solo_args);
   if (sim->parsed()) return sim_command(sim_args);
   if (replay->parsed()) return replay_command(replay_args);
+  if (log.log->parsed()) return log_command(log, log_args);
   if (merge->parsed()) return merge_command(merge_dir);
   if (scenario->parsed()) return scenario_command(scenario_query);
   if (options->parsed()) std::cout << options_markdown();

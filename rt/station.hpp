@@ -143,6 +143,25 @@ enum TickFlags : std::uint32_t {
   kEdgeEnergyGated = 1u << 7,  // an edge's energy account is over its bound: it acts as the damper
 };
 
+// The one definition of what each TickFlags bit means: its name (a word, as in a CSV column or an
+// h5py script) and a sentence. The session log stores it with its flags (firmware/session/log.hpp,
+// the `flag_bits` attribute) and `haptic-station log info` decodes with it.
+struct TickFlagName {
+  std::uint32_t bit;
+  const char* name;
+  const char* meaning;
+};
+inline constexpr TickFlagName kTickFlagNames[] = {
+    {kContactOnset, "contact_onset", "the virtual proxy touched the scene this tick"},
+    {kContactRelease, "contact_release", "the virtual proxy left the scene this tick"},
+    {kEdgeDropped, "edge_dropped", "a neighbour's packet exceeded its index-delay bound: its edge was dropped"},
+    {kForceClamped, "force_clamped", "the device force was clamped to max_device_force_N"},
+    {kDiverged, "diverged", "the state was not finite or too fast: safe state entered"},
+    {kBadDeviceSample, "bad_device_sample", "the device position was not finite: safe state for this tick"},
+    {kSafeState, "safe_state", "the station is in its safe state"},
+    {kEdgeEnergyGated, "edge_energy_gated", "an edge's energy account is over its bound: it acts as a damper"},
+};
+
 // Cumulative energies (J) for the passivity monitor.
 struct EnergyMonitor {
   double port_J = 0;        // sum_k v_hat^T f T: energy into the VO through the contact port (13)

@@ -126,6 +126,35 @@ Id open_group(hid_t loc, const std::string& name) {
 }
 bool exists(hid_t loc, const std::string& name) { return H5Lexists(loc, name.c_str(), H5P_DEFAULT) > 0; }
 bool has_attr(hid_t obj, const std::string& name) { return H5Aexists(obj, name.c_str()) > 0; }
+Id open_dataset(hid_t loc, const std::string& name) {
+  return Id(H5Dopen2(loc, name.c_str(), H5P_DEFAULT), Id::Kind::kDataset, "no dataset " + name + " in the log");
+}
+bool is_hdf5(const std::string& path) { return H5Fis_hdf5(path.c_str()) > 0; }
+
+std::vector<std::string> dataset_paths(hid_t loc) {
+  std::vector<std::string> out;
+  const auto visit = [](hid_t g, const char* name, const H5L_info_t*, void* data) -> herr_t {
+    const hid_t o = H5Oopen(g, name, H5P_DEFAULT);
+    if (o < 0) return 0;  // a dangling link: not a dataset
+    if (H5Iget_type(o) == H5I_DATASET) static_cast<std::vector<std::string>*>(data)->emplace_back(name);
+    H5Oclose(o);
+    return 0;
+  };
+  check(H5Lvisit(loc, H5_INDEX_NAME, H5_ITER_INC, visit, &out), "listing the datasets");
+  return out;
+}
+
+std::string dtype_name(hid_t loc, const std::string& name) {
+  Id ds = open_dataset(loc, name);
+  Id t(H5Dget_type(ds.get()), Id::Kind::kType, "type of " + name);
+  const std::string bits = std::to_string(8 * H5Tget_size(t.get()));
+  switch (H5Tget_class(t.get())) {
+    case H5T_FLOAT: return "float" + bits;
+    case H5T_INTEGER: return (H5Tget_sign(t.get()) == H5T_SGN_NONE ? "uint" : "int") + bits;
+    case H5T_STRING: return "string";
+    default: return "other";
+  }
+}
 
 void attr(hid_t obj, const std::string& name, double v) { scalar_attr(obj, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &v); }
 void attr(hid_t obj, const std::string& name, std::int64_t v) { scalar_attr(obj, name, H5T_STD_I64LE, H5T_NATIVE_INT64, &v); }

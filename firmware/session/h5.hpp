@@ -42,6 +42,13 @@ Id open_file_read(const std::string& path);
 Id create_group(hid_t loc, const std::string& name);
 Id open_group(hid_t loc, const std::string& name);
 bool exists(hid_t loc, const std::string& name);
+Id open_dataset(hid_t loc, const std::string& name);
+// Whether `path` is an HDF5 file (false for a missing or unreadable file too).
+bool is_hdf5(const std::string& path);
+// The paths of every dataset under `loc` ("ticks/force", ...), in name order.
+std::vector<std::string> dataset_paths(hid_t loc);
+// A dataset's element type as numpy spells it: "float64", "int32", "uint8", "string", ...
+std::string dtype_name(hid_t loc, const std::string& name);
 
 void attr(hid_t obj, const std::string& name, double v);
 void attr(hid_t obj, const std::string& name, std::int64_t v);

@@ -5,6 +5,7 @@
 #include <xxhash.h>
 
 #include <algorithm>
+#include <bit>
 #include <cstring>
 #include <stdexcept>
 
@@ -14,17 +15,25 @@ namespace {
 
 using h5::Type;
 
-// A SpatialMatrix as its CSR arrays (exact: same structure, same order of summation).
-void write_matrix(hid_t loc, const std::string& name, const rt::SpatialMatrix& m) {
+// A whole dataset (h5::write) with its units and description.
+void write_ds(hid_t loc, const std::string& name, Type type, const void* data, std::uint64_t rows, std::uint64_t cols, const std::string& units,
+              const std::string& description) {
+  h5::write(loc, name, type, data, rows, cols);
+  set_units(h5::open_dataset(loc, name).get(), units, description);
+}
+
+// A SpatialMatrix as its CSR arrays (exact: same structure, same order of summation); `units` and
+// `what` describe its values.
+void write_matrix(hid_t loc, const std::string& name, const rt::SpatialMatrix& m, const std::string& units, const std::string& what) {
   h5::Id g = h5::create_group(loc, name);
   h5::attr(g.get(), "width", static_cast<std::int64_t>(m.width));
   h5::attr(g.get(), "rows", static_cast<std::int64_t>(m.S.rows()));
   h5::attr(g.get(), "cols", static_cast<std::int64_t>(m.S.cols()));
   const auto nnz = static_cast<std::uint64_t>(m.S.nonZeros());
   std::vector<std::int64_t> outer(m.S.outerIndexPtr(), m.S.outerIndexPtr() + m.S.outerSize() + 1), inner(m.S.innerIndexPtr(), m.S.innerIndexPtr() + nnz);
-  h5::write(g.get(), "outer", Type::kI64, outer.data(), outer.size());
-  h5::write(g.get(), "inner", Type::kI64, inner.data(), inner.size());
-  h5::write(g.get(), "values", Type::kF64, m.S.valuePtr(), nnz);
+  write_ds(g.get(), "outer", Type::kI64, outer.data(), outer.size(), 0, "1", what + ": CSR row starts");
+  write_ds(g.get(), "inner", Type::kI64, inner.data(), inner.size(), 0, "1", what + ": CSR column indices");
+  write_ds(g.get(), "values", Type::kF64, m.S.valuePtr(), nnz, 0, units, what + ": CSR values");
 }
 
 rt::SpatialMatrix read_matrix(hid_t loc, const std::string& name) {
@@ -41,11 +50,11 @@ rt::SpatialMatrix read_matrix(hid_t loc, const std::string& name) {
 }
 
 template <std::size_t W, class T>
-void write_arrays(hid_t loc, const std::string& name, const std::vector<std::array<T, W>>& a) {
+void write_arrays(hid_t loc, const std::string& name, const std::vector<std::array<T, W>>& a, const std::string& description) {
   std::vector<std::int64_t> flat;
   for (const auto& r : a)
     for (auto v : r) flat.push_back(v);
-  h5::write(loc, name, Type::kI64, flat.data(), a.size(), W);
+  write_ds(loc, name, Type::kI64, flat.data(), a.size(), W, "1", description);
 }
 
 template <std::size_t W>
@@ -69,15 +78,15 @@ void write_scene(hid_t loc, const rt::Scene& s) {
   h5::attr(g.get(), "description", s.mesh.description);
   std::vector<double> nodes;
   for (const auto& p : s.mesh.nodes) nodes.insert(nodes.end(), {p[0], p[1], p[2]});
-  h5::write(g.get(), "mesh_nodes", Type::kF64, nodes.data(), s.mesh.nodes.size(), 3);
-  write_arrays(g.get(), "tets", s.mesh.tets);
-  write_arrays(g.get(), "edges", s.mesh.edges);
-  write_arrays(g.get(), "surface", s.mesh.surface);
-  h5::write(g.get(), "x_d", Type::kF64, s.x_d.data(), static_cast<std::uint64_t>(s.x_d.size()));
-  write_matrix(g.get(), "M", s.M);
-  write_matrix(g.get(), "B", s.B);
-  write_matrix(g.get(), "K_int", s.K_int);
-  write_matrix(g.get(), "K", s.K);
+  write_ds(g.get(), "mesh_nodes", Type::kF64, nodes.data(), s.mesh.nodes.size(), 3, "m", "rest positions of the mesh nodes");
+  write_arrays(g.get(), "tets", s.mesh.tets, "tetrahedra (node indices)");
+  write_arrays(g.get(), "edges", s.mesh.edges, "edges (node indices)");
+  write_arrays(g.get(), "surface", s.mesh.surface, "surface triangles (node indices)");
+  write_ds(g.get(), "x_d", Type::kF64, s.x_d.data(), static_cast<std::uint64_t>(s.x_d.size()), 0, "m", "rest (desired) node positions x_d");
+  write_matrix(g.get(), "M", s.M, "kg", "mass matrix M");
+  write_matrix(g.get(), "B", s.B, "N s/m", "damping matrix B");
+  write_matrix(g.get(), "K_int", s.K_int, "N/m", "internal stiffness K_int");
+  write_matrix(g.get(), "K", s.K, "N/m", "stiffness K");
 }
 
 void read_scene(hid_t loc, rt::Scene& s) {
@@ -244,6 +253,8 @@ void write_session_header(hid_t file, const SessionInfo& info, const rt::Station
   h5::attr(file, "format", std::string("haptic-session"));
   h5::attr(file, "version", kSessionLogVersion);
   h5::attr(file, "source", info.source);
+  if (!info.scenario.empty()) h5::attr(file, "scenario", info.scenario);
+  h5::attr(file, kFieldUnitsAttr, static_cast<std::int64_t>(1));
   h5::attr(file, "station_id", static_cast<std::int64_t>(info.station_id));
   h5::attr(file, "users", static_cast<std::int64_t>(c.users));
   h5::attr(file, "nodes", static_cast<std::int64_t>(c.scene->nodes));
@@ -261,28 +272,70 @@ void write_session_header(hid_t file, const SessionInfo& info, const rt::Station
   write_core_attrs(g.get(), c);
   std::vector<std::int64_t> contact(c.contact_nodes.begin(), c.contact_nodes.end()), peer, bound, gain_of;
   std::vector<double> share;
-  h5::write(g.get(), "contact_nodes", Type::kI64, contact.data(), contact.size());
-  h5::write(g.get(), "vp_initial_position_m", Type::kF64, c.vp_initial_position_m.data(), 3);
+  write_ds(g.get(), "contact_nodes", Type::kI64, contact.data(), contact.size(), 0, "1", "the contact mesh C_i: the scene nodes the virtual proxy can touch");
+  write_ds(g.get(), "vp_initial_position_m", Type::kF64, c.vp_initial_position_m.data(), 3, 0, "m", "virtual proxy position before the first tick");
   for (const auto& n : c.neighbors) {
     peer.push_back(n.peer_id);
     bound.push_back(n.index_delay_bound_ticks);
     share.push_back(n.damping_share);
   }
   const auto gains = distinct_gains(c, gain_of);
-  h5::write(g.get(), "neighbour_peer", Type::kI64, peer.data(), peer.size());
-  h5::write(g.get(), "neighbour_index_delay_bound_ticks", Type::kI64, bound.data(), bound.size());
-  h5::write(g.get(), "neighbour_gain", Type::kI64, gain_of.data(), gain_of.size());
-  h5::write(g.get(), "neighbour_damping_share", Type::kF64, share.data(), share.size());
+  write_ds(g.get(), "neighbour_peer", Type::kI64, peer.data(), peer.size(), 0, "1", "each neighbour's station index (0-based)");
+  write_ds(g.get(), "neighbour_index_delay_bound_ticks", Type::kI64, bound.data(), bound.size(), 0, "1",
+           "each neighbour's index-delay bound, in ticks");
+  write_ds(g.get(), "neighbour_gain", Type::kI64, gain_of.data(), gain_of.size(), 0, "1", "each neighbour's gains: a group of /core/gains");
+  write_ds(g.get(), "neighbour_damping_share", Type::kF64, share.data(), share.size(), 0, "1", "each neighbour's share of the damping B_i");
   write_scene(g.get(), *c.scene);
   h5::Id gg = h5::create_group(g.get(), "gains");
   for (std::size_t e = 0; e < gains.size(); ++e) {
     h5::Id ge = h5::create_group(gg.get(), std::to_string(e));
-    write_matrix(ge.get(), "P", gains[e]->P);
-    write_matrix(ge.get(), "D", gains[e]->D);
+    write_matrix(ge.get(), "P", gains[e]->P, "N/m", "consensus stiffness gain P_ij");
+    write_matrix(ge.get(), "D", gains[e]->D, "N s/m", "consensus damping gain D_ij");
     h5::attr(ge.get(), "lambda_max_P", gains[e]->lambda_max_P);
     h5::attr(ge.get(), "lambda_max_D", gains[e]->lambda_max_D);
     h5::attr(ge.get(), "description", gains[e]->description);
   }
+}
+
+std::string flag_bits_text() {
+  std::string t;
+  for (const auto& f : rt::kTickFlagNames) {
+    t += std::to_string(std::countr_zero(f.bit)) + " " + f.name + " " + f.meaning + "\n";
+  }
+  return t;
+}
+
+void set_units(hid_t dataset, const std::string& units, const std::string& description) {
+  h5::attr(dataset, kUnitsAttr, units);
+  h5::attr(dataset, kDescriptionAttr, description);
+}
+
+h5::Appendable create_field(hid_t group, const LogField& f, std::uint64_t dofs, bool float32, std::uint64_t chunk_rows, int deflate_level,
+                            std::uint64_t ring_rows) {
+  const bool values = f.cols == FieldCols::kDofs;
+  const std::uint64_t cols = f.cols == FieldCols::kScalar ? 0 : f.cols == FieldCols::kXyz ? 3 : dofs;
+  h5::Appendable a(group, f.name, values && float32 ? Type::kF32 : f.type, cols, chunk_rows, deflate_level, ring_rows);
+  set_units(a.id(), f.units, f.description);
+  if (&f == &kTickFields[kTickFlags]) h5::attr(a.id(), kFlagBitsAttr, flag_bits_text());
+  return a;
+}
+
+void write_initial_state(hid_t file, const double* x, const double* v, std::uint64_t dofs) {
+  h5::Id g = h5::create_group(file, "initial_state");
+  write_ds(g.get(), "x", Type::kF64, x, dofs, 0, "m", "VO node positions before the first tick");
+  write_ds(g.get(), "v", Type::kF64, v, dofs, 0, "m/s", "VO node velocities before the first tick");
+}
+
+std::vector<double> tick_end_times_s(const std::vector<std::int64_t>& k, const std::vector<double>& step_s, double period_s) {
+  std::vector<double> t(k.size());
+  double now = k.empty() ? 0.0 : static_cast<double>(k.front()) * period_s;
+  for (std::size_t i = 0; i < k.size(); ++i) {
+    if (i > 0 && k[i] > k[i - 1] + 1) now += static_cast<double>(k[i] - k[i - 1] - 1) * period_s;
+    const double step = i < step_s.size() && step_s[i] > 0 ? step_s[i] : period_s;
+    now += step;
+    t[i] = now;
+  }
+  return t;
 }
 
 std::unique_ptr<CoreSetup> read_core_setup(hid_t file) {

@@ -5,7 +5,7 @@
 // simulator (`sim --record`), in the same layout:
 //
 //   /                attrs format = "haptic-session", version, source ("station" | "sim"),
-//                    station_id (1-based), users, nodes, dofs, period_s, config_text (station
+//                    scenario, field_units, station_id (1-based), users, nodes, dofs, period_s, config_text (station
 //                    file or sim command line), fingerprint, packet_values ("float32" | "float64"),
 //                    damping_min_Ns_per_m and passivity_condition_met (eq. 18; the view's status),
 //                    build_id (the writing program's GNU build ID),
@@ -17,13 +17,12 @@
 //                    mesh, solver), /core/scene (mesh, M, B, K_int, K, x_d as CSR arrays),
 //                    /core/gains/<e>/{P,D}: the exact matrices, so replay does not rebuild the scenario
 //   /initial_state   x, v of the core before its first tick (a rejoining station's adopted state)
-//   /ticks           one row per tick: k (run index), q (device sample used, 3), force (3), vp (3),
-//                    port_J, controller_J, vo_J, hash (uint64, state_hash), flags, contact,
-//                    wake_latency_ns, exec_ns, dropped (records this tick lost to a full ring),
-//                    step_s (the step T_k handed to the core: the station's measured wake-to-wake
-//                    period, the simulator's clock model; version 2, absent in version 1 = nominal)
-//   /packets         one row per packet offered to rx(n) before that tick: tick, neighbour
-//                    (index), seq (run index), send_time_s, x (dofs), v (dofs)
+//   /ticks           one row per tick: kTickFields below (k, q, force, vp, energies, hash, flags, ...)
+//   /packets         one row per packet offered to rx(n) before that tick: kPacketFields below
+//   Every dataset carries the attributes `units` (SI: "N", "m", "m/s", "J", "s", "ns"; "1" for a
+//   count, an index or a code) and `description`; /ticks/flags also `flag_bits`, one line per bit
+//   "<bit> <name> <meaning>" (rt::kTickFlagNames). Logs written before these attributes (file
+//   attribute field_units absent) have none; `haptic-station log info` says so.
 //   A ring log (station.record_ring_s, sim --record-ring-s): /ticks and /packets are rings of
 //   fixed row counts; their attribute ring_next_row is the row of the oldest entry
 //   (chronological order: numpy.roll(a, -ring_next_row, axis=0)). A wrapped ring is for
@@ -42,6 +41,74 @@
 namespace haptic::firmware {
 
 inline constexpr std::int64_t kSessionLogVersion = 2;  // 2: /ticks/step_s (version 1 logs are read, steps nominal)
+
+// The columns of one row of a dataset: one value, x y z, or the scene's dofs (packet x and v).
+enum class FieldCols { kScalar, kXyz, kDofs };
+
+// One dataset of /ticks or /packets: the one definition of the rows of the log. The recorder
+// creates its datasets from these tables (create_field: name, file type, columns, and the units
+// and description as attributes); `haptic-station log` reads them back from the file.
+struct LogField {
+  const char* name;
+  h5::Type type;  // the file type; a kDofs field is float32 or float64 as the log's packet_values
+  FieldCols cols;
+  const char* units;  // "1": a count, an index or a code
+  const char* description;
+};
+
+inline constexpr const char* kTicksGroup = "ticks";
+inline constexpr const char* kPacketsGroup = "packets";
+inline constexpr const char* kUnitsAttr = "units";
+inline constexpr const char* kDescriptionAttr = "description";
+inline constexpr const char* kFlagBitsAttr = "flag_bits";
+// File attribute: the log has units on its datasets (its value: the first program version that
+// wrote them, for `log info` on older logs).
+inline constexpr const char* kFieldUnitsAttr = "field_units";
+
+enum TickField : std::size_t {
+  kTickK, kTickQ, kTickForce, kTickVp, kTickPortJ, kTickControllerJ, kTickVoJ, kTickHash, kTickFlags, kTickContact,
+  kTickWakeLatency, kTickExec, kTickDropped, kTickStep, kTickFieldCount
+};
+inline constexpr LogField kTickFields[kTickFieldCount] = {
+    {"k", h5::Type::kI64, FieldCols::kScalar, "1", "run index of the tick (t = k T from the run's start)"},
+    {"q", h5::Type::kF64, FieldCols::kXyz, "m", "device position sample the tick used"},
+    {"force", h5::Type::kF64, FieldCols::kXyz, "N", "force commanded to the device"},
+    {"vp", h5::Type::kF64, FieldCols::kXyz, "m", "virtual proxy position after the tick"},
+    {"port_J", h5::Type::kF64, FieldCols::kScalar, "J", "energy into the VO through the contact port, cumulative (eq. 13)"},
+    {"controller_J", h5::Type::kF64, FieldCols::kScalar, "J", "energy from the consensus control port, cumulative (eq. 14)"},
+    {"vo_J", h5::Type::kF64, FieldCols::kScalar, "J", "energy of the virtual object at the start of the tick"},
+    {"hash", h5::Type::kU64, FieldCols::kScalar, "1", "64-bit XXH3 hash of the core's state after the tick (replay compares it)"},
+    {"flags", h5::Type::kU32, FieldCols::kScalar, "1", "status bits of the tick (rt::TickFlags; attribute flag_bits names them)"},
+    {"contact", h5::Type::kU8, FieldCols::kScalar, "1", "1 while the virtual proxy touches the scene"},
+    {"wake_latency_ns", h5::Type::kI32, FieldCols::kScalar, "ns", "how late the tick woke after its deadline (0 in a simulation)"},
+    {"exec_ns", h5::Type::kI32, FieldCols::kScalar, "ns", "time the tick took on this host"},
+    {"dropped", h5::Type::kU32, FieldCols::kScalar, "1", "records lost to a full recorder ring before this tick"},
+    {"step_s", h5::Type::kF64, FieldCols::kScalar, "s", "step T_k handed to the core (0: the nominal period_s)"},
+};
+enum PacketField : std::size_t { kPacketTick, kPacketNeighbour, kPacketSeq, kPacketSendTime, kPacketX, kPacketV, kPacketFieldCount };
+inline constexpr LogField kPacketFields[kPacketFieldCount] = {
+    {"tick", h5::Type::kI64, FieldCols::kScalar, "1", "run index of the tick the packet was offered to"},
+    {"neighbour", h5::Type::kI64, FieldCols::kScalar, "1", "index of the neighbour it came from (0-based, /core/neighbour_peer)"},
+    {"seq", h5::Type::kI64, FieldCols::kScalar, "1", "the sender's run index of the state (its sequence number)"},
+    {"send_time_s", h5::Type::kF64, FieldCols::kScalar, "s", "the sender's run time when it sent the state"},
+    {"x", h5::Type::kF64, FieldCols::kDofs, "m", "the neighbour's VO node positions (x_hat, dofs)"},
+    {"v", h5::Type::kF64, FieldCols::kDofs, "m/s", "the neighbour's VO node velocities (v_hat, dofs)"},
+};
+
+// The flag_bits attribute's text: one line per rt::kTickFlagNames entry, "<bit> <name> <meaning>".
+std::string flag_bits_text();
+// Sets a dataset's units and description attributes.
+void set_units(hid_t dataset, const std::string& units, const std::string& description);
+// Creates field f's appendable dataset in `group` (its kDofs columns: `dofs`, float32 when
+// `float32`) with its units and description (and flag_bits for /ticks/flags). Not RT-safe.
+h5::Appendable create_field(hid_t group, const LogField& f, std::uint64_t dofs, bool float32, std::uint64_t chunk_rows, int deflate_level,
+                            std::uint64_t ring_rows);
+// Writes /initial_state (x, v of `dofs` values each, with units). Not RT-safe.
+void write_initial_state(hid_t file, const double* x, const double* v, std::uint64_t dofs);
+// The run time (s) at the end of each tick row of a log, in the rows' (chronological) order:
+// the first tick's nominal start k_0 T plus the recorded steps (step_s; 0 or absent: T; a gap in k,
+// ticks not recorded, counts T each). As replay --trace's t_s when the core took the recorded steps.
+std::vector<double> tick_end_times_s(const std::vector<std::int64_t>& k, const std::vector<double>& step_s, double period_s);
 
 // 64-bit hash (XXH3) of the core's state after a tick: x, v, VP position, the tick's device
 // force, the five energies and the flags. Two runs whose hashes agree at every tick computed the
@@ -74,6 +141,7 @@ struct SessionInfo {
   bool packets_float32 = false;    // the wire carries float32 values
   double damping_min_Ns_per_m = -1;  // eq. (18)'s minimum B_i for this station (-1: not known)
   bool passivity_condition_met = false;  // B_i >= that minimum (eq. 18)
+  std::string scenario;            // the scenario's name ("" : not written)
 };
 
 // The core's configuration with the scene and gains it points to, owned (read back from a log,

@@ -40,34 +40,25 @@ struct SessionRecorder::Writer {
     float32 = info.packets_float32;
     file = h5::create_file(cfg.path);
     write_session_header(file.get(), info, core);
-    ticks_g = h5::create_group(file.get(), "ticks");
-    packets_g = h5::create_group(file.get(), "packets");
-    using h5::Type;
+    ticks_g = h5::create_group(file.get(), kTicksGroup);
+    packets_g = h5::create_group(file.get(), kPacketsGroup);
     const hid_t t = ticks_g.get(), p = packets_g.get();
     const std::uint64_t rt = cfg.ring_ticks, rp = rt ? ring_packet_rows(rt, static_cast<int>(core.neighbors.size())) : 0;
-    k = h5::Appendable(t, "k", Type::kI64, 0, 4096, 0, rt);
-    q = h5::Appendable(t, "q", Type::kF64, 3, 4096, 0, rt);
-    force = h5::Appendable(t, "force", Type::kF64, 3, 4096, 0, rt);
-    vp = h5::Appendable(t, "vp", Type::kF64, 3, 4096, 0, rt);
-    port = h5::Appendable(t, "port_J", Type::kF64, 0, 4096, 0, rt);
-    ctrl = h5::Appendable(t, "controller_J", Type::kF64, 0, 4096, 0, rt);
-    vo = h5::Appendable(t, "vo_J", Type::kF64, 0, 4096, 0, rt);
-    hash = h5::Appendable(t, "hash", Type::kU64, 0, 4096, 0, rt);
-    flags = h5::Appendable(t, "flags", Type::kU32, 0, 4096, 0, rt);
-    contact = h5::Appendable(t, "contact", Type::kU8, 0, 4096, 0, rt);
-    wake = h5::Appendable(t, "wake_latency_ns", Type::kI32, 0, 4096, 0, rt);
-    exec = h5::Appendable(t, "exec_ns", Type::kI32, 0, 4096, 0, rt);
-    dropped = h5::Appendable(t, "dropped", Type::kU32, 0, 4096, 0, rt);
-    step = h5::Appendable(t, "step_s", Type::kF64, 0, 4096, 0, rt);
-    const auto chunk = std::max<std::uint64_t>(1, (1u << 18) / (static_cast<std::uint64_t>(dofs) * (float32 ? 4 : 8)));
+    const auto n = static_cast<std::uint64_t>(dofs);
+    const auto tick_field = [&](TickField f) { return create_field(t, kTickFields[f], n, float32, 4096, 0, rt); };
+    k = tick_field(kTickK), q = tick_field(kTickQ), force = tick_field(kTickForce), vp = tick_field(kTickVp);
+    port = tick_field(kTickPortJ), ctrl = tick_field(kTickControllerJ), vo = tick_field(kTickVoJ), hash = tick_field(kTickHash);
+    flags = tick_field(kTickFlags), contact = tick_field(kTickContact), wake = tick_field(kTickWakeLatency), exec = tick_field(kTickExec);
+    dropped = tick_field(kTickDropped), step = tick_field(kTickStep);
+    const auto chunk = std::max<std::uint64_t>(1, (1u << 18) / (n * (float32 ? 4 : 8)));
     // A ring overwrites its chunks in place; deflated chunks change size, so a ring is not deflated.
     const int deflate = rt ? 0 : cfg.deflate_level;
-    p_tick = h5::Appendable(p, "tick", Type::kI64, 0, 4096, 0, rp);
-    p_nbr = h5::Appendable(p, "neighbour", Type::kI64, 0, 4096, 0, rp);
-    p_seq = h5::Appendable(p, "seq", Type::kI64, 0, 4096, 0, rp);
-    p_send = h5::Appendable(p, "send_time_s", Type::kF64, 0, 4096, 0, rp);
-    p_x = h5::Appendable(p, "x", float32 ? Type::kF32 : Type::kF64, static_cast<std::uint64_t>(dofs), chunk, deflate, rp);
-    p_v = h5::Appendable(p, "v", float32 ? Type::kF32 : Type::kF64, static_cast<std::uint64_t>(dofs), chunk, deflate, rp);
+    p_tick = create_field(p, kPacketFields[kPacketTick], n, float32, 4096, 0, rp);
+    p_nbr = create_field(p, kPacketFields[kPacketNeighbour], n, float32, 4096, 0, rp);
+    p_seq = create_field(p, kPacketFields[kPacketSeq], n, float32, 4096, 0, rp);
+    p_send = create_field(p, kPacketFields[kPacketSendTime], n, float32, 4096, 0, rp);
+    p_x = create_field(p, kPacketFields[kPacketX], n, float32, chunk, deflate, rp);
+    p_v = create_field(p, kPacketFields[kPacketV], n, float32, chunk, deflate, rp);
   }
 
   // The ticks the log holds, as attributes (ring or not). Not RT-safe.
@@ -110,9 +101,7 @@ struct SessionRecorder::Writer {
   void complete(const RecorderConfig& cfg) {
     const auto n = static_cast<std::size_t>(dofs);
     if (head.type == kInitial) {
-      h5::Id g = h5::create_group(file.get(), "initial_state");
-      h5::write(g.get(), "x", h5::Type::kF64, values.data(), n);
-      h5::write(g.get(), "v", h5::Type::kF64, values.data() + n, n);
+      write_initial_state(file.get(), values.data(), values.data() + n, n);
       return;
     }
     if (!admit(head.a, packet_bytes(), cfg.max_bytes, cfg.ring_ticks > 0)) return;

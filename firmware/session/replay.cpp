@@ -140,7 +140,8 @@ std::string ReplayResult::summary() const {
   std::ostringstream os;
   os << "replay of station " << station_id << " (" << source << " log): " << ticks << " ticks";
   if (gains_changed) {
-    os << " re-run with changed gains; max |F - F_recorded| = " << max_force_difference_N << " N";
+    os << " re-run with changed gains; max |F - F_recorded| = " << max_force_difference_N << " N"
+       << " (open loop: the neighbours' recorded states are replayed as they were, they do not react to the changed gains)";
   } else if (bit_exact()) {
     os << ", bit-exact at every tick (state hash)";
   } else if (first_mismatch >= 0) {

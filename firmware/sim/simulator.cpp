@@ -97,6 +97,7 @@ std::vector<std::unique_ptr<SessionRecorder>> open_sim_recorders(const BuiltScen
     rc.ring_ticks = static_cast<std::uint64_t>(std::llround(opt.record_ring_s / b.spec.period_s));
     SessionInfo info;
     info.source = "sim";
+    info.scenario = b.spec.name;
     info.station_id = static_cast<int>(i) + 1;
     info.config_text = opt.command_line;
     info.fingerprint = fingerprint_text(scene_fingerprint(b, std::llround(b.spec.period_s * 1e9))) + ", scenario " + b.spec.name;

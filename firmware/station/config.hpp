@@ -29,6 +29,7 @@ struct StationSection {
   std::string delay_matrix;
   std::string pushes = "spread";
   std::uint64_t push_seed = 1;
+  std::string script;  // "" = the scenario's users' script
   bool allow_routed_peers = false;
   bool run_subdir = false;
   int nodes = 33;

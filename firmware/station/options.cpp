@@ -60,7 +60,9 @@ const std::vector<StationOption> kStation = {
                                       "emulator's means; \"\" = the scenario's").same_on_all_stations(), HAPTIC_FIELD(station, delay_matrix)},
     {T("station", "pushes", "spread", "user scripts' push directions: spread (cancel by construction) or asymmetric (tilted, unequal depths)",
        "spread|asymmetric").same_on_all_stations(), HAPTIC_FIELD(station, pushes)},
-    {I("station", "push_seed", 1, 0, double(1ll << 40), "seed of the asymmetric pushes"), HAPTIC_FIELD(station, push_seed)},
+    {I("station", "push_seed", 1, 0, double(1ll << 40), "seed of the asymmetric pushes and of the random script"), HAPTIC_FIELD(station, push_seed)},
+    {T("station", "script", "", "users' script: push-hold-release, random (hands wander through seeded keyframes all run) or hold; "
+                                "\"\" = the scenario's", "|push-hold-release|random|hold").same_on_all_stations(), HAPTIC_FIELD(station, script)},
     {B("station", "allow_routed_peers", false, "false: every UDP peer must be on loopback or on a network of one of this machine's "
                                                "interfaces; true: peers across routers"), HAPTIC_FIELD(station, allow_routed_peers)},
     {B("station", "run_subdir", false, "outputs go to out_dir/<UTC time>-s<session_id>/ (created): a run never overwrites an earlier one"),

@@ -271,6 +271,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
     }
   }
   spec.script.push_pattern = parse_push_pattern(s.pushes, "station.pushes");
+  apply_script_kind(spec.script, s.script, s.push_seed, "station.script");
   spec.script.push_seed = s.push_seed;
   if (!s.topology.empty()) {
     try {
@@ -313,8 +314,10 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.tx_deadband.predictive = s.tx_predict;
   if (std::llabs(std::llround(spec.period_s * 1e9) - f.loop.period_ns) > 0)
     bad("loop.period_ns must equal the scenario's period " + std::to_string(std::llround(spec.period_s * 1e9)) + " ns (the paper's T = 2 ms)");
-  if (o.solo) make_solo(spec, o.solo_anchor_N_per_m);  // one user, no links: station.id, users, topology and delays do not apply
-  else if (s.id > spec.users) bad("station.id must be in [1, " + std::to_string(spec.users) + "] for scenario " + spec.name);
+  if (o.solo) {  // one user, no links: station.id, users, topology and delays do not apply
+    make_solo(spec, o.solo_anchor_N_per_m);
+    apply_script_kind(spec.script, s.script, s.push_seed, "station.script");  // a script named in the file (or --script) over solo's random
+  } else if (s.id > spec.users) bad("station.id must be in [1, " + std::to_string(spec.users) + "] for scenario " + spec.name);
   const auto& sc = spec.script;
   if (sc.kind == UserScriptSpec::Kind::kPushHoldRelease && !(sc.push_start_s < sc.push_end_s && sc.push_end_s < sc.release_s))
     bad("station.push_start_s < station.push_end_s < station.release_s must hold (got " + std::to_string(sc.push_start_s) + ", " +

@@ -171,6 +171,7 @@ std::unique_ptr<SessionRecorder> open_recorder(const StationPlan& plan, const Bu
   rc.ring_ticks = record_ring_ticks(plan);
   SessionInfo info;
   info.source = "station";
+  info.scenario = plan.file.station.scenario;
   info.station_id = plan.station_id;
   info.config_text = plan.file.text;
   info.fingerprint = fingerprint_text(plan.fingerprint);

@@ -35,5 +35,14 @@ else
   need '2988:0302  3D Systems Touch, USB model .*/dev/ttyACM0  serial "TOUCH-ACM-3"'
   need 'Touch vendor configuration'
   if printf '%s\n' "$out" | grep -q '046d:c31c'; then echo "UNEXPECTED: unrelated keyboard listed"; fail=1; fi
+  # `check` with device.kind auto: the Touch found on (stand-in) USB, servo through the fake library with its
+  # scripted user and test plant (tests/drivers/haptic_devices_guided_check.sh has the failing cases)
+  out=$(umockdev-run -d "$dir/touch_usb.umockdev" -- env FAKEHD_AUTO=1 FAKEHD_USER=1 FAKEHD_PLANT=0.05,5,0.05 \
+    "$tool" check --hd-library "$fakehd" --yes --max-stale-reads 500 --timeout-s 20 2>&1); rc=$?
+  printf '%s\n' "$out" | grep -v '^  t '
+  if [ "$rc" -ne 0 ]; then echo "check: exit $rc, expected 0"; fail=1; fi
+  need 'usb: found 2988:0302 .*serial "TOUCH-0001"'
+  need 'touch: unplug detection on 2988:0302'
+  need '^summary: 7 PASS, 0 FAIL, 0 SKIP; exit 0$'
 fi
 exit $fail

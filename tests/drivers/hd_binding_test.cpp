@@ -218,3 +218,24 @@ TEST(HdBinding, LibrarysOwnSchedulerThreadCarriesSamplesAndForces) {
   fake.last_force(out);
   DOUBLES_EQUAL(0.0, out[1], 0.0);  // stop() let a zero-force frame out before stopping
 }
+
+// haptic-devices check's "open" item reads these: the identification strings through the optional
+// hdGetString (HD_VERSION, HD_DEVICE_MODEL_TYPE, ...) and the usable workspace box, as the library answers.
+TEST(HdBinding, IdentityAndWorkspaceBoxComeFromTheLibrary) {
+  Fake fake;
+  PhantomDevice d(fake_config());
+  d.start();
+  const HdIdentity& id = d.identity();
+  CHECK(id.reported);
+  STRCMP_EQUAL("3.00 (fake_hd test stand-in)", id.hd_version.c_str());
+  STRCMP_EQUAL("fake_hd stand-in (tests/drivers/fake_hd, not a device)", id.model.c_str());
+  STRCMP_EQUAL("FAKE-0001", id.serial.c_str());
+  DOUBLES_EQUAL(0.0, id.firmware_version, 0.0);  // the fake does not answer HD_DEVICE_FIRMWARE_VERSION
+  CHECK(id.has_workspace_box);
+  DOUBLES_EQUAL(-80.0, id.workspace_box_mm[0], 0.0);
+  DOUBLES_EQUAL(35.0, id.workspace_box_mm[5], 0.0);
+  // the unanswered firmware query left nothing on the error stack for the servo frames
+  LONGS_EQUAL(1, fake.run_frames(1));
+  CHECK(d.fault() == DeviceFault::kNone);
+  d.stop();
+}

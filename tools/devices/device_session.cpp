@@ -18,25 +18,31 @@ namespace {
 using Clock = std::chrono::steady_clock;
 constexpr auto kTick = std::chrono::milliseconds(2);  // the station's default period
 
-// The tick pacer: absolute deadlines, but a late tick is not followed by a burst of catch-up
-// ticks (a burst would read the device faster than it produces samples and trip the stale check).
-class Pacer {
- public:
-  Pacer() : t0_(Clock::now()), next_(t0_) {}
-  double elapsed_s() const { return std::chrono::duration<double>(Clock::now() - t0_).count(); }
-  void wait() {
-    next_ += kTick;
-    const auto now = Clock::now();
-    if (next_ < now) next_ = now;
-    std::this_thread::sleep_until(next_);
-  }
+// Calibration status (Touch: hdCheckCalibration in the servo loop; a Falcon is homed at start).
+void report_calibration(const drivers::HapticDevice& dev, std::ostream& out) {
+  if (const auto* p = dynamic_cast<const drivers::PhantomDevice*>(&dev))
+    out << "calibration: " << (p->calibrated() ? "OK (hdCheckCalibration = HD_CALIBRATION_OK)" : "not confirmed yet (no servo frame)") << "\n";
+  else if (dynamic_cast<const drivers::FalconDevice*>(&dev) != nullptr)
+    out << "calibration: homed at start (all three axes reported homed)\n";
+}
 
- private:
-  Clock::time_point t0_, next_;
-};
+std::string mm3(const double p[3]) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%.2f, %.2f, %.2f) mm", p[0] * 1e3, p[1] * 1e3, p[2] * 1e3);
+  return buf;
+}
+}  // namespace
 
-// The backend's own servo frame count (Touch: HD scheduler frames; Falcon: USB exchanges), 0 when it has none.
-std::uint64_t frames_of(const drivers::HapticDevice& dev) {
+TickPacer::TickPacer() : t0_(Clock::now()), next_(t0_) {}
+double TickPacer::elapsed_s() const { return std::chrono::duration<double>(Clock::now() - t0_).count(); }
+void TickPacer::wait() {
+  next_ += kTick;
+  const auto now = Clock::now();
+  if (next_ < now) next_ = now;
+  std::this_thread::sleep_until(next_);
+}
+
+std::uint64_t servo_frames_of(const drivers::HapticDevice& dev) {
   if (const auto* p = dynamic_cast<const drivers::PhantomDevice*>(&dev)) return p->servo_frames();
   if (const auto* f = dynamic_cast<const drivers::FalconDevice*>(&dev)) return f->servo_frames();
   return 0;
@@ -60,42 +66,14 @@ int report_fault(const drivers::HapticDevice& dev, std::ostream& out) {
   return kExitDeviceFault;
 }
 
-// Calibration status (Touch: hdCheckCalibration in the servo loop; a Falcon is homed at start).
-void report_calibration(const drivers::HapticDevice& dev, std::ostream& out) {
-  if (const auto* p = dynamic_cast<const drivers::PhantomDevice*>(&dev))
-    out << "calibration: " << (p->calibrated() ? "OK (hdCheckCalibration = HD_CALIBRATION_OK)" : "not confirmed yet (no servo frame)") << "\n";
-  else if (dynamic_cast<const drivers::FalconDevice*>(&dev) != nullptr)
-    out << "calibration: homed at start (all three axes reported homed)\n";
-}
-
-std::string mm3(const double p[3]) {
-  char buf[96];
-  std::snprintf(buf, sizeof buf, "(%.2f, %.2f, %.2f) mm", p[0] * 1e3, p[1] * 1e3, p[2] * 1e3);
-  return buf;
-}
-
-struct Phase {
-  double force_N;     // signed force along the axis
-  double seconds;
-  bool measure;       // average |v| over the second half
-};
-
-struct PhaseResult {
-  double mean_speed = 0.0;  // |v| along the axis, m/s
-  int samples = 0;
-  bool cut_short = false;   // the travel limit stopped the push
-  bool faulted = false;
-};
-
-// Runs one phase of constant force along opt.axis (one tick per 2 ms), printing live positions.
-PhaseResult run_phase(drivers::HapticDevice& dev, const DiagOptions& opt, const Phase& ph, Pacer& pacer, double& next_print,
-                      std::ostream& out) {
-  PhaseResult r;
+PushResult run_push(drivers::HapticDevice& dev, const DiagOptions& opt, double force_N, double seconds, bool measure,
+                    TickPacer& pacer, double& next_print, std::ostream& out) {
+  PushResult r;
   const double start = pacer.elapsed_s();
-  double speed_sum = 0.0, origin = 0.0;
+  double speed_sum = 0.0, velocity_sum = 0.0, origin = 0.0, last = 0.0;
   bool have_origin = false, stopped = false;
   drivers::DeviceSample s{};
-  for (double t = pacer.elapsed_s(); t - start < ph.seconds; t = pacer.elapsed_s()) {
+  for (double t = pacer.elapsed_s(); t - start < seconds; t = pacer.elapsed_s()) {
     const bool ok = dev.read_newest(s);
     if (!ok && dev.fault() != drivers::DeviceFault::kNone) {
       r.faulted = true;
@@ -105,12 +83,14 @@ PhaseResult run_phase(drivers::HapticDevice& dev, const DiagOptions& opt, const 
       origin = s.position_m[opt.axis];
       have_origin = true;
     }
+    if (ok) last = s.position_m[opt.axis];
     if (ok && std::abs(s.position_m[opt.axis] - origin) > opt.max_travel_mm * 1e-3) stopped = r.cut_short = true;
     double f[3] = {0, 0, 0};
-    if (!stopped) f[opt.axis] = ph.force_N;
+    if (!stopped) f[opt.axis] = force_N;
     dev.command_force(f);
-    if (ok && ph.measure && !stopped && t - start >= 0.5 * ph.seconds) {
+    if (ok && measure && !stopped && t - start >= 0.5 * seconds) {
       speed_sum += std::abs(s.velocity_m_per_s[opt.axis]);
+      velocity_sum += s.velocity_m_per_s[opt.axis];
       ++r.samples;
     }
     if (ok && t >= next_print) {
@@ -122,62 +102,87 @@ PhaseResult run_phase(drivers::HapticDevice& dev, const DiagOptions& opt, const 
     pacer.wait();
   }
   r.mean_speed = r.samples > 0 ? speed_sum / r.samples : 0.0;
+  r.mean_velocity = r.samples > 0 ? velocity_sum / r.samples : 0.0;
+  r.travel_m = last - origin;
   return r;
 }
 
-void report_servo_rate(const drivers::HapticDevice& dev, std::uint64_t frames0, std::uint64_t samples0, double elapsed,
-                       std::ostream& out) {
-  const std::uint64_t frames = frames_of(dev) - frames0;
-  const std::uint64_t samples = dev.counters().samples_read - samples0;
-  char buf[200];
-  if (frames > 0)
-    std::snprintf(buf, sizeof buf, "servo rate: %.0f Hz (%llu servo frames of the device's own loop in %.3f s)\n",
-                  frames / elapsed, static_cast<unsigned long long>(frames), elapsed);
+LevelResult run_level(drivers::HapticDevice& dev, const DiagOptions& o, double F, TickPacer& pacer, double& next_print,
+                      std::ostream& out) {
+  LevelResult L;
+  L.force_N = F;
+  for (const double sign : {1.0, -1.0}) {
+    PushResult& r = sign > 0 ? L.plus : L.minus;
+    r = run_push(dev, o, sign * F, o.push_s, true, pacer, next_print, out);
+    if (r.faulted) {
+      L.faulted = true;
+      return L;
+    }
+    if (r.cut_short) out << "  push " << sign * F << " N stopped: travel beyond " << o.max_travel_mm << " mm (--max-travel-mm)\n";
+  }
+  const int n = L.plus.samples + L.minus.samples;
+  L.mean_speed = n > 0 ? (L.plus.mean_speed * L.plus.samples + L.minus.mean_speed * L.minus.samples) / n : std::nan("");
+  const char axis = "xyz"[o.axis];
+  char line[200];
+  if (n > 0)
+    std::snprintf(line, sizeof line, "test force %g N along %c: mean |speed| over the second half of each push %.2f mm/s (%d samples)\n",
+                  F, axis, L.mean_speed * 1e3, n);
   else
-    std::snprintf(buf, sizeof buf, "servo rate: %.0f Hz (%llu fresh samples read by the 500 Hz tick in %.3f s; the backend counts no frames)\n",
-                  samples / elapsed, static_cast<unsigned long long>(samples), elapsed);
-  out << buf;
+    std::snprintf(line, sizeof line, "test force %g N along %c: mean |speed| n/a (no samples in the second half of a push)\n", F, axis);
+  out << line;
+  return L;
 }
-}  // namespace
+
+std::optional<double> damping_from_levels(double F1, double v1, double F2, double v2) {
+  const double dv = v2 - v1;
+  if (!(std::isfinite(dv) && dv > 0.0)) return std::nullopt;
+  return (F2 - F1) / dv;
+}
+
+ServoRate measure_servo_rate(const drivers::HapticDevice& dev, std::uint64_t frames0, std::uint64_t samples0, double elapsed) {
+  ServoRate r;
+  r.seconds = elapsed;
+  const std::uint64_t frames = servo_frames_of(dev) - frames0;
+  r.own_frames = frames > 0;
+  r.count = r.own_frames ? frames : dev.counters().samples_read - samples0;
+  r.hz = elapsed > 0.0 ? static_cast<double>(r.count) / elapsed : 0.0;
+  return r;
+}
+
+std::string describe(const ServoRate& r) {
+  char buf[200];
+  if (r.own_frames)
+    std::snprintf(buf, sizeof buf, "%.0f Hz (%llu servo frames of the device's own loop in %.3f s)", r.hz,
+                  static_cast<unsigned long long>(r.count), r.seconds);
+  else
+    std::snprintf(buf, sizeof buf, "%.0f Hz (%llu fresh samples read by the 500 Hz tick in %.3f s; the backend counts no frames)",
+                  r.hz, static_cast<unsigned long long>(r.count), r.seconds);
+  return buf;
+}
 
 int run_diagnostics(drivers::HapticDevice& dev, const DiagOptions& o, std::ostream& out) {
   const char axis = "xyz"[o.axis];
   out << "diagnostics: " << dev.capabilities().name << "; keep the stylus free (do not hold it) during the pushes\n";
   if (!dev.capabilities().actuated_axes[o.axis])
     out << "NOTE: axis " << axis << " is not actuated on this device (no force feedback): the test force is clamped to zero\n";
-  Pacer pacer;
+  TickPacer pacer;
   double next_print = 0.0;
-  const std::uint64_t frames0 = frames_of(dev), samples0 = dev.counters().samples_read;
-  if (run_phase(dev, o, {0.0, o.settle_s, false}, pacer, next_print, out).faulted) return report_fault(dev, out);
+  const std::uint64_t frames0 = servo_frames_of(dev), samples0 = dev.counters().samples_read;
+  if (run_push(dev, o, 0.0, o.settle_s, false, pacer, next_print, out).faulted) return report_fault(dev, out);
   report_calibration(dev, out);
   std::vector<double> speeds;
   for (const double F : o.forces_N) {
-    double sum = 0.0;
-    int n = 0;
-    for (const double sign : {1.0, -1.0}) {
-      const PhaseResult r = run_phase(dev, o, {sign * F, o.push_s, true}, pacer, next_print, out);
-      if (r.faulted) return report_fault(dev, out);
-      if (r.cut_short) out << "  push " << sign * F << " N stopped: travel beyond " << o.max_travel_mm << " mm (--max-travel-mm)\n";
-      sum += r.mean_speed * r.samples;
-      n += r.samples;
-    }
-    speeds.push_back(n > 0 ? sum / n : std::nan(""));
-    char line[200];
-    if (n > 0)
-      std::snprintf(line, sizeof line, "test force %g N along %c: mean |speed| over the second half of each push %.2f mm/s (%d samples)\n",
-                    F, axis, speeds.back() * 1e3, n);
-    else
-      std::snprintf(line, sizeof line, "test force %g N along %c: mean |speed| n/a (no samples in the second half of a push)\n", F, axis);
-    out << line;
+    const LevelResult L = run_level(dev, o, F, pacer, next_print, out);
+    if (L.faulted) return report_fault(dev, out);
+    speeds.push_back(L.mean_speed);
   }
-  if (run_phase(dev, o, {0.0, o.settle_s, false}, pacer, next_print, out).faulted) return report_fault(dev, out);
+  if (run_push(dev, o, 0.0, o.settle_s, false, pacer, next_print, out).faulted) return report_fault(dev, out);
   const double zero[3] = {0, 0, 0};
   dev.command_force(zero);
-  report_servo_rate(dev, frames0, samples0, pacer.elapsed_s(), out);
+  out << "servo rate: " << describe(measure_servo_rate(dev, frames0, samples0, pacer.elapsed_s())) << "\n";
   if (speeds.size() == 2) {
-    const double dv = speeds[1] - speeds[0];
-    if (std::isfinite(dv) && dv > 0.0)
-      out << "b_d = (F2 - F1) / (v2 - v1) = " << (o.forces_N[1] - o.forces_N[0]) / dv << " N s/m (device.damping_Ns_per_m; "
+    if (const auto b = damping_from_levels(o.forces_N[0], speeds[0], o.forces_N[1], speeds[1]))
+      out << "b_d = (F2 - F1) / (v2 - v1) = " << *b << " N s/m (device.damping_Ns_per_m; "
           << "repeat a few times and keep the smallest)\n";
     else
       out << "b_d: not determined (the speed did not grow with the force; is the stylus held or blocked?)\n";
@@ -205,7 +210,7 @@ void print_map_keys(const MapOptions& o, const Eigen::Vector3d& held, std::ostre
 int run_mapping(drivers::HapticDevice& dev, const MapOptions& o, std::ostream& out) {
   out << "hold the stylus at the object's centre and keep it still for " << o.still_s << " s (within " << o.still_mm
       << " mm)\n";
-  Pacer pacer;
+  TickPacer pacer;
   Eigen::Vector3d anchor = Eigen::Vector3d::Zero();
   double still_since = -1.0, next_print = 0.0;
   drivers::DeviceSample s{};

@@ -1,6 +1,7 @@
 // haptic-devices: what is connected, which backend would drive it, whether the current user
 // may open it, and the udev rule that fixes a permission problem; `diag` (live position, test
-// force, servo rate, b_d) and `map` (guided workspace mapping) drive a connected device.
+// force, servo rate, b_d), `map` (guided workspace mapping) and `check` (guided pass/fail device
+// check) drive a connected device.
 // Non-RT operator tool.
 #include "drivers/device_factory.hpp"
 #include "drivers/hd_library.hpp"
@@ -9,6 +10,7 @@
 #include "drivers/usb_ids.hpp"
 #include "drivers/usb_monitor.hpp"
 #include "platform/command_line.hpp"
+#include "tools/devices/device_check.hpp"
 #include "tools/devices/device_session.hpp"
 
 #include <CLI/CLI.hpp>
@@ -308,6 +310,31 @@ int check_diag(const haptic::tools::DiagOptions& o) {
   return 0;
 }
 
+constexpr const char* kCheckExits =
+    "Exit status: 0 every item PASSed; 1 an item FAILed (named in the summary); 2 bad option (named); 4 no item "
+    "failed but some were SKIPped (not verified: --skip, one --force-N level, no force feedback or no nominal "
+    "workspace); 5 the device entered its safe state during the check (that item FAILs naming the fault, the rest "
+    "are not run); 9 no device could be opened (what was found and why is printed).";
+
+int check_check(haptic::tools::CheckOptions& o, const std::vector<std::string>& skip) {
+  if (const int rc = check_diag(o.push)) return rc;
+  for (const std::string& s : skip) {
+    bool known = false;
+    for (const char* id : haptic::tools::kCheckItems) known = known || s == id;
+    if (!known) return bad_option("--skip", "unknown item \"" + s + "\" (items: open servo_rate encoders workspace buttons force b_d)");
+    o.skip.insert(s);
+  }
+  if (!(o.timeout_s > 0.0 && o.timeout_s <= 600.0)) return bad_option("--timeout-s", "outside (0, 600] s");
+  if (!(o.idle_s >= 0.1 && o.idle_s <= 60.0)) return bad_option("--idle-s", "outside [0.1, 60] s");
+  if (!(o.min_servo_hz >= 0.0 && o.min_servo_hz <= 100000.0)) return bad_option("--min-servo-hz", "outside [0, 100000] Hz");
+  if (!(o.move_mm > 0.0 && o.move_mm <= 200.0)) return bad_option("--move-mm", "outside (0, 200] mm");
+  if (!(o.workspace_fraction > 0.0 && o.workspace_fraction <= 1.5)) return bad_option("--workspace-fraction", "outside (0, 1.5]");
+  if (!(o.buttons >= -1 && o.buttons <= 16)) return bad_option("--buttons", "outside [0, 16] (or -1: the device's)");
+  if (!(o.min_push_mm > 0.0 && o.min_push_mm < o.push.max_travel_mm)) return bad_option("--min-push-mm", "outside (0, --max-travel-mm)");
+  if (!(o.max_asymmetry >= 1.0 && o.max_asymmetry <= 100.0)) return bad_option("--max-asymmetry", "outside [1, 100]");
+  return 0;
+}
+
 int check_map(const haptic::tools::MapOptions& o) {
   if (!(o.scale > 0.0 && o.scale <= 100.0)) return bad_option("--scale", "outside (0, 100] (as device.map_scale)");
   if (!(o.still_s > 0.0 && o.still_s <= o.timeout_s)) return bad_option("--still-s", "outside (0, --timeout-s]");
@@ -319,7 +346,7 @@ int check_map(const haptic::tools::MapOptions& o) {
 
 int main(int argc, char** argv) {
   CLI::App app{"haptic-devices: list haptic and HID input devices, their backend, access rights, and udev fixes;\n"
-               "`haptic-devices diag` and `haptic-devices map` drive a connected device (see their --help)"};
+               "`haptic-devices diag`, `map` and `check` drive a connected device (see their --help)"};
   bool all = false;
   bool rules_only = false;
   std::string hd_path;
@@ -360,6 +387,42 @@ int main(int argc, char** argv) {
   map_cmd->add_option("--still-mm", map.still_mm, "how still: within this distance")->capture_default_str();
   map_cmd->add_option("--timeout-s", map.timeout_s, "give up after this long (exit 3)")->capture_default_str();
 
+  SessionDevice check_dev;
+  check_dev.command = "check";
+  haptic::tools::CheckOptions check;
+  std::string check_axis = "x";
+  std::vector<std::string> check_skip;
+  CLI::App* check_cmd = app.add_subcommand(
+      "check", std::string("guided device check (like the vendor's Touch_Diagnostic): a checklist with PASS/FAIL/SKIP and the "
+                           "measured figure per item: open (model, version, the OpenHaptics ABI the driver binds, calibration), "
+                           "servo_rate, encoders (move the stylus), workspace (sweep it to its limits), buttons (press each), "
+                           "force (let go: diag's +F/-F push must move the stylus each way), b_d (diag's two-level b_d). Stop "
+                           "the station first.\n") + kCheckExits);
+  add_device_options(check_cmd, check_dev);
+  check_cmd->add_flag("--yes", check.yes, "do not wait for Enter before each guided item (scripted runs)");
+  check_cmd->add_option("--timeout-s", check.timeout_s, "each guided item (encoders, workspace, buttons) FAILs after this long")
+      ->capture_default_str();
+  check_cmd->add_option("--idle-s", check.idle_s, "zero-force window measuring the servo rate [0.1, 60] s")->capture_default_str();
+  check_cmd->add_option("--min-servo-hz", check.min_servo_hz, "servo_rate PASSes at or above this rate")->capture_default_str();
+  check_cmd->add_option("--move-mm", check.move_mm, "encoders: each sensed axis must move this far")->capture_default_str();
+  check_cmd->add_option("--workspace-fraction", check.workspace_fraction,
+                        "workspace: extent reached / nominal extent needed on each axis")->capture_default_str();
+  check_cmd->add_option("--buttons", check.buttons, "how many buttons to ask for (-1: the device's: Touch 2, Falcon 4; 0: SKIP)")
+      ->capture_default_str();
+  check_cmd->add_option("--force-N", check.push.forces_N, "test force levels in (0, 1] N: F1 for the force item, F2 for b_d "
+                                                          "(one level: b_d is SKIPped)")
+      ->expected(1, 2)->capture_default_str();
+  check_cmd->add_option("--axis", check_axis, "device axis of the test force")->check(CLI::IsMember({"x", "y", "z"}))->capture_default_str();
+  check_cmd->add_option("--push-s", check.push.push_s, "duration of each push (+F, then -F) [0.1, 10] s")->capture_default_str();
+  check_cmd->add_option("--max-travel-mm", check.push.max_travel_mm, "a push stops when the stylus has moved this far (0, 200] mm")
+      ->capture_default_str();
+  check_cmd->add_option("--min-push-mm", check.min_push_mm, "force: each push must move the stylus this far in its direction")
+      ->capture_default_str();
+  check_cmd->add_option("--max-asymmetry", check.max_asymmetry, "force: |v+| / |v-| must lie within [1/x, x]")->capture_default_str();
+  check_cmd->add_option("--skip", check_skip, "items to SKIP (open servo_rate encoders workspace buttons force b_d), e.g. what a "
+                                              "stand-in cannot exercise")
+      ->delimiter(',');
+
   haptic::platform::add_version_flag(app, "haptic-devices");
   // --help/--version: 0; a usage error (an unknown option or subcommand with "did you mean"): kExitBadOption.
   if (const int rc = haptic::platform::parse_command_line(app, argc, argv, haptic::tools::kExitBadOption); rc >= 0) return rc;
@@ -371,6 +434,18 @@ int main(int argc, char** argv) {
     if (!opened) return haptic::tools::kExitNoDevice;
     std::fflush(stdout);
     return haptic::tools::run_diagnostics(*opened->device, diag, std::cout);
+  }
+  if (*check_cmd) {
+    check.push.axis = check_axis[0] - 'x';
+    check.push.print_hz = 2.0;
+    if (const int rc = check_check(check, check_skip)) return rc;
+    auto opened = open_for_session(check_dev);
+    if (!opened) {
+      std::printf("FAIL open: no device could be opened (see above); exit %d\n", haptic::tools::kExitNoDevice);
+      return haptic::tools::kExitNoDevice;
+    }
+    std::fflush(stdout);
+    return haptic::tools::run_check(*opened->device, check, std::cout);
   }
   if (*map_cmd) {
     for (int i = 0; i < 3; ++i) {

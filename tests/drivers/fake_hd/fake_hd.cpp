@@ -15,6 +15,19 @@
 //   FAKEHD_CALIBRATION=0x5001      what hdCheckCalibration returns (default HD_CALIBRATION_OK, 0x5000)
 //   FAKEHD_FORCE_LOG=path          every frame's force and position are written to path (CSV) at
 //                                  hdDisableDevice, so a test can see what a station sent
+//   FAKEHD_USER=1                  a scripted user (stand-in for the person `haptic-devices check`
+//                                  prompts): while no force is commanded the hand holds the stylus and
+//                                  sweeps it through 90% of the usable workspace box on each axis
+//                                  (x, y, z sines of 0.5, 0.7, 0.9 Hz about the box centre) and presses
+//                                  button 1 at 0.5-0.8 s and button 2 at 1.3-1.6 s of every 2 s; at the
+//                                  first nonzero commanded force it lets go for good (as the check tells
+//                                  the user to), buttons released, and FAKEHD_PLANT moves the stylus
+//   FAKEHD_FORCE_GAIN="gx,gy,gz"   the plant feels each commanded force component times g (default 1):
+//                                  -1 is a device that pushes the wrong way on that axis, 0 a dead motor
+//   FAKEHD_DEAD_BUTTONS=mask       these button bits never read as pressed (a broken switch)
+//   FAKEHD_HD_VERSION="s"          what hdGetString(HD_VERSION) answers (default "3.00 (fake_hd test stand-in)")
+// hdGetString answers HD_DEVICE_MODEL_TYPE / _VENDOR / _DRIVER_VERSION / _SERIAL_NUMBER with strings that
+// say it is this fixture; HD_DEVICE_FIRMWARE_VERSION is not answered (HD_INVALID_ENUM).
 // The plant is a test model with known b (so a b_d measurement can be checked), not a Touch model.
 #include <atomic>
 #include <array>
@@ -54,6 +67,9 @@ constexpr HDenum kCurrentButtons = 0x2000, kCurrentPosition = 0x2050, kCurrentVe
                  kUsableWorkspace = 0x2551, kNominalMaxStiffness = 0x2602, kNominalMaxForce = 0x2603,
                  kCurrentForce = 0x2700, kForceOutput = 0x4000, kCalibrationOk = 0x5000;
 constexpr HHD kInvalidHandle = 0xFFFFFFFFu;
+constexpr HDenum kVersion = 0x2500, kDeviceModelType = 0x2501, kDeviceDriverVersion = 0x2502, kDeviceVendor = 0x2503,
+                 kDeviceSerialNumber = 0x2504;
+constexpr double kUsableBoxMm[6] = {-80, -60, -35, 80, 60, 35};  // HD_USABLE_WORKSPACE_DIMENSIONS answer
 
 struct State {
   std::mutex mu;  // guards configuration; frames run under it too (a fixture, not RT code)
@@ -73,6 +89,10 @@ struct State {
   bool force_output = false;
   double plant_mass = 0.0, plant_b = 0.0, plant_coulomb = 0.0;  // plant off when mass == 0
   double circle_mm = 0.0;
+  bool user = false, user_released = false;  // FAKEHD_USER
+  double force_gain[3] = {1, 1, 1};          // FAKEHD_FORCE_GAIN
+  int dead_buttons = 0;                      // FAKEHD_DEAD_BUTTONS
+  std::string hd_version = "3.00 (fake_hd test stand-in)";
   std::string force_log;                  // FAKEHD_FORCE_LOG
   std::vector<std::array<double, 7>> log; // per frame: CLOCK_MONOTONIC s, force N, position mm
   HDSchedulerCallback cb = nullptr;
@@ -96,6 +116,12 @@ void read_environment(State& s) {
     std::sscanf(p, "%lf,%lf,%lf", &s.position_mm[0], &s.position_mm[1], &s.position_mm[2]);
   if (const char* p = std::getenv("FAKEHD_PLANT")) std::sscanf(p, "%lf,%lf,%lf", &s.plant_mass, &s.plant_b, &s.plant_coulomb);
   if (const char* c = std::getenv("FAKEHD_CIRCLE_MM")) s.circle_mm = std::atof(c);
+  if (const char* u = std::getenv("FAKEHD_USER")) s.user = std::strcmp(u, "1") == 0;
+  s.user_released = false;
+  if (const char* gn = std::getenv("FAKEHD_FORCE_GAIN"))
+    std::sscanf(gn, "%lf,%lf,%lf", &s.force_gain[0], &s.force_gain[1], &s.force_gain[2]);
+  if (const char* d = std::getenv("FAKEHD_DEAD_BUTTONS")) s.dead_buttons = static_cast<int>(std::strtol(d, nullptr, 0));
+  if (const char* v = std::getenv("FAKEHD_HD_VERSION")) s.hd_version = v;
   if (const char* c = std::getenv("FAKEHD_CALIBRATION")) s.calibration = static_cast<HDenum>(std::strtoul(c, nullptr, 0));
   if (const char* f = std::getenv("FAKEHD_FORCE_LOG")) {
     s.force_log = f;
@@ -113,9 +139,28 @@ void move_stylus(State& s) {
     s.velocity_mm_s[1] = w * s.circle_mm * std::cos(w * t);
     return;
   }
+  if (s.user && !s.user_released) {
+    if (s.last_force[0] != 0.0 || s.last_force[1] != 0.0 || s.last_force[2] != 0.0) {
+      s.user_released = true;  // told to let go before the force test; from here the plant moves it
+      s.buttons = 0;
+    } else {
+      constexpr double kHz[3] = {0.5, 0.7, 0.9};
+      const double t = static_cast<double>(s.frames) * dt;
+      for (int i = 0; i < 3; ++i) {
+        const double c = 0.5 * (kUsableBoxMm[i] + kUsableBoxMm[i + 3]), a = 0.45 * (kUsableBoxMm[i + 3] - kUsableBoxMm[i]);
+        const double w = 2.0 * 3.141592653589793 * kHz[i];
+        s.position_mm[i] = c + a * std::sin(w * t);
+        s.velocity_mm_s[i] = a * w * std::cos(w * t);
+      }
+      const double phase = std::fmod(t, 2.0);
+      const int pressed = (phase >= 0.5 && phase < 0.8 ? 1 : 0) | (phase >= 1.3 && phase < 1.6 ? 2 : 0);
+      s.buttons = pressed & ~s.dead_buttons;
+      return;
+    }
+  }
   if (s.plant_mass <= 0.0) return;
   for (int i = 0; i < 3; ++i) {
-    const double v = s.velocity_mm_s[i] * 1e-3, f = s.last_force[i];
+    const double v = s.velocity_mm_s[i] * 1e-3, f = s.last_force[i] * s.force_gain[i];
     double net = f - s.plant_b * v;
     if (v != 0.0) net -= std::copysign(s.plant_coulomb, v);
     else net = std::abs(f) <= s.plant_coulomb ? 0.0 : f - std::copysign(s.plant_coulomb, f);
@@ -238,12 +283,20 @@ void hdGetDoublev(HDenum pname, HDdouble* out) {
     case kCurrentVelocity: std::memcpy(out, s.velocity_mm_s, sizeof s.velocity_mm_s); break;
     case kNominalMaxForce: out[0] = s.max_force_N; break;
     case kNominalMaxStiffness: out[0] = 1.26; break;
-    case kUsableWorkspace: {
-      const double box[6] = {-80, -60, -35, 80, 60, 35};
-      std::memcpy(out, box, sizeof box);
-      break;
-    }
+    case kUsableWorkspace: std::memcpy(out, kUsableBoxMm, sizeof kUsableBoxMm); break;
     default: push_error(s, 0x0100); break;  // HD_INVALID_ENUM
+  }
+}
+HDstring hdGetString(HDenum pname) {
+  State& s = g();
+  std::lock_guard<std::mutex> l(s.mu);
+  switch (pname) {
+    case kVersion: return s.hd_version.c_str();
+    case kDeviceModelType: return "fake_hd stand-in (tests/drivers/fake_hd, not a device)";
+    case kDeviceVendor: return "none (test fixture)";
+    case kDeviceDriverVersion: return "none (test fixture)";
+    case kDeviceSerialNumber: return "FAKE-0001";
+    default: push_error(s, 0x0100); return nullptr;  // HD_INVALID_ENUM
   }
 }
 void hdGetIntegerv(HDenum pname, HDint* out) {
@@ -294,6 +347,9 @@ void fakehd_reset() {
   s.buttons = 0;
   s.max_force_N = 3.3;
   s.plant_mass = s.plant_b = s.plant_coulomb = s.circle_mm = 0.0;
+  s.user = s.user_released = false;
+  for (double& gn : s.force_gain) gn = 1.0;
+  s.dead_buttons = 0;
   s.frames = 0;
   s.initialized = s.in_frame = s.force_output = false;
   s.cb = nullptr;

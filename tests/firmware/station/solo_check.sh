@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # `haptic-station solo` (one station, one user, no network) tells the truth:
-#   contact   the simulated device for 2 s: exit 0; station-1.json says the proxy touched the object
+#   contact   the simulated device for 2 s (and, as a control, a still hand for 1 s: no contact): exit 0; station-1.json says the proxy touched the object
 #             (contact_ticks > 0, device_force_max_N > 0, matched by a trace row with contact and a
 #             force) and keeps the energy/passivity bookkeeping (port and controller energies, B_i and
 #             eq. 18's minimum, both 0 with no neighbour, passivity condition met, users 1, transport none)
@@ -51,6 +51,12 @@ print(("FAILED contact summary: " + ", ".join(bad)) if bad else
       (j["contact_ticks"], j["ticks_run"], j["device_force_max_N"], j["port_energy_final_J"], j["port_energy_min_J"]))
 sys.exit(1 if bad else 0)
 EOF
+
+# control: a still hand (--script hold) at the same start point touches nothing, so the contact above
+# came from the simulated user's motion, not from where the proxy starts
+expect hold 0 "haptic-station solo: done" -- "$bin" solo --script hold --duration 1 --out "$out/hold"
+/usr/bin/python3 -c 'import json, sys; j = json.load(open(sys.argv[1])); sys.exit(0 if j["contact_ticks"] == 0 and j["device_force_max_N"] == 0 else 1)' \
+  "$out/hold/station-1.json" && echo "ok hold: no contact, no force" || say_fail "hold: a still hand touched the object (contact_ticks or force > 0)"
 
 # view: the page is served while the run runs; SIGTERM ends it with its report
 port=$(( 47300 + ($$ % 40) * 2 ))

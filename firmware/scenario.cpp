@@ -141,7 +141,7 @@ std::pair<double, double> ScenarioSpec::delay_trace_range_ms() const {
 }
 
 void ScenarioSpec::validate() const {
-  if (users < 2 || users > 64) bad("users must be in [2, 64]");
+  if (users < 1 || users > 64) bad("users must be in [1, 64] (1: solo, no links)");
   if (!(period_s >= 1e-4 && period_s <= 0.05)) bad("period_s must be in [0.0001, 0.05]");
   if (!(duration_s > 0 && duration_s <= 3600)) bad("--duration must be in (0, 3600] s");
   if (script.kind == UserScriptSpec::Kind::kPushHoldRelease && !(script.push_start_s < script.push_end_s && script.push_end_s < script.release_s))
@@ -151,7 +151,8 @@ void ScenarioSpec::validate() const {
   for (int i = 0; i < users; ++i)
     for (int j = 0; j < users; ++j)
       if (!(delay_ms(i, j) >= 0 && delay_ms(i, j) <= 10000)) bad("--delay-matrix entries must be in [0, 10000] ms");
-  model::validate_graph(topology, users, "--topology");
+  if (users > 1) model::validate_graph(topology, users, "--topology");
+  else if (!topology.empty()) bad("--topology: a single user has no links");
   if (damping_Ns_per_m) {
     if (static_cast<int>(damping_Ns_per_m->size()) != users)
       bad("--damping needs one value per user: " + std::to_string(damping_Ns_per_m->size()) + " B_i for " + std::to_string(users) +
@@ -357,6 +358,17 @@ void set_user_count(ScenarioSpec& spec, int users, const std::string& key) {
   spec.delay_ms = Eigen::MatrixXd::Constant(users, users, kDefaultNUserMeanDelayMs);
   spec.delay_ms.diagonal().setZero();
   spec.topology = default_tree(users);
+}
+
+void make_solo(ScenarioSpec& spec, double anchor_N_per_m, const std::string& key) {
+  if (!(anchor_N_per_m >= 0 && anchor_N_per_m <= 1e4)) bad(key + " = " + std::to_string(anchor_N_per_m) + " must be in [0, 10000] N/m");
+  spec.scene.ground_stiffness_N_per_m = anchor_N_per_m;
+  spec.name += "-solo";
+  spec.users = 1;
+  spec.topology.clear();
+  spec.delay_ms = Eigen::MatrixXd::Zero(1, 1);
+  spec.damping_Ns_per_m.reset();  // a scenario's fixed B_i are per user of its own links
+  spec.script.kind = UserScriptSpec::Kind::kRandom;
 }
 
 void apply_topology_file(ScenarioSpec& spec, const std::string& path, const std::string& key) {

@@ -157,6 +157,12 @@ ScenarioSpec make_scenario(const std::string& name, const std::string& key = "")
 inline constexpr double kDefaultNUserMeanDelayMs = 10.0;
 void set_user_count(ScenarioSpec& spec, int users, const std::string& key = "--users");
 model::Graph default_tree(int users);
+// `haptic-station solo`: one user and no links (no neighbour, so eq. (18) gives B_i = 0 through
+// the budget's own rule), its script kRandom so a simulated user keeps touching the object by
+// itself (the station then applies station.script over it, apply_script_kind); anchor_N_per_m > 0: a ground spring K_gnd of that stiffness on every node (rt::SceneParams),
+// so one hand cannot push the floating object away (0: the paper's floating object). The rest of the
+// spec (scene, gains, period, duration) is kept. Throws std::invalid_argument naming `key`. Not RT-safe.
+void make_solo(ScenarioSpec& spec, double anchor_N_per_m = 0, const std::string& key = "--anchor");
 // The eq. (27) optimizer's choice: haptic-topology's --json output (users, mean_delay_ms, ranked
 // best first). Sets spec.users, spec.delay_ms (no link = null: 0 where the graph has no link) and
 // spec.topology = ranked[0].edges. Throws std::invalid_argument naming `key` and the file.

@@ -452,6 +452,89 @@ int run_command(const RunArgs& a) {
   }
 }
 
+// `haptic-station solo`'s options: each a key of the station file (an override of --config's), so the
+// station's own parser checks it; its errors name the option as the user wrote it.
+struct SoloArgs {
+  std::string config, out, device, scene, script;
+  int view_port = 0, nodes = 0;
+  double duration = -1;
+  double anchor = -1;
+  bool quiet = false;
+};
+
+constexpr double kSoloDefaultDurationS = 60;
+constexpr double kSoloDefaultAnchorNPerM = 2.0;
+
+CLI::App* add_solo_options(CLI::App& app, SoloArgs& a) {
+  auto* solo = app.add_subcommand("solo", "One station, one user, no network: touch the object with your device (or the simulated one), "
+                                          "with the live view; the first thing a new lab runs (see firmware/README.md)");
+  solo->add_option("--device", a.device, "simulated (a simulated user touches the object by itself: the random script), touch, falcon or auto "
+                                         "(default: --config's device.kind, else simulated)")
+      ->check(CLI::IsMember({"simulated", "touch", "falcon", "auto"}));
+  solo->add_option("--config", a.config, "Station file (TOML) for its [device], [scene], [station] (nodes, out_dir, damping_margin, ...), [rt], [loop] "
+                                         "keys; its [net] is not used (only its key names are checked), nor station.id, users, topology")
+      ->check(CLI::ExistingFile);
+  solo->add_option("--view-port", a.view_port, "Serve the live web view on http://127.0.0.1:P/ (default: --config's station.view_port, else none)")
+      ->check(CLI::Range(1, 65535));
+  solo->add_option("--duration", a.duration, "Run time in s (default: --config's station.duration_s, else " + fmt(kSoloDefaultDurationS, 0) +
+                                                 "); Ctrl-C or SIGTERM ends it sooner, with the same report")
+      ->check(CLI::Range(1e-3, 3600.0));
+  auto* nodes = solo->add_option("--nodes", a.nodes, "Scene size (station.nodes: 33 = the paper's ball, else a lattice ball)");
+  solo->add_option("--scene", a.scene, "Scene from a mesh file (scene.file: .msh, .node/.ele, .vtk, .obj/.stl/.off)")
+      ->excludes(nodes)
+      ->check(CLI::ExistingFile);
+  solo->add_option("--script", a.script, "The simulated user's script (station.script; default: --config's, else random: the hand wanders "
+                                         "around the contact point and leans in, all run)")
+      ->check(CLI::IsMember({"random", "push-hold-release", "hold"}));
+  solo->add_option("--anchor", a.anchor, "Ground spring on every node, N/m (the scene's K_gnd): alone, one hand would push the paper's floating "
+                                         "object away; 0 = floating (default " + fmt(kSoloDefaultAnchorNPerM, 1) + ")")
+      ->check(CLI::Range(0.0, 1e4));
+  solo->add_option("--out", a.out, "Output directory for station-1.json/-trace.csv/-state.csv (default: --config's station.out_dir, else .)");
+  solo->add_flag("--quiet", a.quiet, "Only the view's address and the final line");
+  solo->footer("Exit status: as `run` (firmware/README.md): 0 done; 2 bad option or configuration (named); 9 device missing; 4 diverged; "
+               "5 safe state latched (device fault); 11 missed cycles; 3 other failure. A simulated device is never substituted for a missing one.");
+  return solo;
+}
+
+// `haptic-station solo`: the station's phases without the network (firmware/station/run.cpp, RunOverrides::solo). Not RT-safe.
+int solo_command(const SoloArgs& a) {
+  std::vector<std::pair<std::string, std::string>> sets;  // (key, value), and the option that set it
+  std::vector<std::pair<std::string, std::string>> named;
+  auto set = [&](const std::string& key, const std::string& value, const std::string& option) {
+    sets.emplace_back(key, value);
+    named.emplace_back(key, option);
+  };
+  if (!a.device.empty()) set("device.kind", "\"" + a.device + "\"", "--device");
+  else if (a.config.empty()) set("device.kind", "\"simulated\"", "--device");
+  if (a.view_port > 0) set("station.view_port", std::to_string(a.view_port), "--view-port");
+  if (!a.script.empty()) set("station.script", "\"" + a.script + "\"", "--script");
+  if (a.nodes != 0) set("station.nodes", std::to_string(a.nodes), "--nodes");
+  if (!a.scene.empty()) set("scene.file", nlohmann::json(std::filesystem::absolute(a.scene).string()).dump(), "--scene");  // not relative to --config
+  StationFile file;
+  try {
+    file = load_station_file(a.config, sets, true);
+  } catch (const std::exception& e) {
+    std::string m = e.what();
+    for (const auto& [key, option] : named)
+      if (const auto at = m.find(key); at != std::string::npos) m.replace(at, key.size(), option + " (" + key + ")");
+    std::cerr << "haptic-station solo: error: " << m << "\n";
+    return kExitConfigError;
+  }
+  RunOverrides ov;
+  ov.solo = true;
+  ov.solo_anchor_N_per_m = a.anchor >= 0 ? a.anchor : kSoloDefaultAnchorNPerM;
+  ov.out_dir = a.out;
+  ov.duration_s = a.duration > 0 ? a.duration : file.station.duration_s > 0 ? -1 : kSoloDefaultDurationS;
+  ov.quiet = a.quiet;
+  stop_on_signals();
+  try {
+    return run_station(file, ov, g_stop);
+  } catch (const std::exception& e) {  // the phases report their own failures; this is a bug's last resort
+    std::cerr << "haptic-station solo: error: " << e.what() << "\n";
+    return kExitRunFailed;
+  }
+}
+
 // `sim`'s options -> the scenario they describe; throws std::invalid_argument naming the option. Not RT-safe.
 ScenarioSpec sim_scenario_spec(const SimArgs& a) {
   ScenarioSpec spec = make_scenario(a.scenario, "--scenario");
@@ -645,6 +728,7 @@ int main(int argc, char** argv) {
       "(Huang & Lee, IEEE T-RO 2013). Subcommands:\n"
       "  sim  run N stations in one process in simulated time over the paper's stochastic network\n"
       "  run  run one station in real time over real sockets (--config FILE.toml)\n"
+      "  solo  one station, one user, no network: touch the object with your device and the live view\n"
       "  replay  re-run a station's core from its session log, bit-exactly (LOG.h5)\n"
       "  log  what a session log holds (log info LOG.h5) and its fields as CSV with units (log export LOG.h5 --field force,q)\n"
       "  merge  merge the outputs of N run processes into the simulator's summary.json, trace.csv, series.csv, snapshots.json\n"
@@ -661,6 +745,8 @@ int main(int argc, char** argv) {
   CLI::App* sim = add_sim_options(app, sim_args);
   CLI::App* run = add_run_options(app, run_args);
   CLI::App* replay = add_replay_options(app, replay_args);
+  SoloArgs solo_args;
+  CLI::App* solo = add_solo_options(app, solo_args);
   LogArgs log_args;
   const LogCommands log = add_log_options(app, log_args);
   for (int i = 0; i < argc; ++i) sim_args.command_line += (i ? " " : "") + std::string(argv[i]);
@@ -677,6 +763,7 @@ int main(int argc, char** argv) {
   if (const int rc = haptic::platform::parse_command_line(app, argc, argv, kExitConfigError); rc >= 0) return rc;
 
   if (run->parsed()) return run_command(run_args);
+  if (solo->parsed()) return solo_command(solo_args);
   if (sim->parsed()) return sim_command(sim_args);
   if (replay->parsed()) return replay_command(replay_args);
   if (log.log->parsed()) return log_command(log, log_args);

@@ -81,13 +81,17 @@ void parse_net_keys(const toml::table& cd, View root, StationFile& f) {
 
 }  // namespace
 
-StationFile parse_station_file(std::string_view toml_text, const std::vector<StationOption>& options) {
-  const toml::table doc = platform::config::parse_document(toml_text);
+StationFile parse_station_file(std::string_view toml_text, const std::vector<StationOption>& options, bool solo) {
+  toml::table doc = platform::config::parse_document(toml_text);
+  if (solo) {  // one user: station.id is 1 unless the file names its own (a lab file, whose [net] must agree with it)
+    if (!doc.contains("station")) doc.insert("station", toml::table{});
+    if (toml::table* st = doc["station"].as_table(); st && !st->contains("id")) st->insert("id", 1);
+  }
   const toml::table& cd = doc;
   const View root{cd};
   only_keys(root, "", {"station", "scene", "device", "rt", "loop", "gpio", "telemetry", "trace", "net", "network"});
   if (cd.contains("net") && cd.contains("network")) bad("[network]", "absent when [net] is present (one network section)");
-  if (!root["station"]) bad("[station]", "present (with at least id = 1..users)");
+  if (!root["station"] && !solo) bad("[station]", "present (with at least id = 1..users)");
 
   StationFile f;
   f.text = std::string(toml_text);
@@ -96,7 +100,7 @@ StationFile parse_station_file(std::string_view toml_text, const std::vector<Sta
   check_scene_and_device(root, f);
   only_keys(root["trace"], "trace", {});
   // [net] / [network]: only key names here; values are net/'s (net/config.hpp).
-  parse_net_keys(cd, root, f);
+  if (!solo || root["net"] || root["network"]) parse_net_keys(cd, root, f);  // solo: a lab file's [net] is checked, never used
   return f;
 }
 
@@ -109,8 +113,8 @@ std::string StationFile::relative_to_file(const std::string& value) const {
   return platform::config::path_beside(value, path);
 }
 
-StationFile load_station_file(const std::string& path, const std::vector<std::pair<std::string, std::string>>& overrides) {
-  StationFile f = parse_station_file(with_overrides(platform::config::read_file(path), overrides));
+StationFile load_station_file(const std::string& path, const std::vector<std::pair<std::string, std::string>>& overrides, bool solo) {
+  StationFile f = parse_station_file(with_overrides(path.empty() ? std::string() : platform::config::read_file(path), overrides), station_options(), solo);
   f.path = path;
   return f;
 }

@@ -153,8 +153,10 @@ struct StationFile {
 // scene size, in parse_net()). Throws std::invalid_argument naming the key and the range.
 // `options`: the declarations it reads (station_options(); a test adds one to show that an option
 // is one declaration).
-StationFile parse_station_file(std::string_view toml_text, const std::vector<StationOption>& options = station_options());
+// solo (`haptic-station solo`): [station] and [net] may be absent (a lab file's [net] is checked, not used).
+StationFile parse_station_file(std::string_view toml_text, const std::vector<StationOption>& options = station_options(), bool solo = false);
 // overrides: KEY=VALUE pairs from the command line (with_overrides, options.hpp), applied to the text.
-StationFile load_station_file(const std::string& path, const std::vector<std::pair<std::string, std::string>>& overrides = {});
+// path "" (solo only): no file, the defaults and the overrides.
+StationFile load_station_file(const std::string& path, const std::vector<std::pair<std::string, std::string>>& overrides = {}, bool solo = false);
 
 }  // namespace haptic::firmware

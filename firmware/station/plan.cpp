@@ -154,15 +154,12 @@ void plan_device_file_warnings(StationPlan& p) {
     missing("hd_library_path", d.hd_library_path, p.device.touch.hd_library_path, "a Touch");
 }
 
-// Every check and translation of the plan phase; throws std::invalid_argument naming the key.
-std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides& o, const ClockReading& now) {
-  auto p = std::make_unique<StationPlan>();
-  p->file = f;
-  p->overrides = o;
-  const ScenarioSpec spec = station_scenario_spec(f, o);
-  p->built = std::make_shared<const BuiltScenario>(build_scenario(spec));
-  p->station_id = f.station.id;
-  p->me = f.station.id - 1;
+// The network side of the plan (a station with neighbours): [net] parsed by net/, the peer table,
+// addresses, the link impairments, the timeline with its probing and set-up gap, the endpoint's epoch.
+void plan_network(StationPlan* p, const ClockReading& now) {
+  const StationFile& f = p->file;
+  const RunOverrides& o = p->overrides;
+  const ScenarioSpec& spec = p->built->spec;
   p->net = net::parse_net_config(f.text, static_cast<std::uint32_t>(p->built->scene.dofs), f.path);
   p->net.endpoint.rtt.bound_policy = &model::round_trip_bound_s;  // the passivity budget's margin rule; net/ measures
   if (p->net.endpoint.wire.station_id != f.station.id)
@@ -187,6 +184,34 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   // sequence while probing made a station rejoin a session that did not exist). A station that
   // plans its own epoch must be able to find a session already running: no ceiling until its tick.
   if ((o.start_at >= 0 ? o.start_at : f.station.start_at) > 0) p->net.endpoint.sequence_epoch_ns = p->times.epoch_ns;
+}
+
+// `haptic-station solo`: no network (no [net] parsed, no peer, no endpoint) and a timeline without
+// probing or set-up gap (run_k0 = 0); the epoch is provisional: the solo run sets it once its core is
+// built (run.cpp). The plan's other checks (scene, device, eq. 26, records, out_dir) are the station's.
+void plan_solo(StationPlan& p, const ClockReading& now) {
+  p.net.transport = "none";
+  p.times.period_ns = p.file.loop.period_ns;
+  p.times.epoch_ns = now.monotonic_ns;
+  p.times.probe_ticks = 0;
+  p.times.run_k0 = 0;
+  p.times.run_ticks = std::llround(p.built->spec.duration_s / p.built->spec.period_s);
+}
+
+// Every check and translation of the plan phase; throws std::invalid_argument naming the key.
+std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides& o, const ClockReading& now) {
+  auto p = std::make_unique<StationPlan>();
+  p->file = f;
+  p->overrides = o;
+  const ScenarioSpec spec = station_scenario_spec(f, o);
+  p->built = std::make_shared<const BuiltScenario>(build_scenario(spec));
+  p->station_id = o.solo ? 1 : f.station.id;
+  p->me = p->station_id - 1;
+  if (o.solo) {
+    plan_solo(*p, now);
+  } else {
+    plan_network(p.get(), now);
+  }
   p->device = device_selection(f, *p->built, p->me);
   if (const auto caps = drivers::published_capabilities(p->device)) {
     p->coupling = device_coupling(f, spec, *caps);
@@ -221,10 +246,12 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
     p->out_dir += std::string("/") + stamp + "-s" + sess;
   }
   check_out_dir_creatable(p->out_dir, o.out_dir.empty() ? "station.out_dir" : "--out");
-  p->base_path = p->out_dir + "/station-" + std::to_string(f.station.id);
+  p->base_path = p->out_dir + "/station-" + std::to_string(p->station_id);
   plan_records(*p);
   plan_release_warning(*p);
-  if (f.device.kind == "simulated")
+  if (f.device.kind == "simulated" && o.solo)
+    p->warnings.push_back("device.kind = \"simulated\": a SIMULATED user touches the object by itself (the scenario's random script)");
+  else if (f.device.kind == "simulated")
     p->warnings.push_back("device.kind = \"simulated\": a SIMULATED user plays user " + std::to_string(f.station.id) +
                           "'s scripted push/hold/release; the other stations feel it as if a person pushed");
   return p;
@@ -287,7 +314,10 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.tx_deadband.predictive = s.tx_predict;
   if (std::llabs(std::llround(spec.period_s * 1e9) - f.loop.period_ns) > 0)
     bad("loop.period_ns must equal the scenario's period " + std::to_string(std::llround(spec.period_s * 1e9)) + " ns (the paper's T = 2 ms)");
-  if (s.id > spec.users) bad("station.id must be in [1, " + std::to_string(spec.users) + "] for scenario " + spec.name);
+  if (o.solo) {  // one user, no links: station.id, users, topology and delays do not apply
+    make_solo(spec, o.solo_anchor_N_per_m);
+    apply_script_kind(spec.script, s.script, s.push_seed, "station.script");  // a script named in the file (or --script) over solo's random
+  } else if (s.id > spec.users) bad("station.id must be in [1, " + std::to_string(spec.users) + "] for scenario " + spec.name);
   const auto& sc = spec.script;
   if (sc.kind == UserScriptSpec::Kind::kPushHoldRelease && !(sc.push_start_s < sc.push_end_s && sc.push_end_s < sc.release_s))
     bad("station.push_start_s < station.push_end_s < station.release_s must hold (got " + std::to_string(sc.push_start_s) + ", " +

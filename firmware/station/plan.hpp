@@ -28,6 +28,10 @@ struct RunOverrides {
   std::string out_dir;       // --out, "": from the file
   double duration_s = -1;    // --duration, < 0: from the file
   bool quiet = false;
+  // haptic-station solo: one user, no network (no [net], no probing, no neighbour): the scenario
+  // becomes make_solo's, station.id is 1 and the run starts as soon as the core is built.
+  bool solo = false;
+  double solo_anchor_N_per_m = 0;  // solo: ground springs on every node (make_solo), 0 = floating
   bool probe_only = false;   // --probe-only: plan, probe the neighbours (round trips, loss, clock offsets,
                              // fingerprints), report and stop; no coupling, no run (haptic-lab check)
   // For in-process tests only, never set by the command line: called on the RT thread before each

@@ -23,6 +23,7 @@ json station_scenario_json(const StationPlan& p) {
   const BuiltScenario& b = *p.built;
   json j = scenario_json(b);
   j["station"] = p.station_id;
+  if (p.overrides.solo) j["solo"] = {{"anchor_N_per_m", b.scene.params.ground_stiffness_N_per_m}};  // haptic-station solo (make_solo)
   j["x_d"] = std::vector<double>(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs);
   j["scene_surface"] = b.scene.mesh.surface;                     // for the merge's snapshots.json
   j["contact_nodes"] = b.contact_nodes[static_cast<std::size_t>(p.me)];
@@ -80,6 +81,8 @@ void add_run_json(const StationOutcome& o, json& j) {
   j["trace_marks_state_sent"] = true;
   add_records_json(o, j);
   j["device_fault_ticks"] = c ? c->device_fault_ticks : 0;
+  j["contact_ticks"] = c ? c->contact_ticks : 0;
+  j["device_force_max_N"] = or_null(ran, ran ? c->device_force_max_N : 0);
   j["foreign_packets"] = c ? c->foreign_packets : 0;
   j["probe_packets_after_run"] = c ? c->probe_packets_after_run : 0;
   j["rx_offered"] = c ? c->rx_offered : 0;

@@ -25,6 +25,10 @@ namespace haptic::firmware {
 
 namespace {
 
+// solo: the run's first tick this long after the loop is started: the RT thread's set-up (memory
+// locked, heap prefaulted) took 0.14 s on a loaded 2-core host; a later start joins the grid late.
+constexpr std::int64_t kSoloStartNs = 250'000'000;
+
 // Progress lines on stderr, prefixed with the station; silent with --quiet. Not RT-safe.
 struct Log {
   std::string tag;
@@ -76,25 +80,29 @@ std::string start_io_thread(net::Endpoint& ep, const Log& log) {
   return ep.io_scheduling();
 }
 
-// open: output directory, device, transport + endpoint (I/O thread started, probing), GPIO, telemetry.
+void open_telemetry(const StationPlan& plan, StationResources& res) {
+  if (plan.file.telemetry.path.empty()) return;
+  platform::TelemetryConfig tc = plan.file.telemetry;
+  tc.period_s = plan.built->spec.period_s;
+  tc.value_names = {"force_x_N", "force_y_N", "force_z_N", "device_x_m", "device_y_m", "device_z_m", "port_energy_J", "controller_energy_J", "vo_energy_J",
+                    "contact", "edge_drops"};
+  res.telemetry = std::make_unique<platform::Telemetry>(tc);
+}
+
+// open: output directory, device, GPIO, telemetry, transport + endpoint (I/O thread started, probing; not solo).
 void open_resources(const StationPlan& plan, StationResources& res, const Log& log) {
   std::filesystem::create_directories(plan.out_dir);
   res.dev = drivers::open_device(plan.device);
   log.say("device: " + std::string(res.dev.device->capabilities().name) +
           (res.dev.simulated ? " (simulated user: scenario script of user " + std::to_string(plan.station_id) + ")" : ""));
   if (!log.quiet && !res.dev.report.empty()) std::cerr << res.dev.report << (res.dev.report.back() == '\n' ? "" : "\n");
+  res.gpio = std::make_unique<platform::GpioToggler>(plan.file.gpio);
+  open_telemetry(plan, res);
+  if (plan.overrides.solo) return;  // no network: no endpoint, no I/O thread, no probing
   // its sequence ceiling lets a neighbour's grid run up to station.clock_offset_limit_ms ahead of ours
   res.ep = std::make_unique<net::Endpoint>(plan.endpoint_config(), plan.net.make_transport());
   log.say("incarnation " + std::to_string(res.ep->incarnation()) + " announced to the neighbours (a restart announces a newer one; they " +
           "accept it once this one has been silent for net.peer_silence_s)");
-  res.gpio = std::make_unique<platform::GpioToggler>(plan.file.gpio);
-  if (!plan.file.telemetry.path.empty()) {
-    platform::TelemetryConfig tc = plan.file.telemetry;
-    tc.period_s = plan.built->spec.period_s;
-    tc.value_names = {"force_x_N", "force_y_N", "force_z_N", "device_x_m", "device_y_m", "device_z_m", "port_energy_J", "controller_energy_J", "vo_energy_J",
-                      "contact", "edge_drops"};
-    res.telemetry = std::make_unique<platform::Telemetry>(tc);
-  }
   res.io_sched = start_io_thread(*res.ep, log);
   res.ep->begin_probing();
 }
@@ -102,6 +110,13 @@ void open_resources(const StationPlan& plan, StationResources& res, const Log& l
 void say_plan(const StationPlan& plan, const Log& log) {
   std::ostringstream os;
   const ScenarioSpec& spec = plan.built->spec;
+  if (plan.overrides.solo) {
+    os << "solo: scenario " << spec.name << ", 1 user, " << plan.built->scene.nodes << " nodes anchored by " << spec.scene.ground_stiffness_N_per_m
+       << " N/m each, no network; run " << spec.duration_s << " s (Ctrl-C ends it sooner)";
+    log.say(os.str());
+    for (const auto& w : plan.warnings) log.say("warning: " + w);
+    return;
+  }
   os << "scenario " << spec.name << ", " << spec.users << " users, " << plan.built->scene.nodes << " nodes, neighbours";
   for (int j : plan.neighbours()) os << " " << j + 1;
   os << "; transport " << plan.net.transport << "; epoch in " << plan.times.epoch_in_s << " s, probing " << plan.file.station.probe_s << " s, run "
@@ -112,7 +127,7 @@ void say_plan(const StationPlan& plan, const Log& log) {
 
 void say_bounds(const StationPlan& plan, const BuildResult& b, const Log& log) {
   std::ostringstream os;
-  os << "probing done: round-trip bounds (ticks incl. allowance)";
+  os << (plan.overrides.solo ? "no neighbour" : "probing done: round-trip bounds (ticks incl. allowance)");
   for (std::size_t n = 0; n < plan.neighbours().size(); ++n) os << " " << plan.neighbours()[n] + 1 << ":" << b.bounds.round_trip_ticks[n];
   os << "; B_i = " << b.bounds.damping_Ns_per_m << " N s/m (eq. 18 minimum " << b.bounds.damping_min_Ns_per_m << ", model "
      << plan.built->damping[static_cast<std::size_t>(plan.me)] << ")";
@@ -201,7 +216,7 @@ bool station_view_frame(const StationPlan& plan, StationResources& res, ViewFram
   if (!res.view->take(f)) return false;
   if (before > 0 && f.seq > before + 1) missed += f.seq - before - 1;
   nlohmann::json j = view_frame_json(f);
-  const net::EndpointStats st = res.ep->stats();
+  const net::EndpointStats st = res.ep ? res.ep->stats() : net::EndpointStats{};
   for (std::size_t n = 0; n < plan.neighbours().size() && n < j["links"].size(); ++n) {
     const auto p = static_cast<std::size_t>(plan.peers.nbr_to_peer[n]);
     if (p >= st.peers.size()) continue;
@@ -250,7 +265,8 @@ void open_view(const StationPlan& plan, StationResources& res, const BuildResult
 // above the bound, one line per neighbour each, logged and kept in the neighbour events.
 void say_after_run(const StationPlan& plan, StationResources& res, PhaseResults& pr, nlohmann::json& ev, const Log& log) {
   std::vector<std::string> lines = energy_bound_events(plan, *pr.build.core);
-  for (auto& line : round_trip_over_bound_events(plan, res.ep->stats(), pr.build.bounds.round_trip_ticks)) lines.push_back(std::move(line));
+  if (res.ep)
+    for (auto& line : round_trip_over_bound_events(plan, res.ep->stats(), pr.build.bounds.round_trip_ticks)) lines.push_back(std::move(line));
   for (const auto& line : lines) {
     log.say(line);
     ev.push_back(line);
@@ -297,6 +313,7 @@ bool prepare_run(const StationPlan& plan, StationResources& res, PhaseResults& p
     try {
       open_view(plan, res, pr.build);
       log.say("live view at " + res.view_server->url());
+      if (plan.overrides.solo) std::cout << log.tag << ": live view at " << res.view_server->url() << " (open it in a browser)" << std::endl;
     } catch (const std::exception& e) {
       pr.fail(PhaseStatus::kFailed, e.what());
       return false;
@@ -311,10 +328,10 @@ bool prepare_run(const StationPlan& plan, StationResources& res, PhaseResults& p
 // run: refuses a core that is ready more than a second after the run start; else hands the run
 // stage to the station's loop (a rejoining station's moves the loop onto the session's grid) and
 // waits for the loop to end, logging neighbour events meanwhile.
-void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr, StationLoop& loop, const RunObserver& base, std::atomic<bool>& stop,
+void run_phase(StationPlan& plan, StationResources& res, PhaseResults& pr, StationLoop& loop, const RunObserver& base, std::atomic<bool>& stop,
                const Log& log) {
   const double late_s = static_cast<double>(read_clocks().monotonic_ns - plan.times.run_epoch_ns()) * 1e-9;
-  if (late_s > 1.0 && !plan.times.rejoin) {
+  if (late_s > 1.0 && !plan.times.rejoin && !plan.overrides.solo) {
     pr.fail(PhaseStatus::kFailed, "the station core was ready " + std::to_string(late_s) + " s after the run start (station.setup_gap_s too short?)");
     return;
   }
@@ -324,13 +341,15 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
   // Neighbours going silent and coming back: logged once each (station id, session time).
   PeerEventLog events(plan, plan.times.run_epoch_ns(), plan.net.endpoint.peer_silence_s + 0.1);
   nlohmann::json& ev = pr.lifecycle["neighbour_events"] = nlohmann::json::array();
-  observer.idle = [&] {
-    for (const auto& line : events.poll(res.ep->stats())) {
-      log.say(line);
-      ev.push_back(line);
-    }
-  };
-  res.ep->sending_resumes(net::monotonic_ns());  // echoes held through the set-up gap are no round trips
+  if (res.ep) {
+    observer.idle = [&] {
+      for (const auto& line : events.poll(res.ep->stats())) {
+        log.say(line);
+        ev.push_back(line);
+      }
+    };
+    res.ep->sending_resumes(net::monotonic_ns());  // echoes held through the set-up gap are no round trips
+  }
   // A rejoining station refreshes the adopted state at its first tick (RT-safe, preallocated).
   Eigen::VectorXd x = pr.build.core->x(), v = pr.build.core->v();
   bool first = plan.times.rejoin;
@@ -343,7 +362,18 @@ void run_phase(const StationPlan& plan, StationResources& res, PhaseResults& pr,
     if (hook) hook(kr);
     run_tick(in, pr.records, pr.counters, k, kr, info);
   };
-  const int run_index = loop.hand_over(run_stage(plan, tick, stop, plan.times.rejoin));
+  int run_index = 0;
+  if (plan.overrides.solo) {  // the loop's first and only stage, from now (solo: nothing to wait for)
+    plan.times.epoch_ns = net::monotonic_ns() + kSoloStartNs;
+    try {
+      loop.start(run_stage(plan, tick, stop, false), observer);
+    } catch (const std::exception& e) {  // RtThread set-up refused (rt.require_rt)
+      pr.fail(PhaseStatus::kFailed, std::string("real-time set-up: ") + e.what());
+      return;
+    }
+  } else {
+    run_index = loop.hand_over(run_stage(plan, tick, stop, plan.times.rejoin));
+  }
   pr.run = loop.run_result(run_index, observer);
   pr.ran = true;
   pr.counters.outages.finish();  // the loop ended: a span still open closes at the last tick
@@ -530,12 +560,14 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
   say_plan(plan, log);
   StationLoop loop(plan, res.dev.device.get(), stop);  // ends (joined) when this function returns
   const RunObserver obs = loop_observer(log);
-  if (!probe_phase(plan, res, pr, loop, obs, stop, log)) return;
-  note_probe(plan, pr, log);
-  if (plan.overrides.probe_only) {  // --probe-only: reachability, round trips, loss and clock offsets measured; nothing coupled
-    pr.lifecycle["probe_only"] = true;
-    log.say("probe only: every neighbour answered with a matching fingerprint; stopping before coupling (no run)");
-    return;
+  if (!plan.overrides.solo) {  // solo: no neighbour to probe; build (eq. 18 over no link) and run
+    if (!probe_phase(plan, res, pr, loop, obs, stop, log)) return;
+    note_probe(plan, pr, log);
+    if (plan.overrides.probe_only) {  // --probe-only: reachability, round trips, loss and clock offsets measured; nothing coupled
+      pr.lifecycle["probe_only"] = true;
+      log.say("probe only: every neighbour answered with a matching fingerprint; stopping before coupling (no run)");
+      return;
+    }
   }
   double q0[3];
   const bool have_q0 = initial_device_position(*res.dev.device, q0);
@@ -653,7 +685,7 @@ int check_station_config(const StationFile& file, const RunOverrides& overrides,
 
 int run_station(const StationFile& f, const RunOverrides& o, std::atomic<bool>& stop) {
   const auto wall0 = std::chrono::steady_clock::now();
-  const Log log{"haptic-station run [station " + std::to_string(f.station.id) + "]", o.quiet};
+  const Log log{o.solo ? std::string("haptic-station solo") : "haptic-station run [station " + std::to_string(f.station.id) + "]", o.quiet};
   PlanResult plan = plan_station(f, o, read_clocks());
   if (plan.status != PhaseStatus::kOk) {
     log.error(plan.error);

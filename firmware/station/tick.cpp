@@ -26,6 +26,7 @@ using platform::trace::StageScope;
 template <class Offer>
 void drain_rx(const TickInputs& in, TickCounters& cnt, Offer&& offer) {
   StageScope stage(Stage::rx_drain);
+  if (in.ep == nullptr) return;  // solo: no network
   const double now_s = in.max_age_s ? net::monotonic_s() : 0.0;
   in.ep->drain_packets([&](const net::RxPacket& p) -> bool {  // true: the link keeps the RX buffer
     const int n = in.sender_to_nbr[p.sender];
@@ -149,13 +150,17 @@ void record_telemetry(const TickInputs& in, const double* F, const rt::Vec3& q, 
 }
 
 // Energy, speed, divergence and neighbour-presence bookkeeping. RT-safe.
-double monitor(const TickInputs& in, TickCounters& cnt, std::int64_t kr, std::uint32_t flags, const platform::TickInfo& info) {
+double monitor(const TickInputs& in, TickCounters& cnt, std::int64_t kr, std::uint32_t flags, double force_N, const platform::TickInfo& info) {
   cnt.port_min_J = std::min(cnt.port_min_J, in.core->energy().port_J);
   const double vmax = max_node_speed(in);
   cnt.max_speed_m_per_s = std::max(cnt.max_speed_m_per_s, vmax);
-  const bool usable = any_neighbour_within_bound(*in.core, kr);
-  if (!usable) ++cnt.no_neighbour_ticks;
-  cnt.outages.on_tick(*in.core, kr, usable, info);
+  if (in.core->in_contact()) ++cnt.contact_ticks;
+  cnt.device_force_max_N = std::max(cnt.device_force_max_N, force_N);
+  if (in.core->neighbor_count() > 0) {  // solo (no neighbour): nothing to be out of bound
+    const bool usable = any_neighbour_within_bound(*in.core, kr);
+    if (!usable) ++cnt.no_neighbour_ticks;
+    cnt.outages.on_tick(*in.core, kr, usable, info);
+  }
   if ((flags & rt::kDiverged) && !cnt.diverged) {
     cnt.diverged = true;
     cnt.diverged_at_s = static_cast<double>(kr) * in.period_s;
@@ -208,7 +213,7 @@ bool any_neighbour_within_bound(rt::StationCore& core, std::int64_t kr) {
 
 std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt, std::int64_t k, std::int64_t kr, const platform::TickInfo& info) {
   if (in.gpio) in.gpio->tick_high();  // the loop already emitted tick_begin
-  in.ep->note_tick(k);                 // the sequence ceiling of the I/O thread's decoder
+  if (in.ep) in.ep->note_tick(k);      // the sequence ceiling of the I/O thread's decoder (solo: no endpoint)
   const rt::Vec3 q = read_device(in, cnt);
   if (in.recorder && cnt.ticks_run == 0) in.recorder->rt_initial_state(in.core->x().data(), in.core->v().data());
   // T_k: the measured wake-to-wake period (the first tick: the nominal one); the core clamps it to
@@ -237,7 +242,7 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   bool sent = false;
   {
     StageScope stage(Stage::tx);
-    if (!in.tx_deadband || in.tx_deadband->should_send(kr, in.core->x_hat(), in.core->v_hat())) {
+    if (in.ep && (!in.tx_deadband || in.tx_deadband->should_send(kr, in.core->x_hat(), in.core->v_hat()))) {
       sent = in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), in.core->x_hat(), in.core->v_hat(),
                                (out.flags & rt::kDiverged) != 0);  // safe state: the flag, never the state
       if (!sent) ++cnt.push_failures;
@@ -245,7 +250,7 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   }
   {
     StageScope stage(Stage::monitor);
-    const double vmax = monitor(in, cnt, kr, out.flags, info);
+    const double vmax = monitor(in, cnt, kr, out.flags, std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]), info);
     record_trace(in, rec, kr, F, q, vmax, out.flags | (sent ? kTraceStateSent : 0u), info);
     record_state(in, rec, kr);
   }

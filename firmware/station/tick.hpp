@@ -55,6 +55,8 @@ struct TickCounters {
   std::uint64_t no_neighbour_ticks = 0;  // ticks with every neighbour's data beyond its index-delay bound
   std::uint64_t age_over_bound = 0, no_echo = 0;  // packets refused by the age guard (TickInputs::max_age_s)
   std::uint64_t outside_workspace_ticks = 0;  // device samples beyond its workspace radius (clamped onto it)
+  std::uint64_t contact_ticks = 0;            // ticks with the proxy in contact with the object
+  double device_force_max_N = 0;              // largest |force| told to the device (object frame, ramp-in applied)
   std::int64_t ticks_run = 0;
   std::int64_t last_wake_ns = 0;  // the previous tick's wake (the measured step T_k = wake - this)
   bool diverged = false;

@@ -56,3 +56,23 @@ TEST(Scenario, parsers_reject_bad_input_with_a_clear_message) {
   s.loss_probability = 1.0;
   STRCMP_CONTAINS("loss_probability", error_of([&] { s.validate(); }).c_str());
 }
+
+// haptic-station solo: one user, no link; eq. (18) over no neighbour gives B_i = 0 (the budget's rule,
+// not a constant written here); the anchor is the scene's ground spring; a lone user with a link is refused.
+TEST(Scenario, solo_is_one_user_without_links_and_eq18_gives_no_damping) {
+  ScenarioSpec s = make_scenario("paper-unstable");  // a scenario with fixed B_i per user: solo drops them
+  make_solo(s, 2.0);
+  const BuiltScenario b = build_scenario(s);
+  CHECK_EQUAL(1, b.spec.users);
+  CHECK_EQUAL(0u, b.neighbors[0].size());
+  DOUBLES_EQUAL(0.0, b.damping_min[0], 0);
+  DOUBLES_EQUAL(0.0, b.damping[0], 0);
+  CHECK_TRUE(b.passivity_condition_met);
+  DOUBLES_EQUAL(2.0, b.scene.params.ground_stiffness_N_per_m, 0);
+  CHECK_TRUE(b.spec.script.kind == UserScriptSpec::Kind::kRandom);
+  CHECK_EQUAL(0, b.station_config(0).neighbors.size());
+  ScenarioSpec linked = s;
+  linked.topology = {{0, 1}};
+  STRCMP_CONTAINS("a single user has no links", error_of([&] { linked.validate(); }).c_str());
+  STRCMP_CONTAINS("--anchor = -1", error_of([&] { ScenarioSpec t = make_scenario("paper-best"); make_solo(t, -1); }).c_str());
+}

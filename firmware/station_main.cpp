@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "firmware/log_command.hpp"
+#include "firmware/session/log_command.hpp"
 #include "firmware/run/merge.hpp"
 #include "firmware/run/summary.hpp"
 #include "firmware/scenario.hpp"

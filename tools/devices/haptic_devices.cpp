@@ -342,6 +342,57 @@ int check_map(const haptic::tools::MapOptions& o) {
   if (!(o.timeout_s > 0.0 && o.timeout_s <= 600.0)) return bad_option("--timeout-s", "outside (0, 600] s");
   return 0;
 }
+// The `check` subcommand and its options (into the caller's variables).
+CLI::App* add_check_command(CLI::App& app, SessionDevice& check_dev, haptic::tools::CheckOptions& check, std::string& check_axis,
+                            std::vector<std::string>& check_skip) {
+  CLI::App* check_cmd = app.add_subcommand(
+      "check", std::string("guided device check (like the vendor's Touch_Diagnostic): a checklist with PASS/FAIL/SKIP and the "
+                           "measured figure per item: open (model, version, the OpenHaptics ABI the driver binds, calibration), "
+                           "servo_rate, encoders (move the stylus), workspace (sweep it to its limits), buttons (press each), "
+                           "force (let go: diag's +F/-F push must move the stylus each way), b_d (diag's two-level b_d). Stop "
+                           "the station first.\n") + kCheckExits);
+  add_device_options(check_cmd, check_dev);
+  check_cmd->add_flag("--yes", check.yes, "do not wait for Enter before each guided item (scripted runs)");
+  check_cmd->add_option("--timeout-s", check.timeout_s, "each guided item (encoders, workspace, buttons) FAILs after this long")
+      ->capture_default_str();
+  check_cmd->add_option("--idle-s", check.idle_s, "zero-force window measuring the servo rate [0.1, 60] s")->capture_default_str();
+  check_cmd->add_option("--min-servo-hz", check.min_servo_hz, "servo_rate PASSes at or above this rate")->capture_default_str();
+  check_cmd->add_option("--move-mm", check.move_mm, "encoders: each sensed axis must move this far")->capture_default_str();
+  check_cmd->add_option("--workspace-fraction", check.workspace_fraction,
+                        "workspace: extent reached / nominal extent needed on each axis")->capture_default_str();
+  check_cmd->add_option("--buttons", check.buttons, "how many buttons to ask for (-1: the device's: Touch 2, Falcon 4; 0: SKIP)")
+      ->capture_default_str();
+  check_cmd->add_option("--force-N", check.push.forces_N, "test force levels in (0, 1] N: F1 for the force item, F2 for b_d "
+                                                          "(one level: b_d is SKIPped)")
+      ->expected(1, 2)->capture_default_str();
+  check_cmd->add_option("--axis", check_axis, "device axis of the test force")->check(CLI::IsMember({"x", "y", "z"}))->capture_default_str();
+  check_cmd->add_option("--push-s", check.push.push_s, "duration of each push (+F, then -F) [0.1, 10] s")->capture_default_str();
+  check_cmd->add_option("--max-travel-mm", check.push.max_travel_mm, "a push stops when the stylus has moved this far (0, 200] mm")
+      ->capture_default_str();
+  check_cmd->add_option("--min-push-mm", check.min_push_mm, "force: each push must move the stylus this far in its direction")
+      ->capture_default_str();
+  check_cmd->add_option("--max-asymmetry", check.max_asymmetry, "force: |v+| / |v-| must lie within [1/x, x]")->capture_default_str();
+  check_cmd->add_option("--skip", check_skip, "items to SKIP (open servo_rate encoders workspace buttons force b_d), e.g. what a "
+                                              "stand-in cannot exercise")
+      ->delimiter(',');
+  return check_cmd;
+}
+// The `map` subcommand and its options (into the caller's variables).
+CLI::App* add_map_command(CLI::App& app, SessionDevice& map_dev, haptic::tools::MapOptions& map, std::vector<double>& centre,
+                          std::vector<double>& rot) {
+  CLI::App* map_cmd = app.add_subcommand(
+      "map", std::string("guided set-up of the workspace mapping: hold the stylus still at the object's centre; prints "
+                         "the [device] map_offset_m / map_rotation_deg / map_scale keys that map that point onto "
+                         "--centre-m.\n") + kSessionExits);
+  add_device_options(map_cmd, map_dev);
+  map_cmd->add_option("--centre-m", centre, "the object's centre in the object frame, metres (x y z)")->expected(3)->capture_default_str();
+  map_cmd->add_option("--rotation-deg", rot, "map_rotation_deg to keep (rx ry rz)")->expected(3)->capture_default_str();
+  map_cmd->add_option("--scale", map.scale, "map_scale to keep (object metres per device metre)")->capture_default_str();
+  map_cmd->add_option("--still-s", map.still_s, "how long the stylus must be held still")->capture_default_str();
+  map_cmd->add_option("--still-mm", map.still_mm, "how still: within this distance")->capture_default_str();
+  map_cmd->add_option("--timeout-s", map.timeout_s, "give up after this long (exit 3)")->capture_default_str();
+  return map_cmd;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -375,53 +426,14 @@ int main(int argc, char** argv) {
 
   haptic::tools::MapOptions map;
   std::vector<double> centre{0, 0, 0}, rot{0, 0, 0};
-  CLI::App* map_cmd = app.add_subcommand(
-      "map", std::string("guided set-up of the workspace mapping: hold the stylus still at the object's centre; prints "
-                         "the [device] map_offset_m / map_rotation_deg / map_scale keys that map that point onto "
-                         "--centre-m.\n") + kSessionExits);
-  add_device_options(map_cmd, map_dev);
-  map_cmd->add_option("--centre-m", centre, "the object's centre in the object frame, metres (x y z)")->expected(3)->capture_default_str();
-  map_cmd->add_option("--rotation-deg", rot, "map_rotation_deg to keep (rx ry rz)")->expected(3)->capture_default_str();
-  map_cmd->add_option("--scale", map.scale, "map_scale to keep (object metres per device metre)")->capture_default_str();
-  map_cmd->add_option("--still-s", map.still_s, "how long the stylus must be held still")->capture_default_str();
-  map_cmd->add_option("--still-mm", map.still_mm, "how still: within this distance")->capture_default_str();
-  map_cmd->add_option("--timeout-s", map.timeout_s, "give up after this long (exit 3)")->capture_default_str();
+  CLI::App* map_cmd = add_map_command(app, map_dev, map, centre, rot);
 
   SessionDevice check_dev;
   check_dev.command = "check";
   haptic::tools::CheckOptions check;
   std::string check_axis = "x";
   std::vector<std::string> check_skip;
-  CLI::App* check_cmd = app.add_subcommand(
-      "check", std::string("guided device check (like the vendor's Touch_Diagnostic): a checklist with PASS/FAIL/SKIP and the "
-                           "measured figure per item: open (model, version, the OpenHaptics ABI the driver binds, calibration), "
-                           "servo_rate, encoders (move the stylus), workspace (sweep it to its limits), buttons (press each), "
-                           "force (let go: diag's +F/-F push must move the stylus each way), b_d (diag's two-level b_d). Stop "
-                           "the station first.\n") + kCheckExits);
-  add_device_options(check_cmd, check_dev);
-  check_cmd->add_flag("--yes", check.yes, "do not wait for Enter before each guided item (scripted runs)");
-  check_cmd->add_option("--timeout-s", check.timeout_s, "each guided item (encoders, workspace, buttons) FAILs after this long")
-      ->capture_default_str();
-  check_cmd->add_option("--idle-s", check.idle_s, "zero-force window measuring the servo rate [0.1, 60] s")->capture_default_str();
-  check_cmd->add_option("--min-servo-hz", check.min_servo_hz, "servo_rate PASSes at or above this rate")->capture_default_str();
-  check_cmd->add_option("--move-mm", check.move_mm, "encoders: each sensed axis must move this far")->capture_default_str();
-  check_cmd->add_option("--workspace-fraction", check.workspace_fraction,
-                        "workspace: extent reached / nominal extent needed on each axis")->capture_default_str();
-  check_cmd->add_option("--buttons", check.buttons, "how many buttons to ask for (-1: the device's: Touch 2, Falcon 4; 0: SKIP)")
-      ->capture_default_str();
-  check_cmd->add_option("--force-N", check.push.forces_N, "test force levels in (0, 1] N: F1 for the force item, F2 for b_d "
-                                                          "(one level: b_d is SKIPped)")
-      ->expected(1, 2)->capture_default_str();
-  check_cmd->add_option("--axis", check_axis, "device axis of the test force")->check(CLI::IsMember({"x", "y", "z"}))->capture_default_str();
-  check_cmd->add_option("--push-s", check.push.push_s, "duration of each push (+F, then -F) [0.1, 10] s")->capture_default_str();
-  check_cmd->add_option("--max-travel-mm", check.push.max_travel_mm, "a push stops when the stylus has moved this far (0, 200] mm")
-      ->capture_default_str();
-  check_cmd->add_option("--min-push-mm", check.min_push_mm, "force: each push must move the stylus this far in its direction")
-      ->capture_default_str();
-  check_cmd->add_option("--max-asymmetry", check.max_asymmetry, "force: |v+| / |v-| must lie within [1/x, x]")->capture_default_str();
-  check_cmd->add_option("--skip", check_skip, "items to SKIP (open servo_rate encoders workspace buttons force b_d), e.g. what a "
-                                              "stand-in cannot exercise")
-      ->delimiter(',');
+  CLI::App* check_cmd = add_check_command(app, check_dev, check, check_axis, check_skip);
 
   haptic::platform::add_version_flag(app, "haptic-devices");
   // --help/--version: 0; a usage error (an unknown option or subcommand with "did you mean"): kExitBadOption.
@@ -458,9 +470,6 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
     return haptic::tools::run_mapping(*opened->device, map, std::cout);
   }
-  if (rules_only) {
-    print_all_rules();
-    return 0;
-  }
+  if (rules_only) return print_all_rules(), 0;
   return list_devices(all, hd_path);
 }

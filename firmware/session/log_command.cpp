@@ -1,4 +1,4 @@
-#include "firmware/log_command.hpp"
+#include "firmware/session/log_command.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -236,97 +236,112 @@ Column read_export_column(hid_t file, const FileField& ff, std::uint64_t rotate)
 
 }  // namespace
 
+namespace {
+// log_info's parts: the file's attributes and run length; every dataset; the flag bits' tick counts.
+void info_header(hid_t f, std::ostream& out, const std::string& path) {
+  const auto version = opt_i64(f, "version").value_or(0);
+  out << path << ": haptic session log, version " << version << ", written by " << opt_str(f, "source").value_or("?");
+  if (auto b = opt_str(f, "build_id"); b && !b->empty()) out << " (build " << b->substr(0, 12) << ")";
+  out << "\n";
+  std::string scenario = opt_str(f, "scenario").value_or("");
+  if (scenario.empty()) {  // older logs: a simulator's fingerprint ends ", scenario NAME"
+    const std::string fp = opt_str(f, "fingerprint").value_or(""), tag = ", scenario ";
+    const auto at = fp.rfind(tag);
+    scenario = at == std::string::npos ? "not recorded" : fp.substr(at + tag.size()) + " (from the fingerprint)";
+  }
+  out << "  station " << opt_i64(f, "station_id").value_or(0) << " of " << opt_i64(f, "users").value_or(0) << " users, scenario " << scenario << "\n";
+  const double period = opt_f64(f, "period_s").value_or(0);
+  out << "  scene " << opt_i64(f, "nodes").value_or(0) << " nodes, " << opt_i64(f, "dofs").value_or(0) << " dofs; period " << period * 1e3
+      << " ms; packet values " << opt_str(f, "packet_values").value_or("?") << "\n";
+  if (auto fp = opt_str(f, "fingerprint")) out << "  fingerprint: " << *fp << "\n";
+  if (auto dmin = opt_f64(f, "damping_min_Ns_per_m"))
+    out << "  passivity condition (eq. 18): " << (opt_i64(f, "passivity_condition_met").value_or(0) ? "met" : "NOT met") << ", B_i minimum " << *dmin
+        << " N s/m\n";
+
+  // Run length: the tick rows' run times.
+  std::uint64_t cols = 0;
+  const auto rot = ring_next_row(f, kTicksGroup);
+  const auto k = read_column<std::int64_t>(f, std::string(kTicksGroup) + "/k", h5::Type::kI64, cols, rot);
+  std::vector<double> steps;
+  if (h5::exists(f, std::string(kTicksGroup) + "/step_s")) steps = read_column<double>(f, std::string(kTicksGroup) + "/step_s", h5::Type::kF64, cols, rot);
+  const auto t = tick_end_times_s(k, steps, period);
+  out << "  run: " << k.size() << " ticks";
+  if (!k.empty()) out << " (k " << k.front() << " .. " << k.back() << ", run time " << (t.front() - (steps.empty() || steps.front() <= 0 ? period : steps.front()))
+                      << " .. " << t.back() << " s)";
+  const auto packets_written = opt_i64(f, "packets").value_or(0);
+  const auto packet_rows = h5::exists(f, std::string(kPacketsGroup) + "/tick") ? static_cast<std::int64_t>(h5::shape(f, std::string(kPacketsGroup) + "/tick")[0]) : 0;
+  out << ", " << packet_rows << " packets";
+  if (packets_written != packet_rows) out << " (" << packets_written << " written)";
+  const auto dropped = opt_i64(f, "dropped_records").value_or(0), trunc = opt_i64(f, "truncated_at_tick").value_or(-1);
+  out << "; dropped records " << dropped << "; " << (trunc >= 0 ? "truncated at tick " + std::to_string(trunc) + " (size bound)" : "not truncated");
+  const auto ring = opt_i64(f, "ring_ticks").value_or(0);
+  out << "; " << (ring > 0 ? "ring of the last " + std::to_string(ring) + " ticks" + (opt_i64(f, "first_tick").value_or(0) > 0 ? " (wrapped)" : "") : "whole run")
+      << "\n";
+  if (auto err = opt_str(f, "writer_error"); err && !err->empty()) out << "  writer error: " << *err << "\n";
+}
+
+void info_datasets(hid_t f, std::ostream& out) {
+  const bool units = h5::has_attr(f, kFieldUnitsAttr);
+  if (!units) out << "  units not recorded (" << kBeforeUnits << "): the units below are this program's, for fields of the same name\n";
+
+  out << "datasets (shape, dtype, units, description):\n";
+  const auto paths = h5::dataset_paths(f);
+  std::size_t width = 0;
+  for (const auto& p : paths) width = std::max(width, p.size());
+  for (const auto& p : paths) {
+    const auto slash = p.find('/');
+    FileField ff;
+    const bool row_group = slash != std::string::npos && p.find('/', slash + 1) == std::string::npos &&
+                           (p.compare(0, slash, kTicksGroup) == 0 || p.compare(0, slash, kPacketsGroup) == 0);
+    if (row_group) {
+      ff = file_field(f, p.substr(0, slash), p.substr(slash + 1));
+    } else {
+      ff.shape = h5::shape(f, p);
+      ff.dtype = h5::dtype_name(f, p);
+      h5::Id ds = h5::open_dataset(f, p);
+      if (auto u = opt_str(ds.get(), kUnitsAttr)) ff.units = *u, ff.units_recorded = true;
+      ff.description = opt_str(ds.get(), kDescriptionAttr).value_or("");
+    }
+    const std::string u = ff.units_recorded ? ff.units : ff.units.empty() ? "-" : ff.units + "?";
+    out << "  " << std::left << std::setw(static_cast<int>(width)) << p << "  " << std::setw(12) << shape_text(ff.shape) << "  " << std::setw(7) << ff.dtype << "  "
+        << std::setw(6) << u << "  " << ff.description << "\n" << std::right;
+  }
+  if (!units) out << "  (units marked ? are this program's: " << kBeforeUnits << ")\n";
+}
+
+void info_flags(hid_t f, std::ostream& out) {
+  std::uint64_t cols = 0;
+  // Flags: ticks each bit was set.
+  if (h5::exists(f, std::string(kTicksGroup) + "/flags")) {
+    const auto fl = read_column<std::int64_t>(f, std::string(kTicksGroup) + "/flags", h5::Type::kI64, cols, 0);
+    std::uint64_t count[32] = {};
+    std::uint64_t any = 0;
+    for (auto v : fl) {
+      if (v != 0) ++any;
+      for (int b = 0; b < 32; ++b)
+        if ((static_cast<std::uint64_t>(v) >> b) & 1u) ++count[b];
+    }
+    bool from_log = false;
+    const auto names = flag_names(f, from_log);
+    out << "flags (ticks with the bit set, of " << fl.size() << "; " << any << " ticks with any bit set; names "
+        << (from_log ? "from the log's flag_bits" : std::string("not recorded in the log (") + kBeforeUnits + "): this program's rt::kTickFlagNames") << "):\n";
+    for (const auto& [bit, n] : names)
+      out << "  bit " << std::setw(2) << bit << "  " << std::left << std::setw(18) << n.name << std::right << std::setw(8) << (bit < 32 ? count[bit] : 0) << "  "
+          << n.meaning << "\n";
+    for (int b = 0; b < 32; ++b)
+      if (count[b] > 0 && !names.count(b)) out << "  bit " << std::setw(2) << b << "  " << std::left << std::setw(18) << "(unnamed)" << std::right << std::setw(8) << count[b] << "\n";
+  }
+}
+
+}  // namespace
+
 void log_info(const std::string& path, std::ostream& out) {
   h5::Id file = open_log(path);
   const hid_t f = file.get();
   try {
-    const auto version = opt_i64(f, "version").value_or(0);
-    out << path << ": haptic session log, version " << version << ", written by " << opt_str(f, "source").value_or("?");
-    if (auto b = opt_str(f, "build_id"); b && !b->empty()) out << " (build " << b->substr(0, 12) << ")";
-    out << "\n";
-    std::string scenario = opt_str(f, "scenario").value_or("");
-    if (scenario.empty()) {  // older logs: a simulator's fingerprint ends ", scenario NAME"
-      const std::string fp = opt_str(f, "fingerprint").value_or(""), tag = ", scenario ";
-      const auto at = fp.rfind(tag);
-      scenario = at == std::string::npos ? "not recorded" : fp.substr(at + tag.size()) + " (from the fingerprint)";
-    }
-    out << "  station " << opt_i64(f, "station_id").value_or(0) << " of " << opt_i64(f, "users").value_or(0) << " users, scenario " << scenario << "\n";
-    const double period = opt_f64(f, "period_s").value_or(0);
-    out << "  scene " << opt_i64(f, "nodes").value_or(0) << " nodes, " << opt_i64(f, "dofs").value_or(0) << " dofs; period " << period * 1e3
-        << " ms; packet values " << opt_str(f, "packet_values").value_or("?") << "\n";
-    if (auto fp = opt_str(f, "fingerprint")) out << "  fingerprint: " << *fp << "\n";
-    if (auto dmin = opt_f64(f, "damping_min_Ns_per_m"))
-      out << "  passivity condition (eq. 18): " << (opt_i64(f, "passivity_condition_met").value_or(0) ? "met" : "NOT met") << ", B_i minimum " << *dmin
-          << " N s/m\n";
-
-    // Run length: the tick rows' run times.
-    std::uint64_t cols = 0;
-    const auto rot = ring_next_row(f, kTicksGroup);
-    const auto k = read_column<std::int64_t>(f, std::string(kTicksGroup) + "/k", h5::Type::kI64, cols, rot);
-    std::vector<double> steps;
-    if (h5::exists(f, std::string(kTicksGroup) + "/step_s")) steps = read_column<double>(f, std::string(kTicksGroup) + "/step_s", h5::Type::kF64, cols, rot);
-    const auto t = tick_end_times_s(k, steps, period);
-    out << "  run: " << k.size() << " ticks";
-    if (!k.empty()) out << " (k " << k.front() << " .. " << k.back() << ", run time " << (t.front() - (steps.empty() || steps.front() <= 0 ? period : steps.front()))
-                        << " .. " << t.back() << " s)";
-    const auto packets_written = opt_i64(f, "packets").value_or(0);
-    const auto packet_rows = h5::exists(f, std::string(kPacketsGroup) + "/tick") ? static_cast<std::int64_t>(h5::shape(f, std::string(kPacketsGroup) + "/tick")[0]) : 0;
-    out << ", " << packet_rows << " packets";
-    if (packets_written != packet_rows) out << " (" << packets_written << " written)";
-    const auto dropped = opt_i64(f, "dropped_records").value_or(0), trunc = opt_i64(f, "truncated_at_tick").value_or(-1);
-    out << "; dropped records " << dropped << "; " << (trunc >= 0 ? "truncated at tick " + std::to_string(trunc) + " (size bound)" : "not truncated");
-    const auto ring = opt_i64(f, "ring_ticks").value_or(0);
-    out << "; " << (ring > 0 ? "ring of the last " + std::to_string(ring) + " ticks" + (opt_i64(f, "first_tick").value_or(0) > 0 ? " (wrapped)" : "") : "whole run")
-        << "\n";
-    if (auto err = opt_str(f, "writer_error"); err && !err->empty()) out << "  writer error: " << *err << "\n";
-
-    const bool units = h5::has_attr(f, kFieldUnitsAttr);
-    if (!units) out << "  units not recorded (" << kBeforeUnits << "): the units below are this program's, for fields of the same name\n";
-
-    out << "datasets (shape, dtype, units, description):\n";
-    const auto paths = h5::dataset_paths(f);
-    std::size_t width = 0;
-    for (const auto& p : paths) width = std::max(width, p.size());
-    for (const auto& p : paths) {
-      const auto slash = p.find('/');
-      FileField ff;
-      const bool row_group = slash != std::string::npos && p.find('/', slash + 1) == std::string::npos &&
-                             (p.compare(0, slash, kTicksGroup) == 0 || p.compare(0, slash, kPacketsGroup) == 0);
-      if (row_group) {
-        ff = file_field(f, p.substr(0, slash), p.substr(slash + 1));
-      } else {
-        ff.shape = h5::shape(f, p);
-        ff.dtype = h5::dtype_name(f, p);
-        h5::Id ds = h5::open_dataset(f, p);
-        if (auto u = opt_str(ds.get(), kUnitsAttr)) ff.units = *u, ff.units_recorded = true;
-        ff.description = opt_str(ds.get(), kDescriptionAttr).value_or("");
-      }
-      const std::string u = ff.units_recorded ? ff.units : ff.units.empty() ? "-" : ff.units + "?";
-      out << "  " << std::left << std::setw(static_cast<int>(width)) << p << "  " << std::setw(12) << shape_text(ff.shape) << "  " << std::setw(7) << ff.dtype << "  "
-          << std::setw(6) << u << "  " << ff.description << "\n" << std::right;
-    }
-    if (!units) out << "  (units marked ? are this program's: " << kBeforeUnits << ")\n";
-
-    // Flags: ticks each bit was set.
-    if (h5::exists(f, std::string(kTicksGroup) + "/flags")) {
-      const auto fl = read_column<std::int64_t>(f, std::string(kTicksGroup) + "/flags", h5::Type::kI64, cols, 0);
-      std::uint64_t count[32] = {};
-      std::uint64_t any = 0;
-      for (auto v : fl) {
-        if (v != 0) ++any;
-        for (int b = 0; b < 32; ++b)
-          if ((static_cast<std::uint64_t>(v) >> b) & 1u) ++count[b];
-      }
-      bool from_log = false;
-      const auto names = flag_names(f, from_log);
-      out << "flags (ticks with the bit set, of " << fl.size() << "; " << any << " ticks with any bit set; names "
-          << (from_log ? "from the log's flag_bits" : std::string("not recorded in the log (") + kBeforeUnits + "): this program's rt::kTickFlagNames") << "):\n";
-      for (const auto& [bit, n] : names)
-        out << "  bit " << std::setw(2) << bit << "  " << std::left << std::setw(18) << n.name << std::right << std::setw(8) << (bit < 32 ? count[bit] : 0) << "  "
-            << n.meaning << "\n";
-      for (int b = 0; b < 32; ++b)
-        if (count[b] > 0 && !names.count(b)) out << "  bit " << std::setw(2) << b << "  " << std::left << std::setw(18) << "(unnamed)" << std::right << std::setw(8) << count[b] << "\n";
-    }
+    info_header(f, out, path);
+    info_datasets(f, out);
+    info_flags(f, out);
   } catch (const LogError&) {
     throw;
   } catch (const std::exception& e) {

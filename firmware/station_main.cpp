@@ -427,6 +427,18 @@ int replay_command(const ReplayArgs& a) {
   }
 }
 
+// run and solo: the station's phases, with SIGINT/SIGTERM ending the run; the phases report their own
+// failures, an exception here is a bug's last resort.
+int run_station_guarded(const StationFile& file, const RunOverrides& ov, const char* command) {
+  stop_on_signals();
+  try {
+    return run_station(file, ov, g_stop);
+  } catch (const std::exception& e) {
+    std::cerr << "haptic-station " << command << ": error: " << e.what() << "\n";
+    return kExitRunFailed;
+  }
+}
+
 // `haptic-station run`: returns the exit code (firmware/station/phase.hpp). Not RT-safe.
 int run_command(const RunArgs& a) {
   StationFile file;
@@ -443,13 +455,7 @@ int run_command(const RunArgs& a) {
     return kExitConfigError;
   }
   if (a.check) return check_station_config(file, ov, std::cout, std::cerr);
-  stop_on_signals();
-  try {
-    return run_station(file, ov, g_stop);
-  } catch (const std::exception& e) {  // the phases report their own failures; this is a bug's last resort
-    std::cerr << "haptic-station run: error: " << e.what() << "\n";
-    return kExitRunFailed;
-  }
+  return run_station_guarded(file, ov, "run");
 }
 
 // `haptic-station solo`'s options: each a key of the station file (an override of --config's), so the
@@ -526,13 +532,7 @@ int solo_command(const SoloArgs& a) {
   ov.out_dir = a.out;
   ov.duration_s = a.duration > 0 ? a.duration : file.station.duration_s > 0 ? -1 : kSoloDefaultDurationS;
   ov.quiet = a.quiet;
-  stop_on_signals();
-  try {
-    return run_station(file, ov, g_stop);
-  } catch (const std::exception& e) {  // the phases report their own failures; this is a bug's last resort
-    std::cerr << "haptic-station solo: error: " << e.what() << "\n";
-    return kExitRunFailed;
-  }
+  return run_station_guarded(file, ov, "solo");
 }
 
 // `sim`'s options -> the scenario they describe; throws std::invalid_argument naming the option. Not RT-safe.

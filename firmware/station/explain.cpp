@@ -83,6 +83,10 @@ void explain_stall(const StationOutcome& o, Explanation& e) {
 void explain_links(const StationOutcome& o, Explanation& e) {
   const rt::StationCore* core = o.build ? o.build->core.get() : nullptr;
   if (core == nullptr || o.counters == nullptr || o.counters->ticks_run == 0) return;
+  if (core->neighbor_count() == 0) {  // solo: no link to explain
+    e.json["links"] = json::array();
+    return;
+  }
   std::string t = "links over the run:";
   json links = json::array();
   for (int n = 0; n < core->neighbor_count(); ++n) {

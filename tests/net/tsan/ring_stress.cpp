@@ -113,10 +113,10 @@ int spin_stress(std::uint64_t count) {
   b.start();
   std::vector<double> x(99), v(99);
   Drainer rt_b(b, 7);
-  std::uint64_t lcg = 12345;
+  std::uint64_t lcg = 12345, refused = 0;
   for (std::uint64_t k = 1; k <= count; ++k) {
     for (auto& e : x) e = static_cast<double>(k);
-    a.push_state(k, monotonic_s(), x.data(), v.data());
+    if (!a.push_state(k, monotonic_s(), x.data(), v.data())) ++refused;  // TX ring full: a starved I/O thread (counted)
     lcg = lcg * 6364136223846793005ull + 1442695040888963407ull;
     const auto jitter = static_cast<long>((lcg >> 33) % 400);  // 0..399 us around the period
     std::this_thread::sleep_for(std::chrono::microseconds(k % 500 == 0 ? 5000 : 300 + jitter));
@@ -127,11 +127,18 @@ int spin_stress(std::uint64_t count) {
   const EndpointStats s = a.stats();
   a.stop();
   b.stop();
-  std::printf("spin stress: %llu pushed, %llu handed to the transport (%llu caught spinning, %llu windows), %llu delivered, %llu corrupt\n",
-              static_cast<unsigned long long>(count), static_cast<unsigned long long>(s.tx_packets),
+  // Every push the endpoint accepted is handed to the transport (the spin's Dekker pair loses no wake-up);
+  // a push refused because the TX ring was full (the I/O thread starved on a loaded host) is the
+  // endpoint's counted overrun, not a lost push.
+  std::printf("spin stress: %llu pushed, %llu refused (TX ring full, %llu overruns counted), %llu handed to the transport (%llu caught spinning, "
+              "%llu windows), %llu delivered, %llu corrupt\n",
+              static_cast<unsigned long long>(count), static_cast<unsigned long long>(refused), static_cast<unsigned long long>(s.tx_overruns),
+              static_cast<unsigned long long>(s.tx_packets),
               static_cast<unsigned long long>(s.tx_caught_spinning), static_cast<unsigned long long>(s.tx_spin_windows),
               static_cast<unsigned long long>(got), static_cast<unsigned long long>(bad));
-  return (s.tx_packets == count && bad == 0 && got > count / 2) ? 0 : 1;
+  // refused <= 5 %: a loaded CI host refused 3 of 2000; lost wake-ups (push_state without io_.wake())
+  // fill the ring and refuse about a quarter (539 of 2000 measured), which this fails.
+  return (s.tx_packets == count - refused && s.tx_overruns == refused && refused <= count / 20 && bad == 0 && got > count / 2) ? 0 : 1;
 }
 
 }  // namespace

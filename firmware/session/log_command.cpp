@@ -27,7 +27,7 @@ namespace haptic::firmware {
 
 namespace {
 
-const char* const kBeforeUnits = "log written before haptic-station stored units on its datasets, issue 24";
+const char* const kBeforeUnits = "log written before haptic-station stored units on its datasets";
 
 std::optional<std::string> opt_str(hid_t obj, const std::string& name) {
   if (!h5::has_attr(obj, name)) return std::nullopt;

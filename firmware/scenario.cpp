@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "firmware/model/step_bounds.hpp"
 #include "firmware/scene/mesh_io.hpp"
 #include "net/impairment.hpp"
 
@@ -75,12 +76,9 @@ void set_step_bounds(BuiltScenario& b) {
     const double rate = 1.0 + c * 1e-6;
     b.clock_rate.push_back(rate);
     // wake-to-wake: one grid interval T rate (1 +- F) plus the difference of two wake delays in [0, J]
-    double lo = std::min(T, T * rate * (1 - s.step_jitter) - s.timer_jitter_s);
-    double hi = std::max(T, T * rate * (1 + s.step_jitter) + s.timer_jitter_s);
-    if (s.period_min_s > 0) lo = s.period_min_s;
-    if (s.period_max_s > 0) hi = s.period_max_s;
-    b.t_min_s.push_back(lo);
-    b.t_max_s.push_back(hi);
+    const model::StepBounds m = model::step_bounds(T, rate, s.step_jitter, s.timer_jitter_s);
+    b.t_min_s.push_back(s.period_min_s > 0 ? s.period_min_s : m.t_min_s);
+    b.t_max_s.push_back(s.period_max_s > 0 ? s.period_max_s : m.t_max_s);
   }
 }
 
@@ -420,16 +418,19 @@ void apply_script_kind(UserScriptSpec& script, const std::string& text, std::uin
 
 model::Damping BuiltScenario::damping_eq18(int user, const std::vector<int>& round_trip_sum_ticks, double override_Ns_per_m,
                                            double margin) const {
-  const auto& edges = neighbor_edge[static_cast<std::size_t>(user)];
-  if (round_trip_sum_ticks.size() != edges.size()) throw std::invalid_argument("damping_eq18: one round trip per neighbour needed");
   std::vector<double> t_max;
+  for (const int j : neighbors[static_cast<std::size_t>(user)]) t_max.push_back(t_max_s[static_cast<std::size_t>(j)]);
+  return damping_eq18(user, round_trip_sum_ticks, override_Ns_per_m, margin, t_min_s[static_cast<std::size_t>(user)], t_max);
+}
+
+model::Damping BuiltScenario::damping_eq18(int user, const std::vector<int>& round_trip_sum_ticks, double override_Ns_per_m, double margin,
+                                           double t_min_i_s, const std::vector<double>& t_max_j_s) const {
+  const auto& edges = neighbor_edge[static_cast<std::size_t>(user)];
+  if (round_trip_sum_ticks.size() != edges.size() || t_max_j_s.size() != edges.size())
+    throw std::invalid_argument("damping_eq18: one round trip and one T_j^max per neighbour needed");
   std::vector<const rt::EdgeGains*> g;
-  for (std::size_t n = 0; n < edges.size(); ++n) {
-    t_max.push_back(t_max_s[static_cast<std::size_t>(neighbors[static_cast<std::size_t>(user)][n])]);
-    g.push_back(&gains[static_cast<std::size_t>(edges[n])]);
-  }
-  return model::damping_eq18(t_min_s[static_cast<std::size_t>(user)], round_trip_sum_ticks, t_max, g, margin, override_Ns_per_m,
-                             spec.consensus_passivity);
+  for (const int e : edges) g.push_back(&gains[static_cast<std::size_t>(e)]);
+  return model::damping_eq18(t_min_i_s, round_trip_sum_ticks, t_max_j_s, g, margin, override_Ns_per_m, spec.consensus_passivity);
 }
 
 rt::StationConfig BuiltScenario::station_config(int i) const {

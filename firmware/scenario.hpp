@@ -206,6 +206,10 @@ struct BuiltScenario {
   // neighbors[user] order (the model's bounds, build_scenario, or measured ones, the station), and
   // B_i by the budget's rule (model::damping_eq18: override >= 0, the pspm rule, the margin).
   model::Damping damping_eq18(int user, const std::vector<int>& round_trip_sum_ticks, double override_Ns_per_m, double margin) const;
+  // The same with the user's own T_i^min and its neighbours' T_j^max given (the real station: its
+  // measured bounds and the ones its neighbours announced), in place of t_min_s / t_max_s.
+  model::Damping damping_eq18(int user, const std::vector<int>& round_trip_sum_ticks, double override_Ns_per_m, double margin, double t_min_i_s,
+                              const std::vector<double>& t_max_j_s) const;
   rt::StationConfig station_config(int user) const;
   rt::GoalScript goal_script(int user) const;
 };

@@ -216,6 +216,10 @@ void Endpoint::set_loss_allowance(std::size_t peer_index, int ticks) {
   peers_.at(peer_index)->own_loss_allowance.store(ticks, std::memory_order_release);
 }
 
+void Endpoint::set_step_max(double t_max_s) {
+  own_step_max_ns_.store(static_cast<std::uint64_t>(std::llround(t_max_s * 1e9)), std::memory_order_release);
+}
+
 void Endpoint::publish_stats() {
   for (auto& pp : peers_) {
     PeerState& p = *pp;
@@ -414,6 +418,7 @@ void Endpoint::on_authentic(PeerState& p, std::uint64_t incarnation, std::int64_
     p.round_trip.restart();
     p.stats.peer_rtt_probe_bound_s = 0.0;
     p.stats.peer_loss_allowance_ticks = -1;
+    p.stats.peer_step_max_s = 0.0;
     // The decoder accepted it after net.peer_silence_s of silence: the old one is down (if the
     // periodic check has not said so yet), the new one comes up below.
     p.liveness.check(now_ns, silence_ns_);
@@ -432,6 +437,7 @@ void Endpoint::on_fingerprint(PeerState& p, const DecodedState& st) {
   p.stats.fingerprint = st.fingerprint;
   if (st.round_trip_bound_ns != 0) p.stats.peer_rtt_probe_bound_s = static_cast<double>(st.round_trip_bound_ns) * 1e-9;
   if (st.loss_allowance_ticks >= 0) p.stats.peer_loss_allowance_ticks = st.loss_allowance_ticks;
+  if (st.step_max_ns != 0) p.stats.peer_step_max_s = static_cast<double>(st.step_max_ns) * 1e-9;
 }
 
 void Endpoint::on_state(PeerState& p, const DecodedState& st, std::int64_t now_ns) {
@@ -499,7 +505,8 @@ void Endpoint::send_fingerprints(std::int64_t stamp_ns, bool all) {
     const std::size_t len = encoder_.encode_fingerprint(
         p.link.station_id, ++control_seq_, stamp_ns, fingerprint_, tx_buf_.data(), tx_buf_.size(),
         static_cast<std::uint64_t>(std::llround(p.round_trip.estimator().probe_bound_s() * 1e9)),
-        pairwise_ ? &p.keys.tx_traffic() : nullptr, p.own_loss_allowance.load(std::memory_order_acquire));
+        pairwise_ ? &p.keys.tx_traffic() : nullptr, p.own_loss_allowance.load(std::memory_order_acquire),
+        own_step_max_ns_.load(std::memory_order_acquire));
     if (len) send_now(p.link.station_id, tx_buf_.data(), len, p);
   }
 }

@@ -254,6 +254,10 @@ class Endpoint {
   // frozen round-trip bound in the fingerprint messages (the neighbour's arrives in
   // PeerStats::peer_loss_allowance_ticks). Thread-safe (an atomic the I/O thread reads). Not RT-safe.
   void set_loss_allowance(std::size_t peer_index, int ticks);
+  // Our step bound T^max (s, > 0), sent from now on in the fingerprint messages to every neighbour
+  // (theirs arrives in PeerStats::peer_step_max_s): eq. (18) at the neighbour needs it. Thread-safe
+  // (an atomic the I/O thread reads). Not RT-safe.
+  void set_step_max(double t_max_s);
   // Snapshot of the statistics; never blocks the I/O thread. Not RT-safe (allocates).
   EndpointStats stats() const;
   std::uint64_t incarnation() const { return incarnation_; }
@@ -357,6 +361,7 @@ class Endpoint {
   std::atomic<std::uint64_t> tx_pushed_{0};
   SequenceCeiling ceiling_;
   std::atomic<std::int64_t> echo_floor_ns_{0};  // sending_resumes()
+  std::atomic<std::uint64_t> own_step_max_ns_{0};  // set_step_max(); sent in fingerprints (0: none yet)
   DeliveryWaiter rx_waiter_;  // wait_rx()
 
   // The I/O thread and what only it touches.

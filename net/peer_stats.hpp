@@ -36,6 +36,8 @@ struct PeerStats {
   // The neighbour's loss allowance for the link, from the same fingerprint messages (-1: none yet;
   // set_loss_allowance() is ours).
   int peer_loss_allowance_ticks = -1;
+  // The neighbour's step bound T^max (s), from the same messages (0: none yet; set_step_max() is ours).
+  double peer_step_max_s = 0.0;
   // Incarnation of the neighbour (0 before its first packet) and how often it changed.
   std::uint64_t incarnation = 0, incarnation_changes = 0;
   // The incarnation rule (net/README.md "Incarnations and restarts", Decoder::incarnations): the

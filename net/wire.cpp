@@ -237,7 +237,7 @@ void Encoder::put_single_fragment(std::uint8_t* out, std::size_t len) {
 std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
                                         const Fingerprint& f, std::uint8_t* out, std::size_t cap,
                                         std::uint64_t round_trip_bound_ns, const SessionKey* key,
-                                        std::int32_t loss_allowance_ticks) const {
+                                        std::int32_t loss_allowance_ticks, std::uint64_t step_max_ns) const {
   const std::size_t size = kHeaderBytes + kFingerprintBytes + kMacBytes;
   if (cap < size) return 0;
   put_common(out, PayloadKind::fingerprint, 0, dest, seq, send_time_ns);
@@ -253,6 +253,7 @@ std::size_t Encoder::encode_fingerprint(std::uint16_t dest, std::uint64_t seq, s
   put<std::uint8_t>(p, 44, f.consensus_law);
   put<std::uint8_t>(p, 45, f.tx_predict);
   put<std::uint16_t>(p, 46, f.tx_deadband_hash);
+  put<std::uint64_t>(p, 48, step_max_ns);
   mac(out, kHeaderBytes + kFingerprintBytes, key ? *key : cfg_.key, out + kHeaderBytes + kFingerprintBytes);
   return size;
 }
@@ -594,6 +595,7 @@ DecodeStatus Decoder::decode_fingerprint(const std::uint8_t* d, const HeaderView
   out.round_trip_bound_ns = get<std::uint64_t>(p, 32);
   const std::uint32_t allowance = get<std::uint32_t>(p, 40);
   out.loss_allowance_ticks = allowance == 0 || allowance > (1u << 30) ? -1 : static_cast<std::int32_t>(allowance - 1);
+  out.step_max_ns = get<std::uint64_t>(p, 48);
   ++accepted_datagrams_;
   return DecodeStatus::fingerprint;
 }

@@ -23,7 +23,7 @@ namespace haptic::net {
 static_assert(std::endian::native == std::endian::little, "wire codec assumes a little-endian host");
 
 inline constexpr std::uint32_t kWireMagic = 0x4E504148u;  // bytes "HAPN" on the wire
-inline constexpr std::uint8_t kWireVersion = 2;
+inline constexpr std::uint8_t kWireVersion = 3;
 inline constexpr std::size_t kHeaderBytes = 72;
 inline constexpr std::size_t kMacBytes = 16;
 inline constexpr std::size_t kKeyBytes = 32;
@@ -142,8 +142,10 @@ inline constexpr std::uint8_t kConsensusLawPspm = 2;  // passive set-position mo
 // a u64, the sender's round-trip bound to the destination as its probing fixed it, in ns (0: not
 // yet); a u32, the sender's loss allowance for the link in ticks + 1 (0: not yet; the station's
 // station.loss_allowance_ticks, firmware/station/probe.hpp); then the fingerprint's coupling law
-// (u8 consensus_law, u8 tx_predict, u16 tx_deadband_hash: the word that was reserved, 0, before).
-inline constexpr std::size_t kFingerprintBytes = 48;
+// (u8 consensus_law, u8 tx_predict, u16 tx_deadband_hash: the word that was reserved, 0, before);
+// then a u64, the sender's step bound T^max in ns as its probing fixed it (0: not yet; eq. 18 at the
+// receiver needs it, firmware/station/probe.hpp).
+inline constexpr std::size_t kFingerprintBytes = 56;
 // 64-bit keyless BLAKE2b of bytes (for Fingerprint's hashes). Not RT-safe (start-up).
 std::uint64_t fingerprint_hash(const void* data, std::size_t bytes);
 // "" when equal, else which fields differ, e.g. "scene nodes: 33 here, 27 at the peer". Not RT-safe.
@@ -191,11 +193,12 @@ class Encoder {
   // Writes one fingerprint datagram (kind 2) to `dest` into out[0..cap); its size or 0 when
   // cap is too small. RT-safe.
   // round_trip_bound_ns: our probing's round-trip bound to `dest` (0: none yet);
-  // loss_allowance_ticks: our loss allowance for the link (< 0: none yet).
+  // loss_allowance_ticks: our loss allowance for the link (< 0: none yet);
+  // step_max_ns: our step bound T^max (0: none yet).
   std::size_t encode_fingerprint(std::uint16_t dest, std::uint64_t seq, std::int64_t send_time_ns,
                                  const Fingerprint& f, std::uint8_t* out, std::size_t cap,
                                  std::uint64_t round_trip_bound_ns = 0, const SessionKey* key = nullptr,
-                                 std::int32_t loss_allowance_ticks = -1) const;
+                                 std::int32_t loss_allowance_ticks = -1, std::uint64_t step_max_ns = 0) const;
   // One hello datagram (kind 3) to `dest`: our run nonce, the newest nonce we received from
   // dest (echo), whether we hold this run's traffic keys with it (agreed); MAC'd with `key`, the
   // pair's static key of direction us -> dest. Its size or 0 when cap is too small. RT-safe.
@@ -224,6 +227,7 @@ struct DecodedState {
   Fingerprint fingerprint{};      // kind == fingerprint (DecodeStatus::fingerprint)
   std::uint64_t round_trip_bound_ns = 0;  // kind == fingerprint: the sender's probing bound to us (0: none yet)
   std::int32_t loss_allowance_ticks = -1; // kind == fingerprint: the sender's loss allowance for the link (-1: none yet)
+  std::uint64_t step_max_ns = 0;          // kind == fingerprint: the sender's step bound T^max (0: none yet)
   RunNonce hello_nonce{}, hello_echo{};   // kind == hello: the sender's run nonce, the newest of ours it received
   bool hello_agreed = false;              // kind == hello: kFlagHelloAgreed
   std::uint64_t seq = 0;

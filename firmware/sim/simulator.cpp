@@ -55,6 +55,7 @@ struct StationClock {
   std::int64_t k = 0;          // the station's next tick
   double grid = 0, wake = 0;   // g(k) and its wake time
   double next_grid = 0, next_wake = 0;
+  double prev_wake = 0;        // the previous tick's wake (k > 0)
   StationClock(double T_s, double rate_, double F_, double J_, std::uint64_t seed) : rate(rate_), T(T_s), F(F_), J(J_), rng(seed) {
     wake = J > 0 ? J * rng.uniform01() : 0.0;
     draw_next();
@@ -63,9 +64,12 @@ struct StationClock {
     next_grid = F > 0 || rate != 1.0 ? grid + T * rate * (1 + F * (2 * rng.uniform01() - 1)) : static_cast<double>(k + 1) * T;
     next_wake = next_grid + (J > 0 ? J * rng.uniform01() : 0.0);
   }
-  double step() const { return next_wake - wake; }  // T_k
+  // T_k as the real station measures it: this wake minus the previous one (the first tick, and every
+  // tick without a clock model: the nominal T, bit for bit)
+  double step() const { return k == 0 || (J == 0 && F == 0 && rate == 1.0) ? T : wake - prev_wake; }
   void advance() {
     ++k;
+    prev_wake = wake;
     grid = next_grid;
     wake = next_wake;
     draw_next();

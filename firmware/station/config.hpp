@@ -35,7 +35,8 @@ struct StationSection {
   int nodes = 33;
   double duration_s = 0.0;
   std::uint64_t seed = 1;
-  double period_min_s = 0, period_max_s = 0;  // bounds of the measured step T_k (0: the period)
+  double period_min_s = 0, period_max_s = 0;  // bounds of the measured step T_k (0: measured while probing)
+  double step_margin_max = 0.2;               // measured bounds: at most this fraction of the period either side
   double delay_correlation = 0;               // the emulated delay's AR(1) coefficient (net::LinkImpairment)
   double push_start_s = -1, push_end_s = -1, release_s = -1;
   std::string start_clock = "monotonic";

@@ -34,6 +34,22 @@ DeviceCoupling device_coupling(const StationFile& f, const ScenarioSpec& spec, c
   return c;
 }
 
+double eq26_largest_step_margin_s(const DeviceCoupling& c, double T, double max_margin_s) {
+  const auto holds = [&](double m) {
+    try {
+      check_device_coupling(c, T - m, T + m);
+      return true;
+    } catch (const std::invalid_argument&) {
+      return false;
+    }
+  };
+  if (max_margin_s <= 0 || !holds(0.0)) return 0.0;
+  if (holds(max_margin_s)) return max_margin_s;
+  double lo = 0.0, hi = max_margin_s;  // holds(lo), !holds(hi): eq. (26) is monotone in the margin
+  for (int i = 0; i < 40; ++i) (holds(0.5 * (lo + hi)) ? lo : hi) = 0.5 * (lo + hi);
+  return lo;
+}
+
 void check_device_coupling(const DeviceCoupling& c, double t_min_s, double t_max_s) {
   if (!c.force_feedback) return;  // nothing goes out to the hand: eq. (26) concerns the device's port
   const double b_d = c.object_b_d_Ns_per_m();

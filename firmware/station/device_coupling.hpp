@@ -42,6 +42,9 @@ DeviceCoupling device_coupling(const StationFile& file, const ScenarioSpec& spec
 // proposing the largest device.coupling_stiffness_N_per_m (K_vc) that satisfies it for the given b_d
 // (rt::max_K_vc_eq26). Start-up only.
 void check_device_coupling(const DeviceCoupling& coupling, double t_min_s, double t_max_s);
+// The largest margin m <= max_margin_s for which eq. (26) holds at T^min = T - m, T^max = T + m
+// (check_device_coupling; 0 when it holds only at the period, or not even there). Start-up only.
+double eq26_largest_step_margin_s(const DeviceCoupling& coupling, double period_s, double max_margin_s);
 
 // The device -> object transform of this station ([device] map_* keys; clamp radius = the
 // device's workspace radius). Throws std::invalid_argument naming the key.

@@ -74,8 +74,11 @@ const std::vector<StationOption> kStation = {
     {R("station", "delay_correlation", 0, 0, 1, "impaired links: AR(1) per packet of the emulated delay (sim --delay-correlation)").open_high(),
      HAPTIC_FIELD(station, delay_correlation)},
     {R("station", "period_min_s", 0, 0, 0.05, "lower bound of the measured step T_k (eq. 18's D term, eq. 26); outside: clamped and counted")
-         .with_note(" (0 = loop.period_ns)"), HAPTIC_FIELD(station, period_min_s)},
-    {R("station", "period_max_s", 0, 0, 0.1, "upper bound of the measured step T_k").with_note(" (0 = loop.period_ns)"), HAPTIC_FIELD(station, period_max_s)},
+         .with_note(" (0 = measured while probing: the period less this host's wake-up latency bound)"), HAPTIC_FIELD(station, period_min_s)},
+    {R("station", "period_max_s", 0, 0, 0.1, "upper bound of the measured step T_k, sent to the neighbours for their eq. (18)")
+         .with_note(" (0 = measured while probing: the period plus this host's wake-up latency bound)"), HAPTIC_FIELD(station, period_max_s)},
+    {R("station", "step_margin_max", 0.2, 0, 0.5, "measured step bounds: at most this fraction of the period either side (--check-config "
+                                                  "checks eq. 26 there); 0: the nominal period, no variable step"), HAPTIC_FIELD(station, step_margin_max)},
     {R("station", "push_start_s", -1, 0, 3600, "user script: push start, s from the run start").with_special(-1).with_note(" (-1 = the scenario's)"),
      HAPTIC_FIELD(station, push_start_s)},
     {R("station", "push_end_s", -1, 0, 3600, "user script: push end").with_special(-1).with_note(" (-1 = the scenario's)"), HAPTIC_FIELD(station, push_end_s)},

@@ -290,10 +290,12 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
     spec.scene_file.max_elements = f.scene.max_elements;
   }
   spec.seed = s.seed;
-  if (s.period_min_s > spec.period_s) bad("station.period_min_s = " + number_text(s.period_min_s) + " must be at most the period " + number_text(spec.period_s) + " s (0 = the period)");
+  if (s.period_min_s > spec.period_s) bad("station.period_min_s = " + number_text(s.period_min_s) + " must be at most the period " + number_text(spec.period_s) + " s (0 = measured while probing)");
   if (s.period_max_s > 0 && (s.period_max_s < spec.period_s || s.period_max_s >= 2 * spec.period_s))
-    bad("station.period_max_s = " + number_text(s.period_max_s) + " must be in [period, 2 period) = [" + number_text(spec.period_s) + ", " + number_text(2 * spec.period_s) + ") s (0 = the period)");
+    bad("station.period_max_s = " + number_text(s.period_max_s) + " must be in [period, 2 period) = [" + number_text(spec.period_s) + ", " + number_text(2 * spec.period_s) + ") s (0 = measured while probing)");
   spec.delay_correlation = s.delay_correlation;  // the emulated links' delay (scenario_link), as the simulator's
+  // The keys (0: the nominal period here; the run measures its bounds while probing, StepSet in
+  // probe.hpp, never beyond what eq. (26) allows the opened device, so this plan's check holds for them).
   spec.period_min_s = s.period_min_s;
   spec.period_max_s = s.period_max_s;
   const double dur = o.duration_s > 0 ? o.duration_s : s.duration_s;

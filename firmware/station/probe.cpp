@@ -6,9 +6,12 @@
 
 #include "platform/clock.hpp"
 #include "platform/periodic_loop.hpp"
+#include "platform/toml_config.hpp"
 #include "rt/gains.hpp"
 
 namespace haptic::firmware {
+
+using platform::config::number_text;
 
 namespace {
 
@@ -95,6 +98,28 @@ void fix_loss_allowances(const StationPlan& plan, net::Endpoint& ep, ProbeResult
   }
 }
 
+void fix_step_bounds(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r, bool measured) {
+  StepSet& st = r.steps;
+  if (st.fixed) return;
+  const StationSection& S = plan.file.station;
+  const double T = plan.built->spec.period_s;
+  const double cap = std::min(S.step_margin_max * T, st.eq26_margin_max_s);
+  st.own = measured ? model::measured_step_bounds(T, st.max_wake_latency_s, cap) : model::step_bounds(T, 1.0, 0.0, 0.0);
+  st.measured = measured && (S.period_min_s == 0 || S.period_max_s == 0);
+  if (S.period_min_s > 0) st.own.t_min_s = S.period_min_s;
+  if (S.period_max_s > 0) st.own.t_max_s = S.period_max_s;
+  st.text = "steps T_k in [" + number_text(st.own.t_min_s * 1e3) + ", " + number_text(st.own.t_max_s * 1e3) + "] ms (" +
+            (!st.measured ? std::string(measured ? "station.period_min_s / period_max_s" : "the nominal period: a rejoin")
+                          : "measured: wake-up latency up to " + number_text(st.max_wake_latency_s * 1e3) + " ms while probing");
+  if (st.measured && st.own.capped)
+    st.text += ", capped at +-" + number_text(cap * 1e3) + " ms by " +
+               (cap < S.step_margin_max * T ? std::string("what eq. (26) allows this device's coupling") : "station.step_margin_max") +
+               ": longer steps are clamped and counted, steps_clamped";
+  st.text += ")";
+  st.fixed = true;
+  ep.set_step_max(st.own.t_max_s);
+}
+
 LoopStage probe_stage(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r, std::int64_t now_ns) {
   r.grid = NeighbourGrid(plan.neighbours().size());
   r.loss_counter = ProbeLossCounter(plan.neighbours().size());
@@ -105,11 +130,16 @@ LoopStage probe_stage(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r
   s.last_phase = TickPhase::kProbe;
   s.k_first = plan.times.tick_at(now_ns);  // from now: the ticks before the epoch watch for a running session
   const std::int64_t freeze = probe_freeze_tick(plan.times.probe_ticks);
-  s.tick = [&plan, &ep, &r, x0, v0, freeze, frozen = false](std::int64_t k, const platform::TickInfo&) mutable {
+  s.tick = [&plan, &ep, &r, x0, v0, freeze, frozen = false](std::int64_t k, const platform::TickInfo& info) mutable {
     if (k >= freeze && !frozen) {  // the bounds freeze; the last third exchanges them
       frozen = true;
       r.all_bounds_at_freeze = ep.finish_probing();
       fix_loss_allowances(plan, ep, r);  // travels with the frozen bounds
+      fix_step_bounds(plan, ep, r, true);
+    }
+    if (k >= 0 && !frozen) {  // this host's wake-up latency: the step bounds (StepSet)
+      r.steps.max_wake_latency_s = std::max(r.steps.max_wake_latency_s, static_cast<double>(info.wake_latency_ns) * 1e-9);
+      ++r.steps.wakes;
     }
     take_neighbour_packets(plan, ep, k, r);
     if (r.running_session_from != 0) return false;  // the caller rejoins the running session
@@ -152,6 +182,7 @@ void end_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<boo
     r.all_bounds_at_freeze = ep.finish_probing();
     fix_loss_allowances(plan, ep, r);
   }
+  fix_step_bounds(plan, ep, r, true);  // (a loop that never reached the freeze)
   collect_probe_result(plan, ep, r.all_bounds_at_freeze, "station.probe_s = " + std::to_string(plan.file.station.probe_s) + " s", r);
   if (r.status == PhaseStatus::kOk) check_clock(plan, plan.times.epoch_ns, r);
 }
@@ -188,6 +219,17 @@ void agree_loss_allowance(const StationPlan& plan, std::size_t n, const net::Pee
                          std::to_string(own) + " ticks) alone is used");
 }
 
+// Neighbour n's T_j^max for eq. (18): as it announced it, or 2 T (the most any station file allows:
+// station.period_max_s < 2 period, station.step_margin_max <= 0.5) with a warning. Not RT-safe.
+void agree_step_bound(const StationPlan& plan, std::size_t n, const net::PeerStats& ps, ProbeResult& r) {
+  const double peer = ps.peer_step_max_s;
+  r.steps.peer_t_max_s.push_back(peer);
+  r.steps.t_max_j_s.push_back(peer > 0 ? peer : 2.0 * plan.built->spec.period_s);
+  if (peer <= 0 && ps.rtt_has_bound)
+    r.warnings.push_back("station " + std::to_string(plan.neighbours()[n] + 1) + "'s step bound T^max did not arrive while probing: eq. (18) "
+                         "assumes 2 periods, the most a station file allows");
+}
+
 }  // namespace
 
 void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, const std::string& after_what, ProbeResult& r) {
@@ -205,6 +247,7 @@ void collect_probe_result(const StationPlan& plan, net::Endpoint& ep, bool all, 
       r.warnings.push_back("station " + std::to_string(nbrs[n] + 1) + "'s round-trip bound did not arrive while probing: ours alone is used, "
                            "so the two ends may assume different bounds (station.agreement_ticks is the margin for that)");
     agree_loss_allowance(plan, n, ps, r);
+    agree_step_bound(plan, n, ps, r);
   }
   const std::string after = " after " + after_what;
   // A neighbour with another scene, period, gains or protocol: say which, before anything else
@@ -245,7 +288,8 @@ void check_clock(const StationPlan& plan, std::int64_t epoch_ns, ProbeResult& r)
 }
 
 MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const std::vector<std::uint32_t>& rtt_ticks,
-                                       const std::vector<int>& loss_allowance_ticks, double margin, double override_B, int agreement) {
+                                       const std::vector<int>& loss_allowance_ticks, double margin, double override_B, int agreement,
+                                       const StepSet* steps) {
   const auto& nbrs = b.neighbors[static_cast<std::size_t>(user)];
   if (rtt_ticks.size() != nbrs.size() || loss_allowance_ticks.size() != nbrs.size())
     throw std::invalid_argument("bounds_from_round_trips: one bound and one loss allowance per neighbour needed");
@@ -257,7 +301,8 @@ MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const s
     m.index_guard_ticks.push_back(l.guard_ticks);
     m.assumed_sum_ticks.push_back(l.assumed_sum_ticks);
   }
-  const model::Damping d = b.damping_eq18(user, m.assumed_sum_ticks, override_B, margin);
+  const model::Damping d = steps ? b.damping_eq18(user, m.assumed_sum_ticks, override_B, margin, steps->own.t_min_s, steps->t_max_j_s)
+                                 : b.damping_eq18(user, m.assumed_sum_ticks, override_B, margin);
   m.damping_min_Ns_per_m = d.min_Ns_per_m;
   m.damping_Ns_per_m = d.used_Ns_per_m;
   m.passivity_condition_met = d.condition_met;
@@ -273,13 +318,17 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
     // Each link's loss allowance (both ends agreed on it while probing) and the transmission
     // deadband's: the passivity budget (model::link_bound_from_round_trip, model::damping_eq18).
     r.bounds = bounds_from_round_trips(built, plan.me, probe.rtt_bound_ticks, probe.loss_allowance_ticks, S.damping_margin, S.damping_Ns_per_m,
-                                       S.agreement_ticks);
+                                       S.agreement_ticks, probe.steps.fixed ? &probe.steps : nullptr);
     r.passivity_condition_met = r.bounds.passivity_condition_met;
     rt::StationConfig sc = built.station_config(plan.me);
     sc.damping_Ns_per_m = r.bounds.damping_Ns_per_m;
+    if (probe.steps.fixed) {  // this station's own step bounds (StepSet), not the plan's limits
+      sc.period_min_s = probe.steps.own.t_min_s;
+      sc.period_max_s = probe.steps.own.t_max_s;
+    }
     // the opened device's own capabilities + the [device] keys; eq. (26) again (the plan checked the published figures)
     r.coupling = device_coupling(plan.file, built.spec, device);
-    check_device_coupling(r.coupling, built.t_min_s[static_cast<std::size_t>(plan.me)], built.t_max_s[static_cast<std::size_t>(plan.me)]);
+    check_device_coupling(r.coupling, sc.t_min(), sc.t_max());
     sc.vp.coupling = r.coupling.gains;
     sc.device_damping_Ns_per_m = r.coupling.object_b_d_Ns_per_m();  // eq. (26) in the object frame: b_d / scale^2
     sc.device_force_feedback = r.coupling.force_feedback;

@@ -7,6 +7,7 @@
 // to the RT thread once, when that thread is created. Neither is RT-safe.
 #include <atomic>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -14,6 +15,7 @@
 #include "firmware/station/device_coupling.hpp"
 #include "firmware/station/loop.hpp"
 #include "firmware/model/probe_loss.hpp"
+#include "firmware/model/step_bounds.hpp"
 #include "firmware/station/neighbours.hpp"
 #include "firmware/station/phase.hpp"
 #include "firmware/station/plan.hpp"
@@ -23,6 +25,27 @@
 #include "rt/tx_deadband.hpp"
 
 namespace haptic::firmware {
+
+// This station's step bounds and its neighbours' T_j^max for eq. (18). Ours: station.period_min_s /
+// period_max_s where given, else measured (model::measured_step_bounds: from the largest wake-up
+// latency of the probing ticks before the freeze, at most station.step_margin_max of the period and
+// at most what eq. (26) allows the opened device, so the plan's check at the period holds; a
+// rejoining station, whose neighbours built their cores on its earlier incarnation's bounds, takes
+// the nominal period, inside any bounds it had), fixed at the freeze and sent in our fingerprints.
+// Theirs: as announced in their fingerprints, or, when it did not arrive, 2 T (the most a station
+// file allows), with a warning.
+struct StepSet {
+  // The largest margin eq. (26) allows the opened device (eq26_largest_step_margin_s; set before
+  // probing; the measured bounds never go beyond it); infinity: not limited.
+  double eq26_margin_max_s = std::numeric_limits<double>::infinity();
+  double max_wake_latency_s = 0;          // measured over the probing ticks before the freeze
+  std::int64_t wakes = 0;                 // how many
+  model::StepBounds own{};                // T_i^min, T_i^max
+  bool fixed = false, measured = false;   // fixed at the freeze; from the measurement (not the keys)
+  std::vector<double> peer_t_max_s;       // per neighbour, announced (0: did not arrive)
+  std::vector<double> t_max_j_s;          // per neighbour, what eq. (18) uses
+  std::string text;                       // one line for the log: the bounds and where they came from
+};
 
 struct ProbeResult {
   PhaseStatus status = PhaseStatus::kFailed;
@@ -54,6 +77,8 @@ struct ProbeResult {
   NeighbourGrid grid;                           // each neighbour's tick grid, from the probes it sent
   ClockCheck clock;                             // tick-grid offsets against ours (station.clock_offset_max_ms)
   std::vector<std::string> warnings;            // e.g. a clock offset above the bound (not refused)
+  // The step bounds T^min <= T_k <= T^max (eq. 18, 26, the core's steps; StepSet).
+  StepSet steps;
 };
 
 // The probing stage of the station's loop (loop.hpp), into r (which must outlive the loop): from
@@ -88,6 +113,10 @@ void fix_loss_allowances(const StationPlan& plan, net::Endpoint& ep, ProbeResult
 // station.clock_offset_refuse the status kFailed.
 void check_clock(const StationPlan& plan, std::int64_t epoch_ns, ProbeResult& r);
 
+// Fixes r.steps.own (once; measured = false: no measurement, the rejoin's nominal step) and hands
+// T_i^max to the endpoint's fingerprints.
+void fix_step_bounds(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r, bool measured);
+
 // The per-neighbour bounds a station derives from its measured round trips (the passivity budget,
 // firmware/model/passivity_budget.hpp).
 struct MeasuredBounds {
@@ -100,10 +129,11 @@ struct MeasuredBounds {
   bool passivity_condition_met = false; // B_i used >= eq. (18) (eq18); by construction (pspm)
 };
 // The budget of user `user` of `b` from measured endpoint bounds and the agreed loss allowances
-// (ticks on the round trip, one each per neighbour); override_B >= 0: B_i given.
+// (ticks on the round trip, one each per neighbour); override_B >= 0: B_i given. steps: T_i^min and
+// the neighbours' T_j^max eq. (18) uses (null: the scenario's, b.t_min_s / b.t_max_s).
 MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const std::vector<std::uint32_t>& rtt_bound_ticks,
                                        const std::vector<int>& loss_allowance_ticks, double damping_margin, double damping_override,
-                                       int agreement_ticks = 2);
+                                       int agreement_ticks = 2, const StepSet* steps = nullptr);
 
 struct BuildResult {
   PhaseStatus status = PhaseStatus::kFailed;

@@ -77,6 +77,7 @@ void end_rejoin_probe(const StationPlan& plan, net::Endpoint& ep, const std::ato
   // Our allowance from the loss of the running neighbours' packets; theirs arrives in their
   // fingerprints (their cores were built before we came: they keep their own, agreement_ticks covers it).
   fix_loss_allowances(plan, ep, r.probe);
+  fix_step_bounds(plan, ep, r.probe, false);  // the nominal step: inside the bounds the neighbours took for our earlier incarnation
   collect_probe_result(plan, ep, all, "station.rejoin_probe_s = " + std::to_string(plan.file.station.rejoin_probe_s) + " s", r.probe);
   if (r.probe.status != PhaseStatus::kOk) return;
   if (!learn_epoch(plan, r)) {

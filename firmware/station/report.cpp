@@ -122,6 +122,11 @@ void add_run_json(const StationOutcome& o, json& j) {
   }
   j["safe_state_ticks"] = core ? json(core->safe_state_ticks()) : json(nullptr);
   j["steps_clamped"] = core ? json(core->step_clamped_ticks()) : json(nullptr);  // measured T_k outside period_min_s..period_max_s
+  if (o.probe && o.probe->steps.fixed) {  // this station's step bounds (probe.hpp StepSet), the ones its core and eq. (18) used
+    const StepSet& s = o.probe->steps;
+    j["step_bounds"] = {{"t_min_s", s.own.t_min_s}, {"t_max_s", s.own.t_max_s}, {"measured", s.measured}, {"capped", s.measured && s.own.capped},
+                        {"max_wake_latency_s", s.max_wake_latency_s}, {"wakes_measured", s.wakes}};
+  }
 }
 
 void add_bounds_json(const StationOutcome& o, json& j) {
@@ -209,6 +214,11 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
     const ProbeLoss& pl = o.probe->probe_loss[n];
     l["probe_loss"] = json::object({{"lost", pl.lost}, {"expected", pl.expected}, {"longest_gap", pl.longest_gap},
                                     {"upper_bound", pl.expected > 0 ? json(model::loss_upper_bound(pl.lost, pl.expected)) : json(nullptr)}});
+  }
+  if (o.probe && n < o.probe->steps.t_max_j_s.size()) {  // the neighbour's T_j^max as it announced it (null: did not arrive), as eq. (18) used it
+    const double peer = o.probe->steps.peer_t_max_s[n];
+    l["step_max_s_peer"] = peer > 0 ? json(peer) : json(nullptr);
+    l["step_max_s_used"] = o.probe->steps.t_max_j_s[n];
   }
   l["model_index_delay_bound_ticks"] = p.built->nbar_ticks(p.me, p.neighbours()[n]);
   if (o.build && o.build->core) {

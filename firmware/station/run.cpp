@@ -502,6 +502,18 @@ RunObserver loop_observer(const Log& log) {
   return observer;
 }
 
+// The measured step bounds stay where eq. (26) holds for the opened device (probe.hpp StepSet). A
+// coupling that fails even at the period is refused by the build, which says why.
+void note_eq26_step_margin(const StationPlan& plan, const StationResources& res, PhaseResults& pr) {
+  try {
+    const DeviceCoupling c = device_coupling(plan.file, plan.built->spec, res.dev.device->capabilities());
+    const double T = plan.built->spec.period_s;
+    if (c.force_feedback) pr.probe.steps.eq26_margin_max_s = eq26_largest_step_margin_s(c, T, plan.file.station.step_margin_max * T);
+  } catch (const std::invalid_argument&) {
+    pr.probe.steps.eq26_margin_max_s = 0.0;
+  }
+}
+
 // probe (or rejoin): the loop's first stages. The loop starts here, with probing (or, for a station
 // planned as a rejoin, the provisional probes) and keeps running, on the timeline's grid, through
 // the build to the end of the run. False when the sequence ends here.
@@ -512,6 +524,7 @@ bool probe_phase(StationPlan& plan, StationResources& res, PhaseResults& pr, Sta
     pr.fail(PhaseStatus::kFailed, probe_only_late);
     return false;
   }
+  note_eq26_step_margin(plan, res, pr);
   try {
     const std::int64_t now = net::monotonic_ns();
     loop.start(plan.times.rejoin ? rejoin_stage(plan, *res.ep, pr.rejoin, now) : probe_stage(plan, *res.ep, pr.probe, now), obs);
@@ -577,6 +590,7 @@ void run_phases(StationPlan& plan, StationResources& res, PhaseResults& pr, std:
   if (pr.build.status != PhaseStatus::kOk) return pr.fail(pr.build.status, pr.build.message);
   note_device_coupling(plan, pr, log);
   say_bounds(plan, pr.build, log);
+  if (pr.probe.steps.fixed) log.say(pr.probe.steps.text);
   if (plan.times.rejoin && !adopt_state(plan, res, pr, log)) return;
   run_phase(plan, res, pr, loop, obs, stop, log);
 }

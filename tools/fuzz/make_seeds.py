@@ -13,7 +13,7 @@ def datagram(seq, sender, values, frag_index, frag_count, stride, payload, f32=F
     total = 2 * values * vb
     off = frag_index * stride
     piece = payload[off:off + min(stride, total - off)]
-    hdr = struct.pack('<IBBBBIHHQqQqIHHIHHQ', 0x4E504148, 2, 1, flags, 72, 0x5EED, sender, 0,
+    hdr = struct.pack('<IBBBBIHHQqQqIHHIHHQ', 0x4E504148, 3, 1, flags, 72, 0x5EED, sender, 0,
                       seq, 1000 + seq, seq - 1, 500, values, frag_index, frag_count, off, len(piece), stride,
                       1_700_000_000_000_000_000 + sender)
     body = hdr + piece
@@ -36,9 +36,11 @@ write('two_frag_f64', [datagram(2, 2, vals, 0, 2, stride, p64), datagram(2, 2, v
 write('reordered_dup', [datagram(3, 3, vals, 1, 2, stride, p64), datagram(3, 3, vals, 1, 2, stride, p64),
                         datagram(3, 3, vals, 0, 2, stride, p64), datagram(2, 3, vals, 0, 2, stride, p64)])
 def fingerprint(seq, sender, nodes):
-    hdr = struct.pack('<IBBBBIHHQqQqIHHIHHQ', 0x4E504148, 2, 2, 0, 72, 0x5EED, sender, 0,
-                      seq, 1000 + seq, 0, 0, 0, 0, 1, 0, 32, 32, 1_700_000_000_000_000_000 + sender)
-    body = hdr + struct.pack('<IIQQQ', 2, nodes, 0x1234, 2_000_000, 0x5678)
+    hdr = struct.pack('<IBBBBIHHQqQqIHHIHHQ', 0x4E504148, 3, 2, 0, 72, 0x5EED, sender, 0,
+                      seq, 1000 + seq, 0, 0, 0, 0, 1, 0, 56, 56, 1_700_000_000_000_000_000 + sender)
+    # the 56-byte fingerprint payload (net/wire.hpp): protocol, nodes, scene, period, gains, round-trip
+    # bound, loss allowance + 1, law, predict, deadband hash, step bound T^max in ns
+    body = hdr + struct.pack('<IIQQQQIBBHQ', 3, nodes, 0x1234, 2_000_000, 0x5678, 0, 0, 1, 0, 0, 2_000_000)
     return body + hashlib.blake2b(body, key=KEY, digest_size=16).digest()
 
 write('fingerprint', [fingerprint(1, 1, 33)])

@@ -1,5 +1,5 @@
 -- Wireshark/tshark dissector for the haptic station wire format v2 (net/README.md).
--- Finds it on UDP by heuristic (magic "HAPN" + version 2 + header length 72) and on raw
+-- Finds it on UDP by heuristic (magic "HAPN" + version 3 + header length 72) and on raw
 -- Ethernet by EtherType 0x88B5 (IEEE 802 Local Experimental EtherType 1).
 -- Use: tshark -X lua_script:tools/wireshark/hapn.lua -r capture.pcap -Y hapn
 -- The MAC (keyed BLAKE2b-128) is shown, not verified: the session key is not in the capture.
@@ -39,6 +39,7 @@ f.fp_allowance = ProtoField.uint32("hapn.fp.loss_allowance_plus1", "Sender's los
 f.fp_law = ProtoField.uint8("hapn.fp.consensus_law", "Fingerprint: consensus law (1 eq18, 2 pspm, 0 not sent)")
 f.fp_predict = ProtoField.uint8("hapn.fp.tx_predict", "Fingerprint: predictive deadband (1 on)")
 f.fp_deadband = ProtoField.uint16("hapn.fp.tx_deadband_hash", "Fingerprint: transmission deadband hash (0 off)", base.HEX)
+f.fp_step_max = ProtoField.uint64("hapn.fp.step_max_ns", "Sender's step bound T^max, ns (0: not yet)")
 f.payload = ProtoField.bytes("hapn.payload", "Payload slice (x_hat ++ v_hat)")
 f.first_value = ProtoField.double("hapn.first_value", "First value in slice")
 f.mac = ProtoField.bytes("hapn.mac", "MAC (keyed BLAKE2b-128)")
@@ -50,7 +51,7 @@ local MAGIC = 0x4E504148
 
 local function looks_like(tvb)
   if tvb:len() < HDR + 16 then return false end
-  return tvb(0, 4):le_uint() == MAGIC and tvb(4, 1):uint() == 2 and tvb(7, 1):uint() == HDR
+  return tvb(0, 4):le_uint() == MAGIC and tvb(4, 1):uint() == 3 and tvb(7, 1):uint() == HDR
 end
 
 function hapn.dissector(tvb, pinfo, tree)
@@ -84,7 +85,7 @@ function hapn.dissector(tvb, pinfo, tree)
     return tvb:len()
   end
   local kind = tvb(5, 1):uint()
-  if kind == 2 and flen == 48 then
+  if kind == 2 and flen == 56 then
     t:add_le(f.fp_protocol, tvb(HDR, 4))
     t:add_le(f.fp_nodes, tvb(HDR + 4, 4))
     t:add_le(f.fp_scene, tvb(HDR + 8, 8))
@@ -95,6 +96,7 @@ function hapn.dissector(tvb, pinfo, tree)
     t:add_le(f.fp_law, tvb(HDR + 44, 1))
     t:add_le(f.fp_predict, tvb(HDR + 45, 1))
     t:add_le(f.fp_deadband, tvb(HDR + 46, 2))
+    t:add_le(f.fp_step_max, tvb(HDR + 48, 8))
   elseif flen > 0 then
     t:add(f.payload, tvb(HDR, flen))
     if bit.band(tvb(6, 1):uint(), 1) == 1 then

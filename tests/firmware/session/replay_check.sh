@@ -34,6 +34,15 @@ for i in 1 4; do
     echo "FAILED replay with T_k, station $i (exit $rc):"; cat "$out/steps-$i.log"; fail=1
   else echo "ok T_k station $i: $(cat "$out/steps-$i.log")"; fi
 done
+# T_k is measured as a station measures it: this wake minus the previous one, so the first tick's step
+# is the nominal period (no previous wake), as the station's first tick; every step within the bounds.
+/usr/bin/python3 - "$out/steps/station-1.h5" <<'PY' || { echo "FAILED: the simulator's T_k is not this wake minus the previous one"; fail=1; }
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1], "r")
+s, c = f["ticks/step_s"][:], f["core"].attrs
+print("sim steps: first %.9f s, range [%.6f, %.6f] ms, bounds [%.6f, %.6f] ms" % (s[0], 1e3 * s.min(), 1e3 * s.max(), 1e3 * c["period_min_s"], 1e3 * c["period_max_s"]))
+sys.exit(0 if s[0] == 0.002 and s.min() >= c["period_min_s"] and s.max() <= c["period_max_s"] else 1)
+PY
 cp "$out/steps/station-1.h5" "$out/steps-perturbed.h5"
 /usr/bin/python3 - "$out/steps-perturbed.h5" <<'PY' || { echo "FAILED: h5py (steps)"; exit 1; }
 import sys, h5py, numpy as np

@@ -218,3 +218,19 @@ TEST(DeviceCoupling, TheDeadbandsHoldIsInEachOneWayGuardSoAHeldStateStaysWithinI
   LONGS_EQUAL(2 + 19, b1.core->neighbor(0).index_delay_bound_ticks);
   CHECK(b1.bounds.damping_min_Ns_per_m > b0.bounds.damping_min_Ns_per_m);  // eq. (18) pays for both directions' holds
 }
+
+TEST(DeviceCoupling, TheMeasuredStepBoundsNeverGoBeyondWhatEq26AllowsTheDevice) {
+  // A station measures its step bounds while probing (probe.hpp StepSet) within the margin eq. (26)
+  // allows the opened device: b_d = 0.45 N s/m with K_vc = 200 N/m holds up to T^max = 2.25 ms
+  // (K_vc T^max = b_d), so a measured margin is capped at 0.25 ms of the 2 ms period; the plan's
+  // check at the period then holds for every bound the run can take.
+  const PlanResult p = plan("kind = \"touch\"\ndamping_Ns_per_m = 0.45\n");
+  CHECK(p.status == PhaseStatus::kOk);
+  const DeviceCoupling c = *p.plan->coupling;
+  DOUBLES_EQUAL(0.00025, eq26_largest_step_margin_s(c, 0.002, 0.0004), 1e-9);
+  DOUBLES_EQUAL(0.0001, eq26_largest_step_margin_s(c, 0.002, 0.0001), 0);  // the station's own cap is below
+  check_device_coupling(c, 0.002 - 0.00025 * (1 - 1e-9), 0.002 + 0.00025 * (1 - 1e-9));  // holds there (no throw)
+  // b_d exactly K_vc T: no margin at all, the nominal step
+  const PlanResult tight = plan("kind = \"touch\"\ndamping_Ns_per_m = 0.4\n");
+  DOUBLES_EQUAL(0.0, eq26_largest_step_margin_s(*tight.plan->coupling, 0.002, 0.0004), 1e-12);
+}

@@ -316,6 +316,42 @@ const std::string kLongerProbe = longer_probe();
 
 }  // namespace
 
+TEST(StationPhases, EachStationMeasuresItsStepBoundsAndItsNeighboursEq18UsesTheTMaxItAnnounced) {
+  // By default a station measures its step bounds while probing (this host's wake-up latency, at most
+  // station.step_margin_max of the period), integrates the measured T_k within them and sends T^max in
+  // its fingerprints; eq. (18) at each neighbour uses that T_j^max. The hub's T^max is set here
+  // (station.period_max_s = 2.45 ms, above any measured one: the cap is 2.4 ms), so the leaves' B_i
+  // must be eq. (18) at 2.45 ms.
+  const std::string dir = test::fresh_dir("steps");
+  const std::string hub_extra = std::string(kShort) + "period_max_s = 0.00245\n";
+  const std::vector<int> codes = run_four(dir, 112, {hub_extra, kShort, kShort, kShort});
+  const double T = 0.002;
+  const json hub = station_json(dir, 1);
+  DOUBLES_EQUAL(0.00245, hub["step_bounds"]["t_max_s"].get<double>(), 0);
+  for (int i = 2; i <= 4; ++i) {
+    LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
+    const json leaf = station_json(dir, i);
+    const json& b = leaf["step_bounds"];
+    CHECK_TRUE(b["measured"].get<bool>());
+    CHECK(b["wakes_measured"].get<long long>() > 50);
+    CHECK(b["t_min_s"].get<double>() < T && b["t_max_s"].get<double>() > T && b["t_max_s"].get<double>() <= 1.2 * T + 1e-12);
+    // the leaf announced its bound, and the hub used it
+    const json from_hub = hub_link(hub, i);
+    DOUBLES_EQUAL(b["t_max_s"].get<double>(), from_hub["step_max_s_peer"].get<double>(), 1e-9);
+    DOUBLES_EQUAL(b["t_max_s"].get<double>(), from_hub["step_max_s_used"].get<double>(), 1e-9);
+    // the leaf used the hub's 2.45 ms in eq. (18): with the paper's gains (lambda_max P = 1000 N/m,
+    // D = 5 I) beta = R/2 T_j^max 1000 + 1/2 (T_j^max / T_i^min - 1) 5
+    const json& to_hub = leaf["links"][0];
+    DOUBLES_EQUAL(0.00245, to_hub["step_max_s_used"].get<double>(), 1e-9);
+    const double R = to_hub["assumed_round_trip_ticks"].get<double>(), t_max_j = 0.00245, t_min_i = b["t_min_s"].get<double>();
+    const double beta = R / 2 * t_max_j * 1000 + 0.5 * (t_max_j / t_min_i - 1) * 5;
+    DOUBLES_EQUAL(beta, leaf["damping_min_Ns_per_m"].get<double>(), 1e-9 * beta);
+  }
+  LONGS_EQUAL(kExitOk, codes[0]);
+  std::filesystem::remove_all(dir);
+}
+
+
 TEST(StationPhases, ALossyProbeRaisesTheLossAllowanceAndBothEndsOfTheLinkUseTheSame) {
   // Each end fixes its loss allowance from the probe loss it measured on its incoming direction
   // (station.loss_allowance_ticks = -1, the default) and sends it with its frozen round-trip bound;

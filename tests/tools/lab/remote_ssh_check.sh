@@ -13,7 +13,8 @@
 #   4. a failed remote start exits 4 naming station and host, and the units already started are stopped;
 #   5. a unit that ended with exit 7 makes start exit 4 naming station and host;
 #   6. `haptic-lab stop` stops every unit, a failed stop exits 4 naming station and host;
-#   7. a local run folder whose last start ended in a safety stop needs --rearm (this PC);
+#   7. a local run folder whose last start ended in a safety stop needs --rearm (this PC); stop sends
+#      SIGTERM to its station processes only;
 #   8. haptic-lab's safety stops are the unit's RestartPreventExitStatus (less 2, a configuration error).
 # Usage: remote_ssh_check.sh BUILD_BIN_DIR SOURCE_DIR WORK_DIR   (~5 s, no stations run)
 set -uo pipefail
@@ -136,6 +137,17 @@ out=$("$lab" start "$l" --no-console 2>&1); rc=$?
 out=$("$lab" start "$l" --no-console --rearm --dry-run 2>&1) || { echo "$out"; fail "start --rearm --dry-run of the local lab failed"; }
 [ "$(grep -c "haptic-station run --config $l/station-[1-3].toml --start-at" <<<"$out")" = 3 ] || { echo "$out"; fail "--dry-run does not print the 3 local commands"; }
 echo "ok: a local run folder whose stations 2 and 3 ended in exit 4 and SIGABRT is refused without --rearm"
+# stop of a local run: SIGTERM by station-pids.txt, only to a process of this run's station file (a
+# stand-in process whose command line names station-1.toml; a pid of another program is left alone)
+/usr/bin/python3 -c 'import time; time.sleep(120)' "$l/station-1.toml" & fake=$!
+sleep 120 & other=$!
+printf '%s\n%s\n' "$fake" "$other" > "$l/station-pids.txt"
+out=$("$lab" stop "$l" --dry-run 2>&1) && grep -q "kill -TERM $fake  # station 1" <<<"$out" && kill -0 "$fake" || { echo "$out"; fail "stop --dry-run of a local run"; }
+out=$("$lab" stop "$l" 2>&1) || { echo "$out"; fail "stop of a local run failed"; }
+wait "$fake"; frc=$?
+[ "$frc" = 143 ] && kill -0 "$other" 2>/dev/null || { echo "$out"; fail "stop: station 1's process ended with $frc (not SIGTERM), or another pid was signalled"; }
+kill "$other"
+echo "ok: stop of a local run sends SIGTERM to its station's process only (--dry-run: printed, not sent)"
 
 # 8. one list of safety stops: the unit's
 /usr/bin/python3 - "$lab" "$src/firmware/deploy/haptic-station@.service.in" <<'PY' || fail "haptic-lab's safety stops are not the unit's"

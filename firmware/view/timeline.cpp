@@ -17,6 +17,7 @@ namespace {
 // Play position over the kept frames; touched only on the server thread.
 struct Player {
   std::vector<std::string> frames;
+  std::vector<double> times;  // each frame's run time t (s), ascending: {"seek_t": s} finds the frame at s
   std::size_t index = 0;
   bool playing = true;
   int step = 1;  // frames advanced per server frame (recorded speed)
@@ -32,6 +33,10 @@ struct Player {
     if (j.is_discarded() || !j.is_object()) return;
     if (j.contains("seek") && j["seek"].is_number_integer())
       index = std::min<std::size_t>(static_cast<std::size_t>(std::max<long>(0, j["seek"].get<long>())), frames.size() - 1);
+    if (j.contains("seek_t") && j["seek_t"].is_number()) {  // run time: the first frame at or after it (one timeline for a lab's stations)
+      const auto at = std::lower_bound(times.begin(), times.end(), j["seek_t"].get<double>());
+      index = std::min<std::size_t>(static_cast<std::size_t>(at - times.begin()), frames.size() - 1);
+    }
     if (j.contains("play") && j["play"].is_boolean()) playing = j["play"].get<bool>();
   }
 };
@@ -135,6 +140,7 @@ ReplayResult serve_timeline(const std::string& log, const ReplayOptions& replay,
     kept[i]["index"] = player->frames.size();
     history.push_back(history_row(kept[i]));
     player->frames.push_back(kept[i].dump());
+    player->times.push_back(kept[i]["t"].get<double>());
   }
   if (player->frames.empty()) throw std::runtime_error("live view: the log has no ticks to show");
   auto sc = nlohmann::json::parse(scene);

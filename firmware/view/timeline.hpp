@@ -1,7 +1,8 @@
 #pragma once
 // The web view of a recorded session with a timeline: the session log is
 // replayed (firmware/session/replay.hpp), a frame kept every few ticks, and the live view's page
-// plays them back at recorded speed with play/pause and a seek slider. Used by
+// plays them back at recorded speed with play/pause and a seek slider (by frame, or by run time:
+// {"seek_t": s}, how `haptic-lab replay` keeps a run's stations on one timeline). Used by
 // `haptic-station replay LOG --view-port P` and `sim --record --view-port P`. Not RT-safe.
 #include <atomic>
 #include <string>

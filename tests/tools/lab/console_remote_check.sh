@@ -5,7 +5,7 @@
 #   1. `haptic-lab console RUN` shows a row per station, each "missing" and red;
 #   2. plan with lab.view_port_base writes station.view_bind = the PC's lab address into each remote
 #      station file (its view and /status.json readable by the console on the lab network);
-#   3. stop-all with lab.remote_control = "ssh" runs `ssh HOST systemctl stop haptic-station@N` for
+#   3. stop-all with lab.remote_control = "ssh" runs `ssh HOST sudo -n systemctl stop haptic-station@N` for
 #      every PC (the installed unit; no agent of ours); by default it only lists them on the page;
 #      a stop without the page's token is refused (403).
 # Usage: console_remote_check.sh BUILD_BIN_DIR SOURCE_DIR WORK_DIR   (~10 s, no stations)
@@ -63,8 +63,8 @@ p=$(page "$url")
 [ "$(stop "$url" "$(token <<<"$p")")" = 303 ] || fail "stop-all with the page's token was refused"
 sleep 1
 [ ! -e "$work/ssh.log" ] || { cat "$work/ssh.log"; fail "stop-all ran ssh without lab.remote_control = \"ssh\""; }
-p=$(page "$url"); grep -q "ssh 192.168.10.14 systemctl stop haptic-station@4" <<<"$p" || fail "the page does not list the remote stop commands"
-echo "ok: four red 'missing' rows; stop-all lists ssh HOST systemctl stop haptic-station@N and runs none by default; no token: 403"
+p=$(page "$url"); grep -q "ssh -o BatchMode=yes -o ConnectTimeout=5 192.168.10.14 sudo -n systemctl stop haptic-station@4" <<<"$p" || fail "the page does not list the remote stop commands"
+echo "ok: four red 'missing' rows; stop-all lists ssh HOST sudo -n systemctl stop haptic-station@N and runs none by default; no token: 403"
 
 # 3. lab.remote_control = "ssh": stop-all runs them
 sed "s/^\[lab\]$/[lab]\nremote_control = \"ssh\"/" "$src/tools/lab/examples/lab-4-pcs.toml" > "$work/ssh.toml"
@@ -73,7 +73,7 @@ url=$(serve "$s" console-ssh) || fail "haptic-lab console printed no URL"
 [ "$(stop "$url" "$(page "$url" | token)")" = 303 ] || fail "stop-all with the page's token was refused"
 for _ in $(seq 1 50); do [ "$(wc -l < "$work/ssh.log" 2>/dev/null || echo 0)" -ge 4 ] && break; sleep 0.1; done
 for i in 1 2 3 4; do
-  grep -qx -- "-o BatchMode=yes -o ConnectTimeout=5 192.168.10.1$i systemctl stop haptic-station@$i" "$work/ssh.log" ||
-    { cat "$work/ssh.log" 2>/dev/null; fail "stop-all did not run ssh 192.168.10.1$i systemctl stop haptic-station@$i"; }
+  grep -qx -- "-o BatchMode=yes -o ConnectTimeout=5 192.168.10.1$i sudo -n systemctl stop haptic-station@$i" "$work/ssh.log" ||
+    { cat "$work/ssh.log" 2>/dev/null; fail "stop-all did not run ssh 192.168.10.1$i sudo -n systemctl stop haptic-station@$i"; }
 done
-echo "ok: with lab.remote_control = \"ssh\" stop-all ran ssh HOST systemctl stop haptic-station@N for the 4 PCs"
+echo "ok: with lab.remote_control = \"ssh\" stop-all ran ssh HOST sudo -n systemctl stop haptic-station@N for the 4 PCs"

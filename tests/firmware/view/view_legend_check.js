@@ -1,13 +1,16 @@
 // The live view's legend and default deformation scale (tools/view/view.js legendText,
 // defaultExaggeration), in node (no browser): the paper's ball (radius 50 mm) is drawn x5 by default
 // and the legend says so and how to see the true scale; a larger object gets a larger factor, a
-// tiny one 1; every neighbour is named with its wireframe's colour; an asked factor is said as asked.
+// tiny one 1; every neighbour is named with its wireframe's colour, every other user whose proxy a
+// recording draws with its sphere's colour, and a live station says the others' proxies are not known
+// to it; an asked factor is said as asked.
 // Usage: node view_legend_check.js tools/view/view.js
 const fs = require("fs");
 const src = fs.readFileSync(process.argv[2], "utf8");
 const grab = (re, what) => { const m = src.match(re); if (!m) { console.log("FAILED: no " + what + " in " + process.argv[2]); process.exit(1); } return m[0]; };
 const code = [grab(/const COLOR_NAMES = \[[^\]]*\];/, "COLOR_NAMES"), grab(/function defaultExaggeration\(restMm\) \{[\s\S]*?\n\}\n/, "defaultExaggeration"),
-              grab(/function legendText\(neighbours, exaggerate, asked\) \{[\s\S]*?\n\}\n/, "legendText")].join("\n");
+              grab(/function stationColor\(neighbours, others, p\) \{[\s\S]*?\n\}\n/, "stationColor"),
+              grab(/function legendText\(neighbours, exaggerate, asked, others\) \{[\s\S]*?\n\}\n/, "legendText")].join("\n");
 const {defaultExaggeration, legendText} = new Function(code + "; return {defaultExaggeration, legendText};")();
 const ball = r => {  // an octahedron of radius r mm about (10, -20, 30)
   const p = [];
@@ -19,10 +22,20 @@ for (const [r, want] of [[50, 5], [50.4, 5], [49, 5], [51, 10], [150, 20], [8, 1
   const got = defaultExaggeration(ball(r));
   if (got !== want) fail.push("radius " + r + " mm: x" + got + ", want x" + want);
 }
-const lg = legendText([2, 3, 4], 5, false);
-for (const want of ["station 2 red", "station 3 blue", "station 4 green", "deformation drawn x5", "?exaggerate=1 for true scale"])
+const lg = legendText([2, 3, 4], 5, false, [2, 3, 4]);
+for (const want of ["station 2 red", "station 3 blue", "station 4 green", "deformation drawn x5", "?exaggerate=1 for true scale",
+                    "proxies: diamonds in their colour, seen through the object (station 2 red, station 3 blue, station 4 green, from their logs)"])
   if (!lg.includes(want)) fail.push("legend lacks " + JSON.stringify(want) + ": " + JSON.stringify(lg));
-const asked = legendText([1], 20, true);
+// a ring: station 1's neighbours are 2 and 4; station 3's proxy (from its log) gets the next colour
+const ring = legendText([2, 4], 5, false, [2, 3, 4]);
+if (!ring.includes("(station 2 red, station 3 green, station 4 blue, from their logs)")) fail.push("ring: " + JSON.stringify(ring));
+// a line 1-2-3-4 seen from station 1: stations 3 and 4 are no neighbours, each gets a colour of its own
+const line = legendText([2], 5, false, [2, 3, 4]);
+if (!line.includes("(station 2 red, station 3 blue, station 4 green, from their logs)")) fail.push("line: " + JSON.stringify(line));
+// a live station: the wire carries no proxy, and the legend says the others' are not known to it
+const live = legendText([2, 3, 4], 5, false, null);
+if (!live.includes("other users' proxies: not known to this station")) fail.push("live: " + JSON.stringify(live));
+const asked = legendText([1], 20, true, []);
 if (!asked.includes("x20 (?exaggerate)") || asked.includes("default")) fail.push("asked x20: " + JSON.stringify(asked));
 console.log(fail.length ? "FAILED: " + fail.join("; ") : "view legend check: " + lg);
 process.exit(fail.length ? 1 : 0);

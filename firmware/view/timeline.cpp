@@ -206,7 +206,8 @@ ReplayResult serve_timeline(const std::string& log, const ReplayOptions& replay,
   sc["timeline_frames"] = player->frames.size();
   sc["history"] = std::move(history);
   add_passivity(sc, log);
-  sc["proxies_from"] = {{"stations", others.stations()}, {"source", "their logs next to " + std::filesystem::path(log).filename().string()}};
+  sc["proxies_from"] = {{"stations", others.stations()}, {"source", "their logs"},
+                        {"missing", "no log of the same run next to " + std::filesystem::path(log).filename().string()}};
   sc["replay"] = r.summary();
   const std::string scene_text = sc.dump();
   ViewCallbacks cb;

@@ -322,8 +322,9 @@ TEST(Fingerprints, RoundTripAndFieldByFieldDifference) {
   g.gains_hash ^= 1;
   STRCMP_EQUAL("gains or shared station options (hash) differs", fingerprint_difference(f, g).c_str());
   g = f;
-  g.protocol_version = 3;
-  STRCMP_EQUAL("protocol version: 2 here, 3 at the peer", fingerprint_difference(f, g).c_str());
+  g.protocol_version = kWireVersion + 1;
+  STRCMP_EQUAL(("protocol version: " + std::to_string(kWireVersion) + " here, " + std::to_string(kWireVersion + 1) + " at the peer").c_str(),
+               fingerprint_difference(f, g).c_str());
   // The coupling law travels and is compared field by field (a decoded copy of f matched above).
   g = f;
   g.consensus_law = kConsensusLawEq18;

@@ -36,24 +36,33 @@ function stationColor(neighbours, others, p) {
   return j >= 0 ? j : neighbours.length + others.filter(o => !neighbours.includes(o)).indexOf(p);
 }
 
+// The users whose proxies the page cannot draw: every station of the run but this one and those in
+// from.stations (scene.proxies_from: the stations whose proxies come, from.source where from).
+function unknownProxies(station, users, from) {
+  const u = [];
+  for (let p = 1; p <= users; ++p) if (p !== station && !from.stations.includes(p)) u.push(p);
+  return u;
+}
+
 // The legend under the 3D view: what each colour is, each neighbour's by its station, whose proxies
-// are drawn (others: the stations whose proxies a recording holds; null: a live station, which
-// knows only its own), and the scale the deformation is drawn at.
-function legendText(neighbours, exaggerate, asked, others) {
-  const name = p => "station " + p + " " + COLOR_NAMES[stationColor(neighbours, others || [], p) % COLOR_NAMES.length];
+// are drawn and from what (from: scene.proxies_from; unknown: unknownProxies), and the scale the
+// deformation is drawn at.
+function legendText(neighbours, exaggerate, asked, from, unknown) {
+  const name = p => "station " + p + " " + COLOR_NAMES[stationColor(neighbours, from.stations, p) % COLOR_NAMES.length];
   const nb = neighbours.map(name).join(", ");
-  const px = others === null ? "other users' proxies: not known to this station (the wire carries only the object's state)"
-    : "other users' proxies: diamonds in their colour, seen through the object" + (others.length ? " (" + others.map(name).join(", ") + ", from their logs)" : " (none in this recording's folder)");
+  let px = "other users' proxies: " + (from.stations.length ? "diamonds in their colour, seen through the object (" +
+    from.stations.map(name).join(", ") + ", from " + from.source + ")" : "none drawn");
+  if (unknown.length) px += "; station" + (unknown.length > 1 ? "s " : " ") + unknown.join(", ") + ": not known to this station (" + from.missing + ")";
   return "grey: this copy · wireframes: the neighbours' last received copies (" + (nb || "none") + ")" +
     " · red dots: contact mesh · blue sphere: this station's proxy · green: device · " + px + " · deformation drawn x" + exaggerate +
     (asked ? " (?exaggerate)" : " (default; ?exaggerate=1 for true scale)");
 }
 
 // The status line of the proxies drawn: counted from the 3D scene (markers visible), out of the run's users.
-function proxyLine(drawn, users, others) {
-  return "proxies drawn: " + drawn + " of " + users + " users" +
-    (others === null ? " (this station's; the other users' proxies are not known to this station: the wire carries only the object's state)"
-      : " (this station's" + (others.length ? "; stations " + others.join(", ") + " from their logs" : "") + ")");
+function proxyLine(drawn, users, from, unknown) {
+  return "proxies drawn: " + drawn + " of " + users + " users (this station's" +
+    (from.stations.length ? "; stations " + from.stations.join(", ") + " from " + from.source : "") +
+    (unknown.length ? "; " + unknown.join(", ") + ": not known to this station, " + from.missing : "") + ")";
 }
 const shown = (um, i) => restMm[i] + EXAGGERATE * (um * 1e-3 - restMm[i]);  // mm
 let cursorT = null;  // a recording: the plots hold the whole run, a vertical line marks the frame shown
@@ -80,8 +89,8 @@ function setup3d(s) {
   restMm = rest;
   const asked = ASKED_EXAGGERATION > 0;
   EXAGGERATE = asked ? Math.max(1, ASKED_EXAGGERATION) : defaultExaggeration(rest);
-  const others = s.proxies_from ? s.proxies_from.stations : null;  // a recording: the users whose logs it found; live: only this station's
-  document.getElementById("legend").textContent = legendText(s.neighbours, EXAGGERATE, asked, others);
+  const from = s.proxies_from, others = from.stations;  // whose proxies come with the frames (a recording: from their logs; live: the neighbours')
+  document.getElementById("legend").textContent = legendText(s.neighbours, EXAGGERATE, asked, from, unknownProxies(s.station, s.users, from));
   geom = new THREE.BufferGeometry();
   geom.setAttribute("position", new THREE.BufferAttribute(rest.slice(), 3));
   geom.setIndex(s.triangles);
@@ -104,7 +113,7 @@ function setup3d(s) {
   vpMark = new THREE.Mesh(new THREE.SphereGeometry(2.5, 16, 12), new THREE.MeshPhongMaterial({color: 0x1f4fff}));
   devMark = new THREE.Mesh(new THREE.BoxGeometry(4, 4, 4), new THREE.MeshPhongMaterial({color: 0x20a020}));
   vpMark.userData.proxyOf = s.station;
-  (others || []).forEach(p => {
+  others.forEach(p => {
     const m = new THREE.Mesh(new THREE.OctahedronGeometry(3),
       new THREE.MeshBasicMaterial({color: COLORS[stationColor(s.neighbours, others, p) % COLORS.length], depthTest: false}));
     m.renderOrder = 1;  // drawn through the object: a user pushing from the far side is seen too
@@ -283,7 +292,7 @@ function status(f) {
   lines.push("safe state: " + (f.safe_state ? "YES (zero force)" : "no") + " · contact: " + (f.contact ? "yes" : "no"));
   lines.push(gateLine(f.gate));
   const drawn = world.children.filter(o => o.userData.proxyOf !== undefined && o.visible).length;
-  lines.push(proxyLine(drawn, scene.users, scene.proxies_from ? scene.proxies_from.stations : null));
+  lines.push(proxyLine(drawn, scene.users, scene.proxies_from, unknownProxies(scene.station, scene.users, scene.proxies_from)));
   const nb = f.links.map(l => {
     const up = l.up !== undefined ? l.up : l.within;
     // since when: the server's (links[].since_s, over every frame since the run began), else this page's own

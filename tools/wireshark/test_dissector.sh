@@ -49,7 +49,7 @@ fields=$(tshark -r "$pcap" -X lua_script:"$here/hapn.lua" -Y hapn -T fields -E s
 total=$(echo "$fields" | grep -c . || true)
 f64=$(echo "$fields" | awk -F, '$7=="False" || $7=="0"' | grep -c . || true)
 f32=$(echo "$fields" | awk -F, '$7=="True" || $7=="1"' | grep -c . || true)
-bad=$(echo "$fields" | awk -F, '$1!="2" || $8!="99" || $9!="0x0000de30"' | grep -c . || true)
+bad=$(echo "$fields" | awk -F, '$1!="3" || $8!="99" || $9!="0x0000de30"' | grep -c . || true)
 echo "tshark decoded $total HAPN datagrams ($f64 float64, $f32 float32), $bad with unexpected fields"
 echo "$fields" | head -4
 [ "$total" -eq 50 ] && [ "$f64" -eq 40 ] && [ "$f32" -eq 10 ] && [ "$bad" -eq 0 ]

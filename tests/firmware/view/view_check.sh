@@ -2,8 +2,8 @@
 # Headless Chromium loads the live web view and checks it: the 3D canvas is not
 # blank, the mesh and the plots change between two screenshots, the status the page shows (it
 # reports it back over its WebSocket; the server logs it) names the neighbours and counts the users'
-# proxies drawn (a recording: all four, the others' from their logs next to it; a live station: its
-# own, and it says the others' are not known to it); a recording's status says its tick times (not 0).
+# proxies drawn (all four: a recording's from the other users' logs next to it, a live station's from
+# its neighbours' state packets); a recording's status says its tick times (not 0).
 #   view_check.sh replay BIN OUT : a recorded simulated run with its timeline: the first screenshot from
 #                                  `sim --record --view-port`, the second from `replay LOG --view-port` (~25 s)
 #   view_check.sh station BIN OUT: station 1 of a four-process UDP run while it runs (~20 s; run it
@@ -59,7 +59,7 @@ else
   # the hands wander all run (script "random"): on a loaded machine a screenshot can come 15-40 s late, and
   # with push-hold-release both then fell after the release, on an object at rest, and the mesh "did not change")
   pids+=($!)
-  neighbours=2,3,4; proxies=1  # the wire carries no proxy: a station knows only its own
+  neighbours=2,3,4; proxies=4  # its own and its three neighbours', from their state packets
 fi
 wait_port "$port" 30 || { echo "FAILED: the view never listened on 127.0.0.1:$port"; cat "$out"/*.log; exit 1; }
 url="http://127.0.0.1:$port/"

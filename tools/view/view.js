@@ -89,6 +89,7 @@ function setup3d(s) {
   restMm = rest;
   const asked = ASKED_EXAGGERATION > 0;
   EXAGGERATE = asked ? Math.max(1, ASKED_EXAGGERATION) : defaultExaggeration(rest);
+  if (!s.proxies_from) s.proxies_from = {stations: [], source: "", missing: "this server sends no other proxies"};
   const from = s.proxies_from, others = from.stations;  // whose proxies come with the frames (a recording: from their logs; live: the neighbours')
   document.getElementById("legend").textContent = legendText(s.neighbours, EXAGGERATE, asked, from, unknownProxies(s.station, s.users, from));
   geom = new THREE.BufferGeometry();

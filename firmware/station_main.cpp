@@ -189,7 +189,8 @@ struct ReplayArgs {
 
 // --view-port, --view-bind, --view-for of `sim` and `replay`. Not RT-safe.
 void add_view_options(CLI::App* app, int& port, std::string& bind, double& seconds) {
-  app->add_option("--view-port", port, "Serve the web view with a timeline on this port after the run (HTTP + WebSocket; 0 = none)")
+  app->add_option("--view-port", port, "Serve the web view with a timeline on this port after the run (HTTP + WebSocket; 0 = none); it draws every "
+                  "user's proxy from the station-<j>.h5 logs of the same run next to it; page options ?exaggerate=E&seek=N&pause=1")
       ->check(CLI::Range(0, 65535));
   app->add_option("--view-bind", bind, "Interface the view listens on (default 127.0.0.1: this machine only)");
   app->add_option("--view-for", seconds, "Stop serving the view after this many seconds (default 0: until Ctrl-C)")->check(kNonNegative);

@@ -150,7 +150,8 @@ int Endpoint::find_peer(std::uint16_t id) const {
   return -1;
 }
 
-bool Endpoint::push_state(std::uint64_t seq, double send_time_s, const double* x_hat, const double* v_hat, bool safe_state) {
+bool Endpoint::push_state(std::uint64_t seq, double send_time_s, const double* x_hat, const double* v_hat, bool safe_state,
+                          const double* proxy) {
   std::uint32_t idx = 0;
   if (!tx_.producer_acquire(idx)) {
     tx_overruns_.fetch_add(1, std::memory_order_relaxed);
@@ -161,7 +162,10 @@ bool Endpoint::push_state(std::uint64_t seq, double send_time_s, const double* x
   std::memcpy(dst + value_count_, v_hat, sizeof(double) * value_count_);
   // Never transmit a non-finite state: send the safe-state flag (and zeros) instead.
   for (std::size_t i = 0; i < 2 * std::size_t{value_count_} && !safe_state; ++i) safe_state = !std::isfinite(dst[i]);
-  tx_.meta(idx) = TxMeta{seq, send_time_s, monotonic_ns(), safe_state};  // vDSO clock read, no syscall
+  TxMeta& m = tx_.meta(idx);
+  m = TxMeta{seq, send_time_s, monotonic_ns(), safe_state, false, {0, 0, 0}};  // vDSO clock read, no syscall
+  if (proxy != nullptr && std::isfinite(proxy[0]) && std::isfinite(proxy[1]) && std::isfinite(proxy[2]))
+    m.has_proxy = true, m.proxy[0] = proxy[0], m.proxy[1] = proxy[1], m.proxy[2] = proxy[2];
   tx_.producer_publish(idx);
   // Dekker pair with spin_for_push() (seq_cst, no fences): if we see the I/O thread spinning,
   // its end-of-window check sees this push; otherwise we wake it.
@@ -445,6 +449,11 @@ void Endpoint::on_state(PeerState& p, const DecodedState& st, std::int64_t now_n
   if (st.has_echo)
     p.round_trip.on_echo(st.echo_seq, st.echo_hold_ns, st.send_time_ns, now_ns, send_records_, echo_floor_ns_.load(std::memory_order_relaxed));
   p.received.on_state(st.seq, st.send_time_ns, now_ns);
+  if (st.has_proxy && (!p.stats.has_proxy || st.new_incarnation || st.seq > p.stats.proxy_seq)) {  // the newest one
+    p.stats.has_proxy = true;
+    p.stats.proxy_seq = st.seq;
+    for (std::size_t a = 0; a < 3; ++a) p.stats.proxy_m[a] = st.proxy(a);
+  }
 }
 
 void Endpoint::deliver(const DecodedState& st) {
@@ -592,6 +601,7 @@ void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
       o.x_hat = x;
       o.v_hat = x + value_count_;
       o.safe_state = m.safe_state;
+      o.proxy = m.has_proxy ? m.proxy : nullptr;
       send_state(p, o, now_ns);
     }
     tx_.consumer_release(idx);

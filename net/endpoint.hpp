@@ -224,8 +224,10 @@ class Endpoint {
   // as a TX overrun) when the I/O thread is behind. RT-safe (no allocation/lock; one
   // non-blocking eventfd write).
   // safe_state (or any non-finite value in x_hat/v_hat) sends the safe-state flag and zeros
-  // instead of the state: a station never transmits a non-finite state.
-  bool push_state(std::uint64_t seq, double send_time_s, const double* x_hat, const double* v_hat, bool safe_state = false);
+  // instead of the state: a station never transmits a non-finite state. proxy: the station's
+  // virtual proxy position (3 values) sent with it for the neighbours' live views (nullptr: none).
+  bool push_state(std::uint64_t seq, double send_time_s, const double* x_hat, const double* v_hat, bool safe_state = false,
+                  const double* proxy = nullptr);
   // The station's current tick k (the sequence numbers it pushes): from the first call on,
   // authentic datagrams with a sequence above k + max_sequence_ahead_ticks are dropped
   // (future_sequence). RT-safe (one relaxed atomic store).
@@ -290,6 +292,8 @@ class Endpoint {
     double send_time_s;
     std::int64_t push_ns;
     bool safe_state;
+    bool has_proxy;
+    double proxy[3];
   };
   // One neighbour, by role (each part in its own file, unit-tested alone).
   struct PeerState {

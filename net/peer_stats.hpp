@@ -47,6 +47,11 @@ struct PeerStats {
   std::uint64_t refused_incarnation = 0, refused_incarnation_datagrams = 0;
   bool key_compromise = false;
   double key_compromise_s = 0.0;
+  // The neighbour's virtual proxy position (m) from the newest state packet that carried one (wire
+  // flag kFlagProxy; has_proxy false before) and that packet's sequence: for the live view only.
+  bool has_proxy = false;
+  std::uint64_t proxy_seq = 0;
+  double proxy_m[3] = {0, 0, 0};
   // Up/down: up after its first packet, down after peer_silence_s without one.
   bool up = false;
   std::uint64_t up_events = 0, down_events = 0;

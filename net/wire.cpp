@@ -160,6 +160,18 @@ std::size_t Encoder::fragment_count(std::uint32_t value_count) const {
   return n > kMaxFragments ? 0 : n;
 }
 
+namespace {
+// Value idx of a state packet's payload x_hat ++ v_hat ++ proxy. In safe state the state is not
+// sent (it may be non-finite): zeros and the flag instead; no proxy: zeros and no flag. RT-safe.
+double payload_value(const OutgoingState& s, std::size_t idx) {
+  const std::size_t n = s.value_count;
+  if (s.safe_state) return 0.0;
+  if (idx < n) return s.x_hat[idx];
+  if (idx < 2 * n) return s.v_hat[idx - n];
+  return s.proxy != nullptr ? s.proxy[idx - 2 * n] : 0.0;
+}
+}  // namespace
+
 std::size_t Encoder::encode_fragment(const OutgoingState& s, std::size_t index, std::uint8_t* out,
                                      std::size_t cap, const SessionKey* key) const {
   const std::size_t nfrag = fragment_count(s.value_count);
@@ -174,6 +186,7 @@ std::size_t Encoder::encode_fragment(const OutgoingState& s, std::size_t index, 
   if (cfg_.encoding == ValueEncoding::float32) flags |= kFlagFloat32;
   if (s.has_echo) flags |= kFlagHasEcho;
   if (s.safe_state) flags |= kFlagSafeState;
+  if (s.proxy != nullptr && !s.safe_state) flags |= kFlagProxy;
   namespace o = wire_offset;
   put_common(out, PayloadKind::state, flags, s.dest, s.seq, s.send_time_ns);
   put<std::uint64_t>(out, o::echo_seq, s.has_echo ? s.echo_seq : 0);
@@ -185,14 +198,13 @@ std::size_t Encoder::encode_fragment(const OutgoingState& s, std::size_t index, 
   put<std::uint16_t>(out, o::frag_len, static_cast<std::uint16_t>(len));
   put<std::uint16_t>(out, o::frag_stride, static_cast<std::uint16_t>(stride_));
 
-  // Payload slice: values [offset/vb, (offset+len)/vb) of the concatenation x_hat ++ v_hat.
+  // Payload slice: values [offset/vb, (offset+len)/vb) of the concatenation x_hat ++ v_hat ++ proxy.
   std::uint8_t* p = out + kHeaderBytes;
   const std::size_t first = offset / value_bytes_;
   const std::size_t n = len / value_bytes_;
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t idx = first + i;
-    // In safe state the state is not sent (it may be non-finite): zeros and the flag instead.
-    const double v = s.safe_state ? 0.0 : idx < s.value_count ? s.x_hat[idx] : s.v_hat[idx - s.value_count];
+    const double v = payload_value(s, idx);
     if (value_bytes_ == 8) {
       std::memcpy(p + 8 * i, &v, 8);
     } else {
@@ -349,7 +361,7 @@ Decoder::Decoder(const WireConfig& cfg, std::span<const std::uint16_t> peers, st
   if (slots_per_peer_ < 1 || slots_per_peer_ > 64)
     throw std::invalid_argument("net.reassembly_slots must be in [1, 64]");
   if (max_value_count == 0) throw std::invalid_argument("decoder: scene value count must be > 0");
-  max_payload_bytes_ = 2ull * max_value_count * 8;  // room for float64 (float32 fits too)
+  max_payload_bytes_ = (2ull * max_value_count + kProxyValues) * 8;  // room for float64 (float32 fits too)
   for (auto id : peers) {
     if (id == kNoStation || id == cfg_.station_id)
       throw std::invalid_argument("net.peers: station id " + std::to_string(id) +
@@ -602,13 +614,13 @@ DecodeStatus Decoder::decode_fingerprint(const std::uint8_t* d, const HeaderView
 
 bool Decoder::state_layout_ok(const HeaderView& h, DropReason& why) const {
   why = DropReason::garbled;
-  if ((h.flags & ~(kFlagFloat32 | kFlagHasEcho | kFlagSafeState)) != 0) return false;
+  if ((h.flags & ~(kFlagFloat32 | kFlagHasEcho | kFlagSafeState | kFlagProxy)) != 0) return false;
   const std::size_t vb = (h.flags & kFlagFloat32) ? 4 : 8;
   if (h.value_count == 0) return false;
   why = DropReason::too_large;
   if (h.value_count > max_value_count_) return false;
   why = DropReason::garbled;
-  const std::size_t total = 2ull * h.value_count * vb;
+  const std::size_t total = (2ull * h.value_count + kProxyValues) * vb;
   if (h.frag_count == 0 || h.frag_count > kMaxFragments || h.frag_index >= h.frag_count) return false;
   if (h.frag_stride == 0 || h.frag_stride % vb != 0) return false;
   if (std::size_t{h.frag_count} != (total + h.frag_stride - 1) / h.frag_stride) return false;
@@ -637,6 +649,7 @@ void Decoder::report_state(DecodedState& out, const HeaderView& h, Peer& peer, b
   out.value_count = h.value_count;
   out.encoding = (h.flags & kFlagFloat32) ? ValueEncoding::float32 : ValueEncoding::float64;
   out.safe_state = (h.flags & kFlagSafeState) != 0;
+  out.has_proxy = (h.flags & kFlagProxy) != 0;
   out.payload = payload;
 }
 
@@ -711,7 +724,7 @@ DecodeStatus Decoder::decode_state(const std::uint8_t* d, const HeaderView& h, P
   if (slot->received < slot->frag_count) return DecodeStatus::fragment_stored;
 
   slot->used = false;
-  if (junk(slot->buffer, 2ull * h.value_count, h, lim, why)) return drop(why);
+  if (junk(slot->buffer, 2ull * h.value_count + kProxyValues, h, lim, why)) return drop(why);
   mark(peer.states, h.seq);
   // Report the header fields stored with the slot (from its first fragment) and its buffer.
   ++completed_;

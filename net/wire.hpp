@@ -1,10 +1,14 @@
 #pragma once
-// Wire format v2 of the station-to-station packets (spec: net/README.md).
+// Wire format v3 of the station-to-station packets (spec: net/README.md).
+//
+// v3 appends the sender's virtual proxy position (3 values, flag kFlagProxy) to every state
+// packet's payload, so a station's live view can draw its neighbours' proxies (display only: the
+// core never reads it).
 //
 // v2 adds the sender's incarnation (new per process start) to every header, a fingerprint
 // message (kind 2: scene, period, gains, protocol version, exchanged while probing) and
 // carries the echo's holding time instead of an echoed stamp (round trips come from the
-// receiver's own send records). One state packet (x_hat_i(k), v_hat_i(k)) is sent as 1..kMaxFragments datagrams. Every
+// receiver's own send records). One state packet (x_hat_i(k), v_hat_i(k), proxy) is sent as 1..kMaxFragments datagrams. Every
 // datagram is self-contained and authenticated: a 64-byte little-endian header, a slice of
 // the payload, and a 16-byte keyed BLAKE2b MAC (libsodium crypto_generichash with the session
 // key) over header + slice. The decoder validates everything before it changes any state and
@@ -50,6 +54,11 @@ inline constexpr std::uint8_t kFlagHasEcho = 0x02;
 // The sender is in its safe state (diverged or faulted): the payload is zeros, not a state to
 // couple to. Receivers count it and do not hand it to the tick (the edge then acts passively).
 inline constexpr std::uint8_t kFlagSafeState = 0x04;
+// The payload's last 3 values are the sender's virtual proxy position (m); without it they are 0
+// and mean nothing (a push with no proxy: probing, rejoining).
+inline constexpr std::uint8_t kFlagProxy = 0x08;
+// Values of a state packet's payload after x_hat and v_hat: the proxy position.
+inline constexpr std::size_t kProxyValues = 3;
 
 // Byte offsets of the header fields (little-endian).
 namespace wire_offset {
@@ -162,7 +171,7 @@ struct WireConfig {
   void validate() const;
 };
 
-// One state packet to encode (x_hat and v_hat, value_count values each).
+// One state packet to encode (x_hat and v_hat, value_count values each; the proxy, 3 values).
 struct OutgoingState {
   std::uint16_t dest = 0;
   std::uint64_t seq = 0;
@@ -174,13 +183,14 @@ struct OutgoingState {
   const double* x_hat = nullptr;
   const double* v_hat = nullptr;
   bool safe_state = false;  // sets kFlagSafeState; x_hat/v_hat are not read, zeros are sent
+  const double* proxy = nullptr;  // the sender's proxy position (sets kFlagProxy); nullptr: zeros, no flag
 };
 
 class Encoder {
  public:
   explicit Encoder(const WireConfig& cfg);  // validates cfg (throws)
   std::size_t value_bytes() const { return value_bytes_; }
-  std::size_t payload_bytes(std::uint32_t value_count) const { return 2u * value_count * value_bytes_; }
+  std::size_t payload_bytes(std::uint32_t value_count) const { return (2u * value_count + kProxyValues) * value_bytes_; }
   // Payload bytes per full fragment (the stride).
   std::size_t stride() const { return stride_; }
   // Number of datagrams one state packet of value_count values needs (0 if above kMaxFragments).
@@ -217,8 +227,8 @@ class Encoder {
   std::size_t stride_;
 };
 
-// A fully received and validated state packet. `payload` holds x_hat then v_hat in the wire
-// encoding; it points into the decoder (valid until the next decode call).
+// A fully received and validated state packet. `payload` holds x_hat, v_hat, then the proxy in
+// the wire encoding; it points into the decoder (valid until the next decode call).
 struct DecodedState {
   std::uint16_t sender = 0;
   std::uint64_t incarnation = 0;  // sender's incarnation
@@ -238,11 +248,14 @@ struct DecodedState {
   std::uint32_t value_count = 0;
   ValueEncoding encoding = ValueEncoding::float64;
   bool safe_state = false;        // kFlagSafeState: the sender is in its safe state (payload zeros)
+  bool has_proxy = false;         // kFlagProxy: proxy() is the sender's proxy position
   const std::uint8_t* payload = nullptr;
   // Converts the payload to doubles (value_count each). RT-safe.
   void copy_out(double* x_hat, double* v_hat) const;
-  // Payload value i (0 .. 2 value_count - 1: x_hat then v_hat) as a double. RT-safe.
+  // Payload value i (0 .. 2 value_count + 2: x_hat, v_hat, then the proxy) as a double. RT-safe.
   double value(std::size_t i) const;
+  // The proxy position's coordinate a (0..2), meaningful when has_proxy. RT-safe.
+  double proxy(std::size_t a) const { return value(2u * value_count + a); }
 };
 
 // Limits the caller (the endpoint) applies to one datagram, from what only it knows.

@@ -217,13 +217,18 @@ bool station_view_frame(const StationPlan& plan, StationResources& res, ViewFram
   if (before > 0 && f.seq > before + 1) missed += f.seq - before - 1;
   nlohmann::json j = view_frame_json(f);
   const net::EndpointStats st = res.ep ? res.ep->stats() : net::EndpointStats{};
+  nlohmann::json proxies = nlohmann::json::array();  // the neighbours' proxies, from their newest state packets
   for (std::size_t n = 0; n < plan.neighbours().size() && n < j["links"].size(); ++n) {
     const auto p = static_cast<std::size_t>(plan.peers.nbr_to_peer[n]);
     if (p >= st.peers.size()) continue;
-    j["links"][n]["delay_ms"] = st.peers[p].one_way_mean_s * 1e3;
-    j["links"][n]["loss"] = st.peers[p].loss_fraction;
-    j["links"][n]["up"] = st.peers[p].up;
+    const net::PeerStats& ps = st.peers[p];
+    j["links"][n]["delay_ms"] = ps.one_way_mean_s * 1e3;
+    j["links"][n]["loss"] = ps.loss_fraction;
+    j["links"][n]["up"] = ps.up;
+    if (ps.has_proxy)
+      proxies.push_back({{"station", j["links"][n]["peer"]}, {"vp", {ps.proxy_m[0], ps.proxy_m[1], ps.proxy_m[2]}}, {"seq", ps.proxy_seq}});
   }
+  j["proxies"] = std::move(proxies);
   since.annotate(j);
   j["frames_dropped"] = missed;  // frames the tick published that this thread never took (the server adds its own count)
   status = station_status_json(plan, j);
@@ -239,6 +244,8 @@ void open_view(const StationPlan& plan, StationResources& res, const BuildResult
   nlohmann::json scene = view_scene_json(*build.core, plan.station_id, "station");
   scene["damping_min_Ns_per_m"] = build.bounds.damping_min_Ns_per_m;
   scene["passivity_condition_met"] = build.passivity_condition_met;
+  scene["proxies_from"] = {{"stations", scene["neighbours"]}, {"source", "their state packets"},
+                           {"missing", "not its neighbours: the wire brings a station only its neighbours' proxies"}};
   const std::string scene_text = scene.dump();
   auto frame = std::make_shared<ViewFrame>();
   auto missed = std::make_shared<std::uint64_t>(0);

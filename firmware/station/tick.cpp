@@ -244,7 +244,8 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
     StageScope stage(Stage::tx);
     if (in.ep && (!in.tx_deadband || in.tx_deadband->should_send(kr, in.core->x_hat(), in.core->v_hat()))) {
       sent = in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), in.core->x_hat(), in.core->v_hat(),
-                               (out.flags & rt::kDiverged) != 0);  // safe state: the flag, never the state
+                               (out.flags & rt::kDiverged) != 0,  // safe state: the flag, never the state
+                               in.core->vp_position_m().data());  // the proxy, for the neighbours' live views
       if (!sent) ++cnt.push_failures;
     }
   }

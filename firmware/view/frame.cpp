@@ -75,7 +75,7 @@ nlohmann::json view_scene_json(const rt::StationCore& core, int station_id, cons
   return {{"type", "scene"},     {"mode", mode},          {"station", station_id},
           {"nodes", n},          {"rest_um", micrometres(xd.data(), 3 * n)},
           {"triangles", tri},    {"contact", core.config().contact_nodes},
-          {"neighbours", peers}, {"period_s", core.config().period_s},
+          {"neighbours", peers}, {"users", core.config().users},   {"period_s", core.config().period_s},
           {"damping_Ns_per_m", core.config().damping_Ns_per_m}};
 }
 

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <memory>
+#include <regex>
 #include <thread>
 #include <vector>
 
@@ -102,6 +104,67 @@ class LinkAges {
   std::size_t next_ = 0;
 };
 
+// The other users' proxies in a recording, from their own logs of the same run: the files named
+// station-<j>.h5 next to it with the same source, scene fingerprint and number of users (and, from
+// the simulator, the same command line). Their run indices count from the run's common epoch, so
+// the proxy shown with frame k is the newest one logged at or before k, if within 0.1 s.
+class OtherProxies {
+ public:
+  explicit OtherProxies(const std::string& log) {
+    h5::Id mine = h5::open_file_read(log);
+    window_ticks_ = std::max<std::int64_t>(1, std::llround(0.1 / h5::attr_f64(mine.get(), "period_s")));
+    const std::regex name(R"(station-([0-9]+)\.h5)");
+    const std::filesystem::path own(log);
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator(own.has_parent_path() ? own.parent_path() : ".", ec)) {
+      if (!std::regex_match(e.path().filename().string(), name) || std::filesystem::equivalent(e.path(), own, ec)) continue;
+      try {
+        add(mine.get(), e.path().string());
+      } catch (const std::exception& err) {
+        std::cerr << "haptic-station: live view: not drawing the proxy of " << e.path().string() << ": " << err.what() << "\n";
+      }
+    }
+    std::sort(users_.begin(), users_.end(), [](const User& a, const User& b) { return a.station < b.station; });
+  }
+  // The 1-based stations whose proxies come from their logs.
+  std::vector<int> stations() const {
+    std::vector<int> s;
+    for (const auto& u : users_) s.push_back(u.station);
+    return s;
+  }
+  // Adds "proxies": [{"station": j, "vp": [x, y, z]}] (m) of the users logged near the frame's tick.
+  void annotate(nlohmann::json& frame) const {
+    const std::int64_t k = frame["k"].get<std::int64_t>();
+    nlohmann::json proxies = nlohmann::json::array();
+    for (const auto& u : users_) {
+      auto it = std::upper_bound(u.rows.begin(), u.rows.end(), k, [](std::int64_t key, const TickRecord& r) { return key < r.k; });
+      if (it == u.rows.begin() || k - std::prev(it)->k > window_ticks_) continue;
+      const auto& r = *std::prev(it);
+      proxies.push_back({{"station", u.station}, {"vp", {r.vp[0], r.vp[1], r.vp[2]}}});
+    }
+    frame["proxies"] = std::move(proxies);
+  }
+
+ private:
+  struct User {
+    int station = 0;
+    std::vector<TickRecord> rows;  // by k
+  };
+  void add(hid_t mine, const std::string& path) {
+    h5::Id f = h5::open_file_read(path);
+    for (const char* a : {"source", "fingerprint"})
+      if (h5::attr_str(f.get(), a) != h5::attr_str(mine, a)) throw std::runtime_error(std::string("another run (its ") + a + " differs)");
+    if (h5::attr_i64(f.get(), "users") != h5::attr_i64(mine, "users")) throw std::runtime_error("another run (its number of users differs)");
+    if (h5::attr_str(mine, "source") == "sim" && h5::attr_str(f.get(), "config_text") != h5::attr_str(mine, "config_text"))
+      throw std::runtime_error("another simulation (its command line differs)");
+    User u{static_cast<int>(h5::attr_i64(f.get(), "station_id")), read_tick_records(f.get())};
+    std::sort(u.rows.begin(), u.rows.end(), [](const TickRecord& a, const TickRecord& b) { return a.k < b.k; });
+    if (u.station != static_cast<int>(h5::attr_i64(mine, "station_id"))) users_.push_back(std::move(u));
+  }
+  std::vector<User> users_;
+  std::int64_t window_ticks_ = 1;
+};
+
 // Eq. (18)'s minimum B_i and whether it is met, as the station or the simulator recorded them.
 void add_passivity(nlohmann::json& scene, const std::string& log) {
   h5::Id file = h5::open_file_read(log);
@@ -128,11 +191,13 @@ ReplayResult serve_timeline(const std::string& log, const ReplayOptions& replay,
                  rec.flags, rec.exec_ns, rec.wake_latency_ns);
     if (pub->take(frame)) kept.push_back(view_frame_json(frame));
   });
+  const OtherProxies others(log);
   if (!kept.empty()) {
     LinkAges ages(log, static_cast<int>(kept.front()["links"].size()));
     for (auto& f : kept) ages.annotate(f);
     LinkSince since;
     for (auto& f : kept) since.annotate(f);
+    for (auto& f : kept) others.annotate(f);
   }
   const std::size_t stride = kept.size() / 4000 + 1;
   nlohmann::json history = nlohmann::json::array();
@@ -147,6 +212,8 @@ ReplayResult serve_timeline(const std::string& log, const ReplayOptions& replay,
   sc["timeline_frames"] = player->frames.size();
   sc["history"] = std::move(history);
   add_passivity(sc, log);
+  sc["proxies_from"] = {{"stations", others.stations()}, {"source", "their logs"},
+                        {"missing", "no log of the same run next to " + std::filesystem::path(log).filename().string()}};
   sc["replay"] = r.summary();
   const std::string scene_text = sc.dump();
   ViewCallbacks cb;
@@ -154,7 +221,10 @@ ReplayResult serve_timeline(const std::string& log, const ReplayOptions& replay,
   cb.next_frame = [player](std::string& out) { return player->next(out); };
   cb.on_message = [player](const std::string& m) { player->command(m); };
   ViewServer server(opt.server, cb);
+  std::string others_text;
+  for (int j : others.stations()) others_text += (others_text.empty() ? "" : ", ") + std::to_string(j);
   std::cerr << "haptic-station: live view of " << log << " at " << server.url() << " (" << player->frames.size() << " frames"
+            << "; other users' proxies from their logs: " << (others_text.empty() ? "none" : "stations " + others_text)
             << (opt.serve_s > 0 ? ", for " + std::to_string(std::lround(opt.serve_s)) + " s" : ", until interrupted") << ")\n";
   const auto t0 = std::chrono::steady_clock::now();
   while (!stop.load(std::memory_order_acquire) &&

@@ -204,6 +204,28 @@ TEST(Attack, NonFiniteStateIsNeverSentTheSafeStateFlagIsInstead) {
   CHECK_EQUAL(0u, l.a->stats().drops.total());
 }
 
+// The sender's proxy position reaches the receiver's PeerStats (for its live view) with its packet's
+// sequence; a non-finite one is not sent (the state goes without it), so the newest known stays.
+TEST(Attack, TheSendersProxyReachesThePeerStatsAndANonFiniteOneIsNotSent) {
+  Link l;
+  std::vector<double> x(kValues), v(kValues);
+  const double proxy[3] = {0.0123, -0.0234, 0.0345};
+  fill_state(1, 5, x, v);
+  l.b->push_state(5, monotonic_s(), x.data(), v.data(), false, proxy);
+  CHECK_TRUE(wait_for([&] { return l.a->stats().peers[0].has_proxy; }));
+  PeerStats ps = l.a->stats().peers[0];
+  CHECK_EQUAL(5u, ps.proxy_seq);
+  for (std::size_t a = 0; a < 3; ++a) DOUBLES_EQUAL(proxy[a], ps.proxy_m[a], 0.0);
+  const double bad[3] = {0.01, std::numeric_limits<double>::infinity(), 0.02};
+  fill_state(1, 6, x, v);
+  l.b->push_state(6, monotonic_s(), x.data(), v.data(), false, bad);
+  CHECK_TRUE(wait_for([&] { return l.a->stats().peers[0].packets_received == 2; }));
+  ps = l.a->stats().peers[0];
+  CHECK_EQUAL(5u, ps.proxy_seq);
+  DOUBLES_EQUAL(proxy[1], ps.proxy_m[1], 0.0);
+  CHECK_EQUAL(0u, l.a->stats().drops.total());
+}
+
 TEST(Attack, StatesOutsideThePhysicalEnvelopeAreDropped) {
   std::vector<double> rx;
   Link l(envelope_config(rx));

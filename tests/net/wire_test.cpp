@@ -83,7 +83,7 @@ TEST_GROUP(Wire) {
 
 TEST(Wire, RoundTripOf33NodeSceneIsExactInFloat64) {
   const auto dgs = encode_all(enc, scene.out(0, 42));
-  CHECK_EQUAL(2u, dgs.size());  // 1584 payload bytes need two 1400-byte datagrams
+  CHECK_EQUAL(2u, dgs.size());  // 1608 payload bytes need two 1400-byte datagrams
   DecodedState st;
   CHECK(dec.decode(dgs[0].data(), dgs[0].size(), st) == DecodeStatus::fragment_stored);
   CHECK(dec.decode(dgs[1].data(), dgs[1].size(), st) == DecodeStatus::complete);
@@ -104,7 +104,7 @@ TEST(Wire, Float32FitsOneDatagramAndKeepsSevenDigits) {
   Encoder e32{cfg_for(1, ValueEncoding::float32)};
   const auto dgs = encode_all(e32, scene.out(0, 1));
   CHECK_EQUAL(1u, dgs.size());
-  CHECK_EQUAL(kHeaderBytes + 2 * 99 * 4 + kMacBytes, dgs[0].size());
+  CHECK_EQUAL(kHeaderBytes + (2 * 99 + kProxyValues) * 4 + kMacBytes, dgs[0].size());
   DecodedState st;
   CHECK(dec.decode(dgs[0].data(), dgs[0].size(), st) == DecodeStatus::complete);
   std::vector<double> x(scene.count), v(scene.count);
@@ -365,6 +365,42 @@ TEST(Wire, ReplayWindowMatchesAReferenceModelOnRandomArrivals) {
   CHECK(dec.completed_packets() > 10000);
 }
 
+// The sender's proxy position travels after x_hat and v_hat (flag kFlagProxy): exact in float64,
+// to float precision in float32; a push without one (probing) or in safe state carries no flag.
+TEST(Wire, TheProxyPositionTravelsWithTheStateWhenGiven) {
+  const double proxy[3] = {0.0123456789012345, -0.0345678901234567, 0.0234567890123456};
+  for (ValueEncoding e : {ValueEncoding::float64, ValueEncoding::float32}) {
+    Encoder en{cfg_for(1, e)};
+    Decoder de{cfg_for(0, e), peers, 3 * 3000};
+    OutgoingState o = scene.out(0, 7);
+    o.proxy = proxy;
+    DecodedState st;
+    DecodeStatus last = DecodeStatus::dropped;
+    for (const auto& d : encode_all(en, o)) last = de.decode(d.data(), d.size(), st);
+    CHECK(last == DecodeStatus::complete);
+    CHECK(st.has_proxy);
+    for (std::size_t a = 0; a < 3; ++a)
+      DOUBLES_EQUAL(e == ValueEncoding::float64 ? proxy[a] : static_cast<double>(static_cast<float>(proxy[a])), st.proxy(a), 0.0);
+    std::vector<double> x(scene.count), v(scene.count);  // x_hat and v_hat unchanged by the proxy after them
+    st.copy_out(x.data(), v.data());
+    for (std::uint32_t i = 0; i < scene.count; ++i) {
+      DOUBLES_EQUAL(e == ValueEncoding::float64 ? scene.x[i] : static_cast<float>(scene.x[i]), x[i], 0.0);
+      DOUBLES_EQUAL(e == ValueEncoding::float64 ? scene.v[i] : static_cast<float>(scene.v[i]), v[i], 0.0);
+    }
+    for (const auto& d : encode_all(en, scene.out(0, 8))) last = de.decode(d.data(), d.size(), st);
+    CHECK(last == DecodeStatus::complete);
+    CHECK_FALSE(st.has_proxy);
+    o.seq = 9;
+    o.safe_state = true;
+    for (const auto& d : encode_all(en, o)) last = de.decode(d.data(), d.size(), st);
+    CHECK(last == DecodeStatus::complete);
+    CHECK(st.safe_state);
+    CHECK_FALSE(st.has_proxy);
+    for (std::size_t a = 0; a < 3; ++a) DOUBLES_EQUAL(0.0, st.proxy(a), 0.0);
+    CHECK_EQUAL(0u, de.drops().total());
+  }
+}
+
 TEST(Wire, NonFinitePayloadIsDroppedBeforeItsSequenceEntersTheWindow) {
   for (ValueEncoding e : {ValueEncoding::float64, ValueEncoding::float32}) {
     Encoder en{cfg_for(1, e)};
@@ -383,11 +419,16 @@ TEST(Wire, NonFinitePayloadIsDroppedBeforeItsSequenceEntersTheWindow) {
     for (const auto& d : bad_v) de.decode(d.data(), d.size(), st);
     CHECK_EQUAL(2u, de.drops()[DropReason::non_finite]);
     s.v[3] = 0.25;
+    const double bad_proxy[3] = {0.01, std::numeric_limits<double>::quiet_NaN(), 0.02};  // the proxy is payload too
+    OutgoingState o = s.out(0, 4);
+    o.proxy = bad_proxy;
+    for (const auto& d : encode_all(en, o)) de.decode(d.data(), d.size(), st);
+    CHECK_EQUAL(3u, de.drops()[DropReason::non_finite]);
     // The same sequence with finite values is still accepted: nothing was marked.
     DecodeStatus last = DecodeStatus::dropped;
     for (const auto& d : encode_all(en, s.out(0, 4))) last = de.decode(d.data(), d.size(), st);
     CHECK(last == DecodeStatus::complete);
-    CHECK_EQUAL(2u, de.drops().total());
+    CHECK_EQUAL(3u, de.drops().total());
   }
 }
 

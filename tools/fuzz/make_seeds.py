@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Writes fuzzer seeds (tools/fuzz/seeds/): well-formed wire-v2 datagrams in the fuzz input
+"""Writes fuzzer seeds (tools/fuzz/seeds/): well-formed wire-v3 datagrams in the fuzz input
 format (2-byte length + 1 flag byte, flag bit0 = re-sign with the fuzz key). The MAC is
 computed here too (BLAKE2b-128 keyed = libsodium crypto_generichash), so seeds are valid."""
 import hashlib, os, struct
@@ -7,10 +7,12 @@ import hashlib, os, struct
 KEY = bytes(range(32))
 HERE = os.path.dirname(os.path.abspath(__file__))
 
-def datagram(seq, sender, values, frag_index, frag_count, stride, payload, f32=False):
-    flags = (1 if f32 else 0) | 2
+PROXY = 3  # values after x_hat and v_hat: the sender's proxy position (flag 8 when meaningful)
+
+def datagram(seq, sender, values, frag_index, frag_count, stride, payload, f32=False, proxy=False):
+    flags = (1 if f32 else 0) | 2 | (8 if proxy else 0)
     vb = 4 if f32 else 8
-    total = 2 * values * vb
+    total = (2 * values + PROXY) * vb
     off = frag_index * stride
     piece = payload[off:off + min(stride, total - off)]
     hdr = struct.pack('<IBBBBIHHQqQqIHHIHHQ', 0x4E504148, 3, 1, flags, 72, 0x5EED, sender, 0,
@@ -29,10 +31,10 @@ def write(name, dgs, ctl=1):
         f.write(wrap(dgs, ctl))
 
 vals = 99
-p64 = b''.join(struct.pack('<d', i * 0.01) for i in range(2 * vals))
+p64 = b''.join(struct.pack('<d', i * 0.01) for i in range(2 * vals + PROXY))
 stride = 1312
-write('single_f32', [datagram(1, 1, vals, 0, 1, 1312, b''.join(struct.pack('<f', i * 0.01) for i in range(2 * vals)), True)])
-write('two_frag_f64', [datagram(2, 2, vals, 0, 2, stride, p64), datagram(2, 2, vals, 1, 2, stride, p64)])
+write('single_f32', [datagram(1, 1, vals, 0, 1, 1312, b''.join(struct.pack('<f', i * 0.01) for i in range(2 * vals + PROXY)), True, True)])
+write('two_frag_f64', [datagram(2, 2, vals, 0, 2, stride, p64, proxy=True), datagram(2, 2, vals, 1, 2, stride, p64, proxy=True)])
 write('reordered_dup', [datagram(3, 3, vals, 1, 2, stride, p64), datagram(3, 3, vals, 1, 2, stride, p64),
                         datagram(3, 3, vals, 0, 2, stride, p64), datagram(2, 3, vals, 0, 2, stride, p64)])
 def fingerprint(seq, sender, nodes):
@@ -45,16 +47,17 @@ def fingerprint(seq, sender, nodes):
 
 write('fingerprint', [fingerprint(1, 1, 33)])
 big = 600
-pbig = bytes(2 * big * 8)
+pbig = bytes((2 * big + PROXY) * 8)
 write('many_frags', [datagram(5, 1, big, i, 8, 1312, pbig) for i in range(8)])
 
 # The whole receive path (fuzz_wire.cpp): 600 values in float32 inside the envelope, from station 1's
 # address, 10 ticks after the previous datagram (so the echo's age bound passes the guard), then
 # a far-future sequence, a NaN, and the same packet from an unknown address.
-rest = b''.join(struct.pack('<f', 0.001 * (i % 7)) for i in range(big)) + b''.join(struct.pack('<f', 0.01) for _ in range(big))
+rest = (b''.join(struct.pack('<f', 0.001 * (i % 7)) for i in range(big)) + b''.join(struct.pack('<f', 0.01) for _ in range(big)) +
+        b''.join(struct.pack('<f', 0.02) for _ in range(PROXY)))
 def packet(seq, payload, f32=True):
     frags = (len(payload) + 1312 - 1) // 1312
-    return [datagram(seq, 1, big, i, frags, 1312, payload, f32) for i in range(frags)]
+    return [datagram(seq, 1, big, i, frags, 1312, payload, f32, proxy=True) for i in range(frags)]
 station1 = 0x01 | (2 << 1)
 nan = bytearray(rest); nan[40:44] = struct.pack('<f', float('nan'))
 def timed(dgs, ctl, ticks):  # the ticks pass before the packet's first datagram only

@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """Checks two headless-Chromium screenshots of the live view and the status text the page reported
 back to its server (tests/firmware/view/view_check.sh): the 3D canvas is not blank in either, the mesh
-and the plots changed between the two, and the status names every expected neighbour.
+and the plots changed between the two, the status names every expected neighbour, and it counts
+PROXIES proxy markers drawn in the 3D view (the page counts its visible markers); fewer than the
+run's users must come with a status saying the others' proxies are not known to the station.
 Exit 0 when all hold, 1 with the reasons otherwise.
-Usage: check_view.py A.png B.png STATUS.txt NEIGHBOUR[,NEIGHBOUR...]"""
+Usage: check_view.py A.png B.png STATUS.txt NEIGHBOUR[,NEIGHBOUR...] PROXIES"""
 import re
 import sys
 
@@ -13,6 +15,7 @@ import numpy as np
 a, b = mpimg.imread(sys.argv[1])[..., :3], mpimg.imread(sys.argv[2])[..., :3]
 status = open(sys.argv[3], encoding="utf-8", errors="replace").read()
 neighbours = [n for n in sys.argv[4].split(",") if n]
+proxies = int(sys.argv[5])
 fail = []
 canvas = (slice(10, 446), slice(10, 566))  # #view3d: 560 x 440 CSS px at (8, 8), window 1400 x 900
 plots = (slice(515, 890), slice(10, 1390))  # the six plots under the canvas and timeline
@@ -46,6 +49,11 @@ if changed_plots < 100:
 for n in neighbours:
     if not re.search(r"neighbour %s: (up|DOWN) since" % n, status):
         fail.append("status does not show neighbour %s: %r" % (n, status[:300]))
+drawn = re.search(r"proxies drawn: (\d+) of (\d+) users", status)
+if not drawn or int(drawn.group(1)) != proxies:
+    fail.append("status does not count %d proxies drawn: %r" % (proxies, drawn.group(0) if drawn else status[:300]))
+elif int(drawn.group(1)) < int(drawn.group(2)) and "not known to this station" not in status:
+    fail.append("status draws %s of %s proxies without saying the others are not known to it: %r" % (drawn.group(1), drawn.group(2), status[:300]))
 if not re.search(r"(^|\|)gate: (not acted|HELD BY THE GATE|EDGES DROPPED)", status, re.M):  # never a run the gate held shown as plain stable
     fail.append("status does not say what the gate did: %r" % status[:300])
 if not re.search(r"(^|\|)host: (STARVING|keeps its)", status, re.M):  # a starving host is said, never left out

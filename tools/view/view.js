@@ -3,7 +3,7 @@
 const COLORS = ["#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"];
 const COLOR_NAMES = ["red", "blue", "green", "purple", "orange", "brown"];  // COLORS in words, for the legend
 const WINDOW_S = 20;
-let scene = null, mesh = null, copies = [], vpMark = null, devMark = null, coupling = null, contactPts = null;
+let scene = null, mesh = null, copies = [], proxies = {}, vpMark = null, devMark = null, coupling = null, contactPts = null;
 let seekTo = null;  // a seek this page asked for: frames sent before the server applied it are stale and not shown
 let statusSent = 0, renderer, camera, world, geom, charts = {}, linkState = {}, framesSeen = 0, lastSeq = 0, missed = 0;
 let arrivals = [], opened = performance.now();  // arrival times (ms) of the frames of the last 2 s: the frame rate this page receives
@@ -29,13 +29,40 @@ function defaultExaggeration(restMm) {
   return [1, 2, 5, 10].map(f => f * e).find(v => v >= 0.99 * want);  // 1 %: a radius rounded to the micrometre stays x5
 }
 
-// The legend under the 3D view: what each colour is, each neighbour's by its station, and the scale
-// the deformation is drawn at.
-function legendText(neighbours, exaggerate, asked) {
-  const nb = neighbours.map((p, j) => "station " + p + " " + COLOR_NAMES[j % COLOR_NAMES.length]).join(", ");
+// The colour of station p's wireframe and proxy: a neighbour's by its place among the neighbours,
+// another user's after them.
+function stationColor(neighbours, others, p) {
+  const j = neighbours.indexOf(p);
+  return j >= 0 ? j : neighbours.length + others.filter(o => !neighbours.includes(o)).indexOf(p);
+}
+
+// The users whose proxies the page cannot draw: every station of the run but this one and those in
+// from.stations (scene.proxies_from: the stations whose proxies come, from.source where from).
+function unknownProxies(station, users, from) {
+  const u = [];
+  for (let p = 1; p <= users; ++p) if (p !== station && !from.stations.includes(p)) u.push(p);
+  return u;
+}
+
+// The legend under the 3D view: what each colour is, each neighbour's by its station, whose proxies
+// are drawn and from what (from: scene.proxies_from; unknown: unknownProxies), and the scale the
+// deformation is drawn at.
+function legendText(neighbours, exaggerate, asked, from, unknown) {
+  const name = p => "station " + p + " " + COLOR_NAMES[stationColor(neighbours, from.stations, p) % COLOR_NAMES.length];
+  const nb = neighbours.map(name).join(", ");
+  let px = "other users' proxies: " + (from.stations.length ? "diamonds in their colour, seen through the object (" +
+    from.stations.map(name).join(", ") + ", from " + from.source + ")" : "none drawn");
+  if (unknown.length) px += "; station" + (unknown.length > 1 ? "s " : " ") + unknown.join(", ") + ": not known to this station (" + from.missing + ")";
   return "grey: this copy · wireframes: the neighbours' last received copies (" + (nb || "none") + ")" +
-    " · red dots: contact mesh · blue: proxy · green: device · deformation drawn x" + exaggerate +
+    " · red dots: contact mesh · blue sphere: this station's proxy · green: device · " + px + " · deformation drawn x" + exaggerate +
     (asked ? " (?exaggerate)" : " (default; ?exaggerate=1 for true scale)");
+}
+
+// The status line of the proxies drawn: counted from the 3D scene (markers visible), out of the run's users.
+function proxyLine(drawn, users, from, unknown) {
+  return "proxies drawn: " + drawn + " of " + users + " users (this station's" +
+    (from.stations.length ? "; stations " + from.stations.join(", ") + " from " + from.source : "") +
+    (unknown.length ? "; " + unknown.join(", ") + ": not known to this station, " + from.missing : "") + ")";
 }
 const shown = (um, i) => restMm[i] + EXAGGERATE * (um * 1e-3 - restMm[i]);  // mm
 let cursorT = null;  // a recording: the plots hold the whole run, a vertical line marks the frame shown
@@ -62,7 +89,9 @@ function setup3d(s) {
   restMm = rest;
   const asked = ASKED_EXAGGERATION > 0;
   EXAGGERATE = asked ? Math.max(1, ASKED_EXAGGERATION) : defaultExaggeration(rest);
-  document.getElementById("legend").textContent = legendText(s.neighbours, EXAGGERATE, asked);
+  if (!s.proxies_from) s.proxies_from = {stations: [], source: "", missing: "this server sends no other proxies"};
+  const from = s.proxies_from, others = from.stations;  // whose proxies come with the frames (a recording: from their logs; live: the neighbours')
+  document.getElementById("legend").textContent = legendText(s.neighbours, EXAGGERATE, asked, from, unknownProxies(s.station, s.users, from));
   geom = new THREE.BufferGeometry();
   geom.setAttribute("position", new THREE.BufferAttribute(rest.slice(), 3));
   geom.setIndex(s.triangles);
@@ -84,6 +113,13 @@ function setup3d(s) {
   world.add(contactPts);
   vpMark = new THREE.Mesh(new THREE.SphereGeometry(2.5, 16, 12), new THREE.MeshPhongMaterial({color: 0x1f4fff}));
   devMark = new THREE.Mesh(new THREE.BoxGeometry(4, 4, 4), new THREE.MeshPhongMaterial({color: 0x20a020}));
+  vpMark.userData.proxyOf = s.station;
+  others.forEach(p => {
+    const m = new THREE.Mesh(new THREE.OctahedronGeometry(3),
+      new THREE.MeshBasicMaterial({color: COLORS[stationColor(s.neighbours, others, p) % COLORS.length], depthTest: false}));
+    m.renderOrder = 1;  // drawn through the object: a user pushing from the far side is seen too
+    m.userData.proxyOf = p; m.visible = false; world.add(m); proxies[p] = m;
+  });
   world.add(vpMark); world.add(devMark);
   const lg = new THREE.BufferGeometry(); lg.setAttribute("position", new THREE.BufferAttribute(new Float32Array(6), 3));
   coupling = new THREE.Line(lg, new THREE.LineBasicMaterial({color: 0x20a020})); world.add(coupling);
@@ -115,6 +151,13 @@ function push(c, i, t, y) {
   const d = c.data.datasets[i].data;
   d.push({x: t, y: y});
   while (d.length && d[0].x < t - WINDOW_S) d.shift();
+}
+
+// A recording's tick times (scene.history rows: the largest per frame, us), as its status line says them.
+function tickTimeLine(history) {
+  const us = history.map(r => r[8]).filter(Number.isFinite).sort((a, b) => a - b);
+  if (!us.length) return "tick time (recorded): none";
+  return "tick time (recorded): largest " + us[us.length - 1].toFixed(1) + " µs, median of the frames' largest " + us[us.length >> 1].toFixed(1) + " µs";
 }
 
 // A recording's plots: every kept frame's values at once (scene.history rows, firmware/view/timeline.cpp).
@@ -205,6 +248,11 @@ function draw(f) {
   scene.contact.forEach((p, i) => { for (let d = 0; d < 3; ++d) ca.array[3 * i + d] = shown(f.x_um[3 * p + d], 3 * p + d); });
   ca.needsUpdate = true;
   vpMark.position.set(f.vp[0] * 1e3, f.vp[1] * 1e3, f.vp[2] * 1e3);
+  Object.values(proxies).forEach(m => { m.visible = false; });
+  (f.proxies || []).forEach(o => {  // the other users' proxies a recording holds at this frame
+    const m = proxies[o.station];
+    if (m) { m.position.set(o.vp[0] * 1e3, o.vp[1] * 1e3, o.vp[2] * 1e3); m.visible = true; }
+  });
   devMark.position.set(f.device[0] * 1e3, f.device[1] * 1e3, f.device[2] * 1e3);
   const la = coupling.geometry.attributes.position;
   la.array.set([f.vp[0] * 1e3, f.vp[1] * 1e3, f.vp[2] * 1e3, f.device[0] * 1e3, f.device[1] * 1e3, f.device[2] * 1e3]); la.needsUpdate = true;
@@ -244,6 +292,8 @@ function status(f) {
   lines.push("passivity: " + pas);
   lines.push("safe state: " + (f.safe_state ? "YES (zero force)" : "no") + " · contact: " + (f.contact ? "yes" : "no"));
   lines.push(gateLine(f.gate));
+  const drawn = world.children.filter(o => o.userData.proxyOf !== undefined && o.visible).length;
+  lines.push(proxyLine(drawn, scene.users, scene.proxies_from, unknownProxies(scene.station, scene.users, scene.proxies_from)));
   const nb = f.links.map(l => {
     const up = l.up !== undefined ? l.up : l.within;
     // since when: the server's (links[].since_s, over every frame since the run began), else this page's own
@@ -257,6 +307,7 @@ function status(f) {
   });
   lines.push("neighbours:\n  " + nb.join("\n  "));
   lines.push(hostLine(f.host));
+  if (scene.history) lines.push(tickTimeLine(scene.history));
   const rate = arrivals.length / Math.min(2, Math.max(0.001, (performance.now() - opened) / 1000));  // frames per second
   lines.push("frames: " + framesSeen + " received (" + rate.toFixed(1) + "/s over the last 2 s), " + missed + " missed here" + (f.frames_dropped !== undefined ? ", " + f.frames_dropped + " replaced in the station's mailbox" : "") +
     (f.server_dropped !== undefined ? ", " + f.server_dropped + " not sent (browser busy)" : ""));

@@ -43,10 +43,8 @@ def messages(s):
                 buf = b""
 
 
-def main():
-    port = int(sys.argv[1])
-    seconds = float(sys.argv[2]) if len(sys.argv) > 2 else 10
-    host = sys.argv[3] if len(sys.argv) > 3 else "127.0.0.1"
+def connect(port, host="127.0.0.1"):
+    """A WebSocket on the "haptic-view" protocol to the view at host:port (then messages(s) reads it)."""
     s = socket.create_connection((host, port), timeout=10)
     key = base64.b64encode(os.urandom(16)).decode()
     s.sendall(("GET / HTTP/1.1\r\nHost: %s:%d\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: %s\r\n"
@@ -56,6 +54,14 @@ def main():
         head += recv_exact(s, 1)
     if b" 101 " not in head.split(b"\r\n")[0]:
         raise SystemExit("no WebSocket upgrade: %r" % head[:200])
+    return s
+
+
+def main():
+    port = int(sys.argv[1])
+    seconds = float(sys.argv[2]) if len(sys.argv) > 2 else 10
+    host = sys.argv[3] if len(sys.argv) > 3 else "127.0.0.1"
+    s = connect(port, host)
     frames, t_first, prev_x, prev_k, changed, ks, maxdisp, last = 0, None, None, None, 0, [], 0.0, None
     rest = None
     end = time.time() + seconds + 60  # the scene may come only when the station is ready

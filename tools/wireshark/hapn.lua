@@ -1,4 +1,4 @@
--- Wireshark/tshark dissector for the haptic station wire format v2 (net/README.md).
+-- Wireshark/tshark dissector for the haptic station wire format v3 (net/README.md).
 -- Finds it on UDP by heuristic (magic "HAPN" + version 3 + header length 72) and on raw
 -- Ethernet by EtherType 0x88B5 (IEEE 802 Local Experimental EtherType 1).
 -- Use: tshark -X lua_script:tools/wireshark/hapn.lua -r capture.pcap -Y hapn
@@ -14,6 +14,7 @@ f.kind = ProtoField.uint8("hapn.kind", "Payload kind", base.DEC, kinds)
 f.flags = ProtoField.uint8("hapn.flags", "Flags", base.HEX)
 f.float32 = ProtoField.bool("hapn.flags.float32", "float32 values", 8, nil, 0x01)
 f.has_echo = ProtoField.bool("hapn.flags.has_echo", "Echo present", 8, nil, 0x02)
+f.has_proxy = ProtoField.bool("hapn.flags.proxy", "Proxy position carried", 8, nil, 0x08)
 f.header_len = ProtoField.uint8("hapn.header_len", "Header length")
 f.session = ProtoField.uint32("hapn.session", "Session id", base.HEX)
 f.sender = ProtoField.uint16("hapn.sender", "Sender station")
@@ -40,7 +41,8 @@ f.fp_law = ProtoField.uint8("hapn.fp.consensus_law", "Fingerprint: consensus law
 f.fp_predict = ProtoField.uint8("hapn.fp.tx_predict", "Fingerprint: predictive deadband (1 on)")
 f.fp_deadband = ProtoField.uint16("hapn.fp.tx_deadband_hash", "Fingerprint: transmission deadband hash (0 off)", base.HEX)
 f.fp_step_max = ProtoField.uint64("hapn.fp.step_max_ns", "Sender's step bound T^max, ns (0: not yet)")
-f.payload = ProtoField.bytes("hapn.payload", "Payload slice (x_hat ++ v_hat)")
+f.payload = ProtoField.bytes("hapn.payload", "Payload slice (x_hat ++ v_hat ++ proxy)")
+f.proxy = ProtoField.string("hapn.proxy", "Sender's proxy position (m)")
 f.first_value = ProtoField.double("hapn.first_value", "First value in slice")
 f.mac = ProtoField.bytes("hapn.mac", "MAC (keyed BLAKE2b-128)")
 
@@ -64,6 +66,7 @@ function hapn.dissector(tvb, pinfo, tree)
   local ft = t:add_le(f.flags, tvb(6, 1))
   ft:add(f.float32, tvb(6, 1))
   ft:add(f.has_echo, tvb(6, 1))
+  ft:add(f.has_proxy, tvb(6, 1))
   t:add_le(f.header_len, tvb(7, 1))
   t:add_le(f.session, tvb(8, 4))
   t:add_le(f.sender, tvb(12, 2))
@@ -103,6 +106,16 @@ function hapn.dissector(tvb, pinfo, tree)
       t:add_le(f.first_value, tvb(HDR, 4), tvb(HDR, 4):le_float())
     elseif flen >= 8 then
       t:add_le(f.first_value, tvb(HDR, 8))
+    end
+    -- the proxy: the last 3 values of the last fragment, when the flag says they are meaningful
+    local vb = bit.band(tvb(6, 1):uint(), 1) == 1 and 4 or 8
+    if bit.band(tvb(6, 1):uint(), 8) == 8 and tvb(52, 2):le_uint() + 1 == tvb(54, 2):le_uint() and flen >= 3 * vb then
+      local v = {}
+      for a = 0, 2 do
+        local r = tvb(HDR + flen - (3 - a) * vb, vb)
+        v[a + 1] = r:le_float()  -- 4 or 8 bytes
+      end
+      t:add(f.proxy, tvb(HDR + flen - 3 * vb, 3 * vb), string.format("%.6f, %.6f, %.6f", v[1], v[2], v[3]))
     end
   end
   t:add(f.mac, tvb(HDR + flen, 16))

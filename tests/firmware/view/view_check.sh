@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Headless Chromium loads the live web view and checks it: the 3D canvas is not
 # blank, the mesh and the plots change between two screenshots, the status the page shows (it
-# reports it back over its WebSocket; the server logs it) names the neighbours.
+# reports it back over its WebSocket; the server logs it) names the neighbours and counts the users'
+# proxies drawn (all four: a recording's from the other users' logs next to it, a live station's from
+# its neighbours' state packets); a recording's status says its tick times (not 0).
 #   view_check.sh replay BIN OUT : a recorded simulated run with its timeline: the first screenshot from
 #                                  `sim --record --view-port`, the second from `replay LOG --view-port` (~25 s)
 #   view_check.sh station BIN OUT: station 1 of a four-process UDP run while it runs (~20 s; run it
@@ -47,7 +49,7 @@ if [ "$mode" = replay ]; then
   "$bin" sim --scenario paper-best --out "$out/sim" --duration 6 --push-end 2 --release 4 --record --no-plots --quiet \
     --view-port "$port" --view-for 150 > "$out/sim.log" 2>&1 &  # stopped by SIGTERM after the screenshots
   pids+=($!)
-  neighbours=2,3,4
+  neighbours=2,3,4; proxies=4
 else
   port=$(( 46600 + ($$ % 40) * 5 ))  # station i: port + i - 1
   "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out/run4" --duration 120 --push-end 2 --release 6 --probe 1.0 \
@@ -57,7 +59,7 @@ else
   # the hands wander all run (script "random"): on a loaded machine a screenshot can come 15-40 s late, and
   # with push-hold-release both then fell after the release, on an object at rest, and the mesh "did not change")
   pids+=($!)
-  neighbours=2,3,4
+  neighbours=2,3,4; proxies=4  # its own and its three neighbours', from their state packets
 fi
 wait_port "$port" 30 || { echo "FAILED: the view never listened on 127.0.0.1:$port"; cat "$out"/*.log; exit 1; }
 url="http://127.0.0.1:$port/"
@@ -65,6 +67,9 @@ if [ "$mode" = replay ]; then  # the timeline opened at two frames: pushing (t ~
   shot a "${url}?seek=40&pause=1&exaggerate=10"
   kill -TERM "${pids[0]}" 2>/dev/null; wait "${pids[0]}"; pids=()  # the sim's view ends: the same log through `replay`
   [ -s "$out/sim/station-1.h5" ] || { echo "FAILED: the sim wrote no station-1.h5"; cat "$out/sim.log"; exit 1; }
+  # the simulator's page drew every user's proxy (the others' from their logs of the same run)
+  grep -q "last status a browser showed: .*proxies drawn: 4 of 4 users" "$out/sim.log" ||
+    { echo "FAILED: the sim's page did not draw the 4 users' proxies"; grep "last status" "$out/sim.log"; exit 1; }
   port=$(( port + 1 )); url="http://127.0.0.1:$port/"
   "$bin" replay "$out/sim/station-1.h5" --view-port "$port" --view-for 150 > "$out/replay.log" 2>&1 &
   pids+=($!)
@@ -88,6 +93,10 @@ if [ "$mode" = replay ]; then
   t_b=$(sed -n 's/.* · t = \([0-9.]*\) s · .*/\1/p' "$out/status.txt")
   /usr/bin/python3 -c 'import sys; sys.exit(0 if sys.argv[1] and float(sys.argv[1]) > 4.0 else 1)' "$t_b" ||
     { echo "FAILED: the page opened at frame 140 (t ~ 4.8 s) showed t = ${t_b:-?} s"; cat "$out/status.txt"; exit 1; }
+  # the recording's tick times are the recorded ones (the simulator logs each step's time), not a flat 0
+  /usr/bin/python3 -c 'import re,sys; m = re.search(r"tick time \(recorded\): largest ([0-9.]+) ", open(sys.argv[1]).read())
+sys.exit(0 if m and float(m.group(1)) > 0 else 1)' "$out/status.txt" ||
+    { echo "FAILED: the replay's status does not say a recorded tick time above 0"; cat "$out/status.txt"; exit 1; }
   # "up since" is the run time the link came up (the server's, over every frame), not when the page opened
   /usr/bin/python3 -c 'import re,sys; s = [float(x) for x in re.findall(r"neighbour \d+: (?:up|DOWN) since ([0-9.]+) s", open(sys.argv[1]).read())]
 sys.exit(0 if s and min(s) < float(sys.argv[2]) - 0.5 else 1)' "$out/status.txt" "$t_b" ||
@@ -96,4 +105,4 @@ else
   [ -s "$out/run4/station-1.json" ] || { echo "FAILED: station 1 wrote no station-1.json"; tail -20 "$out/run4.log"; exit 1; }
   /usr/bin/python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["recording"]["view"]["last_browser_status"])' "$out/run4/station-1.json" > "$out/status.txt"
 fi
-/usr/bin/python3 "$repo/tools/view/check_view.py" "$out/a.png" "$out/b.png" "$out/status.txt" "$neighbours"
+/usr/bin/python3 "$repo/tools/view/check_view.py" "$out/a.png" "$out/b.png" "$out/status.txt" "$neighbours" "$proxies"

@@ -29,30 +29,20 @@ namespace {
 
 const char* const kBeforeUnits = "log written before haptic-station stored units on its datasets";
 
-std::optional<std::string> opt_str(hid_t obj, const std::string& name) {
+// An attribute read with `read` (h5::attr_str, attr_i64, attr_f64), or nothing when it is absent or
+// of another type.
+template <class T>
+std::optional<T> opt_attr(hid_t obj, const std::string& name, T (*read)(hid_t, const std::string&)) {
   if (!h5::has_attr(obj, name)) return std::nullopt;
   try {
-    return h5::attr_str(obj, name);
+    return read(obj, name);
   } catch (const std::exception&) {
     return std::nullopt;
   }
 }
-std::optional<std::int64_t> opt_i64(hid_t obj, const std::string& name) {
-  if (!h5::has_attr(obj, name)) return std::nullopt;
-  try {
-    return h5::attr_i64(obj, name);
-  } catch (const std::exception&) {
-    return std::nullopt;
-  }
-}
-std::optional<double> opt_f64(hid_t obj, const std::string& name) {
-  if (!h5::has_attr(obj, name)) return std::nullopt;
-  try {
-    return h5::attr_f64(obj, name);
-  } catch (const std::exception&) {
-    return std::nullopt;
-  }
-}
+std::optional<std::string> opt_str(hid_t obj, const std::string& name) { return opt_attr(obj, name, h5::attr_str); }
+std::optional<std::int64_t> opt_i64(hid_t obj, const std::string& name) { return opt_attr(obj, name, h5::attr_i64); }
+std::optional<double> opt_f64(hid_t obj, const std::string& name) { return opt_attr(obj, name, h5::attr_f64); }
 
 // Opens LOG, refusing what is not a session log with a message that says what it is instead.
 h5::Id open_log(const std::string& path) {

@@ -108,9 +108,12 @@ void fix_step_bounds(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r,
   st.measured = measured && (S.period_min_s == 0 || S.period_max_s == 0);
   if (S.period_min_s > 0) st.own.t_min_s = S.period_min_s;
   if (S.period_max_s > 0) st.own.t_max_s = S.period_max_s;
+  const bool keys = S.period_min_s > 0 || S.period_max_s > 0;
   st.text = "steps T_k in [" + number_text(st.own.t_min_s * 1e3) + ", " + number_text(st.own.t_max_s * 1e3) + "] ms (" +
-            (!st.measured ? std::string(measured ? "station.period_min_s / period_max_s" : "the nominal period: a rejoin")
-                          : "measured: wake-up latency up to " + number_text(st.max_wake_latency_s * 1e3) + " ms while probing");
+            (st.measured ? "measured: wake-up latency up to " + number_text(st.max_wake_latency_s * 1e3) + " ms while probing" +
+                               (keys ? std::string(", the other bound from station.period_min_s / period_max_s") : "")
+             : keys      ? std::string("station.period_min_s / period_max_s")
+                         : "the nominal period: a rejoin");
   if (st.measured && st.own.capped)
     st.text += ", capped at +-" + number_text(cap * 1e3) + " ms by " +
                (cap < S.step_margin_max * T ? std::string("what eq. (26) allows this device's coupling") : "station.step_margin_max") +

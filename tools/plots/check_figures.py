@@ -9,20 +9,21 @@ usage: /usr/bin/python3 tools/plots/check_figures.py RUN_DIR
   1e3 (node_x - rest_x) of trace.csv per user, not its position;
 - the release and push-end lines and the consensus threshold carry text labels;
 - every drawn time series of the node figure is made of samples and keeps each time slice's extremes;
-- the snapshot figure says which users' copies it shows (all, or users 1-8 of N), has axes ticks in mm, a colour bar, and colours each surface triangle by the
+- the snapshot figure says which users' copies it shows (all, or users 1-8 of N), has a scale in mm, a colour bar, and colours each surface triangle by the
   mean distance of its corners from the mean shape of ALL copies (snapshots.json's
   distance_from_mean_shape_m, written by the run), on one scale for the whole figure.
 Exit 0 when all hold, 1 with every failure listed.
 """
 import json
 import os
+import re
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import plot_run  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+from matplotlib.collections import PolyCollection  # noqa: E402
 
 
 def texts(fig):
@@ -79,25 +80,26 @@ def check_labels(figs, summary, fail):
 
 
 def expected_face_colours(sn, users, cols):
-    import matplotlib.pyplot as plt
+    import matplotlib
     from matplotlib import colors
     surf = np.array(sn["surface"])
     dist = [plot_run.mean_shape_distance_mm(s) for s in sn["snapshots"]]  # the run's own values (C++)
     norm = colors.Normalize(0, max(max(d.max() for d in dist), 1e-12))
-    cmap = plt.get_cmap("viridis")
+    cmap = matplotlib.colormaps["viridis"]
     return [[cmap(norm(d[u][surf].mean(axis=1)), alpha=0.85) for u in range(cols)] for d in dist]
 
 
 def check_snapshots(fig, summary, sn, fail):
     users = int(summary["users"])
-    panels = [ax for ax in fig.axes if hasattr(ax, "get_zlim")]
     cols = min(users, plot_run.MAX_COPIES_DRAWN)
+    ax = next((a for a in fig.axes if a.get_label() == "snapshots"), None)
+    panels = {c.get_gid(): c for c in (ax.collections if ax else []) if isinstance(c, PolyCollection) and c.get_gid()}
     if len(panels) != cols * len(sn["snapshots"]):
         fail.append("snapshot figure: %d panels for %d snapshots x %d copies" % (len(panels), len(sn["snapshots"]), cols))
         return
-    if not any("mm" in ax.get_xlabel() for ax in panels) or not all(len(ax.get_xticks()) >= 2 for ax in panels):
-        fail.append("snapshot figure: no axes in mm")
-    bars = [ax for ax in fig.axes if not hasattr(ax, "get_zlim") and "mean shape" in ax.get_ylabel()]
+    if not any(re.match(r"\d+ mm; view", t.get_text()) for t in ax.texts):  # plot_run.draw_scale's bar label
+        fail.append("snapshot figure: no scale in mm")
+    bars = [a for a in fig.axes if a is not ax and "mean shape" in a.get_ylabel()]
     if not bars:
         fail.append("snapshot figure: no colour bar labelled with the distance from the mean shape")
     title = fig._suptitle.get_text() if fig._suptitle else ""
@@ -105,15 +107,15 @@ def check_snapshots(fig, summary, sn, fail):
     if says not in title:
         fail.append("snapshot figure: the title does not say which copies it shows (%r not in %r)" % (says, title))
     want = expected_face_colours(sn, users, cols)
-    for i, ax in enumerate(panels):
-        r, u = divmod(i, cols)
-        polys = [c for c in ax.collections if isinstance(c, Poly3DCollection)]
-        got = np.asarray(polys[0].get_facecolor()) if polys else np.zeros((0, 4))
-        exp = np.asarray(want[r][u])
-        # the drawn order is by depth: compare the colours as sorted sets
-        if got.shape != exp.shape or not np.allclose(np.array(sorted(map(tuple, got))), np.array(sorted(map(tuple, exp))), atol=1e-6):
-            fail.append("snapshot figure: t = %.2f s user %d: face colours are not the distance from the mean shape" % (
-                sn["snapshots"][r]["t_s"], u + 1))
+    for r in range(len(sn["snapshots"])):
+        for u in range(cols):
+            poly = panels.get("snapshot %d %d" % (r, u))
+            got = np.asarray(poly.get_facecolor()) if poly is not None else np.zeros((0, 4))
+            exp = np.asarray(want[r][u])
+            # the drawn order is by depth: compare the colours as sorted sets
+            if got.shape != exp.shape or not np.allclose(np.array(sorted(map(tuple, got))), np.array(sorted(map(tuple, exp))), atol=1e-6):
+                fail.append("snapshot figure: t = %.2f s user %d: face colours are not the distance from the mean shape" % (
+                    sn["snapshots"][r]["t_s"], u + 1))
 
 
 def main(run):

@@ -12,7 +12,9 @@ from the mean shape) into RUN_DIR.
 Speed (tools/bench/results/README.md "Figures"): one process imports matplotlib once, reads the CSV
 files with numpy's C parser, draws each time series min/max-decimated to the figure's resolution
 (every drawn point is a sample; each pixel column's extremes are kept), writes PNG at compression
-level 1 and, with a CPU idle, draws the snapshot figure in a forked child while it draws the others. --after-go imports, warms up and makes
+level 1, lays the figures out with fixed margins (no tight_layout), draws the snapshot panels as
+orthographic 2D projections in one axes (one matplotlib Axes a panel cost ~30 ms) and, with a CPU
+idle, draws two of the figures in a forked child while it draws the others. --after-go imports, warms up and makes
 the figures' empty axes (the snapshot figure's when --expect says how many snapshots and users) first,
 then waits for a line "go" on stdin before reading RUN_DIR: `haptic-station sim` starts it before
 the simulation, so all that overlaps the run; end of input without "go" (the run failed) draws nothing.
@@ -27,13 +29,11 @@ if sys.argv[1:2] == ["--after-go"]:
     # ends, and with it this script's input (end of input: nothing drawn, no traceback)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib import cm, colors  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+from matplotlib import cm, colors, ticker  # noqa: E402
+from matplotlib.collections import PolyCollection  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402  (no pyplot: no global figure manager to import or keep)
 
 MAX_COPIES_DRAWN = 8  # a 64-user run: the snapshot figure draws users 1-8 and says so (the mean shape uses all)
 LINE_BUCKETS = 1000  # a time axis is at most 880 px wide (8 in at 110 dpi): min and max of 1000 columns per line
@@ -112,26 +112,47 @@ def contact_owner(node, contacts):
 _PREBUILT = {}  # figure name -> (figure, axes) made while the run was still going (prebuild())
 
 
+# Fixed margins (fractions of the figure) in place of tight_layout, which measures every text of
+# the figure a second time: the labels are known ahead, and these leave room for them.
+MARGINS = {"one": dict(left=0.11, right=0.985, bottom=0.125, top=0.865),  # 8 x 3.8 in, a two-line title
+           "two": dict(left=0.1, right=0.985, bottom=0.09, top=0.945, hspace=0.07)}  # 8 x 5 in, two axes
+
+
 def make_figure(name, panels=None):
     """The empty figure `name` and its axes: what no run's data changes (panels: the snapshot
-    figure's (rows, columns) of 3D axes)."""
-    if name == "fig_snapshots.png":
+    figure's (rows, columns) of view panels)."""
+    if name == "fig_snapshots.png":  # one axes, its panels side by side in it (one Axes each would cost 30 ms)
         rows, cols = panels
-        fig = plt.figure(figsize=(2.3 * cols + 1.0, 2.2 * rows + 0.5))
-        return fig, [snapshot_panel(fig, rows, cols, i) for i in range(rows * cols)]
+        fig = Figure(figsize=(2.3 * cols + 1.0, 2.2 * rows + 0.5))
+        ax = fig.add_axes([0.05, 0.02, 0.82, 0.88], label="snapshots")
+        ax.set_axis_off()
+        ax.set_aspect("equal")
+        return fig, ax
     if name in ("fig_node_position.png", "fig_consensus.png"):
-        return plt.subplots(figsize=(8, 3.8))
-    return plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+        fig = Figure(figsize=(8, 3.8))
+        fig.subplots_adjust(**MARGINS["one"])
+        return fig, fig.subplots()
+    fig = Figure(figsize=(8, 5))
+    fig.subplots_adjust(**MARGINS["two"])
+    return fig, fig.subplots(2, 1, sharex=True)
 
 
-def snapshot_panel(fig, rows, cols, i):
-    """Panel i of the snapshot figure: a cube of 3D axes with three ticks an axis (their values
-    come with the data), small labels."""
-    ax = fig.add_subplot(rows, cols, i + 1, projection="3d", computed_zorder=False)  # markers on top
-    ax.set_box_aspect((1, 1, 1))
-    ax.set_xticks([-1, 0, 1]), ax.set_yticks([-1, 0, 1]), ax.set_zticks([-1, 0, 1])
-    ax.tick_params(labelsize=5, pad=-2)
-    return ax
+VIEW = (30.0, -60.0)  # elevation and azimuth (deg) the snapshot panels are seen from: matplotlib's 3D default
+
+
+def view_basis(elev=VIEW[0], azim=VIEW[1]):
+    """Rows: the screen's right and up directions and the direction toward the viewer, in the
+    object's x, y, z (an orthographic camera at `elev` above the x-y plane, `azim` from +x)."""
+    e, a = np.radians(elev), np.radians(azim)
+    return np.array([[-np.sin(a), np.cos(a), 0.0],
+                     [-np.sin(e) * np.cos(a), -np.sin(e) * np.sin(a), np.cos(e)],
+                     [np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)]])
+
+
+def project(points, basis):
+    """Screen (right, up) and depth toward the viewer of `points` (n x 3)."""
+    q = points @ basis.T
+    return q[:, :2], q[:, 2]
 
 
 def new_figure(name, panels=None):
@@ -170,7 +191,6 @@ def fig_node(summary, tr, contacts):
     ax.set_title("%s\nnode %d (0-based index%s): x-displacement from %s, every user's copy" % (run_title(summary), node, where, ref), fontsize=9)
     if users <= 8:
         ax.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
     return fig
 
 
@@ -190,7 +210,6 @@ def fig_force(summary, tr, se):
     axs[1].set_xlabel("time (s)")
     mark_events(axs[0], summary)
     mark_events(axs[1], summary, label_them=False)
-    fig.tight_layout()
     return fig
 
 
@@ -215,7 +234,6 @@ def fig_energy(summary, tr, se):
     axs[1].legend(fontsize=7)
     mark_events(axs[0], summary)
     mark_events(axs[1], summary, label_them=False)
-    fig.tight_layout()
     return fig
 
 
@@ -245,7 +263,6 @@ def fig_consensus(summary, se):
     ax.set_ylabel("mm")
     ax.set_title(run_title(summary), fontsize=9)
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(0.005, 0.35))
-    fig.tight_layout()
     return fig
 
 
@@ -283,36 +300,25 @@ def fig_snapshots(summary, sn):
     dist = [mean_shape_distance_mm(s) for s in snaps]
     vmax = max(max(d.max() for d in dist), 1e-12)
     norm = colors.Normalize(0, vmax)
-    cmap = plt.get_cmap("viridis")
+    cmap = matplotlib.colormaps["viridis"]
     rows, cols = len(snaps), min(users, MAX_COPIES_DRAWN)
-    fig, panels = new_figure("fig_snapshots.png", (rows, cols))
-    lim = 1e3 * radius * 1.15
+    fig, ax = new_figure("fig_snapshots.png", (rows, cols))
+    lim = 1e3 * radius * 1.15  # half a panel's side (mm)
+    basis = view_basis()
     for r, s in enumerate(snaps):
         for u in range(cols):
-            ax = panels[r * cols + u]
+            at = panel_centre(r, u, lim)
             x = 1e3 * (ref_c + factor * defo[r][u])
-            face = dist[r][u][surf].mean(axis=1)
-            ax.add_collection3d(Poly3DCollection(x[surf], facecolors=cmap(norm(face), alpha=0.85), edgecolors="0.25",
-                                                 linewidths=0.15, zorder=1))
-            cn = contacts[u] if u < len(contacts) else []
-            ax.scatter(x[cn, 0], x[cn, 1], x[cn, 2], color="k", s=5, depthshade=False, zorder=3)
             c = np.array(s["x_m"][u]).reshape(-1, 3).mean(axis=0)
-            vp = 1e3 * (np.array(s["vp_m"][u]) - c)
-            ax.scatter([vp[0]], [vp[1]], [vp[2]], color="r", s=12, depthshade=False, zorder=4)
-            for setlim in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
-                setlim(-lim, lim)
-            ticks = [-round(radius * 1e3), 0, round(radius * 1e3)]
-            ax.set_xticks(ticks), ax.set_yticks(ticks), ax.set_zticks(ticks)  # the panel's three ticks (snapshot_panel)
-            if r == rows - 1 and u == 0:
-                ax.set_xlabel("x (mm)", fontsize=6, labelpad=-8)
-                ax.set_ylabel("y (mm)", fontsize=6, labelpad=-8)
-                ax.set_zlabel("z (mm)", fontsize=6, labelpad=-8)
+            draw_copy(ax, basis, x, surf, cmap(norm(dist[r][u][surf].mean(axis=1)), alpha=0.85),
+                      contacts[u] if u < len(contacts) else [], 1e3 * (np.array(s["vp_m"][u]) - c), at, "snapshot %d %d" % (r, u))
             if r == 0:
-                ax.set_title("user %d's copy" % (u + 1), fontsize=8)
-            if u == 0:
-                ax.text2D(-0.18, 0.5, "t = %.2f s\nmax %.2g mm" % (s["t_s"], dist[r].max()), transform=ax.transAxes, fontsize=7,
-                          rotation=90, va="center", ha="center")
-    fig.subplots_adjust(left=0.06, right=0.86, bottom=0.03, top=0.92, wspace=0.05, hspace=0.12)
+                ax.text(at[0], at[1] + lim, "user %d's copy" % (u + 1), fontsize=8, ha="center", va="bottom")
+        at = panel_centre(r, 0, lim)
+        ax.text(at[0] - lim, at[1], "t = %.2f s\nmax %.2g mm" % (s["t_s"], dist[r].max()), fontsize=7, rotation=90,
+                ha="right", va="center")
+    ax.set_xlim(-lim, (2 * cols - 1) * lim), ax.set_ylim(-(2 * rows - 1) * lim, lim)
+    draw_scale(ax, basis, panel_centre(rows - 1, 0, lim), lim, radius)
     cax = fig.add_axes([0.89, 0.15, 0.02, 0.7])
     cb = fig.colorbar(cm.ScalarMappable(norm=norm, cmap=cmap), cax=cax)
     cb.set_label("distance from the mean shape\n(of the %d copies), mm" % users, fontsize=7)
@@ -320,6 +326,39 @@ def fig_snapshots(summary, sn):
     fig.suptitle("%s\n%s about their centroids (mm), deformation x%d; colour: distance from the mean shape;"
                  " VP red, contact nodes black" % (run_title(summary), copies_shown(users, cols), factor), fontsize=8)
     return fig
+
+
+def panel_centre(r, u, lim):
+    """Centre (mm, in the snapshot figure's one axes) of the panel of snapshot r, copy u."""
+    return np.array([2 * lim * u, -2 * lim * r])
+
+
+def draw_copy(ax, basis, x, surf, face_colours, contact, vp, at, gid):
+    """One copy in its panel (centred at `at`): the surface triangles painted far to near
+    (orthographic view along `basis`), the contact nodes black and the virtual proxy red on top."""
+    xy, depth = project(x, basis)
+    xy = xy + at
+    order = np.argsort(depth[surf].mean(axis=1), kind="stable")  # farthest first
+    ax.add_collection(PolyCollection(xy[surf[order]], facecolors=np.asarray(face_colours)[order], edgecolors="0.25",
+                                     linewidths=0.15, zorder=1, gid=gid))
+    vp_xy = project(vp.reshape(1, 3), basis)[0] + at
+    pts = np.vstack([xy[list(contact)], vp_xy])
+    ax.scatter(pts[:, 0], pts[:, 1], c=["k"] * len(contact) + ["r"], s=[5] * len(contact) + [12], zorder=3)
+
+
+def draw_scale(ax, basis, centre, lim, radius):
+    """Below the bottom-left panel: a bar of the radius (rounded, mm; every panel has this scale),
+    and the object's x, y, z directions as every panel sees them, from VIEW."""
+    bar = max(1, round(radius * 1e3))
+    y = centre[1] - 0.93 * lim
+    ax.plot([centre[0] - 0.5 * bar, centre[0] + 0.5 * bar], [y, y], color="k", lw=1.2)
+    ax.text(centre[0], y - 0.02 * lim, "%d mm; view: elevation %g, azimuth %g deg" % ((bar,) + VIEW), fontsize=6,
+            ha="center", va="top")
+    o = centre + np.array([-0.92 * lim, -0.7 * lim])
+    for k, name in enumerate("xyz"):
+        d = 0.2 * lim * basis[:2, k]
+        ax.annotate("", xy=o + d, xytext=o, arrowprops=dict(arrowstyle="->", lw=0.6, color="0.3"))
+        ax.text(*(o + 1.3 * d), name, fontsize=5, color="0.3", ha="center", va="center")
 
 
 def copies_shown(users, cols):
@@ -330,6 +369,7 @@ def copies_shown(users, cols):
 
 
 FIGURES = ("fig_snapshots.png", "fig_node_position.png", "fig_device_force.png", "fig_energy.png", "fig_consensus.png")  # slowest first
+FORKED = ("fig_snapshots.png", "fig_consensus.png")  # what a forked child draws with a CPU idle: about half the time
 
 
 def load_run(run):
@@ -367,7 +407,6 @@ def save(fig, run, name):
     """The figure as RUN/NAME, PNG compression level 1 (the same pixels as the default level 6,
     ~10 % larger, a fraction of the encoding time)."""
     fig.savefig(os.path.join(run, name), dpi=100 if name == "fig_snapshots.png" else 110, pil_kwargs={"compress_level": 1})
-    plt.close(fig)
 
 
 def draw(run, data, names):
@@ -391,8 +430,8 @@ def idle_cpus():
 
 def main(run):
     """Draws every figure of `run` from its files read once. With a CPU idle, a forked child draws
-    the snapshot figure (the slowest: 3D panels) while this process draws the time series; on a
-    busy machine a second process would only add its own cost, so one process draws them all.
+    FORKED (about half the drawing time) while this process draws the others; on a busy machine a
+    second process would only add its own cost, so one process draws them all.
     Returns the exit status: 0 when every figure was drawn."""
     data = load_run(run)
     if idle_cpus() < 1:
@@ -400,27 +439,25 @@ def main(run):
     sys.stdout.flush(), sys.stderr.flush()
     pid = os.fork()
     if pid == 0:
-        os._exit(1 if draw(run, data, FIGURES[:1]) else 0)
-    failed = draw(run, data, FIGURES[1:])
+        os._exit(1 if draw(run, data, FORKED) else 0)
+    failed = draw(run, data, [n for n in FIGURES if n not in FORKED])
     _, status = os.waitpid(pid, 0)
     return 1 if failed or os.waitstatus_to_exitcode(status) != 0 else 0
 
 
 def warm_up():
     """What every figure needs and no run's data changes, done while the run is still going: the
-    fonts, the mathtext parser of a log axis's labels, a 3D panel and the PNG writer (the forked
-    workers inherit it all)."""
+    fonts, the mathtext parser of a log axis's labels, a polygon collection and the PNG writer (the
+    forked workers inherit it all)."""
     import io
-    fig = plt.figure(figsize=(2, 2))
+    fig = Figure(figsize=(2, 2))
     ax = fig.add_subplot(1, 2, 1)
     ax.semilogy([0, 1], [1e-3, 1e-1])
     ax.set_title("warm-up x (mm)", fontsize=8)
-    ax3 = fig.add_subplot(1, 2, 2, projection="3d")
-    ax3.add_collection3d(Poly3DCollection([[(0, 0, 0), (1, 0, 0), (0, 1, 0)]]))
-    ax3.text2D(0, 0, "t = 0 s", fontsize=7)
-    fig.tight_layout()
+    ax2 = fig.add_subplot(1, 2, 2)
+    ax2.add_collection(PolyCollection([[(0, 0), (1, 0), (0, 1)]]))
+    ax2.set_ylabel("t = 0 s", fontsize=7)
     fig.savefig(io.BytesIO(), format="png", dpi=20)
-    plt.close(fig)
 
 
 def wait_for_go():

@@ -4,6 +4,7 @@
 #             (contact_ticks > 0, device_force_max_N > 0, matched by a trace row with contact and a
 #             force) and keeps the energy/passivity bookkeeping (port and controller energies, B_i and
 #             eq. 18's minimum, both 0 with no neighbour, passivity condition met, users 1, transport none)
+#   diverged  a divergence bound the hand exceeds: exit 4, said in station-1.json, and no force after it
 #   view      with --view-port: the URL is printed, http://127.0.0.1:P/ serves the page (view.js); SIGTERM
 #             ends the run with the same report (exit 0, stopped_by_signal)
 #   errors    a bad option is named (--device, --nodes, an unknown one): exit 2; no device for
@@ -49,6 +50,32 @@ bad = [name for name, ok in checks if not ok]
 print(("FAILED contact summary: " + ", ".join(bad)) if bad else
       "ok contact summary: %d contact ticks of %d, max force %.3f N, port energy %.4f J (min %.4f J)" %
       (j["contact_ticks"], j["ticks_run"], j["device_force_max_N"], j["port_energy_final_J"], j["port_energy_min_J"]))
+sys.exit(1 if bad else 0)
+EOF
+
+# diverged: a divergence bound the hand's first touches exceed (station.divergence_speed_m_per_s in a
+# --config file) is a safety stop: exit 4, station-1.json says diverged and when, the verdict is not
+# "stable", and from then on no force is commanded although the hand still touches the object
+printf '[station]\ndivergence_speed_m_per_s = 1e-4\n' > "$out/diverge.toml"
+expect diverged 4 "error: diverged at [0-9.]+ s" -- "$bin" solo --device simulated --duration 2 --config "$out/diverge.toml" --out "$out/diverged"
+/usr/bin/python3 - "$out/diverged" <<'EOF' || fail=1
+import csv, json, math, sys
+d = sys.argv[1]
+j = json.load(open(d + "/station-1.json"))
+rows = list(csv.DictReader(open(d + "/station-1-trace.csv")))
+after = [r for r in rows if j.get("diverged_at_s") is not None and float(r["t_s"]) > j["diverged_at_s"]]
+force = lambda r: math.hypot(float(r["force_x_N"]), float(r["force_y_N"]), float(r["force_z_N"]))
+checks = [
+    ("exit_code 4, diverged, named in conditions", j["exit_code"] == 4 and j["diverged"] is True and "diverged" in j["conditions"]),
+    ("verdict not stable", j["verdict"] != "stable"),
+    ("rows after the divergence", len(after) > 100),
+    ("the hand still touches after it", sum(r["contact"] == "1" for r in after) > 0),
+    ("no force after it (safe state held)", all(force(r) == 0 for r in after)),
+]
+bad = [name for name, ok in checks if not ok]
+print(("FAILED diverged summary: " + ", ".join(bad)) if bad else
+      "ok diverged summary: diverged at %.3f s, %d rows after it (%d in contact), all with zero force, verdict %s" %
+      (j["diverged_at_s"], len(after), sum(r["contact"] == "1" for r in after), j["verdict"]))
 sys.exit(1 if bad else 0)
 EOF
 

@@ -1,13 +1,16 @@
 #include "firmware/run/merge.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include <Eigen/Core>
@@ -24,42 +27,77 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// A CSV file of numbers with a header line.
-struct Csv {
-  std::map<std::string, std::size_t> column;
-  std::vector<std::vector<double>> rows;
-  double at(std::size_t row, const std::string& name) const { return rows[row][column.at(name)]; }
+// One station's CSV file of numbers (a header line, then rows in increasing tick k, the first
+// column), read a row at a time: a merge holds a row per station, whatever the run's length.
+class CsvCursor {
+ public:
+  explicit CsvCursor(const std::string& path) : path_(path), f_(path) {
+    if (!f_) throw MergeError("cannot read " + path);
+    std::string line, cell;
+    if (!std::getline(f_, line)) throw MergeError(path + " is empty (no header line)");
+    std::istringstream head(line);
+    for (std::size_t i = 0; std::getline(head, cell, ','); ++i) column_[cell] = i;
+  }
+  // The next row; false at the end of the file. Throws on a malformed row or a tick out of order.
+  bool next() {
+    while (std::getline(f_, line_)) {
+      if (line_.empty()) continue;
+      split_numbers();
+      if (row_.size() != column_.size())
+        throw MergeError(path_ + ": a row has " + std::to_string(row_.size()) + " values, the header " + std::to_string(column_.size()));
+      const auto k = static_cast<std::int64_t>(row_[0]);
+      if (valid_ && k <= k_) throw MergeError(path_ + ": tick " + std::to_string(k) + " after tick " + std::to_string(k_) + " (rows must be in tick order)");
+      k_ = k;
+      return valid_ = true;
+    }
+    return valid_ = false;
+  }
+  // Steps to the first row at or after tick k; true when that row is tick k.
+  bool seek(std::int64_t k) {
+    while (valid_ && k_ < k) next();
+    return valid_ && k_ == k;
+  }
+  bool valid() const { return valid_; }
+  std::int64_t k() const { return k_; }
+  const std::vector<double>& row() const { return row_; }
+  bool has(const std::string& name) const { return column_.count(name) > 0; }
+  double at(const std::string& name) const { return row_[column_.at(name)]; }
+
+ private:
+  // line_'s comma-separated cells as numbers, as strtod reads them (an empty or non-numeric cell
+  // reads 0; from_chars, correctly rounded like glibc's strtod, where it takes the whole cell); a
+  // comma that ends the line opens no cell.
+  void split_numbers() {
+    row_.clear();
+    const char* p = line_.c_str();
+    const char* const end = p + line_.size();
+    while (p < end) {
+      const void* comma = std::memchr(p, ',', static_cast<std::size_t>(end - p));
+      const char* cell_end = comma == nullptr ? end : static_cast<const char*>(comma);
+      double v = 0;
+      if (std::from_chars(p, cell_end, v).ptr != cell_end) v = std::strtod(p, nullptr);  // anything from_chars does not take whole
+      row_.push_back(v);
+      if (comma == nullptr) break;
+      p = cell_end + 1;
+    }
+  }
+
+  std::string path_, line_;
+  std::ifstream f_;
+  std::map<std::string, std::size_t> column_;
+  std::vector<double> row_;
+  std::int64_t k_ = 0;
+  bool valid_ = false;
 };
 
-Csv read_csv(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw MergeError("cannot read " + path);
-  Csv c;
-  std::string line, cell;
-  if (!std::getline(f, line)) throw MergeError(path + " is empty (no header line)");
-  std::istringstream head(line);
-  for (std::size_t i = 0; std::getline(head, cell, ','); ++i) c.column[cell] = i;
-  while (std::getline(f, line)) {
-    if (line.empty()) continue;
-    std::vector<double> row;
-    std::istringstream in(line);
-    while (std::getline(in, cell, ',')) row.push_back(std::strtod(cell.c_str(), nullptr));
-    if (row.size() != c.column.size())
-      throw MergeError(path + ": a row has " + std::to_string(row.size()) + " values, the header " + std::to_string(c.column.size()));
-    c.rows.push_back(std::move(row));
-  }
-  return c;
-}
-
-// One station's files.
+// One station's files: its summary, and the paths of its trace and state CSV files.
 struct StationFiles {
   json summary;
-  Csv trace, state;
-  std::map<std::int64_t, std::size_t> trace_row, state_row;  // tick k -> row
+  std::string trace_path, state_path;
 };
 
-// Reads DIR/station-<i>.json (i = 1..N, N from the first) and its CSV files; refuses a station that
-// reported an error.
+// Reads DIR/station-<i>.json (i = 1..N, N from the first) and checks its CSV files' headers;
+// refuses a station that reported an error.
 std::vector<StationFiles> load_stations(const std::string& dir) {
   const std::string first = dir + "/station-1.json";
   if (!fs::exists(first)) throw MergeError("no station-1.json in " + dir + " (the output directory of `haptic-station run`)");
@@ -74,94 +112,150 @@ std::vector<StationFiles> load_stations(const std::string& dir) {
     s.summary = json::parse(f, nullptr, false);
     if (s.summary.is_discarded() || s.summary.value("station", 0) != i) throw MergeError(base + ".json is not station " + std::to_string(i) + "'s summary");
     if (!s.summary["error"].is_null()) throw MergeError("station " + std::to_string(i) + " reported an error: " + s.summary["error"].get<std::string>());
-    s.trace = read_csv(base + "-trace.csv");
-    s.state = read_csv(base + "-state.csv");
-    for (std::size_t r = 0; r < s.trace.rows.size(); ++r) s.trace_row[static_cast<std::int64_t>(s.trace.rows[r][0])] = r;
-    for (std::size_t r = 0; r < s.state.rows.size(); ++r) s.state_row[static_cast<std::int64_t>(s.state.rows[r][0])] = r;
+    s.trace_path = base + "-trace.csv";
+    s.state_path = base + "-state.csv";
+    CsvCursor{s.trace_path}, CsvCursor{s.state_path};  // both readable, with a header
     st.push_back(std::move(s));
   }
   return st;
 }
 
-// The ticks every station recorded in `rows`.
-std::vector<std::int64_t> common_ticks(const std::vector<StationFiles>& st, std::map<std::int64_t, std::size_t> StationFiles::*rows) {
-  std::vector<std::int64_t> ks;
-  for (const auto& [k, r] : st[0].*rows) {
-    bool all = true;
-    for (const auto& s : st) all = all && (s.*rows).count(k) > 0;
-    if (all) ks.push_back(k);
+// Every station's file of one kind (trace or state), stepped together through the ticks all of them
+// recorded, in increasing k.
+class CommonTicks {
+ public:
+  CommonTicks(const std::vector<StationFiles>& st, std::string StationFiles::*path) {
+    for (const auto& s : st) files_.emplace_back(s.*path);
   }
-  return ks;
-}
+  // The next tick every file has; false when one file has ended.
+  bool next() {
+    for (auto& f : files_)
+      if (!f.next()) return false;
+    for (;;) {
+      std::int64_t k = files_[0].k();
+      for (const auto& f : files_) k = std::max(k, f.k());
+      bool all = true;
+      for (auto& f : files_) {
+        f.seek(k);
+        if (!f.valid()) return false;
+        all = all && f.k() == k;
+      }
+      if (all) return true;
+    }
+  }
+  std::int64_t k() const { return files_[0].k(); }
+  const CsvCursor& operator[](std::size_t i) const { return files_[i]; }
 
-Eigen::Vector3d trace_force(const StationFiles& s, std::size_t row) {
-  return {s.trace.at(row, "force_x_N"), s.trace.at(row, "force_y_N"), s.trace.at(row, "force_z_N")};
-}
+ private:
+  std::vector<CsvCursor> files_;
+};
 
-// Forces and energies at every common trace tick; trace.csv rows. Returns the trace ticks.
-std::vector<std::int64_t> merge_traces(const std::vector<StationFiles>& st, double T, RunMetrics& m, std::FILE* trace) {
-  const std::vector<std::int64_t> ks = common_ticks(st, &StationFiles::trace_row);
+Eigen::Vector3d trace_force(const CsvCursor& c) { return {c.at("force_x_N"), c.at("force_y_N"), c.at("force_z_N")}; }
+
+// What the passes over the files keep of the first common ticks (eq. 13's d^2 is taken there).
+struct FirstTicks {
+  std::optional<std::int64_t> trace_k, state_k;
+  std::int64_t last_state_k = 0;
+  std::vector<double> vo_energy_J;             // per station, at the first common trace tick
+  std::vector<std::vector<double>> state_rows;  // per station, at the first common state tick (k, x...)
+};
+
+// Forces and energies at every common trace tick; trace.csv rows.
+void merge_traces(const std::vector<StationFiles>& st, double T, RunMetrics& m, std::FILE* trace, FirstTicks& first) {
+  CommonTicks ct(st, &StationFiles::trace_path);
   std::vector<Eigen::Vector3d> forces(st.size());
   static const char* names[] = {"node_x_m", "node_y_m", "node_z_m", "vp_x_m", "vp_y_m", "vp_z_m", "device_x_m", "device_y_m", "device_z_m"};
-  for (std::int64_t k : ks) {
+  while (ct.next()) {
+    const std::int64_t k = ct.k();
+    if (!first.trace_k) {
+      first.trace_k = k;
+      for (std::size_t i = 0; i < st.size(); ++i) first.vo_energy_J.push_back(ct[i].at("vo_energy_J"));
+    }
     model::StationTotals total;
     for (std::size_t i = 0; i < st.size(); ++i) {
-      const std::size_t r = st[i].trace_row.at(k);
-      forces[i] = trace_force(st[i], r);
-      total.add_energies(st[i].trace.at(r, "port_energy_J"), st[i].trace.at(r, "controller_energy_J"));
+      const CsvCursor& c = ct[i];
+      forces[i] = trace_force(c);
+      total.add_energies(c.at("port_energy_J"), c.at("controller_energy_J"));
       TraceRow row;
       row.t_s = static_cast<double>(k + 1) * T;
       row.user = static_cast<int>(i) + 1;
       for (int a = 0; a < 3; ++a) {
-        row.node[a] = st[i].trace.at(r, names[a]);
+        row.node[a] = c.at(names[a]);
         row.force[a] = forces[i][a];
-        row.vp[a] = st[i].trace.at(r, names[3 + a]);
-        row.device[a] = st[i].trace.at(r, names[6 + a]);
+        row.vp[a] = c.at(names[3 + a]);
+        row.device[a] = c.at(names[6 + a]);
       }
-      row.port_J = st[i].trace.at(r, "port_energy_J");
-      row.ctrl_J = st[i].trace.at(r, "controller_energy_J");
-      row.vo_J = st[i].trace.at(r, "vo_energy_J");
-      row.contact = st[i].trace.at(r, "contact") != 0;
+      row.port_J = c.at("port_energy_J");
+      row.ctrl_J = c.at("controller_energy_J");
+      row.vo_J = c.at("vo_energy_J");
+      row.contact = c.at("contact") != 0;
       write_trace_row(trace, row);
     }
     m.add_forces(k, forces);
     m.add_energies(total.port_J, total.controller_J);
   }
-  return ks;
 }
 
+// Forces and energies of the stations' traces at state tick k when every station traced it.
+void add_traced(std::vector<CsvCursor>& traces, std::int64_t k, SeriesRow& row) {
+  bool traced = true;
+  for (auto& c : traces) traced = c.seek(k) && traced;
+  if (!traced) return;
+  model::StationTotals total;
+  std::vector<Eigen::Vector3d> forces;
+  for (const auto& c : traces) {
+    forces.push_back(trace_force(c));
+    total.add_force(forces.back());
+    total.add_energies(c.at("port_energy_J"), c.at("controller_energy_J"));
+  }
+  row.port_total_J = total.port_J;
+  row.ctrl_total_J = total.controller_J;
+  row.force_sum_x_N = total.force_N[0];
+  row.force_sum_norm_N = total.force_N.norm();
+  row.set_forces(model::force_balance(forces));
+}
+
+// The snapshots' copies: at the first common state tick at or after each time (the last one when the
+// run ended before it), and each proxy at the first common trace tick at or after that one.
+struct SnapshotPicks {
+  std::vector<double> times_s;
+  std::vector<std::optional<std::int64_t>> k;         // per time: the state tick taken
+  std::vector<std::vector<std::vector<double>>> x;    // per time, per station: the state row (k, x...)
+  std::vector<std::vector<std::array<double, 3>>> vp;  // per time, per station (filled by pick_snapshot_proxies)
+  std::vector<std::vector<double>> last_rows;         // the last common state tick's rows
+  void take(const CommonTicks& ct, std::size_t n, double T) {
+    for (std::size_t p = 0; p < times_s.size(); ++p)
+      if (!k[p] && static_cast<double>(ct.k() + 1) * T >= times_s[p] - 1e-9) k[p] = ct.k(), x[p] = rows(ct, n);
+    last_rows = rows(ct, n);
+  }
+  static std::vector<std::vector<double>> rows(const CommonTicks& ct, std::size_t n) {
+    std::vector<std::vector<double>> r;
+    for (std::size_t i = 0; i < n; ++i) r.push_back(ct[i].row());
+    return r;
+  }
+};
+
 // The copies at every common state tick; series.csv rows (energies and forces where all traced).
-std::vector<std::int64_t> merge_states(const std::vector<StationFiles>& st, const Eigen::VectorXd& x_d, int trace_node, double T, RunMetrics& m,
-                                       std::FILE* series) {
-  const std::vector<std::int64_t> ks = common_ticks(st, &StationFiles::state_row);
+void merge_states(const std::vector<StationFiles>& st, const Eigen::VectorXd& x_d, int trace_node, double T, RunMetrics& m, std::FILE* series,
+                  FirstTicks& first, SnapshotPicks& snaps) {
+  CommonTicks ct(st, &StationFiles::state_path);
+  std::vector<CsvCursor> traces;
+  for (const auto& s : st) traces.emplace_back(s.trace_path);
+  for (auto& c : traces) c.next();
   std::vector<const double*> x(st.size());
-  for (std::int64_t k : ks) {
-    for (std::size_t i = 0; i < st.size(); ++i) x[i] = st[i].state.rows[st[i].state_row.at(k)].data() + 1;
+  while (ct.next()) {
+    const std::int64_t k = first.last_state_k = ct.k();
+    if (!first.state_k) first.state_k = k, first.state_rows = SnapshotPicks::rows(ct, st.size());
+    snaps.take(ct, st.size(), T);
+    for (std::size_t i = 0; i < st.size(); ++i) x[i] = ct[i].row().data() + 1;
     const CopiesSample c = measure_copies(x, x_d);
     m.add_copies(k, c);
     SeriesRow row{static_cast<double>(k + 1) * T, c.consensus_error_m, c.deformation_m, NAN, NAN, NAN, NAN};
     const Eigen::Vector3d node = model::mean_node_position_m(x, trace_node);
     for (int a = 0; a < 3; ++a) row.trace_node_mean_m[a] = node[a];
-    bool traced = true;
-    for (const auto& s : st) traced = traced && s.trace_row.count(k) > 0;
-    if (traced) {
-      model::StationTotals total;
-      std::vector<Eigen::Vector3d> forces;
-      for (const auto& s : st) {
-        const std::size_t r = s.trace_row.at(k);
-        forces.push_back(trace_force(s, r));
-        total.add_force(forces.back());
-        total.add_energies(s.trace.at(r, "port_energy_J"), s.trace.at(r, "controller_energy_J"));
-      }
-      row.port_total_J = total.port_J;
-      row.ctrl_total_J = total.controller_J;
-      row.force_sum_x_N = total.force_N[0];
-      row.force_sum_norm_N = total.force_N.norm();
-      row.set_forces(model::force_balance(forces));
-    }
+    add_traced(traces, k, row);
     write_series_row(series, row);
   }
-  return ks;
 }
 
 std::optional<double> opt_number(const json& j, const char* key) {
@@ -211,39 +305,83 @@ json merged_link(const std::vector<StationFiles>& st, int to, const json& rx, Li
   return l;
 }
 
-// States station s pushed at run ticks k with t0 <= k T < t1: the kTraceStateSent bits of its trace
-// (run/summary.hpp), as the simulator's sent_between counts them; null when the trace does not hold
-// every tick or predates the bit.
-json states_sent_between(const StationFiles& s, double T, double t0, double t1) {
-  if (!s.summary.value("trace_marks_state_sent", false) || s.summary.value("trace_every", 0) != 1) return nullptr;
-  std::uint64_t n = 0;
-  for (const auto& [k, row] : s.trace_row) {
-    const double t = static_cast<double>(k) * T;
-    if (t >= t0 - 1e-9 && t < t1 - 1e-9 && (static_cast<std::uint32_t>(s.trace.at(row, "flags")) & kTraceStateSent)) ++n;
+// What one pass over a station's own trace (every row it wrote, not only the common ticks) gives:
+// its steps T_k and the states it pushed in two windows of run time.
+struct TraceScan {
+  json steps;                  // steps_json()
+  json sent_in_hold, sent_after;  // states_sent_between() of the hold window and after consensus
+};
+
+// Station f's trace scanned once: the steps T_k it integrated with, from step_s (null: an older
+// trace without it): smallest, mean, largest over the traced ticks, and, when every tick was traced,
+// how far the integrated time (the sum of T_k) ran from the tick grid (ticks x T) by the last one.
+// The merged metrics stay on the common tick grid (the stations' ticks are scheduled on it, so
+// copies are compared at the same wall time); this says how the variable-step integration kept pace
+// with it. And the states it pushed at run ticks k with t0 <= k T < t1 in each window: the
+// kTraceStateSent bits of its trace (run/summary.hpp), as the simulator's sent_between counts them;
+// null when the trace does not hold every tick or predates the bit.
+TraceScan scan_trace(const StationFiles& f, const std::array<double, 2>& hold, const std::array<double, 2>& after) {
+  const double T = f.summary["dt_s"].get<double>();
+  const bool every = f.summary.value("trace_every", 1) == 1;
+  const bool marks = f.summary.value("trace_marks_state_sent", false) && f.summary.value("trace_every", 0) == 1;
+  CsvCursor c(f.trace_path);
+  const bool steps = c.has("step_s");
+  double lo = INFINITY, hi = 0, sum = 0, n = 0;
+  std::uint64_t in_hold = 0, in_after = 0;
+  while (c.next()) {
+    if (steps) {
+      const double t = c.at("step_s");
+      lo = std::min(lo, t), hi = std::max(hi, t), sum += t, n += 1;
+    }
+    if (!marks || !(static_cast<std::uint32_t>(c.at("flags")) & kTraceStateSent)) continue;
+    const double t = static_cast<double>(c.k()) * T;
+    in_hold += t >= hold[0] - 1e-9 && t < hold[1] - 1e-9;
+    in_after += t >= after[0] - 1e-9 && t < after[1] - 1e-9;
   }
-  return n;
+  TraceScan s;
+  s.steps = !steps || n == 0 ? json(nullptr)
+                             : json{{"min_s", lo}, {"mean_s", sum / n}, {"max_s", hi}, {"integrated_minus_grid_s", every ? json(sum - n * T) : json(nullptr)}};
+  s.sent_in_hold = marks ? json(in_hold) : json(nullptr);
+  s.sent_after = marks ? json(in_after) : json(nullptr);
+  return s;
+}
+
+// The merged run's hold window and its time after consensus (to the end of the run), in s.
+struct SendWindows {
+  double T;
+  std::array<double, 2> hold, after;
+};
+
+SendWindows send_windows(const std::vector<StationFiles>& st, const json& j) {
+  const double T = st[0].summary["dt_s"].get<double>();
+  const double end = static_cast<double>(st[0].summary["ticks_run"].get<std::int64_t>() + 1) * T;
+  const auto& hw = j["hold_window_s"];
+  const bool settled = j["consensus_time_s"].is_number();
+  const double from = settled ? j["release_time_s"].get<double>() + j["consensus_time_s"].get<double>() : end;
+  return {T, {hw[0].get<double>(), hw[1].get<double>()}, {from, end}};
+}
+
+// Per station, scan_trace() over the merged run's send windows.
+std::vector<TraceScan> scan_traces(const std::vector<StationFiles>& st, const SendWindows& w) {
+  std::vector<TraceScan> out;
+  for (const auto& f : st) out.push_back(scan_trace(f, w.hold, w.after));
+  return out;
 }
 
 // Per link, the states its sender pushed in the hold window and after consensus (every state goes
 // to every neighbour), and their totals in `packets`, like the simulator's summary.
-void add_windowed_sends(const std::vector<StationFiles>& st, json& j) {
-  const double T = st[0].summary["dt_s"].get<double>();
-  const double end = static_cast<double>(st[0].summary["ticks_run"].get<std::int64_t>() + 1) * T;
-  const auto& hw = j["hold_window_s"];
-  const double h0 = hw[0].get<double>(), h1 = hw[1].get<double>();
-  const bool settled = j["consensus_time_s"].is_number();
-  const double from = settled ? j["release_time_s"].get<double>() + j["consensus_time_s"].get<double>() : end;
+void add_windowed_sends(const SendWindows& w, const std::vector<TraceScan>& scans, json& j) {
   json hold_total = 0, after_total = 0;
   for (json& l : j["link_stats"]) {
-    const StationFiles& s = st[static_cast<std::size_t>(l["from"].get<int>() - 1)];
-    l["sent_in_hold_window"] = states_sent_between(s, T, h0, h1);
-    l["sent_after_consensus"] = states_sent_between(s, T, from, end);
+    const TraceScan& s = scans[static_cast<std::size_t>(l["from"].get<int>() - 1)];
+    l["sent_in_hold_window"] = s.sent_in_hold;
+    l["sent_after_consensus"] = s.sent_after;
     for (auto [key, total] : {std::pair<const char*, json*>{"sent_in_hold_window", &hold_total}, {"sent_after_consensus", &after_total}})
       *total = l[key].is_null() || total->is_null() ? json(nullptr) : json(total->get<std::uint64_t>() + l[key].get<std::uint64_t>());
   }
   j["packets"]["sent_in_hold_window"] = hold_total;
   j["packets"]["sent_after_consensus"] = after_total;
-  j["packets"]["after_consensus_s"] = std::max(0.0, end - T - from);
+  j["packets"]["after_consensus_s"] = std::max(0.0, w.after[1] - w.T - w.after[0]);
 }
 
 // Eq. (18) at station i assumed Nbar_ij + Nbar_ji = its own measured round trip plus the agreement
@@ -267,24 +405,6 @@ bool check_bounds(json& links) {
     all = all && l["bounds_consistent"].get<bool>();
   }
   return all;
-}
-
-// The steps T_k a station integrated with, from its trace's step_s (null: an older trace without it):
-// smallest, mean, largest over the traced ticks, and, when every tick was traced, how far the
-// integrated time (the sum of T_k) ran from the tick grid (ticks x T) by the last one. The merged
-// metrics stay on the common tick grid (the stations' ticks are scheduled on it, so copies are
-// compared at the same wall time); this says how the variable-step integration kept pace with it.
-json steps_json(const StationFiles& f) {
-  if (!f.trace.column.count("step_s") || f.trace.rows.empty()) return nullptr;
-  double lo = INFINITY, hi = 0, sum = 0;
-  for (std::size_t r = 0; r < f.trace.rows.size(); ++r) {
-    const double t = f.trace.at(r, "step_s");
-    lo = std::min(lo, t), hi = std::max(hi, t), sum += t;
-  }
-  const auto n = static_cast<double>(f.trace.rows.size());
-  const bool every = f.summary.value("trace_every", 1) == 1;
-  const double T = f.summary["dt_s"].get<double>();
-  return {{"min_s", lo}, {"mean_s", sum / n}, {"max_s", hi}, {"integrated_minus_grid_s", every ? json(sum - n * T) : json(nullptr)}};
 }
 
 // What a reader must not miss in a merged run: a link whose index delay N went over its guard N̄
@@ -315,17 +435,17 @@ json merge_flags(const std::vector<StationFiles>& st) {
   return flags;
 }
 
-json station_rows(const std::vector<StationFiles>& st) {
+json station_rows(const std::vector<StationFiles>& st, const std::vector<TraceScan>& scans) {
   json rows = json::array();
-  for (const auto& f : st) {
-    const json& s = f.summary;
+  for (std::size_t i = 0; i < st.size(); ++i) {
+    const json& s = st[i].summary;
     rows.push_back({{"station", s["station"]}, {"ticks_run", s["ticks_run"]}, {"overruns", s["loop"]["overruns"]},
                     {"missed_cycles", s["loop"]["missed_cycles"]}, {"edge_drop_events", s.value("edge_drop_events", json(0))},
                     {"fully_real_time", s["rt"]["fully_real_time"]}, {"rt_warnings", s["rt"]["warnings"]},
                     {"stopped_by_signal", s["stopped_by_signal"]}, {"device", s["device"]}, {"wall_time_s", s["wall_time_s"]},
                     {"exit_code", s.value("exit_code", json(nullptr))}, {"conditions", s.value("conditions", json::array())},
                     {"host", s.value("host", json(nullptr))},
-                    {"steps", steps_json(f)}});
+                    {"steps", scans[i].steps}});
   }
   return rows;
 }
@@ -348,24 +468,32 @@ void add_station_arrays(const std::vector<StationFiles>& st, json& j) {
 // common trace tick, the consensus springs of the links from the copies at the first common state
 // tick (bounded by lambda_max(P): exact while the copies agree, as they do when every station starts
 // from rest) and, under pspm, every edge end's initial reservoir.
-double merged_d2_J(const std::vector<StationFiles>& st, std::int64_t trace_k, std::int64_t state_k) {
+double merged_d2_J(const std::vector<StationFiles>& st, const FirstTicks& first) {
   const json& s0 = st[0].summary;
-  std::vector<double> copies, springs;
-  for (const auto& s : st) copies.push_back(s.trace.at(s.trace_row.at(trace_k), "vo_energy_J"));
+  std::vector<double> springs;
   const double lambda_P = s0.value("consensus_P_lambda_max_N_per_m", 0.0);
   for (const auto& l : s0.value("topology", json::array())) {  // absent in older station files: no springs counted
-    const StationFiles& a = st[static_cast<std::size_t>(l[0].get<int>() - 1)];
-    const StationFiles& b = st[static_cast<std::size_t>(l[1].get<int>() - 1)];
-    const auto& xa = a.state.rows[a.state_row.at(state_k)];
-    const auto& xb = b.state.rows[b.state_row.at(state_k)];
+    const auto& xa = first.state_rows[static_cast<std::size_t>(l[0].get<int>() - 1)];
+    const auto& xb = first.state_rows[static_cast<std::size_t>(l[1].get<int>() - 1)];
     springs.push_back(model::consensus_spring_bound_J(lambda_P, xa.data() + 1, xb.data() + 1, static_cast<int>(xa.size()) - 1));
   }
   const rt::ConsensusPassivity law = rt::parse_consensus_passivity(s0.value("consensus_passivity", std::string("eq18")), "consensus_passivity");
-  return model::eq13_d2_J(copies, springs, model::pspm_reservoirs_J(law, static_cast<int>(springs.size()), s0.value("pspm_reservoir0_J", 0.0)));
+  return model::eq13_d2_J(first.vo_energy_J, springs, model::pspm_reservoirs_J(law, static_cast<int>(springs.size()), s0.value("pspm_reservoir0_J", 0.0)));
 }
 
-// The metrics from the stations' records (trace.csv and series.csv written on the way).
-RunMetricsResult merged_metrics(const std::vector<StationFiles>& st, const std::string& dir, double& passivity_bound_J) {
+// The snapshot times a run's stations name (none for an older station's files).
+SnapshotPicks snapshot_picks(const json& s0) {
+  SnapshotPicks p;
+  if (!s0.contains("snapshot_times_s") || !s0.contains("scene_surface")) return p;
+  p.times_s = s0["snapshot_times_s"].get<std::vector<double>>();
+  p.k.resize(p.times_s.size());
+  p.x.resize(p.times_s.size());
+  return p;
+}
+
+// The metrics from the stations' records (trace.csv and series.csv written on the way), and the
+// snapshots' copies picked on the way.
+RunMetricsResult merged_metrics(const std::vector<StationFiles>& st, const std::string& dir, double& passivity_bound_J, SnapshotPicks& snaps) {
   const json& s0 = st[0].summary;
   const double T = s0["dt_s"].get<double>();
   RunMetrics m(metrics_windows_from_json(s0), T);
@@ -374,42 +502,57 @@ RunMetricsResult merged_metrics(const std::vector<StationFiles>& st, const std::
   OutFile trace = open_out_file(dir + "/trace.csv"), series = open_out_file(dir + "/series.csv");
   write_trace_header(trace.get());
   write_series_header(series.get());
-  const auto trace_ks = merge_traces(st, T, m, trace.get());
-  const auto state_ks = merge_states(st, x_d, s0.value("trace_node", 0), T, m, series.get());
-  if (trace_ks.empty() || state_ks.empty()) throw MergeError("the stations in " + dir + " share no recorded tick");
+  FirstTicks first;
+  merge_traces(st, T, m, trace.get(), first);
+  merge_states(st, x_d, s0.value("trace_node", 0), T, m, series.get(), first, snaps);
+  if (!first.trace_k || !first.state_k) throw MergeError("the stations in " + dir + " share no recorded tick");
   merge_station_flags(st, m);
-  passivity_bound_J = merged_d2_J(st, trace_ks.front(), state_ks.front());
-  return m.result(state_ks.back() + 1);
+  passivity_bound_J = merged_d2_J(st, first);
+  return m.result(first.last_state_k + 1);
 }
 
-// The copies at the scenario's snapshot times, as the simulator takes them: at the first common
-// state tick at or after each time (the last one when the run ended before it), with each proxy
-// from the first trace tick at or after that one. Writes DIR/snapshots.json (the simulator's file).
-void write_merged_snapshots(const std::vector<StationFiles>& st, double T, const std::string& dir) {
-  const json& s0 = st[0].summary;
-  if (!s0.contains("snapshot_times_s") || !s0.contains("scene_surface")) return;  // an older station's files
-  const std::vector<std::int64_t> ks = common_ticks(st, &StationFiles::state_row), trace_ks = common_ticks(st, &StationFiles::trace_row);
-  if (ks.empty() || trace_ks.empty()) return;
+// Each snapshot's proxies: at the first common trace tick at or after its state tick (the last
+// common trace tick when there is none), one more pass over the traces.
+void pick_snapshot_proxies(const std::vector<StationFiles>& st, SnapshotPicks& p) {
+  p.vp.assign(p.times_s.size(), {});
+  CommonTicks ct(st, &StationFiles::trace_path);
+  std::vector<std::array<double, 3>> last;
+  auto proxies = [&] {
+    std::vector<std::array<double, 3>> v;
+    for (std::size_t i = 0; i < st.size(); ++i) v.push_back({ct[i].at("vp_x_m"), ct[i].at("vp_y_m"), ct[i].at("vp_z_m")});
+    return v;
+  };
+  while (ct.next()) {
+    last = proxies();
+    for (std::size_t s = 0; s < p.times_s.size(); ++s)
+      if (p.vp[s].empty() && ct.k() >= *p.k[s]) p.vp[s] = last;
+  }
+  for (auto& v : p.vp)
+    if (v.empty()) v = last;
+}
+
+// The copies at the scenario's snapshot times, as the simulator takes them (SnapshotPicks). Writes
+// DIR/snapshots.json (the simulator's file).
+void write_merged_snapshots(const std::vector<StationFiles>& st, double T, const std::string& dir, SnapshotPicks& p) {
+  if (p.times_s.empty()) return;
+  for (std::size_t s = 0; s < p.times_s.size(); ++s)
+    if (!p.k[s]) p.k[s] = static_cast<std::int64_t>(p.last_rows[0][0]), p.x[s] = p.last_rows;  // the run ended before it
+  pick_snapshot_proxies(st, p);
   std::vector<Snapshot> snaps;
-  for (double t : s0["snapshot_times_s"].get<std::vector<double>>()) {
-    auto it = std::find_if(ks.begin(), ks.end(), [&](std::int64_t k) { return static_cast<double>(k + 1) * T >= t - 1e-9; });
-    const std::int64_t k = it == ks.end() ? ks.back() : *it;
-    if (!snaps.empty() && snaps.back().t_s == static_cast<double>(k + 1) * T) continue;
-    auto tr = std::lower_bound(trace_ks.begin(), trace_ks.end(), k);
-    const std::int64_t kt = tr == trace_ks.end() ? trace_ks.back() : *tr;
+  for (std::size_t s = 0; s < p.times_s.size(); ++s) {
+    const double t = static_cast<double>(*p.k[s] + 1) * T;
+    if (!snaps.empty() && snaps.back().t_s == t) continue;
     Snapshot sn;
-    sn.t_s = static_cast<double>(k + 1) * T;
-    for (const auto& s : st) {
-      const std::vector<double>& row = s.state.rows[s.state_row.at(k)];
-      sn.x_m.emplace_back(row.begin() + 1, row.end());
-      const std::size_t r = s.trace_row.at(kt);
-      sn.vp_m.push_back({s.trace.at(r, "vp_x_m"), s.trace.at(r, "vp_y_m"), s.trace.at(r, "vp_z_m")});
+    sn.t_s = t;
+    for (std::size_t i = 0; i < st.size(); ++i) {
+      sn.x_m.emplace_back(p.x[s][i].begin() + 1, p.x[s][i].end());
+      sn.vp_m.push_back(p.vp[s][i]);
     }
     snaps.push_back(std::move(sn));
   }
   std::vector<std::vector<int>> contacts;
-  for (const auto& s : st) contacts.push_back(s.summary.value("contact_nodes", std::vector<int>{}));
-  write_snapshots_json(dir + "/snapshots.json", s0["scene_surface"].get<std::vector<std::array<int, 3>>>(), contacts, snaps);
+  for (const auto& f : st) contacts.push_back(f.summary.value("contact_nodes", std::vector<int>{}));
+  write_snapshots_json(dir + "/snapshots.json", st[0].summary["scene_surface"].get<std::vector<std::array<int, 3>>>(), contacts, snaps);
 }
 
 // What the stations' energy gates and edge-drop rules did, added up (older station files without
@@ -440,7 +583,8 @@ json merge_run(const std::string& dir) {
   if (s0.contains("consensus_passivity")) j["consensus_passivity"] = s0["consensus_passivity"];
   j["mode"] = "run (" + std::to_string(st.size()) + " processes, " + s0.value("transport", std::string("?")) + ")";
   double d2 = 0;
-  const RunMetricsResult m = merged_metrics(st, dir, d2);
+  SnapshotPicks snaps = snapshot_picks(s0);
+  const RunMetricsResult m = merged_metrics(st, dir, d2, snaps);
   j.update(metrics_json(m));
   j["passivity_bound_J"] = d2;
   j["eq13_broken"] = model::eq13_broken(m.port_energy_min_J, d2);
@@ -459,14 +603,16 @@ json merge_run(const std::string& dir) {
   j["bounds_consistent_all_links"] = consistent;
   j["packets"] = packets_json(totals);
   j["link_stats"] = links;
-  add_windowed_sends(st, j);
-  j["stations"] = station_rows(st);
+  const SendWindows windows = send_windows(st, j);
+  const std::vector<TraceScan> scans = scan_traces(st, windows);
+  add_windowed_sends(windows, scans, j);
+  j["stations"] = station_rows(st, scans);
   j["flags"] = merge_flags(st);  // N > N̄ on a link, a starving host: said on the result line too
   const GateSummary gate = merged_gate(st, j);
   j["gate"] = gate_json(gate);
   j["verdict"] = run_verdict(j.value("diverged", false), j.value("unstable", false), gate, j["eq13_broken"].get<bool>());
   write_json_file(dir + "/summary.json", j);
-  write_merged_snapshots(st, s0["dt_s"].get<double>(), dir);
+  write_merged_snapshots(st, s0["dt_s"].get<double>(), dir, snaps);
   return j;
 }
 

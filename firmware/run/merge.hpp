@@ -6,7 +6,9 @@
 // (consensus error, deformation, consensus times) use the ticks where all stations recorded their
 // state (station.state_every); forces and energies the ticks all stations traced. Per link it adds
 // what the stations measured (delay, loss, round trips) and whether the round-trip bounds enforced
-// at both ends stay within what each end assumed in eq. (18). Not RT-safe.
+// at both ends stay within what each end assumed in eq. (18). The stations' CSV files (in tick
+// order) are read a row at a time, a few passes: the merge's memory does not grow with the run's
+// length. Not RT-safe.
 #include <stdexcept>
 #include <string>
 

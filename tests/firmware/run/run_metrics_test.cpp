@@ -3,6 +3,10 @@
 // to 10 % / 1 % of the error at release, and the merge of station files on their common ticks.
 #include <CppUTest/TestHarness.h>
 
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -175,9 +179,10 @@ json station_json(int id, int users, double dt) {
   return j;
 }
 
-// Two stations, ticks 0..9 traced, states every 2 ticks; copy 2's node 0 is `gap(k)` m off in x.
-// Station 1 sent its state (trace flag kTraceStateSent) at k = 0, 3, 6, 9, station 2 at every tick.
-std::string write_two_stations(const std::string& name, double (*gap)(std::int64_t)) {
+// Two stations, ticks 0..ticks-1 traced (10 by default), states every 2 ticks; copy 2's node 0 is
+// `gap(k)` m off in x. Station 1 sent its state (trace flag kTraceStateSent) at k = 0, 3, 6, 9, ...,
+// station 2 at every tick.
+std::string write_two_stations(const std::string& name, double (*gap)(std::int64_t), int ticks = 10) {
   const std::string dir = (fs::temp_directory_path() / name).string();
   fs::remove_all(dir);
   fs::create_directories(dir);
@@ -187,19 +192,38 @@ std::string write_two_stations(const std::string& name, double (*gap)(std::int64
     std::ofstream tr(base + "-trace.csv");
     tr << "k,t_s,node_x_m,node_y_m,node_z_m,force_x_N,force_y_N,force_z_N,vp_x_m,vp_y_m,vp_z_m,device_x_m,device_y_m,device_z_m,"
           "port_energy_J,controller_energy_J,vo_energy_J,contact,flags,max_speed_m_per_s,wake_latency_ns" << (id == 2 ? ",step_s\n" : "\n");
-    for (int k = 0; k < 10; ++k) {  // station 2 integrated with T_k = 9, 10, 11, 9, ... ms (station 1: a trace without step_s)
+    for (int k = 0; k < ticks; ++k) {  // station 2 integrated with T_k = 9, 10, 11, 9, ... ms (station 1: a trace without step_s)
       tr << k << "," << (k + 1) * 0.01 << ",0,0,0," << (id == 1 ? 1.0 : -1.0) << ",0,0,0,0,0,0,0,0," << -0.001 * k << ",0,0.5,1," << (id == 2 || k % 3 == 0 ? kTraceStateSent : 0u) << ",0,0";
       if (id == 2) tr << "," << 0.01 + 0.001 * (k % 3 - 1);
       tr << "\n";
     }
     std::ofstream st(base + "-state.csv");
     st << "k,x0,x1,x2,x3,x4,x5\n";
-    for (int k = 0; k < 10; k += 2) st << k << "," << (id == 2 ? gap(k) : 0.0) << ",0,0,1,0,0\n";
+    for (int k = 0; k < ticks; k += 2) st << k << "," << (id == 2 ? gap(k) : 0.0) << ",0,0,1,0,0\n";
   }
   return dir;
 }
 
 double shrinking_gap(std::int64_t k) { return k < 5 ? 4e-3 : 4e-3 / static_cast<double>(k * k); }
+
+// The peak resident memory (kB) of a child process that merges `dir` (it starts as a copy of this
+// one, so two children compare the merge's own growth).
+long merge_peak_kB(const std::string& dir) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    try {
+      merge_run(dir);
+    } catch (...) {
+      _exit(1);
+    }
+    _exit(0);
+  }
+  int status = 0;
+  rusage ru{};
+  wait4(pid, &status, 0, &ru);
+  CHECK_TEXT(WIFEXITED(status) && WEXITSTATUS(status) == 0, ("the merge of " + dir + " failed").c_str());
+  return ru.ru_maxrss;
+}
 
 }  // namespace
 
@@ -339,6 +363,18 @@ TEST(RunMerge, ALinkOverItsIndexDelayBoundAndAStarvingHostAreFlagged) {
                s["flags"][1].get<std::string>().c_str());
   CHECK_TRUE(s["stations"][1]["host"]["starving"].get<bool>());
   STRCMP_CONTAINS("; FLAGGED: link 2<-1: N max 74 > N̄ 3 (5 edge drops); station 2: host STARVING", merge_result_line(s).c_str());
+}
+
+// A merge reads the stations' files a row at a time: a run 100 times longer (200,000 traced ticks a
+// station: held at once, ~180 MB of rows) merges in the same memory as a short one.
+TEST(RunMerge, TheMergesMemoryDoesNotGrowWithTheRunsLength) {
+  const std::string short_dir = write_two_stations("haptic-metrics-merge-short", shrinking_gap, 2000);
+  const std::string long_dir = write_two_stations("haptic-metrics-merge-long", shrinking_gap, 200000);
+  const long short_kB = merge_peak_kB(short_dir), long_kB = merge_peak_kB(long_dir);
+  CHECK_TEXT(long_kB < short_kB + 8 * 1024,
+             ("peak RSS " + std::to_string(long_kB) + " kB merging 200,000 ticks against " + std::to_string(short_kB) + " kB for 2,000").c_str());
+  fs::remove_all(short_dir);
+  fs::remove_all(long_dir);
 }
 
 TEST(RunMerge, AMissingOrFailedStationIsRefusedNamingIt) {

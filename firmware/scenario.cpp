@@ -460,6 +460,7 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
   c.consensus_passivity = spec.consensus_passivity;
   c.pspm_reservoir0_J = spec.pspm_reservoir0_J;
   c.predict_held_state = spec.tx_deadband.predictive;
+  c.return_ramp_s = spec.return_ramp_s;
   if (spec.tx_deadband.enabled()) c.predict_held_limit_m = spec.tx_deadband.prediction_limit_m();
   c.vp = spec.vp;
   c.contact_nodes = contact_nodes[static_cast<std::size_t>(i)];

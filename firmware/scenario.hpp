@@ -133,6 +133,9 @@ struct ScenarioSpec {
   // exceeds this acts as the damper until the account has fallen to half of it. 0 = off.
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
   double edge_energy_leak_W = rt::kDefaultEdgeEnergyLeakW;  // the accounts' leak (rt/edge_energy.hpp)
+  // An edge returning after an outage ramps in over this long (rt/return_ramp.hpp); 0 = off (the
+  // simulator's default; a station's is station.return_ramp_s).
+  double return_ramp_s = 0;
   double divergence_speed_m_per_s = 50;  // a node faster than this: diverged, safe state (rt::StationConfig)
   // --consensus-passivity eq18|pspm (rt/set_position_modulation.hpp): with pspm, B_i defaults to 0
   // (eq. 14 holds by construction) and pspm_reservoir0_J is each edge's initial reservoir.

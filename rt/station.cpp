@@ -49,6 +49,8 @@ void StationConfig::validate() const {
   if (!(predict_held_limit_m >= 0)) bad("predict_held_limit_m", ">= 0 (+inf: unlimited)");
   if (predict_held_state && consensus_passivity != ConsensusPassivity::kSetPositionModulation)
     bad("predict_held_state", "used only with consensus_passivity = pspm (eq. 18 does not cover extrapolated data)");
+  if (!(return_ramp_s >= 0 && std::isfinite(return_ramp_s))) bad("return_ramp_s", "finite and >= 0 (0: off)");
+  if (!(return_ramp_after_s >= 0 && std::isfinite(return_ramp_after_s))) bad("return_ramp_after_s", "finite and >= 0");
   if (static_cast<int>(neighbors.size()) > kMaxNeighbors) bad("neighbors", "at most " + std::to_string(kMaxNeighbors));
   for (const auto& n : neighbors) {
     if (!n.gains) bad("neighbors[].gains", "set");
@@ -186,6 +188,9 @@ void StationCore::init_edges() {
     edge_gate_.init(nn, bounds, releases);
     edge_energy_.set_leak(leaks);
   }
+  const bool ramps = cfg_.return_ramp_s > 0 && pspm_.empty();
+  return_ramp_.init(nn, dofs_, ramps ? std::llround(cfg_.return_ramp_s / cfg_.period_s) : 0,
+                    std::llround(cfg_.return_ramp_after_s / cfg_.period_s));
 }
 
 long StationCore::tick_bytes() const {
@@ -793,6 +798,7 @@ double StationCore::advance_state() {
     const bool gated = edge_gate_.update(j, edge_energy_.edge_J(j));
     if (gated) flags |= kEdgeEnergyGated;
     active_[j] = (ok && !gated) ? 1 : 0;
+    views_[j].x_hat = return_ramp_.target(j, k, ok, views_[j].x_hat, x_.data());  // x_hat itself unless ramping
     if (ok) {
       edge_was_dropped_[j] = 0;
     } else {

@@ -30,6 +30,7 @@
 #include "rt/edge_energy.hpp"
 #include "rt/gains.hpp"
 #include "rt/multi_term_operator.hpp"
+#include "rt/return_ramp.hpp"
 #include "rt/rx_link.hpp"
 #include "rt/scene.hpp"
 #include "rt/set_position_modulation.hpp"
@@ -103,6 +104,12 @@ struct StationConfig {
   // ... with each coordinate's extrapolation offset h T v_hat limited to this, m (the sender's
   // TxDeadbandConfig::prediction_limit_m(); +inf: unlimited).
   double predict_held_limit_m = std::numeric_limits<double>::infinity();
+  // An edge whose data returns after an outage of at least return_ramp_after_s (or any edge after
+  // arm_return_ramps(): a rejoin) couples to the neighbour's copy minus the offset between the two
+  // copies at the return, taken off linearly over return_ramp_s (rt/return_ramp.hpp). 0: off, the
+  // edge couples at once (the paper's law). Not with kSetPositionModulation (no edge is dropped).
+  double return_ramp_s = 0;
+  double return_ramp_after_s = 0.1;
   VirtualProxyParams vp{};
   std::vector<int> contact_nodes;     // the contact mesh C_i (node indices)
   StepSolverConfig solver{};          // the linear step's solver (auto: by scene size)
@@ -251,6 +258,11 @@ class StationCore {
   std::uint64_t solver_unconverged_ticks() const { return solver_unconverged_ticks_; }
   // Start-up / tests: overwrite the state (allocates nothing; sizes must match).
   void set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v);
+  // A rejoined station (its state adopted from a neighbour): each edge's first data ramps in
+  // (StationConfig::return_ramp_s; nothing when that is 0). RT-safe.
+  void arm_return_ramps() { return_ramp_.arm_all(); }
+  // The edges' return ramps (started, running, offsets).
+  const ReturnRamp& return_ramp() const { return return_ramp_; }
   // Tests: false runs the baseline build of the station's own lane kernels (post-solve, warm start,
   // contact correction); returns whether AVX is used.
   bool use_avx(bool allow) { return avx_kernels_ = allow && cpu_has_avx(); }
@@ -367,6 +379,7 @@ class StationCore {
   double prev_ctrl_J_ = 0, prev_vo_J_ = 0, prev_T_ = 0;  // the last tick's controller energy and E at its start (the leak)
   bool have_prev_energy_ = false;
   EdgeEnergyGate edge_gate_{};
+  ReturnRamp return_ramp_{};
   std::array<double, kMaxNeighbors> edge_tick_J_{};  // this tick's coupling energy per edge
   std::uint64_t safe_state_ticks_ = 0;
   std::vector<SetPositionModulator> pspm_;  // one per edge when consensus_passivity = pspm

@@ -146,6 +146,8 @@ void write_core_attrs(hid_t g, const rt::StationConfig& c) {
   h5::attr(g, "pspm_reservoir0_J", c.pspm_reservoir0_J);
   h5::attr(g, "predict_held_state", static_cast<std::int64_t>(c.predict_held_state));
   h5::attr(g, "predict_held_limit_m", c.predict_held_limit_m);
+  h5::attr(g, "return_ramp_s", c.return_ramp_s);
+  h5::attr(g, "return_ramp_after_s", c.return_ramp_after_s);
   h5::attr(g, "solver_kind", static_cast<std::int64_t>(c.solver.kind));
   h5::attr(g, "solver_iterative_from_rows", static_cast<std::int64_t>(c.solver.iterative_from_rows));
   h5::attr(g, "solver_relative_tolerance", c.solver.relative_tolerance);
@@ -178,6 +180,10 @@ void read_core_attrs(hid_t g, rt::StationConfig& c) {
   }
   if (h5::has_attr(g, "predict_held_state")) c.predict_held_state = h5::attr_i64(g, "predict_held_state") != 0;  // older logs: off
   if (h5::has_attr(g, "predict_held_limit_m")) c.predict_held_limit_m = h5::attr_f64(g, "predict_held_limit_m");
+  if (h5::has_attr(g, "return_ramp_s")) {  // older logs: no ramp
+    c.return_ramp_s = h5::attr_f64(g, "return_ramp_s");
+    c.return_ramp_after_s = h5::attr_f64(g, "return_ramp_after_s");
+  }
   c.solver.kind = static_cast<rt::StepSolverKind>(h5::attr_i64(g, "solver_kind"));
   c.solver.iterative_from_rows = static_cast<int>(h5::attr_i64(g, "solver_iterative_from_rows"));
   c.solver.relative_tolerance = h5::attr_f64(g, "solver_relative_tolerance");

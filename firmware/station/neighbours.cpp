@@ -131,6 +131,23 @@ std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::
   return lines;
 }
 
+std::vector<std::string> return_ramp_events(const StationPlan& plan, const rt::StationCore& core) {
+  std::vector<std::string> lines;
+  const auto& nbrs = plan.neighbours();
+  const auto& ramp = core.return_ramp();
+  for (std::size_t n = 0; n < nbrs.size() && static_cast<int>(n) < core.neighbor_count(); ++n) {
+    const int j = static_cast<int>(n);
+    if (ramp.ramps(j) == 0) continue;
+    char b[300];
+    std::snprintf(b, sizeof b,
+                  "neighbour %d: its data returned after an outage %llu time(s); the copies were pulled together over station.return_ramp_s = "
+                  "%.3g s (last offset %.3g mm)",
+                  nbrs[n] + 1, static_cast<unsigned long long>(ramp.ramps(j)), core.config().return_ramp_s, ramp.last_offset_m(j) * 1e3);
+    lines.emplace_back(b);
+  }
+  return lines;
+}
+
 std::vector<std::string> round_trip_over_bound_events(const StationPlan& plan, const net::EndpointStats& stats,
                                                       const std::vector<int>& bound_ticks) {
   std::vector<std::string> lines;

@@ -56,6 +56,11 @@ ClockCheck check_clock_offsets(const StationPlan& plan, const net::EndpointStats
 // authenticated peer"), one line per neighbour that tripped: "neighbour 3: energy bound 0.1 J
 // tripped 1 time(s) ...". Called after the run loop ended (reads the core). Not RT-safe.
 std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::StationCore& core);
+// The edges whose data came back after an outage (or a rejoin) and were ramped in
+// (rt/return_ramp.hpp), one line per such neighbour: "neighbour 1: its data returned after an
+// outage 1 time(s); the copies were pulled together over station.return_ramp_s = 2 s (last offset
+// 7.2 mm)". After the run loop. Not RT-safe.
+std::vector<std::string> return_ramp_events(const StationPlan& plan, const rt::StationCore& core);
 
 // The round trips net/ measured above the bound during the run, one line per neighbour that had
 // any: "neighbour 2: 1 round trip(s) above the probing bound 30.0 ms (largest 33.9 ms; R_ij = 48.0 ms

@@ -146,6 +146,9 @@ const std::vector<StationOption> kStation = {
     {R("station", "view_rate_hz", 30, 1, 60, "frames per second sent to each browser"), HAPTIC_FIELD(view, rate_hz)},
     {R("station", "rejoin_probe_s", 0.4, 0.1, 10, "a station started after its epoch's probing phase probes this long, then rejoins"),
      HAPTIC_FIELD(station, rejoin_probe_s)},
+    {R("station", "return_ramp_s", 2.0, 0, 60, "a neighbour's data back after an outage (or a rejoin) pulls the copies together over this long "
+                                              "instead of at once (rt/return_ramp.hpp)").with_note(" (0 = at once)"),
+     HAPTIC_FIELD(station, return_ramp_s)},
     {I("station", "age_slack_ticks", 10, 0, 100000, "age guard: a run packet is used only if its echo-based age bound is <= R_ij + this"),
      HAPTIC_FIELD(station, age_slack_ticks)},
 };

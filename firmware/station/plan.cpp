@@ -310,6 +310,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.loss_allowance_ticks = s.loss_allowance_ticks;
   spec.edge_energy_bound_J = s.edge_energy_bound_J;
   spec.edge_energy_leak_W = s.edge_energy_leak_W;
+  spec.return_ramp_s = s.return_ramp_s;
   spec.divergence_speed_m_per_s = s.divergence_speed_m_per_s;
   spec.tx_deadband.position_deadband_m = s.tx_deadband_mm * 1e-3;
   spec.tx_deadband.max_interval_ticks = s.tx_max_interval_ticks;

@@ -272,6 +272,7 @@ void open_view(const StationPlan& plan, StationResources& res, const BuildResult
 // above the bound, one line per neighbour each, logged and kept in the neighbour events.
 void say_after_run(const StationPlan& plan, StationResources& res, PhaseResults& pr, nlohmann::json& ev, const Log& log) {
   std::vector<std::string> lines = energy_bound_events(plan, *pr.build.core);
+  for (auto& line : return_ramp_events(plan, *pr.build.core)) lines.push_back(std::move(line));
   if (res.ep)
     for (auto& line : round_trip_over_bound_events(plan, res.ep->stats(), pr.build.bounds.round_trip_ticks)) lines.push_back(std::move(line));
   for (const auto& line : lines) {
@@ -447,8 +448,10 @@ bool adopt_state(const StationPlan& plan, StationResources& res, PhaseResults& p
     return false;
   }
   const std::int64_t k_now = plan.times.tick_at(read_clocks().monotonic_ns);
+  pr.build.core->arm_return_ramps();  // the other neighbours' copies drifted from the adopted one: ramp each edge in
   log.say("rejoining: took over station " + std::to_string(pr.adopted.from_station) + "'s object state of tick " + std::to_string(pr.adopted.seq) +
-          " (now tick " + std::to_string(k_now) + "; refreshed at the first run tick); coupling");
+          " (now tick " + std::to_string(k_now) + "; refreshed at the first run tick); coupling, each edge ramped in over station.return_ramp_s = " +
+          std::to_string(plan.file.station.return_ramp_s) + " s");
   return true;
 }
 

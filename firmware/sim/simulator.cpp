@@ -413,6 +413,7 @@ SimResult finish(Simulation& s, std::int64_t ticks_run) {
     auto& core = *s.st[static_cast<std::size_t>(c.to)];
     c.stats.max_index_delay = core.rx(c.rx_index).counters().max_index_delay;
     c.stats.bound_violations = core.edge_drop_events(c.rx_index);
+    c.stats.resilient_excluded_ticks = core.resilient_excluded_ticks(c.rx_index);
     c.stats.edge_energy = edge_energy_summary(core, c.rx_index);
     if (const rt::SetPositionModulator* m = core.set_position_modulator(c.rx_index)) {
       c.stats.pspm_limited_ticks = m->limited_ticks();
@@ -466,6 +467,7 @@ nlohmann::json sim_link_json(const BuiltScenario& b, const SimResult& r, const L
   ls.index_delay_bound_ticks = b.nbar_ticks(l.to, l.from);
   ls.edge_energy = l.edge_energy;
   nlohmann::json j = link_json(ls);
+  if (b.spec.resilient_f > 0) j["resilient_excluded_ticks"] = l.resilient_excluded_ticks;  // only when on: summaries unchanged when off
   j["packets_per_s"] = run_s > 0 ? nlohmann::json(static_cast<double>(l.sent) / run_s) : nlohmann::json(nullptr);
   j["bytes_per_s"] = run_s > 0 ? nlohmann::json(static_cast<double>(l.bytes_sent) / run_s) : nlohmann::json(nullptr);
   j["sent_in_hold_window"] = sent_between(l, r.metrics.hold_window_start_s, r.metrics.hold_window_end_s, T);

@@ -537,6 +537,7 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["clock"] = {{"timer_jitter_ms", 1e3 * b.spec.timer_jitter_s}, {"step_jitter", b.spec.step_jitter}, {"clock_drift_ppm", b.spec.clock_drift_ppm}};
   j["steps_clamped"] = r.steps_clamped;
   j["consensus_passivity"] = rt::consensus_passivity_name(b.spec.consensus_passivity);
+  if (b.spec.resilient_f > 0) j["resilient_f"] = b.spec.resilient_f;  // only when on: summaries unchanged when off
   if (b.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation) j["pspm_reservoir0_J"] = b.spec.pspm_reservoir0_J;
   j["push_pattern"] = b.spec.script.push_pattern == UserScriptSpec::PushPattern::kAsymmetric ? "asymmetric" : "spread";
   j["push_depth_m"] = b.push_depth_m;

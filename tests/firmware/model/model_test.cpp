@@ -309,6 +309,9 @@ TEST(Model, robustness_of_known_graphs_complete_is_half_rounded_up_trees_and_cyc
   CHECK_EQUAL(1, model::robustness(model::parse_graph_1based("1-2,2-3,3-4,4-5,5-6", 6), 6));  // a path
   CHECK_EQUAL(1, model::robustness(model::parse_graph_1based("1-2,2-3,3-4,4-5,5-6,6-1", 6), 6));  // a cycle
   CHECK_EQUAL(0, model::robustness(model::parse_graph_1based("1-2,3-4", 4), 4));  // not connected
+  // two triangles on user 1 plus a pendant pair: the witness pair {4, 5}, {2, 3, 6} leaves user 1 out,
+  // so checking only splits of all users into two sets would call it 2-robust
+  CHECK_EQUAL(1, model::robustness(model::parse_graph_1based("1-2,1-3,1-4,1-5,2-3,2-6,3-6,4-5", 6), 6));
   // K_5 is the smallest 3-robust graph (F = 1 under W-MSR needs at least 5 users)
   CHECK_FALSE(model::is_r_robust(complete_graph(4), 4, 3));
   CHECK_TRUE(model::is_r_robust(complete_graph(5), 5, 3));

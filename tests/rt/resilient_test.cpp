@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <numeric>
 #include <random>
@@ -160,18 +161,34 @@ Eigen::Vector3d centroid(const Eigen::VectorXd& x) {
 // K_5, station 4 lies. Directed delays 2-5 ticks, B_i from eq. (18) (+5 %), the energy bound
 // bound_J on every edge (with the default leak); user 0 pushes its face in by 10 mm over the first second and holds, the
 // others rest on theirs. The liar runs an honest core and tampers only with what it sends.
-Outcome run_k5(Lie lie, int f, double bound_J, double seconds, const Outcome* reference, bool pspm = false) {
+// The stations and their links (1-based, as a topology is written); the last station lies.
+struct Net {
+  const char* name;
+  int users;
+  const char* links;
+};
+const Net kK5{"K5", 5, "1-2,1-3,1-4,1-5,2-3,2-4,2-5,3-4,3-5,4-5"};
+
+Outcome run_net(const Net& net, Lie lie, int f, double bound_J, double seconds, const Outcome* reference, bool pspm = false) {
   const auto& w = PaperWorld::get();
-  constexpr int N = 5, kLiar = 4, D = 8;
-  const std::vector<Eigen::Vector3d> dirs = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}, {0, 0, 1}};
+  const int N = net.users, kLiar = N - 1;
+  constexpr int D = 8;
+  const std::vector<Eigen::Vector3d> dirs = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}, {0, 0, 1}, {0, 0, -1}, {1, 0, 0}};
+  std::vector<std::vector<int>> adj(static_cast<std::size_t>(N));
+  for (const char* c = net.links; *c;) {
+    char* end = nullptr;
+    const int a = static_cast<int>(std::strtol(c, &end, 10)) - 1;
+    const int b = static_cast<int>(std::strtol(end + 1, &end, 10)) - 1;
+    adj[static_cast<std::size_t>(a)].push_back(b), adj[static_cast<std::size_t>(b)].push_back(a);
+    c = *end ? end + 1 : end;
+  }
   auto delay = [](int to, int from) { return 2 + (3 * to + from) % 4; };
   const double T = 0.002;
   std::vector<std::unique_ptr<StationCore>> st;
   for (int i = 0; i < N; ++i) {
     std::vector<int> peers;
     std::vector<Eq18Neighbor> eq18;
-    for (int j = 0; j < N; ++j)
-      if (j != i) peers.push_back(j), eq18.push_back({static_cast<double>(delay(i, j) + delay(j, i)), T, &w.gains});
+    for (int j : adj[static_cast<std::size_t>(i)]) peers.push_back(j), eq18.push_back({static_cast<double>(delay(i, j) + delay(j, i)), T, &w.gains});
     auto c = w.station(i, N, peers, 1.05 * damping_min_eq18(T, eq18), dirs[static_cast<std::size_t>(i)]);
     for (std::size_t n = 0; n < peers.size(); ++n) {
       c.neighbors[n].index_delay_bound_ticks = delay(i, peers[n]);
@@ -238,12 +255,16 @@ Outcome run_k5(Lie lie, int f, double bound_J, double seconds, const Outcome* re
       if (!liar) r.honest_edge_peak_J = std::max(r.honest_edge_peak_J, s.edge_energy().edge_J(n));
     }
   }
-  std::printf("\n  K5, %s, bound %5.2f J, %-24s F = %d: drag %7.2f mm, honest disagreement %.4f mm, edge-ticks left out: liar %llu honest %llu, "
+  std::printf("\n  %s, %s, bound %5.2f J, %-24s F = %d: drag %7.2f mm, honest disagreement %.4f mm, edge-ticks left out: liar %llu honest %llu, "
               "gate trips: liar %llu honest %llu, honest edge account at the end %.2e J%s",
-              pspm ? "pspm" : "eq18", bound_J, lie_name(lie), f, 1e3 * r.drag_m, 1e3 * r.disagreement_m, static_cast<unsigned long long>(r.liar_excluded),
+              net.name, pspm ? "pspm" : "eq18", bound_J, lie_name(lie), f, 1e3 * r.drag_m, 1e3 * r.disagreement_m, static_cast<unsigned long long>(r.liar_excluded),
               static_cast<unsigned long long>(r.honest_excluded), static_cast<unsigned long long>(r.liar_trips),
               static_cast<unsigned long long>(r.honest_trips), r.honest_edge_peak_J, r.diverged ? " DIVERGED" : "");
   return r;
+}
+
+Outcome run_k5(Lie lie, int f, double bound_J, double seconds, const Outcome* reference, bool pspm = false) {
+  return run_net(kK5, lie, f, bound_J, seconds, reference, pspm);
 }
 
 // With the default energy bound (0.1 J) the gate already holds each lie's energy, so the drag is
@@ -290,5 +311,24 @@ TEST(Resilient, under_set_position_modulation_one_liar_on_k5_no_longer_drags_the
     CHECK_TRUE(on.drag_m < 0.5e-3);  // 1.0 mm without the rule (the reservoirs bound the lie), 0.25 mm with it
     CHECK_TRUE(on.disagreement_m < 0.5e-3);
     CHECK_TRUE(on.liar_excluded > 98 * 4ull * static_cast<std::uint64_t>(seconds / 0.002) / 100);
+  }
+}
+
+// A 3-robust graph that is not complete: the optimizer's best 3-robust graph on six users (11 links,
+// tools/topology/README.md); user 6 lies and only users 1, 2 and 5 hear it. The honest five still
+// agree and stay where the lie-free run put them; without the rule (permissive energy bound) the
+// offset drags them, the users the liar does not reach included.
+TEST(Resilient, on_a_3_robust_graph_that_is_not_complete_the_honest_copies_agree_without_the_liar) {
+  const Net net{"6 users, 11 links", 6, "1-2,1-3,1-4,1-5,1-6,2-3,2-4,2-6,3-5,4-5,5-6"};
+  const double seconds = 6.0;
+  const Outcome ref = run_net(net, Lie::kNone, 0, 10.0, seconds, nullptr);
+  for (Lie lie : {Lie::kOffset, Lie::kRamp}) {
+    const Outcome off = run_net(net, lie, 0, 10.0, seconds, &ref);
+    const Outcome on = run_net(net, lie, 1, 10.0, seconds, &ref);
+    CHECK_FALSE(on.diverged || off.diverged);
+    CHECK_TRUE(on.drag_m < 1e-3);
+    CHECK_TRUE(on.disagreement_m < 0.5e-3);
+    CHECK_TRUE(off.drag_m > 20e-3);
+    CHECK_TRUE(on.liar_excluded > 98 * 3ull * static_cast<std::uint64_t>(seconds / 0.002) / 100);  // 3 honest ends
   }
 }

@@ -180,6 +180,9 @@ void ScenarioSpec::validate() const {
   if (!(edge_energy_leak_W >= 0 && edge_energy_leak_W <= 1)) bad("--edge-energy-leak-W must be in [0, 1] W (0 = the account only grows)");
   if (!(tx_deadband.position_deadband_m >= 0 && tx_deadband.position_deadband_m < 0.1)) bad("--tx-deadband-mm must be in [0, 100)");
   if (tx_deadband.max_interval_ticks < 1 || tx_deadband.max_interval_ticks > 1000) bad("--tx-max-interval must be in [1, 1000]");
+  if (resilient_f < 0 || resilient_f > 16) bad("--resilient-f must be in [0, 16] (0 = off)");
+  if (resilient_f > 0 && consensus_passivity == rt::ConsensusPassivity::kEq18Damping && !(edge_energy_bound_J > 0))
+    bad("--resilient-f needs --edge-energy-bound > 0 with eq. (18): the energy bound covers an edge left out on one side (rt/README.md)");
   if (tx_deadband.predictive && consensus_passivity != rt::ConsensusPassivity::kSetPositionModulation)
     bad("--tx-predict needs --consensus-passivity pspm (eq. 18 does not cover extrapolated neighbour data)");
   if (!(timer_jitter_s >= 0 && timer_jitter_s < 0.5 * period_s)) bad("--timer-jitter-ms must be in [0, period/2) = [0, " + std::to_string(0.5e3 * period_s) + ") ms");
@@ -459,6 +462,7 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
   c.divergence_speed_m_per_s = spec.divergence_speed_m_per_s;
   c.consensus_passivity = spec.consensus_passivity;
   c.pspm_reservoir0_J = spec.pspm_reservoir0_J;
+  c.resilient_f = spec.resilient_f;
   c.predict_held_state = spec.tx_deadband.predictive;
   c.return_ramp_s = spec.return_ramp_s;
   if (spec.tx_deadband.enabled()) c.predict_held_limit_m = spec.tx_deadband.prediction_limit_m();

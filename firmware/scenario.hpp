@@ -141,6 +141,9 @@ struct ScenarioSpec {
   // (eq. 14 holds by construction) and pspm_reservoir0_J is each edge's initial reservoir.
   rt::ConsensusPassivity consensus_passivity = rt::ConsensusPassivity::kEq18Damping;
   double pspm_reservoir0_J = 0.0;
+  // Resilient consensus (rt/resilient.hpp, --resilient-f, station.resilient_f): each station leaves out
+  // the F neighbours farthest from its copy every tick. 0 = off. With eq. (18) it needs the energy bound.
+  int resilient_f = 0;
   UserScriptSpec script{};
   int trace_node = -1;                   // -1: first node of user 2's contact mesh (paper: node 19)
 

@@ -154,6 +154,7 @@ struct SimArgs {
   std::string scenario, out, topology, damping, delay_matrix, topology_file, pushes = "spread", script, receive_rule = "newest",
               consensus_passivity = "eq18";
   double pspm_reservoir_J = 0.0;
+  int resilient_f = 0;
   double timer_jitter_ms = 0, step_jitter = 0, clock_drift_ppm = 0;  // station clocks (variable steps T_k)
   double jitter = -1, delay_correlation = 0, node_mass_kg = -1;     // delay model and object (stability maps)
   double burst_enter = 0, burst_length = 5, burst_loss = 1;         // Gilbert-Elliott burst loss (off at 0)
@@ -242,6 +243,18 @@ void add_sim_output_options(CLI::App* sim, SimArgs& a) {
   sim->add_option("--record-ring-s", a.record_ring_s, "With --record: keep only the last S seconds in each log (a ring of bounded size; for inspection, not replay)")
       ->check(CLI::Range(0.0, 86400.0));
   sim->add_flag("--quiet", a.quiet, "No progress lines");
+}
+
+// The consensus law's options of `sim` (how eq. 14 is kept, the resilient rule) into `a`. Not RT-safe.
+void add_sim_consensus_options(CLI::App* sim, SimArgs& a) {
+  sim->add_option("--consensus-passivity", a.consensus_passivity,
+                  "How eq. (14) is kept: eq18 (the paper: damping B_i from eq. 18 over the delay bound Nbar) or pspm (passive "
+                  "set-position modulation per edge: B_i = 0 unless --damping, no delay bound; rt/set_position_modulation.hpp) "
+                  "(default eq18)");
+  sim->add_option("--pspm-reservoir-J", a.pspm_reservoir_J, "With --consensus-passivity pspm: each edge's initial energy reservoir, J (default 0)");
+  sim->add_option("--resilient-f", a.resilient_f,
+                  "Resilient consensus: each station leaves out, every tick, the F neighbours whose received object is farthest from "
+                  "its copy (rt/resilient.hpp; W-MSR needs a (2F+1)-robust topology: haptic-topology --robustness) (default 0: off)");
 }
 
 // The `sim` subcommand's options into `a`. Not RT-safe.
@@ -334,11 +347,7 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
                   "Free-running loops: each station's grid interval is T (1 + F u), u uniform in [-1, 1], F = this in [0, 0.5] (default 0)");
   sim->add_option("--clock-drift-ppm", a.clock_drift_ppm,
                   "Clock drift: station i ticks every T (1 + c_i 1e-6), c_i spread evenly over [-this, +this] ppm (user 1 shortest), in [0, 10000]; its tick count drifts against the others (default 0)");
-  sim->add_option("--consensus-passivity", a.consensus_passivity,
-                  "How eq. (14) is kept: eq18 (the paper: damping B_i from eq. 18 over the delay bound Nbar) or pspm (passive "
-                  "set-position modulation per edge: B_i = 0 unless --damping, no delay bound; rt/set_position_modulation.hpp) "
-                  "(default eq18)");
-  sim->add_option("--pspm-reservoir-J", a.pspm_reservoir_J, "With --consensus-passivity pspm: each edge's initial energy reservoir, J (default 0)");
+  add_sim_consensus_options(sim, a);
   add_sim_output_options(sim, a);
   add_sim_network_options(sim, a);
   return sim;
@@ -592,6 +601,7 @@ ScenarioSpec sim_scenario_spec(const SimArgs& a) {
   if (!(a.pspm_reservoir_J >= 0 && std::isfinite(a.pspm_reservoir_J)))
     throw std::invalid_argument("--pspm-reservoir-J = " + std::to_string(a.pspm_reservoir_J) + " must be finite and >= 0");
   spec.pspm_reservoir0_J = a.pspm_reservoir_J;
+  spec.resilient_f = a.resilient_f;
   return spec;
 }
 

@@ -2,6 +2,7 @@
 
 #include "rt/cpu_avx.hpp"
 #include "rt/lanes.hpp"
+#include "rt/resilient.hpp"
 #include "rt/tx_deadband.hpp"
 
 #include <algorithm>
@@ -52,6 +53,11 @@ void StationConfig::validate() const {
   if (!(return_ramp_s >= 0 && std::isfinite(return_ramp_s))) bad("return_ramp_s", "finite and >= 0 (0: off)");
   if (!(return_ramp_after_s >= 0 && std::isfinite(return_ramp_after_s))) bad("return_ramp_after_s", "finite and >= 0");
   if (static_cast<int>(neighbors.size()) > kMaxNeighbors) bad("neighbors", "at most " + std::to_string(kMaxNeighbors));
+  if (resilient_f < 0 || resilient_f > kMaxNeighbors) bad("resilient_f", "in [0, " + std::to_string(kMaxNeighbors) + "] (0: off)");
+  if (resilient_f > 0 && consensus_passivity == ConsensusPassivity::kEq18Damping)
+    for (const auto& n : neighbors)
+      if (!std::isfinite(n.energy_bound_J))
+        bad("resilient_f", "0 unless every neighbour's energy_bound_J is finite (eq. 18: the energy bound covers a one-sided exclusion)");
   for (const auto& n : neighbors) {
     if (!n.gains) bad("neighbors[].gains", "set");
     if (n.gains->P.dofs() != scene->dofs) bad("neighbors[].gains", "sized like the scene");
@@ -166,6 +172,7 @@ void StationCore::init_edges() {
   active_.assign(static_cast<std::size_t>(nn), 0);
   edge_was_dropped_.assign(static_cast<std::size_t>(nn), 0);
   edge_drops_.assign(static_cast<std::size_t>(nn), 0);
+  resilient_excluded_.assign(static_cast<std::size_t>(nn), 0);
   if (cfg_.consensus_passivity == ConsensusPassivity::kSetPositionModulation) {
     pspm_.resize(static_cast<std::size_t>(nn));
     for (auto& m : pspm_) m.init(dofs_, x_.data(), cfg_.pspm_reservoir0_J);
@@ -779,19 +786,25 @@ double StationCore::advance_state() {
   return f_dev;
 }
 
+void StationCore::exclude_resilient(std::uint32_t& flags) {
+  const int nn = neighbor_count();
+  std::array<double, kMaxNeighbors> d2{};
+  std::array<unsigned char, kMaxNeighbors> candidate{};
+  for (int j = 0; j < nn; ++j) {
+    const auto n = static_cast<std::size_t>(j);
+    candidate[n] = pspm_.empty() ? active_[n] : (views_[n].index_delay >= 0 ? 1 : 0);
+    if (candidate[n]) d2[n] = squared_distance(views_[n].x_hat, x_.data(), dofs_);
+  }
+  if (exclude_farthest(d2.data(), candidate.data(), nn, cfg_.resilient_f, excluded_.data()) > 0) flags |= kResilientExcluded;
+  for (int j = 0; j < nn; ++j) resilient_excluded_[static_cast<std::size_t>(j)] += excluded_[static_cast<std::size_t>(j)];
+}
+
 [[gnu::always_inline]] inline void StationCore::read_neighbours(std::int64_t k, std::uint32_t& flags) {
-  // Over the delay bound or the energy bound: x_hat_j := x(k), delta_ij = 0 (the edge acts as the
-  // damper D_ij + T/2 P_ij).
+  // Over the delay bound, over the energy bound or left out by the resilient rule: x_hat_j := x(k),
+  // delta_ij = 0 (the edge acts as the damper D_ij + T/2 P_ij).
   for (int j = 0; j < neighbor_count(); ++j) {
     views_[j] = rx_[j].begin_tick(k);
-    if (!pspm_.empty()) {  // set-position modulation: passive for any delay, no bound, no drop
-      auto& m = pspm_[static_cast<std::size_t>(j)];
-      if (views_[j].index_delay >= 0) m.update(modulation_target(j, k), x_.data(), cfg_.neighbors[j].gains->P, pspm_scratch_.data());
-      views_[j].x_hat = m.ybar();
-      views_[j].fresh = false;  // D acts on the local velocity only
-      active_[j] = 1;
-      continue;
-    }
+    if (!pspm_.empty()) continue;  // set-position modulation: passive for any delay, no bound, no drop
     // A negative delay (data stamped ahead of our tick) is never trusted: over the bound.
     const bool ok = views_[j].index_delay >= 0 && views_[j].index_delay <= cfg_.neighbors[j].index_delay_bound_ticks;
     // The per-edge damage bound: an edge whose account is over its bound takes the same action.
@@ -806,6 +819,23 @@ double StationCore::advance_state() {
       if (!edge_was_dropped_[j]) ++edge_drops_[j];
       edge_was_dropped_[j] = 1;
     }
+  }
+  if (cfg_.resilient_f > 0) exclude_resilient(flags);  // among the edges the bounds left in
+  for (int j = 0; j < neighbor_count(); ++j) {
+    const bool excluded = excluded_[static_cast<std::size_t>(j)] != 0;
+    if (pspm_.empty()) {
+      if (excluded) active_[j] = 0;
+      continue;
+    }
+    auto& m = pspm_[static_cast<std::size_t>(j)];
+    // left out: the set-position relaxes towards this copy (the modulation is passive for any target)
+    if (views_[j].index_delay >= 0) {
+      const double* target = modulation_target(j, k);  // (keeps the held-since count when left out)
+      m.update(excluded ? x_.data() : target, x_.data(), cfg_.neighbors[j].gains->P, pspm_scratch_.data());
+    }
+    views_[j].x_hat = m.ybar();
+    views_[j].fresh = false;  // D acts on the local velocity only
+    active_[j] = 1;
   }
 }
 

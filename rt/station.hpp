@@ -110,6 +110,12 @@ struct StationConfig {
   // edge couples at once (the paper's law). Not with kSetPositionModulation (no edge is dropped).
   double return_ramp_s = 0;
   double return_ramp_after_s = 0.1;
+  // Resilient consensus (rt/resilient.hpp): each tick the resilient_f neighbours whose received
+  // configuration is farthest from this copy's are left out (eq. 18: the over-bound damper; pspm:
+  // the modulator's target is this copy's own state). 0: off. With eq. 18 every neighbour's
+  // energy_bound_J must be finite: a one-sided exclusion breaks eq. (18)'s pairing of the two
+  // directions of an edge, and the per-edge energy bound is what covers it (rt/README.md).
+  int resilient_f = 0;
   VirtualProxyParams vp{};
   std::vector<int> contact_nodes;     // the contact mesh C_i (node indices)
   StepSolverConfig solver{};          // the linear step's solver (auto: by scene size)
@@ -148,6 +154,7 @@ enum TickFlags : std::uint32_t {
   kBadDeviceSample = 1u << 5,  // non-finite device position: safe state for this tick
   kSafeState = 1u << 6,
   kEdgeEnergyGated = 1u << 7,  // an edge's energy account is over its bound: it acts as the damper
+  kResilientExcluded = 1u << 8,  // the resilient rule left a neighbour out (StationConfig::resilient_f)
 };
 
 // The one definition of what each TickFlags bit means: its name (a word, as in a CSV column or an
@@ -167,6 +174,7 @@ inline constexpr TickFlagName kTickFlagNames[] = {
     {kBadDeviceSample, "bad_device_sample", "the device position was not finite: safe state for this tick"},
     {kSafeState, "safe_state", "the station is in its safe state"},
     {kEdgeEnergyGated, "edge_energy_gated", "an edge's energy account is over its bound: it acts as a damper"},
+    {kResilientExcluded, "resilient_excluded", "the resilient consensus rule left out the neighbours farthest from this copy"},
 };
 
 // Cumulative energies (J) for the passivity monitor.
@@ -231,6 +239,8 @@ class StationCore {
     return total;
   }
   std::uint64_t edge_drop_events(int n) const { return edge_drops_[static_cast<std::size_t>(n)]; }
+  // Ticks the resilient rule left neighbour n out (StationConfig::resilient_f).
+  std::uint64_t resilient_excluded_ticks(int n) const { return resilient_excluded_[static_cast<std::size_t>(n)]; }
   // Set-position modulation of edge n (consensus_passivity = pspm; nullptr otherwise).
   const SetPositionModulator* set_position_modulator(int n) const {
     return pspm_.empty() ? nullptr : &pspm_[static_cast<std::size_t>(n)];
@@ -305,8 +315,12 @@ class StationCore {
   // 1. the device sample qk (the previous one if not finite: flags), its velocity vq over T_{k-1}
   // and the virtual coupling's force u_i(t) (Section III-C), limited; the device port's energy.
   Vec3 device_force(const Vec3& q, Vec3& qk, Vec3& vq, std::uint32_t& flags);
-  // 2. each neighbour's newest packet (views_), the delay and energy bounds (active_), pspm targets.
+  // 2. each neighbour's newest packet (views_), the resilient rule (excluded_), the delay and energy
+  // bounds (active_), pspm targets.
   void read_neighbours(std::int64_t k, std::uint32_t& flags);
+  // The resilient rule on this tick's views: excluded_[j] for the resilient_f candidates farthest
+  // from x(k) (eq. 18: within their delay bound; pspm: any packet), counted; flags. RT-safe.
+  void exclude_resilient(std::uint32_t& flags);
   // 3. contact onset / release, decided from the state at the start of the tick.
   void update_contact_set(std::uint32_t& flags);
   // 4. b (rhs_) and the VP row's right-hand side (returned), contact springs included.
@@ -388,6 +402,8 @@ class StationCore {
   std::vector<std::int64_t> held_since_;    // predict_held_state: tick each held packet was first used
   std::vector<unsigned char> edge_was_dropped_;
   std::vector<std::uint64_t> edge_drops_;
+  std::array<unsigned char, kMaxNeighbors> excluded_{};  // the resilient rule's verdict this tick
+  std::vector<std::uint64_t> resilient_excluded_;
 
   // The right-hand side's matrices [M, K, P_0, D_0] (P_0, D_0: the first gain group's) in one
   // fused pass, and [D_0, P_0] for D v_hat and P v_hat of the controller energy (rt/README.md).

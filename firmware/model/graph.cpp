@@ -1,6 +1,8 @@
 #include "firmware/model/graph.hpp"
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cctype>
 #include <numeric>
 #include <sstream>
@@ -114,6 +116,41 @@ Adjacency adjacency(const Graph& g, int users) {
     a.link_of[static_cast<std::size_t>(l.b)].push_back(static_cast<int>(e));
   }
   return a;
+}
+
+namespace {
+// reach[S] = max over u in S of |N(u) \ S| (the r for which S is r-reachable), every S.
+std::vector<int> reach_of_every_set(const Graph& g, int users) {
+  std::vector<std::uint32_t> nb(static_cast<std::size_t>(users), 0);
+  for (const Link& l : g) {
+    nb[static_cast<std::size_t>(l.a)] |= 1u << l.b;
+    nb[static_cast<std::size_t>(l.b)] |= 1u << l.a;
+  }
+  const std::uint32_t sets = 1u << users;
+  std::vector<int> reach(sets, 0);
+  for (std::uint32_t s = 1; s < sets; ++s)
+    for (int u = 0; u < users; ++u)
+      if (s >> u & 1u) reach[s] = std::max(reach[s], std::popcount(nb[static_cast<std::size_t>(u)] & ~s));
+  return reach;
+}
+}  // namespace
+
+int robustness(const Graph& g, int users, const std::string& key) {
+  if (users > kMaxRobustnessUsers)
+    bad(key + ": robustness is checked exhaustively up to " + std::to_string(kMaxRobustnessUsers) + " users, not " + std::to_string(users));
+  if (users < 2 || !is_connected(g, users)) return 0;
+  const std::vector<int> reach = reach_of_every_set(g, users);
+  const std::uint32_t all = (1u << users) - 1;
+  // least[C] = min over non-empty S2 within C of reach[S2] (a sentinel above any reach for C = 0)
+  std::vector<int> least(reach.size(), users + 1);
+  for (std::uint32_t c = 1; c <= all; ++c) {
+    least[c] = reach[c];
+    for (int u = 0; u < users; ++u)
+      if (c >> u & 1u) least[c] = std::min(least[c], least[c & ~(1u << u)]);
+  }
+  int r = users;
+  for (std::uint32_t s1 = 1; s1 < all; ++s1) r = std::min(r, std::max(reach[s1], least[all & ~s1]));
+  return r;
 }
 
 }  // namespace haptic::model

@@ -34,4 +34,17 @@ struct Adjacency {
 };
 Adjacency adjacency(const Graph& g, int users);
 
+// r-robustness (LeBlanc, Zhang, Koutsoukos, Sundaram, IEEE JSAC 31(4), 2013): a set S is
+// r-reachable when one of its users has at least r neighbours outside S; the graph is r-robust when
+// of every two disjoint non-empty sets of users at least one is r-reachable. With at most F
+// misbehaving users, W-MSR lets the others agree on a (2F+1)-robust graph (F-local; F-total needs
+// (F+1, F+1)-robust, implied). Exact and exhaustive: reach(S) for all 2^N sets, then the best
+// disjoint partner of each S from the least reach over the subsets of its complement, O(2^N N)
+// time and 2^N ints; N <= kMaxRobustnessUsers (throws beyond, naming `key`). The complete graph
+// K_N is ceil(N/2)-robust, the most any graph on N users is; a tree is 1-robust.
+inline constexpr int kMaxRobustnessUsers = 20;
+// The largest r for which g is r-robust (0: fewer than 2 users or g not connected).
+int robustness(const Graph& g, int users, const std::string& key = "graph");
+inline bool is_r_robust(const Graph& g, int users, int r, const std::string& key = "graph") { return robustness(g, users, key) >= r; }
+
 }  // namespace haptic::model

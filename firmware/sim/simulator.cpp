@@ -413,6 +413,7 @@ SimResult finish(Simulation& s, std::int64_t ticks_run) {
     auto& core = *s.st[static_cast<std::size_t>(c.to)];
     c.stats.max_index_delay = core.rx(c.rx_index).counters().max_index_delay;
     c.stats.bound_violations = core.edge_drop_events(c.rx_index);
+    c.stats.resilient_excluded_ticks = core.resilient_excluded_ticks(c.rx_index);
     c.stats.edge_energy = edge_energy_summary(core, c.rx_index);
     if (const rt::SetPositionModulator* m = core.set_position_modulator(c.rx_index)) {
       c.stats.pspm_limited_ticks = m->limited_ticks();
@@ -466,6 +467,7 @@ nlohmann::json sim_link_json(const BuiltScenario& b, const SimResult& r, const L
   ls.index_delay_bound_ticks = b.nbar_ticks(l.to, l.from);
   ls.edge_energy = l.edge_energy;
   nlohmann::json j = link_json(ls);
+  if (b.spec.resilient_f > 0) j["resilient_excluded_ticks"] = l.resilient_excluded_ticks;  // only when on: summaries unchanged when off
   j["packets_per_s"] = run_s > 0 ? nlohmann::json(static_cast<double>(l.sent) / run_s) : nlohmann::json(nullptr);
   j["bytes_per_s"] = run_s > 0 ? nlohmann::json(static_cast<double>(l.bytes_sent) / run_s) : nlohmann::json(nullptr);
   j["sent_in_hold_window"] = sent_between(l, r.metrics.hold_window_start_s, r.metrics.hold_window_end_s, T);
@@ -535,6 +537,7 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["clock"] = {{"timer_jitter_ms", 1e3 * b.spec.timer_jitter_s}, {"step_jitter", b.spec.step_jitter}, {"clock_drift_ppm", b.spec.clock_drift_ppm}};
   j["steps_clamped"] = r.steps_clamped;
   j["consensus_passivity"] = rt::consensus_passivity_name(b.spec.consensus_passivity);
+  if (b.spec.resilient_f > 0) j["resilient_f"] = b.spec.resilient_f;  // only when on: summaries unchanged when off
   if (b.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation) j["pspm_reservoir0_J"] = b.spec.pspm_reservoir0_J;
   j["push_pattern"] = b.spec.script.push_pattern == UserScriptSpec::PushPattern::kAsymmetric ? "asymmetric" : "spread";
   j["push_depth_m"] = b.push_depth_m;

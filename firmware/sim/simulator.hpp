@@ -24,6 +24,7 @@ struct LinkStats {
   double delay_sum_s = 0, delay_max_s = 0;
   std::int64_t max_index_delay = 0;   // max N_ij^k seen by the receiver
   std::uint64_t bound_violations = 0; // edge drop events at the receiver
+  std::uint64_t resilient_excluded_ticks = 0;  // ticks the receiver's resilient rule left this edge out (--resilient-f)
   std::uint64_t bytes_sent = 0;       // UDP payload bytes of the states sent (float32 wire, headers, MACs)
   std::vector<std::int64_t> sent_ticks;  // tick of every state sent (bandwidth by window)
   EdgeEnergySummary edge_energy{};       // the receiver's energy account of this edge and its bound

@@ -49,6 +49,7 @@ struct StationSection {
   std::string consensus_passivity = "eq18";
   std::string receive_rule = "newest";
   double pspm_reservoir_J = 0.001;
+  int resilient_f = 0;  // rt/resilient.hpp: neighbours left out per tick (0: off)
   int loss_allowance_ticks = -1;      // -1: from the probe's measured loss
   int loss_allowance_max_ticks = 16;  // the paper links measure 8-12 (tools/run4); a loaded machine far more
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;

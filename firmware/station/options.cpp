@@ -99,6 +99,10 @@ const std::vector<StationOption> kStation = {
                                             "late data used; Nbar then adds the delay spread (each one-way guard doubles, +1 tick); same on all "
                                             "stations (in the fingerprint)", "newest|paper").same_on_all_stations(), HAPTIC_FIELD(station, receive_rule)},
     {R("station", "pspm_reservoir_J", 0.001, 0, 1, "with pspm: each edge's initial energy reservoir E0, J"), HAPTIC_FIELD(station, pspm_reservoir_J)},
+    {I("station", "resilient_f", 0, 0, 16, "resilient consensus: each tick the F neighbours whose received object is farthest from "
+                                           "this copy are left out (rt/resilient.hpp; with eq18 needs edge_energy_bound_J > 0; "
+                                           "the topology should be (2F+1)-robust, else a warning)").with_note(" (0 = off)"),
+     HAPTIC_FIELD(station, resilient_f)},
     {I("station", "loss_allowance_ticks", -1, 0, 1000, "ticks added to the measured round-trip bound (eq. 18); -1: from the loss measured "
                                                        "while probing (station/probe.hpp)").with_special(-1), HAPTIC_FIELD(station, loss_allowance_ticks)},
     {I("station", "loss_allowance_max_ticks", 16, 0, 1000, "a measured allowance above this is capped there, with a warning naming the link"),

@@ -20,6 +20,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "firmware/model/graph.hpp"
 #include "firmware/station/link_impairment.hpp"
 #include "firmware/station/records.hpp"
 #include "firmware/session/recorder.hpp"
@@ -46,6 +47,7 @@ std::string as_station_keys(std::string message) {
   static const std::pair<const char*, const char*> kKeys[] = {{"--topology", "station.topology"}, {"--nodes", "station.nodes"},
                                                               {"--duration", "station.duration_s"}, {"--release", "station.release_s"}, {"--delay-matrix", "station.delay_matrix"},
                                                               {"--push-end", "station.push_end_s"},
+                                                              {"--resilient-f", "station.resilient_f"}, {"--edge-energy-bound", "station.edge_energy_bound_J"},
                                                               {"--tx-predict needs --consensus-passivity pspm", "station.tx_predict = true needs station.consensus_passivity = \"pspm\""}};
   for (const auto& [flag, key] : kKeys)
     for (auto at = message.find(flag); at != std::string::npos; at = message.find(flag, at)) message.replace(at, std::strlen(flag), key);
@@ -137,6 +139,22 @@ void plan_release_warning(StationPlan& p) {
   const std::string src = p.overrides.duration_s > 0 ? "--duration" : (p.file.station.duration_s > 0 ? "station.duration_s" : "the scenario's duration");
   p.warnings.push_back("the run (" + src + " = " + number_text(spec.duration_s) + " s) ends before the scripted release at station.release_s = " +
                        number_text(spec.script.release_s) + " s: the release metrics will be null and the exit code " + std::to_string(kExitBeforeRelease));
+}
+
+// station.resilient_f = F on a topology that is not (2F+1)-robust (firmware/model/graph.hpp): the rule
+// still runs and bounds what a liar can do, but the honest stations need not agree; a station with at
+// most F neighbours leaves all of them out. Said, not refused.
+void plan_resilient_warning(StationPlan& p) {
+  const ScenarioSpec& spec = p.built->spec;
+  const int f = spec.resilient_f;
+  if (f <= 0 || spec.users > model::kMaxRobustnessUsers) return;
+  const int r = model::robustness(spec.topology, spec.users, "station.topology");
+  if (r < 2 * f + 1)
+    p.warnings.push_back("station.resilient_f = " + std::to_string(f) + " needs a " + std::to_string(2 * f + 1) + "-robust topology for the honest " +
+                         "stations to agree; this one is " + std::to_string(r) + "-robust (haptic-topology --robustness " + std::to_string(2 * f + 1) + ")");
+  if (static_cast<int>(p.neighbours().size()) <= f)
+    p.warnings.push_back("station.resilient_f = " + std::to_string(f) + " with " + std::to_string(p.neighbours().size()) +
+                         " neighbours: this station leaves every neighbour out, every tick (its copy is not coupled)");
 }
 
 // A device file named in [device] that is not there: the device will not start (exit 9 at start-up,
@@ -249,6 +267,7 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
   p->base_path = p->out_dir + "/station-" + std::to_string(p->station_id);
   plan_records(*p);
   plan_release_warning(*p);
+  plan_resilient_warning(*p);
   if (f.device.kind == "simulated" && o.solo)
     p->warnings.push_back("device.kind = \"simulated\": a SIMULATED user touches the object by itself (the scenario's random script)");
   else if (f.device.kind == "simulated")
@@ -306,6 +325,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.damping_margin = s.damping_margin;
   spec.consensus_passivity = rt::parse_consensus_passivity(s.consensus_passivity, "station.consensus_passivity");
   spec.pspm_reservoir0_J = s.pspm_reservoir_J;
+  spec.resilient_f = s.resilient_f;
   spec.receive_rule = rt::parse_rx_rule(s.receive_rule, "station.receive_rule");
   spec.loss_allowance_ticks = s.loss_allowance_ticks;
   spec.edge_energy_bound_J = s.edge_energy_bound_J;

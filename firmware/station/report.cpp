@@ -231,6 +231,7 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
     l["rx_sustained_ticks"] = rc.sustained_ticks;
     l["max_index_delay_ticks"] = rc.max_index_delay;
     l["bound_violations"] = core.edge_drop_events(static_cast<int>(n));
+    if (core.config().resilient_f > 0) l["resilient_excluded_ticks"] = core.resilient_excluded_ticks(static_cast<int>(n));
     l["edge_energy"] = edge_energy_json(edge_energy_summary(core, static_cast<int>(n)));
   }
   return l;

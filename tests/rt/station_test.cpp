@@ -342,6 +342,7 @@ TEST(Station, tick_allocates_nothing_over_10000_ticks_of_four_users_with_contact
     }
     if (pspm) cfg.consensus_passivity = ConsensusPassivity::kSetPositionModulation;
     cfg.predict_held_state = pspm;  // lost packets are held: their extrapolation runs in the tick too
+    cfg.resilient_f = i == 0 ? 1 : 0;  // the hub leaves its farthest neighbour out (rt/resilient.hpp)
     st.push_back(std::make_unique<StationCore>(cfg));
   }
   STRCMP_EQUAL(solver == StepSolverKind::kDirect ? "direct" : "iterative", st[0]->solver_name());
@@ -388,6 +389,7 @@ TEST(Station, tick_allocates_nothing_over_10000_ticks_of_four_users_with_contact
   CHECK_TRUE(st[0]->step_clamped_ticks() > 0 && st[0]->step_level_count() > 2);  // the steps did vary
   if (!pspm) CHECK_TRUE(gated > 0);  // under pspm every account stays <= E0 = 0 < the bound: the gate never trips
   if (pspm) CHECK_TRUE(st[0]->set_position_modulator(0)->limited_ticks() + st[1]->set_position_modulator(0)->limited_ticks() > 0);
+  CHECK_TRUE(st[0]->resilient_excluded_ticks(0) + st[0]->resilient_excluded_ticks(1) + st[0]->resilient_excluded_ticks(2) > 0);
   CHECK_EQUAL(0u, allocs);
   }
 }

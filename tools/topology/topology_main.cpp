@@ -17,6 +17,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "firmware/model/graph.hpp"
 #include "firmware/model/passivity_budget.hpp"
 #include "net/impairment.hpp"
 #include "platform/install_paths.hpp"
@@ -38,6 +39,7 @@ struct Row {
   Eigen::VectorXd eq18_ms;
   std::string label;
   int loss_allowance = 0;  // eq. (18)'s Nbar allowance for lost packets (steps per direction)
+  int robustness = -1;     // the largest r for which the graph is r-robust (-1: not computed, N > 20)
 };
 
 json matrix_json(const Eigen::MatrixXd& m) {
@@ -71,7 +73,8 @@ json row_json(const Row& r, int rank, double period_ms) {
               {"worst_mode_value", r.score.worst_mode_value},
               {"method", topo::to_string(r.score.method)},
               {"path", topo::to_string(r.score.path)},
-              {"converged", r.score.converged}};
+              {"converged", r.score.converged},
+              {"robustness", r.robustness >= 0 ? json(r.robustness) : json(nullptr)}};
 }
 
 std::string fmt_vec(const Eigen::VectorXd& v) {
@@ -103,6 +106,7 @@ struct Options {
   std::uint64_t seed = 1;
   double period_ms = 2.0;
   int links = 0, degree_cap = 0, max_evaluations = 500, top = 20;
+  int robustness = 0;  // feasible graphs are r-robust (0, 1: no constraint)
   std::uint64_t max_enumerate = 200000;
   double gain_a = 500.0, gain_b = 500.0;
   std::vector<double> mode_values;
@@ -138,6 +142,10 @@ void add_graph_options(CLI::App& app, Options& o) {
   app.add_option("--degree-cap", o.degree_cap, "max links per user (0 = none)")->capture_default_str();
   app.add_option("--graphs", o.graphs_text, "listed feasible set: \"1-2,1-3,1-4;1-2,2-4,3-4\"");
   app.add_flag("--search", o.force_search, "heuristic search even if enumeration is possible");
+  app.add_option("--robustness", o.robustness,
+                 "feasible graphs are r-robust (resilient consensus with F liars, rt/resilient.hpp: r = 2F+1); "
+                 "enumeration or --graphs only, N <= 20; the cost against the best without it is printed")
+      ->capture_default_str()->check(haptic::platform::kNonNegativeInteger);
   app.add_option("--max-enumerate", o.max_enumerate, "enumerate when C(pairs, links) <= this, else search")->capture_default_str()->check(haptic::platform::kNonNegativeInteger);
   app.add_option("--max-evaluations", o.max_evaluations, "search budget of eq. (27) evaluations")->capture_default_str()->check(haptic::platform::kPositive);
   topo::SearchOptions& so = o.search_opt;
@@ -174,6 +182,7 @@ void validate(Options& o) {
   if (!(o.loss_probability >= 0 && o.loss_probability < 1)) throw std::invalid_argument("--loss: must be in [0, 1)");
   if (!(o.run_s > 0)) throw std::invalid_argument("--run-s: must be > 0");
   if (o.degree_cap < 0) throw std::invalid_argument("--degree-cap: must be >= 0");
+  if (o.robustness > 1 && o.force_search) throw std::invalid_argument("--robustness: needs enumeration or --graphs; the search does not keep it (drop --search)");
   if (o.method == "dense") o.eigen_method = topo::EigenMethod::Dense;
   else if (o.method == "power") o.eigen_method = topo::EigenMethod::Power;
   else if (o.method == "arnoldi") o.eigen_method = topo::EigenMethod::Arnoldi;
@@ -283,6 +292,8 @@ struct Ranking {
   std::string feasible, mode;
   topo::SearchResult sr;
   bool searched = false;
+  Row unconstrained_best;   // --robustness: the best of the feasible set without the constraint
+  std::size_t unconstrained_count = 0;
 };
 
 void search_rows(Options& o, const Delays& d, const Scorer& sc, int available_pairs, double combos, Ranking& rk) {
@@ -329,6 +340,9 @@ Ranking feasible_rows(Options& o, const Delays& d, const Scorer& sc) {
   for (int k = 1; k <= o.links && combos <= 1e18; ++k) combos = combos * (available_pairs - o.links + k) / k;
   if (!o.force_search && sc.dense_gains == false && combos > static_cast<double>(o.max_enumerate)) o.force_search = true;
   if (o.force_search && !sc.dense_gains) {
+    if (o.robustness > 1)
+      throw std::invalid_argument("--robustness: C(" + std::to_string(available_pairs) + "," + std::to_string(o.links) +
+                                  ") link subsets exceed --max-enumerate, and the search does not keep the constraint");
     search_rows(o, d, sc, available_pairs, combos, rk);
     return rk;
   }
@@ -337,6 +351,22 @@ Ranking feasible_rows(Options& o, const Delays& d, const Scorer& sc) {
                 (o.degree_cap > 0 ? ", degree <= " + std::to_string(o.degree_cap) : "") + " (" + std::to_string(rk.rows.size()) + ")";
   rk.mode = "enumeration";
   return rk;
+}
+
+// Each row's robustness (N <= 20); with --robustness r > 1, the ranked rows keep the r-robust graphs
+// only and the best of all is kept for the cost line. Throws when none is r-robust.
+void apply_robustness(const Options& o, int n, Ranking& rk) {
+  if (n > haptic::model::kMaxRobustnessUsers) return;
+  for (auto& r : rk.rows) r.robustness = haptic::model::robustness(r.graph, n, "--robustness");
+  if (o.robustness <= 1) return;
+  rk.unconstrained_best = rk.rows.front();
+  rk.unconstrained_count = rk.rows.size();
+  std::erase_if(rk.rows, [&](const Row& r) { return r.robustness < o.robustness; });
+  if (rk.rows.empty())
+    throw std::invalid_argument("--robustness " + std::to_string(o.robustness) + ": none of the " + std::to_string(rk.unconstrained_count) +
+                                " feasible graphs is " + std::to_string(o.robustness) + "-robust (" + std::to_string(n) + " users: at least " +
+                                std::to_string((o.robustness * n + 1) / 2) + " links, every degree >= " + std::to_string(o.robustness) +
+                                ((n + 1) / 2 < o.robustness ? "; even K_" + std::to_string(n) + " is only " + std::to_string((n + 1) / 2) + "-robust" : "") + ")");
 }
 
 // Scores (eq. 27) and eq. (18) sums of every row, then the ranking.
@@ -360,6 +390,7 @@ void score_and_rank(const Options& o, const Delays& d, const Scorer& sc, Ranking
       if (x.eq18_ms.maxCoeff() != y.eq18_ms.maxCoeff()) return x.eq18_ms.maxCoeff() < y.eq18_ms.maxCoeff();
       return x.eq18_ms.sum() < y.eq18_ms.sum();
     });
+    apply_robustness(o, static_cast<int>(d.rank_delay.rows()), rk);
     rk.rows.front().label = "best";
     if (rk.rows.size() > 1) rk.rows.back().label = "worst";
   }
@@ -388,7 +419,17 @@ void print_header(const Options& o, const Delays& d, const Scorer& sc, const Ran
               d.eq18_factor, o.summary_file.empty() ? "mean" : "measured max", rk.rows.front().loss_allowance);
   if (o.loss_allowance >= 0) std::printf("given)\n");
   else std::printf("from %g loss over %g s)\n", o.loss_probability, o.run_s);
-  std::printf("time: %.3f s (%zu graphs scored%s)\n\n", elapsed, rk.searched ? static_cast<std::size_t>(rk.sr.evaluations) : rk.rows.size(),
+  if (o.robustness > 1) {
+    const auto& u = rk.unconstrained_best;
+    const auto& b = rk.rows.front();
+    std::printf("robustness constraint: %d-robust (resilient consensus with F = %d liars): %zu of %zu graphs; best |lambda_n+1| %.9f "
+                "(tau %.1f ms) against %.9f (tau %.1f ms, %s, %d-robust) without it\n",
+                o.robustness, (o.robustness - 1) / 2, rk.rows.size(), rk.unconstrained_count, b.score.lambda_next_abs,
+                time_constant_ms(b.score.lambda_next_abs, o.period_ms), u.score.lambda_next_abs,
+                time_constant_ms(u.score.lambda_next_abs, o.period_ms), topo::to_string_1based(u.graph).c_str(), u.robustness);
+  }
+  const std::size_t scored = rk.searched ? static_cast<std::size_t>(rk.sr.evaluations) : std::max(rk.rows.size(), rk.unconstrained_count);
+  std::printf("time: %.3f s (%zu graphs scored%s)\n\n", elapsed, scored,
               rk.searched ? " in the search" : "");
 }
 
@@ -417,6 +458,11 @@ json ranking_json(const Options& o, const Delays& d, const Ranking& rk, double e
   out["loss_allowance_steps"] = rk.rows.front().loss_allowance;  // the best's (each row: its own)
   out["self_weight"] = o.self_weight;
   out["feasible_set"] = rk.feasible;
+  if (o.robustness > 1) {
+    out["robustness_required"] = o.robustness;
+    out["unconstrained_count"] = rk.unconstrained_count;
+    out["unconstrained_best"] = row_json(rk.unconstrained_best, 1, o.period_ms);
+  }
   out["mode"] = rk.mode;
   out["structure_path"] = topo::to_string(rk.rows.front().score.path);
   out["time_s"] = elapsed;

@@ -3,9 +3,12 @@
 // haptic-topology share.
 #include <CppUTest/TestHarness.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "firmware/model/delay_model.hpp"
 #include "firmware/model/graph.hpp"
@@ -266,4 +269,69 @@ TEST(Model, the_force_balance_is_the_norm_of_the_sum_and_the_mean_of_the_norms) 
   DOUBLES_EQUAL(2.0, t.force_N.x(), 0);
   DOUBLES_EQUAL(3.0, t.port_J, 0);
   DOUBLES_EQUAL(-1.5, t.controller_J, 0);
+}
+
+namespace {
+model::Graph complete_graph(int n) {
+  model::Graph g;
+  for (int a = 0; a < n; ++a)
+    for (int b = a + 1; b < n; ++b) g.push_back({a, b});
+  return g;
+}
+// The definition, directly: every pair of disjoint non-empty sets (3^N assignments), one of them
+// r-reachable. An independent oracle for model::robustness.
+int robustness_by_definition(const model::Graph& g, int n) {
+  std::vector<std::vector<int>> nb(static_cast<std::size_t>(n));
+  for (const auto& l : g) nb[static_cast<std::size_t>(l.a)].push_back(l.b), nb[static_cast<std::size_t>(l.b)].push_back(l.a);
+  int total = 1;
+  for (int i = 0; i < n; ++i) total *= 3;
+  int best = n;
+  std::vector<int> side(static_cast<std::size_t>(n));
+  for (int code = 0; code < total; ++code) {
+    int c = code, n1 = 0, n2 = 0;
+    for (int i = 0; i < n; ++i, c /= 3) side[static_cast<std::size_t>(i)] = c % 3, n1 += c % 3 == 1, n2 += c % 3 == 2;
+    if (n1 == 0 || n2 == 0) continue;
+    int reach[3] = {0, 0, 0};
+    for (int u = 0; u < n; ++u) {
+      int outside = 0;
+      for (int v : nb[static_cast<std::size_t>(u)]) outside += side[static_cast<std::size_t>(v)] != side[static_cast<std::size_t>(u)];
+      reach[side[static_cast<std::size_t>(u)]] = std::max(reach[side[static_cast<std::size_t>(u)]], outside);
+    }
+    best = std::min(best, std::max(reach[1], reach[2]));
+  }
+  return best;
+}
+}  // namespace
+
+TEST(Model, robustness_of_known_graphs_complete_is_half_rounded_up_trees_and_cycles_are_1) {
+  for (int n = 2; n <= 12; ++n) CHECK_EQUAL((n + 1) / 2, model::robustness(complete_graph(n), n));
+  CHECK_EQUAL(1, model::robustness(model::parse_graph_1based("1-2,1-3,1-4", 4), 4));          // the paper's star
+  CHECK_EQUAL(1, model::robustness(model::parse_graph_1based("1-2,2-3,3-4,4-5,5-6", 6), 6));  // a path
+  CHECK_EQUAL(1, model::robustness(model::parse_graph_1based("1-2,2-3,3-4,4-5,5-6,6-1", 6), 6));  // a cycle
+  CHECK_EQUAL(0, model::robustness(model::parse_graph_1based("1-2,3-4", 4), 4));  // not connected
+  // two triangles on user 1 plus a pendant pair: the witness pair {4, 5}, {2, 3, 6} leaves user 1 out,
+  // so checking only splits of all users into two sets would call it 2-robust
+  CHECK_EQUAL(1, model::robustness(model::parse_graph_1based("1-2,1-3,1-4,1-5,2-3,2-6,3-6,4-5", 6), 6));
+  // K_5 is the smallest 3-robust graph (F = 1 under W-MSR needs at least 5 users)
+  CHECK_FALSE(model::is_r_robust(complete_graph(4), 4, 3));
+  CHECK_TRUE(model::is_r_robust(complete_graph(5), 5, 3));
+  STRCMP_CONTAINS("lab.topology: robustness is checked exhaustively up to 20 users, not 21",
+                  error_of([] { (void)model::robustness(complete_graph(21), 21, "lab.topology"); }).c_str());
+}
+
+TEST(Model, robustness_equals_the_definition_on_random_graphs_and_never_exceeds_the_least_degree) {
+  std::mt19937 rng(3);
+  for (int trial = 0; trial < 300; ++trial) {
+    const int n = 2 + static_cast<int>(rng() % 6);
+    const double p = 0.2 + 0.8 * static_cast<double>(rng() % 1000) / 1000.0;
+    model::Graph g;
+    for (int a = 0; a < n; ++a)
+      for (int b = a + 1; b < n; ++b)
+        if (static_cast<double>(rng() % 1000) / 1000.0 < p) g.push_back({a, b});
+    const int r = model::robustness(g, n);
+    CHECK_EQUAL(robustness_by_definition(g, n), r);
+    std::vector<int> deg(static_cast<std::size_t>(n), 0);
+    for (const auto& l : g) ++deg[static_cast<std::size_t>(l.a)], ++deg[static_cast<std::size_t>(l.b)];
+    CHECK_TRUE(r <= *std::min_element(deg.begin(), deg.end()));
+  }
 }

@@ -174,6 +174,20 @@ TEST(CheckConfig, ARunThatEndsBeforeTheReleaseIsAWarningAtStart) {
   CHECK(contains(check(s.text(), o).out, "(--duration = 2 s) ends before"));
 }
 
+// station.resilient_f on the paper's star (1-robust) is a warning naming what it needs; without the
+// per-edge energy bound it is refused under eq. (18), naming both keys (rt/README.md).
+TEST(CheckConfig, AResilientRuleOnATopologyThatIsNotRobustEnoughIsAWarningAndWithoutTheEnergyBoundAnError) {
+  test::StationText s = hub();
+  s.station_extra = "resilient_f = 1\n";
+  const Checked c = check(s.text());
+  LONGS_EQUAL(kExitOk, c.code);
+  CHECK_TEXT(contains(c.out, "station.resilient_f = 1 needs a 3-robust topology") && contains(c.out, "this one is 1-robust"), c.out.c_str());
+  s.station_extra = "";
+  CHECK_FALSE(contains(check(s.text()).out, "resilient_f"));
+  s.station_extra = "resilient_f = 1\nedge_energy_bound_J = 0\n";
+  rejected_with_key(s.text(), "station.resilient_f needs station.edge_energy_bound_J > 0");
+}
+
 TEST(CheckConfig, AStartLongAfterTheCommonEpochIsAConfigurationError) {
   RunOverrides o;
   o.start_at = 1.0;  // CLOCK_MONOTONIC 1 s after boot: long past

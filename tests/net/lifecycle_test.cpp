@@ -320,6 +320,18 @@ TEST(Incarnation, AnAuthenticDatagramDifferingFromADeliveredOneIsAKeyCompromise)
   check_one_conflict(dec, 12);
 }
 
+// The same with packets of one datagram (float32: the paper scene's default), which skip reassembly.
+TEST(Incarnation, ASingleDatagramPacketsSequenceUsedUpFirstIsAKeyCompromise) {
+  WireConfig w = wire_of(1, 100);
+  w.encoding = ValueEncoding::float32;
+  Encoder real{w};
+  DecodedState st;
+  CHECK_EQUAL(1u, real.fragment_count(99));
+  CHECK(decode_at(dec, encode_state(real, 0, 11, std::vector<double>(99, 0.5)), st, ms(1000)) == DecodeStatus::complete);
+  CHECK(decode_at(dec, encode_state(real, 0, 11, x), st, ms(1002)) == DecodeStatus::dropped);
+  check_one_conflict(dec, 11);
+}
+
 // A partial packet: the attacker's first fragment of a sequence waits in reassembly; the real one's
 // first fragment of that sequence is no duplicate of it but a second signer.
 TEST(Incarnation, AConflictingFragmentOfAPartialPacketIsAKeyCompromise) {

@@ -237,6 +237,8 @@ void Endpoint::publish_stats() {
     ps.refused_incarnation_datagrams = w.refused_datagrams;
     ps.key_compromise = w.compromised;
     ps.key_compromise_s = static_cast<double>(w.compromised_ns) * 1e-9;
+    ps.key_compromise_conflict = w.conflicting_datagrams;
+    ps.key_compromise_seq = w.conflict_seq;
     p.box.writer_publish(ps);
   }
   counters_.drops = decoder_.drops();

@@ -42,11 +42,15 @@ struct PeerStats {
   std::uint64_t incarnation = 0, incarnation_changes = 0;
   // The incarnation rule (net/README.md "Incarnations and restarts", Decoder::incarnations): the
   // newest newer incarnation refused because the current one still spoke (0: none) and its datagrams;
-  // key_compromise: two live incarnations of this neighbour were seen (at key_compromise_s,
-  // monotonic_s()), and every datagram of it is dropped for the rest of the run.
+  // key_compromise: two live incarnations of this neighbour were seen, or (key_compromise_conflict)
+  // two different authentic state datagrams with one sequence (key_compromise_seq) and fragment in one
+  // incarnation (at key_compromise_s, monotonic_s()), and every datagram of it is dropped for the
+  // rest of the run.
   std::uint64_t refused_incarnation = 0, refused_incarnation_datagrams = 0;
   bool key_compromise = false;
   double key_compromise_s = 0.0;
+  bool key_compromise_conflict = false;
+  std::uint64_t key_compromise_seq = 0;
   // The neighbour's virtual proxy position (m) from the newest state packet that carried one (wire
   // flag kFlagProxy; has_proxy false before) and that packet's sequence: for the live view only.
   bool has_proxy = false;

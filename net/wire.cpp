@@ -319,6 +319,11 @@ bool payload_finite(const std::uint8_t* p, std::size_t values, std::size_t vb) {
   return true;
 }
 
+// The first 8 bytes of an (authenticated) datagram's MAC: what tells two authentic datagrams apart.
+std::uint64_t mac_digest(const std::uint8_t* d, const HeaderView& h) {
+  return get<std::uint64_t>(d, kHeaderBytes + h.frag_len);
+}
+
 // A control message (hello, fingerprint): no values, one fragment of exactly `bytes` payload bytes.
 bool single_control_fragment(const HeaderView& h, std::size_t bytes) {
   return h.value_count == 0 && h.frag_index == 0 && h.frag_count == 1 && h.frag_offset == 0 && h.frag_len == bytes &&
@@ -373,6 +378,8 @@ Decoder::Decoder(const WireConfig& cfg, std::span<const std::uint16_t> peers, st
     p.first_slot = peers_.size() * slots_per_peer_;
     peers_.push_back(p);
   }
+  for (std::size_t i = 0; i < peers_.size(); ++i) peers_[i].first_digest = i * kReplayWindow;
+  digests_.resize(peers_.size() * kReplayWindow);
   slots_.resize(peers_.size() * slots_per_peer_);
   storage_.resize(slots_.size() * max_payload_bytes_);
   for (std::size_t i = 0; i < slots_.size(); ++i) slots_[i].buffer = storage_.data() + i * max_payload_bytes_;
@@ -504,7 +511,8 @@ IncarnationWatch Decoder::incarnations(std::uint16_t sender) const {
   const int pi = peer_index(sender);
   if (pi < 0) throw std::invalid_argument("decoder: station " + std::to_string(sender) + " is not a neighbour");
   const Peer& p = peers_[static_cast<std::size_t>(pi)];
-  return {p.has_incarnation ? p.incarnation : 0, p.challenger, p.challenger_datagrams, p.compromised, p.compromised_ns};
+  return {p.has_incarnation ? p.incarnation : 0, p.challenger, p.challenger_datagrams, p.compromised, p.compromised_ns,
+          p.conflicting_datagrams, p.conflict_seq};
 }
 
 void Decoder::report(DecodedState& out, const HeaderView& h, Peer& peer, bool raised, PayloadKind kind) {
@@ -653,7 +661,7 @@ void Decoder::report_state(DecodedState& out, const HeaderView& h, Peer& peer, b
   out.payload = payload;
 }
 
-Decoder::Slot* Decoder::reassembly_slot(const HeaderView& h, Peer& peer, DropReason& why) {
+Decoder::Slot* Decoder::reassembly_slot(const HeaderView& h, Peer& peer, std::uint64_t mac, DropReason& why) {
   // This sequence's slot, else a free one, else evict the oldest partial.
   Slot* slots = slots_.data() + peer.first_slot;
   Slot* slot = nullptr;
@@ -665,7 +673,10 @@ Decoder::Slot* Decoder::reassembly_slot(const HeaderView& h, Peer& peer, DropRea
         slot->flags != h.flags)
       return nullptr;
     why = DropReason::replayed;
-    if ((slot->bitmap[h.frag_index / 64] >> (h.frag_index % 64)) & 1u) return nullptr;
+    if ((slot->bitmap[h.frag_index / 64] >> (h.frag_index % 64)) & 1u) {
+      if (slot->mac[h.frag_index] != mac) why = DropReason::key_compromise;  // authentic, other content
+      return nullptr;
+    }
     return slot;
   }
   for (std::size_t i = 0; i < slots_per_peer_ && slot == nullptr; ++i)
@@ -691,6 +702,32 @@ Decoder::Slot* Decoder::reassembly_slot(const HeaderView& h, Peer& peer, DropRea
   return slot;
 }
 
+bool Decoder::conflicts_with_delivered(const Peer& peer, const HeaderView& h, std::uint64_t mac) const {
+  const SequenceDigests& e = digests_[peer.first_digest + h.seq % kReplayWindow];
+  if (e.seq != h.seq || h.frag_index >= kDigestFragments || ((e.held >> h.frag_index) & 1u) == 0) return false;
+  return e.mac[h.frag_index] != mac;
+}
+
+void Decoder::keep_digests(Peer& peer, std::uint64_t seq, const std::uint64_t* macs, std::size_t frags) {
+  SequenceDigests& e = digests_[peer.first_digest + seq % kReplayWindow];
+  e.seq = seq;
+  e.held = 0;
+  for (std::size_t f = 0; f < std::min(frags, kDigestFragments); ++f) {
+    e.mac[f] = macs[f];
+    e.held = static_cast<std::uint8_t>(e.held | (1u << f));
+  }
+}
+
+DecodeStatus Decoder::same_sequence_conflict(Peer& peer, const HeaderView& h, const DecodeLimits& lim) {
+  // The genuine sender never signs two datagrams with one sequence and fragment in one incarnation:
+  // another holder of its key signed one of them (e.g. to use up the genuine one's sequences).
+  peer.compromised = true;
+  peer.compromised_ns = lim.now_ns;
+  peer.conflicting_datagrams = true;
+  peer.conflict_seq = h.seq;
+  return drop(DropReason::key_compromise);
+}
+
 DecodeStatus Decoder::decode_state(const std::uint8_t* d, const HeaderView& h, Peer& peer, DecodedState& out,
                                    const DecodeLimits& lim) {
   DropReason why{};
@@ -700,7 +737,11 @@ DecodeStatus Decoder::decode_state(const std::uint8_t* d, const HeaderView& h, P
   if (h.seq > lim.max_sequence) return drop(DropReason::future_sequence);
   bool raised = false;
   if (!check_incarnation(peer, h.incarnation, lim, raised, why)) return drop(why);
-  if (seen(peer.states, h.seq, why)) return drop(why);  // never after a raise: the window is empty
+  const std::uint64_t mac = mac_digest(d, h);
+  if (seen(peer.states, h.seq, why)) {  // never after a raise: the window is empty
+    if (why == DropReason::replayed && conflicts_with_delivered(peer, h, mac)) return same_sequence_conflict(peer, h, lim);
+    return drop(why);
+  }
   // A sequence never seen: the current incarnation speaks (a replay cannot: the window refused it).
   if (!note_current(peer, lim, true)) return drop(DropReason::key_compromise);
   const std::size_t vb = (h.flags & kFlagFloat32) ? 4 : 8;
@@ -709,16 +750,18 @@ DecodeStatus Decoder::decode_state(const std::uint8_t* d, const HeaderView& h, P
   if (h.frag_count == 1) {
     if (junk(d + kHeaderBytes, h.frag_len / vb, h, lim, why)) return drop(why);
     mark(peer.states, h.seq);
+    keep_digests(peer, h.seq, &mac, 1);
     ++accepted_datagrams_;
     ++completed_;
     report_state(out, h, peer, raised, d + kHeaderBytes);
     return DecodeStatus::complete;
   }
 
-  Slot* slot = reassembly_slot(h, peer, why);
-  if (slot == nullptr) return drop(why);
+  Slot* slot = reassembly_slot(h, peer, mac, why);
+  if (slot == nullptr) return why == DropReason::key_compromise ? same_sequence_conflict(peer, h, lim) : drop(why);
   std::memcpy(slot->buffer + h.frag_offset, d + kHeaderBytes, h.frag_len);
   slot->bitmap[h.frag_index / 64] |= std::uint64_t{1} << (h.frag_index % 64);
+  slot->mac[h.frag_index] = mac;
   ++slot->received;
   ++accepted_datagrams_;
   if (slot->received < slot->frag_count) return DecodeStatus::fragment_stored;
@@ -726,6 +769,7 @@ DecodeStatus Decoder::decode_state(const std::uint8_t* d, const HeaderView& h, P
   slot->used = false;
   if (junk(slot->buffer, 2ull * h.value_count + kProxyValues, h, lim, why)) return drop(why);
   mark(peer.states, h.seq);
+  keep_digests(peer, h.seq, slot->mac.data(), slot->frag_count);
   // Report the header fields stored with the slot (from its first fragment) and its buffer.
   ++completed_;
   report_state(out, h, peer, raised, slot->buffer);

@@ -288,8 +288,12 @@ struct IncarnationWatch {
   std::uint64_t current = 0;       // accepted (0: none yet)
   std::uint64_t refused = 0;       // the newest newer one refused while the current spoke (0: none)
   std::uint64_t refused_datagrams = 0;
-  bool compromised = false;        // two live incarnations: every datagram of the sender is dropped
+  bool compromised = false;        // key compromise suspected: every datagram of the sender is dropped
   std::int64_t compromised_ns = 0; // DecodeLimits::now_ns when it was found
+  // What proved it: two live incarnations (false), or two different authentic state datagrams with
+  // the same sequence and fragment in one incarnation (true; that sequence in conflict_seq).
+  bool conflicting_datagrams = false;
+  std::uint64_t conflict_seq = 0;
 };
 
 // fingerprint: an authentic fingerprint message (out.fingerprint); complete: a state packet.
@@ -345,6 +349,7 @@ class Decoder {
     std::uint64_t echo_seq = 0;
     std::int64_t echo_hold_ns = 0;
     std::uint8_t* buffer = nullptr;  // into storage_
+    std::array<std::uint64_t, kMaxFragments> mac{};  // first 8 bytes of each held fragment's MAC
   };
   // Sequences seen, 1024 wide behind the newest (bit b set = newest - b seen). One per sender for its
   // state packets, one for its control messages (fingerprints, hellos: their own sequence space).
@@ -352,6 +357,18 @@ class Decoder {
     bool any = false;
     std::uint64_t newest = 0;
     std::array<std::uint64_t, kReplayWindow / 64> window{};
+  };
+  // The MACs (first 8 bytes) of a delivered state packet's first kDigestFragments datagrams, one
+  // entry per sequence modulo the replay window: a datagram the window refuses as a replay is one
+  // only if it is the same datagram; an authentic one with other content proves a second holder of
+  // the sender's key (same_sequence_conflict). Partial packets keep every fragment's in their Slot.
+  // Written whenever a sequence enters the window, so an entry the window points to is always of the
+  // current incarnation (a raise empties the window).
+  static constexpr std::size_t kDigestFragments = 4;
+  struct SequenceDigests {
+    std::uint64_t seq = 0;
+    std::uint8_t held = 0;  // bit f: mac[f] is fragment f's
+    std::array<std::uint64_t, kDigestFragments> mac{};
   };
   struct Peer {
     std::uint16_t id = kNoStation;
@@ -365,9 +382,12 @@ class Decoder {
     std::uint64_t challenger_datagrams = 0;
     bool compromised = false;
     std::int64_t compromised_ns = 0;
+    bool conflicting_datagrams = false;  // IncarnationWatch
+    std::uint64_t conflict_seq = 0;
     ReplayWindow states;   // delivered state sequences (of the current incarnation)
     ReplayWindow control;  // accepted fingerprint and hello sequences (of the current incarnation)
     std::size_t first_slot = 0;
+    std::size_t first_digest = 0;  // its kReplayWindow entries in digests_
     bool pairwise = false, has_traffic_key = false;
     SessionKey hello_key{}, traffic_key{};
   };
@@ -401,8 +421,15 @@ class Decoder {
   static bool junk(const std::uint8_t* payload, std::size_t values, const HeaderView& h, const DecodeLimits& lim,
                    DropReason& reason);
   static void report_state(DecodedState& out, const HeaderView& h, Peer& peer, bool raised, const std::uint8_t* payload);
-  // The reassembly slot of this fragment's packet (found, free or evicted), or nullptr and why.
-  Slot* reassembly_slot(const HeaderView& h, Peer& peer, DropReason& why);
+  // The reassembly slot of this fragment's packet (found, free or evicted), or nullptr and why
+  // (key_compromise: the slot holds another authentic datagram of this fragment, MAC digest `mac`).
+  Slot* reassembly_slot(const HeaderView& h, Peer& peer, std::uint64_t mac, DropReason& why);
+  // A delivered sequence's datagram of this fragment was authentic with another MAC digest.
+  bool conflicts_with_delivered(const Peer& peer, const HeaderView& h, std::uint64_t mac) const;
+  // Delivered: keep the MAC digests of its first fragments (from `macs`, indexed by fragment).
+  void keep_digests(Peer& peer, std::uint64_t seq, const std::uint64_t* macs, std::size_t frags);
+  // Two different authentic datagrams with one sequence and fragment: key compromise suspected.
+  DecodeStatus same_sequence_conflict(Peer& peer, const HeaderView& h, const DecodeLimits& lim);
 
   WireConfig cfg_;
   std::uint32_t max_value_count_;
@@ -411,6 +438,7 @@ class Decoder {
   std::vector<Peer> peers_;
   std::vector<Slot> slots_;
   std::vector<std::uint8_t> storage_;
+  std::vector<SequenceDigests> digests_;  // kReplayWindow per peer
   std::uint64_t age_clock_ = 0;
   DropCounters drops_{};
   std::uint64_t accepted_datagrams_ = 0;

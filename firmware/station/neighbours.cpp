@@ -95,9 +95,13 @@ PeerEventLog::PeerEventLog(const StationPlan& plan, std::int64_t run_epoch_ns, d
 
 namespace {
 std::string key_compromise_message(int station, const net::PeerStats& p) {
-  return "key compromise suspected: station " + std::to_string(station) + " has two live incarnations (" + std::to_string(p.incarnation) +
-         " and " + std::to_string(p.refused_incarnation) +
-         "): both refused for the rest of the run (net/README.md \"Incarnations and restarts\"); revoke its key (net.revoked_keys) "
+  const std::string what = p.key_compromise_conflict
+                               ? "sent two different authentic datagrams with sequence " + std::to_string(p.key_compromise_seq) +
+                                     ": refused for the rest of the run"
+                               : "has two live incarnations (" + std::to_string(p.incarnation) + " and " +
+                                     std::to_string(p.refused_incarnation) + "): both refused for the rest of the run";
+  return "key compromise suspected: station " + std::to_string(station) + " " + what +
+         " (net/README.md \"Incarnations and restarts\"); revoke its key (net.revoked_keys) "
          "and rotate the lab's keys (haptic-lab rotate-keys)";
 }
 }  // namespace

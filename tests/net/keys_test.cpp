@@ -532,6 +532,37 @@ TEST(Keys, AStolenKeysRestartWhileTheRealStationTalksIsRefusedAndBothAreCutOff) 
   CHECK_EQUAL(0u, corrupt);
 }
 
+// A stolen key within the real station's incarnation (here the shared session key, which any key
+// holder signs with): the attacker sends station 1's next 20 sequences first, so the real ones would be
+// dropped as replays. The first real one is authentic with another MAC: key compromise suspected,
+// named with its sequence, and nothing of station 1 is taken any more.
+TEST(Keys, AStolenKeyUsingUpTheRealStationsSequencesIsNamedAsAKeyCompromise) {
+  KeyFiles k("burn");
+  Run r(k, false);
+  std::uint64_t corrupt = 0;
+  CHECK(r.exchange(1, 60, corrupt).size() >= 40);
+  WireConfig w1 = r.c1.wire;
+  w1.incarnation = r.e1->incarnation();  // the real one's incarnation: no restart to refuse
+  const Encoder as1(w1);
+  const std::vector<double> x(99, 0.0), v(99, 0.0);
+  std::vector<std::uint8_t> d(kDefaultDatagramBytes);
+  for (std::uint64_t q = 61; q <= 80; ++q)
+    for (std::size_t f = 0; f < as1.fragment_count(99); ++f) {
+      const std::size_t n = as1.encode_fragment(state_to_0(q, x, v), f, d.data(), d.size());
+      r.t1->inject(std::vector<std::uint8_t>(d.begin(), d.begin() + static_cast<long>(n)));
+    }
+  std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  const auto got = r.exchange(61, 60, corrupt);  // the real station 1 reaches those sequences
+  const EndpointStats s = r.e0->stats();
+  CHECK_TRUE(s.peers[0].key_compromise);
+  CHECK_TRUE(s.peers[0].key_compromise_conflict);
+  CHECK(s.peers[0].key_compromise_seq >= 61 && s.peers[0].key_compromise_seq <= 80);
+  CHECK_EQUAL(0u, s.peers[0].refused_incarnation);
+  CHECK_EQUAL(0u, s.peers[0].incarnation_changes);
+  CHECK(s.drops[DropReason::key_compromise] >= 50);  // the real one's datagrams from then on
+  for (auto q : got) CHECK(q <= 80);  // only the forgeries (delivered before the proof) and nothing after
+}
+
 // A station's pushes pause (the set-up gap between probing and the run, ~0.5 s): its endpoint keeps
 // its incarnation alive with fingerprints under this run's key, so a stolen key's "restart" in the
 // gap is refused too, and the real one's first states after the gap name the compromise.

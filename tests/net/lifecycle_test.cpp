@@ -61,6 +61,13 @@ DecodeStatus decode_at(Decoder& dec, const std::vector<std::vector<std::uint8_t>
 }
 constexpr std::int64_t ms(std::int64_t t) { return t * 1'000'000; }
 
+// The decoder (neighbour 1) found two different authentic datagrams with sequence seq: named, one drop.
+void check_one_conflict(const Decoder& dec, std::uint64_t seq) {
+  CHECK_TRUE(dec.incarnations(1).conflicting_datagrams);
+  CHECK_EQUAL(seq, dec.incarnations(1).conflict_seq);
+  CHECK_EQUAL(1u, dec.drops()[DropReason::key_compromise]);
+}
+
 WireConfig wire_of(std::uint16_t station, std::uint64_t incarnation) {
   WireConfig w = exchange_wire(station);
   w.incarnation = incarnation;
@@ -272,6 +279,122 @@ TEST(Incarnation, ReplaysOfTheCurrentIncarnationCannotMakeItLookLiveNextToAResta
   CHECK(decode_at(dec, encode_state(restarted, 0, 2, x), st, ms(1300)) == DecodeStatus::complete);
   CHECK_EQUAL(200u, dec.incarnations(1).current);
   CHECK_EQUAL(0u, dec.drops()[DropReason::key_compromise]);
+}
+
+// A stolen key within the same incarnation: the attacker signs the next sequences first (using up
+// the genuine ones, which the replay window would refuse as replays). Two different authentic
+// datagrams with one sequence and fragment are proof of a second key holder: key compromise
+// suspected, as with two live incarnations (every datagram of the sender refused from then on).
+TEST(Incarnation, TwoDifferentAuthenticDatagramsWithOneSequenceAreAKeyCompromise) {
+  Encoder real{wire_of(1, 100)};
+  DecodedState st;
+  CHECK(decode_at(dec, encode_state(real, 0, 10, x), st, ms(1000)) == DecodeStatus::complete);
+  const std::vector<double> forged_x(99, 0.5);
+  for (std::uint64_t q = 11; q <= 20; ++q)  // the attacker, ahead of the real station (same incarnation)
+    CHECK(decode_at(dec, encode_state(real, 0, q, forged_x), st, ms(1001)) == DecodeStatus::complete);
+  CHECK_FALSE(dec.incarnations(1).compromised);  // nothing to tell them apart yet
+  // The real station's packet 11: its first datagram has the sequence and fragment of an authentic one
+  // with other content. Named, and its second datagram is refused with everything after it.
+  CHECK(decode_at(dec, encode_state(real, 0, 11, x), st, ms(1003)) == DecodeStatus::dropped);
+  const IncarnationWatch w = dec.incarnations(1);
+  CHECK_TRUE(w.compromised);
+  CHECK_TRUE(w.conflicting_datagrams);
+  CHECK_EQUAL(11u, w.conflict_seq);
+  CHECK_EQUAL(ms(1003), w.compromised_ns);
+  CHECK_EQUAL(100u, w.current);
+  CHECK_EQUAL(0u, w.refused);
+  CHECK(decode_at(dec, encode_state(real, 0, 21, x), st, ms(1005)) == DecodeStatus::dropped);
+  CHECK_EQUAL(2u + 2u, dec.drops()[DropReason::key_compromise]);
+  CHECK_EQUAL(0u, dec.drops()[DropReason::replayed]);
+  CHECK_EQUAL(11u, dec.completed_packets());
+}
+
+// The other order: the real packet first, the attacker's (same sequence, other content) after it.
+TEST(Incarnation, AnAuthenticDatagramDifferingFromADeliveredOneIsAKeyCompromise) {
+  Encoder real{wire_of(1, 100)};
+  DecodedState st;
+  for (std::uint64_t q = 10; q <= 20; ++q)
+    CHECK(decode_at(dec, encode_state(real, 0, q, x), st, ms(1000)) == DecodeStatus::complete);
+  auto forged = encode_state(real, 0, 12, std::vector<double>(99, 0.5));
+  CHECK(dec.decode(forged[1].data(), forged[1].size(), st, DecodeLimits{}) == DecodeStatus::dropped);  // fragment 1
+  check_one_conflict(dec, 12);
+}
+
+// The same with packets of one datagram (float32: the paper scene's default), which skip reassembly.
+TEST(Incarnation, ASingleDatagramPacketsSequenceUsedUpFirstIsAKeyCompromise) {
+  WireConfig w = wire_of(1, 100);
+  w.encoding = ValueEncoding::float32;
+  Encoder real{w};
+  DecodedState st;
+  CHECK_EQUAL(1u, real.fragment_count(99));
+  CHECK(decode_at(dec, encode_state(real, 0, 11, std::vector<double>(99, 0.5)), st, ms(1000)) == DecodeStatus::complete);
+  CHECK(decode_at(dec, encode_state(real, 0, 11, x), st, ms(1002)) == DecodeStatus::dropped);
+  check_one_conflict(dec, 11);
+}
+
+// A partial packet: the attacker's first fragment of a sequence waits in reassembly; the real one's
+// first fragment of that sequence is no duplicate of it but a second signer.
+TEST(Incarnation, AConflictingFragmentOfAPartialPacketIsAKeyCompromise) {
+  Encoder real{wire_of(1, 100)};
+  DecodedState st;
+  CHECK(decode_at(dec, encode_state(real, 0, 10, x), st, ms(1000)) == DecodeStatus::complete);
+  const auto forged = encode_state(real, 0, 11, std::vector<double>(99, 0.5));
+  CHECK(dec.decode(forged[0].data(), forged[0].size(), st, DecodeLimits{}) == DecodeStatus::fragment_stored);
+  const auto genuine = encode_state(real, 0, 11, x);
+  CHECK(dec.decode(genuine[0].data(), genuine[0].size(), st, DecodeLimits{}) == DecodeStatus::dropped);
+  check_one_conflict(dec, 11);
+}
+
+// Identical datagrams again (a replay, or a network duplicate) stay replays, delivered or partial.
+TEST(Incarnation, AnIdenticalReplayOfAnAuthenticDatagramStaysAReplay) {
+  Encoder real{wire_of(1, 100)};
+  DecodedState st;
+  const auto p10 = encode_state(real, 0, 10, x), p11 = encode_state(real, 0, 11, x);
+  CHECK(decode_at(dec, p10, st, ms(1000)) == DecodeStatus::complete);
+  CHECK(dec.decode(p11[0].data(), p11[0].size(), st, DecodeLimits{}) == DecodeStatus::fragment_stored);
+  for (int i = 0; i < 3; ++i) {
+    CHECK(decode_at(dec, p10, st, ms(1001)) == DecodeStatus::dropped);
+    CHECK(dec.decode(p11[0].data(), p11[0].size(), st, DecodeLimits{}) == DecodeStatus::dropped);
+  }
+  CHECK_EQUAL(3u * 3u, dec.drops()[DropReason::replayed]);
+  CHECK_EQUAL(0u, dec.drops()[DropReason::key_compromise]);
+  CHECK_FALSE(dec.incarnations(1).compromised);
+  CHECK(dec.decode(p11[1].data(), p11[1].size(), st, DecodeLimits{}) == DecodeStatus::complete);
+}
+
+// A restarted sender counts its sequences afresh with other content: its old incarnation's
+// datagrams are no evidence against the new one's.
+TEST(Incarnation, ARestartedSendersReusedSequencesAreNoConflict) {
+  Encoder first{wire_of(1, 100)}, restarted{wire_of(1, 200)};
+  DecodedState st;
+  for (std::uint64_t q = 1; q <= 5; ++q)
+    CHECK(decode_at(dec, encode_state(first, 0, q, x), st, ms(1000)) == DecodeStatus::complete);
+  const std::vector<double> other(99, 0.5);
+  for (std::uint64_t q = 1; q <= 5; ++q)  // after the quiet time: a restart
+    CHECK(decode_at(dec, encode_state(restarted, 0, q, other), st, ms(2000)) == DecodeStatus::complete);
+  CHECK_FALSE(dec.incarnations(1).compromised);
+  CHECK_EQUAL(0u, dec.drops()[DropReason::key_compromise]);
+}
+
+// An attacker jumping beyond the sequence ceiling uses up nothing (future_sequence, before the window
+// moves) and is not named: the ceiling is our own tick, a genuine sender can be ahead of it.
+TEST(Incarnation, AJumpBeyondTheSequenceCeilingUsesUpNothingAndIsNotNamed) {
+  Encoder real{wire_of(1, 100)};
+  DecodedState st;
+  DecodeLimits lim;
+  lim.max_sequence = 60;
+  auto at = [&](const std::vector<std::vector<std::uint8_t>>& p) {
+    DecodeStatus r = DecodeStatus::dropped;
+    for (const auto& d : p) r = dec.decode(d.data(), d.size(), st, lim);
+    return r;
+  };
+  CHECK(at(encode_state(real, 0, 10, x)) == DecodeStatus::complete);
+  CHECK(at(encode_state(real, 0, 61, std::vector<double>(99, 0.5))) == DecodeStatus::dropped);
+  CHECK_EQUAL(2u, dec.drops()[DropReason::future_sequence]);
+  CHECK(at(encode_state(real, 0, 11, x)) == DecodeStatus::complete);
+  lim.max_sequence = 70;
+  CHECK(at(encode_state(real, 0, 61, x)) == DecodeStatus::complete);  // the genuine 61, later
+  CHECK_FALSE(dec.incarnations(1).compromised);
 }
 
 TEST(Incarnation, NewIncarnationsGrowAcrossCalls) {

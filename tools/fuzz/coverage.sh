@@ -23,6 +23,8 @@ python3 - "$build/functions.txt" <<'PY'
 import re, sys
 want = ["Decoder::authenticate", "Decoder::decode_hello", "Decoder::decode_fingerprint", "Decoder::decode_state",
         "Decoder::check_incarnation", "Decoder::note_current", "Decoder::control_replayed", "Decoder::set_peer_keys",
+        "Decoder::reassembly_slot", "Decoder::conflicts_with_delivered", "Decoder::keep_digests",
+        "Decoder::same_sequence_conflict",
         "PairAgreement::on_hello", "PairAgreement::forget", "PairAgreement::take_hello", "traffic_key(",
         "Endpoint::receive_one", "Endpoint::on_authentic", "Endpoint::on_hello", "Endpoint::on_fingerprint",
         "Endpoint::on_state", "Endpoint::deliver", "Endpoint::send_keepalive", "Endpoint::send_fingerprints",

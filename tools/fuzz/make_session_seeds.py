@@ -4,7 +4,7 @@
 pairwise handshake with both neighbours, then messages of every kind under the agreed keys (hello,
 fingerprint, single- and multi-fragment states, float32 and float64, safe state), a replay of each,
 a restart after the quiet time, a restart announced while the current incarnation talks (two live
-incarnations), stale keys, junk values, and the same under the shared key.
+incarnations), two authentic datagrams with one sequence (a second key holder), stale keys, junk values, and the same under the shared key.
 Usage: make_session_seeds.py DIR"""
 import os
 import struct
@@ -75,6 +75,11 @@ SEEDS['pause_stale_junk'] = b'\x01' + handshake() + fingerprint(0) + time_ms(100
     state(0, delta=4, value=(2, 0x7FF8000000000000, False)) + state(0, delta=5, value=(3, struct.unpack('<Q', struct.pack('<d', 1.0))[0], True)) + \
     hello(1, nonce=3, echo=1) + mutate(20, 0x40) + mutate(5, 0x01) + drain()
 SEEDS['wrong_sources'] = b'\x01' + handshake() + state(0, src=1) + state(0, delta=2, src=2) + state(1, src=3) + fingerprint(1, src=2) + drain()
+# A second holder of a neighbour's key in its own incarnation: two authentic datagrams with one sequence
+# and fragment but other content, after the first was delivered, and while the first waits in reassembly.
+other_x = (2, struct.unpack('<Q', struct.pack('<d', 0.05))[0], False)
+SEEDS['same_sequence_conflict'] = b'\x01' + handshake() + state(0) + state(0, value=other_x) + replay(2) + \
+    state(1, delta=2, frags=0x01) + state(1, delta=2, frags=0x01, value=other_x) + replay(6) + state(1, delta=3) + drain()
 # Shared key (first byte 0): no hellos, states and fingerprints under the one key.
 SEEDS['shared_key'] = b'\x00' + push() + fingerprint(0) + state(0) + state(1, f32=True) + replay(0) + replay(3) + \
     fingerprint(0, key=3) + drain()

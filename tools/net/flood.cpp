@@ -20,8 +20,13 @@
 //   hello in S's name from a newer incarnation (S's sniffed one + 1, a fresh nonce), as a second
 //   process holding S's key would announce itself while S runs (net/README.md "Incarnations and
 //   restarts": refused, and S's next states make two live incarnations).
+//   keyed_sequence_burn (only when named, as keyed_restart): within S's own incarnation, a captured
+//   genuine state of S (plausible values) re-sent with a sequence a few ticks beyond S's newest and a
+//   valid MAC, so S's own packet with that sequence would be dropped as a replay (net/README.md "Two
+//   signers in one incarnation": S's packet then proves a second holder of the key).
 // --record FILE: sniff only (send nothing) and store every genuine station datagram (bounded).
 #include <arpa/inet.h>
+#include <sodium.h>
 #include <linux/if_packet.h>
 #include <net/ethernet.h>
 #include <net/if.h>
@@ -70,12 +75,14 @@ enum Class : int {
   keyed_envelope,
   keyed_future,
   keyed_restart,
+  keyed_burn,
   class_count
 };
 const char* kNames[class_count] = {"garbage",     "truncated",     "bad_mac",       "oversized",  "zero_length",
                                    "future_sequence_wrong_address",  "live_replay_wrong_address", "spoofed_bad_mac",
                                    "spoofed_future_sequence",        "live_replay",   "cross_run_replay",
-                                   "keyed_nan",   "keyed_out_of_envelope",          "keyed_future_sequence", "keyed_restart"};
+                                   "keyed_nan",   "keyed_out_of_envelope",          "keyed_future_sequence", "keyed_restart",
+                                   "keyed_sequence_burn"};
 bool needs_root(int c) { return c >= spoof_bad_mac; }
 bool needs_sniff(int c) { return c == replay_wrong_addr || c == live_replay || c >= keyed_nan; }
 
@@ -332,7 +339,7 @@ Options finish(Options o) {
       bool ok = (!needs_root(c) || root) && (!needs_sniff(c) || o.sniff);
       if (c == cross_run_replay) ok = ok && !o.replay_file.empty();
       if (c >= keyed_nan) ok = ok && o.stolen_id >= 0;
-      if (c == keyed_restart) ok = false;  // a takeover attempt: only when named
+      if (c == keyed_restart || c == keyed_burn) ok = false;  // attempts to take a link over: only when named
       o.classes[static_cast<std::size_t>(c)] = ok;
     }
   }
@@ -369,6 +376,7 @@ void emit(const std::string& js, const std::string& path) {
 class Flood {
  public:
   static constexpr std::uint32_t kValues = 99;
+  static constexpr std::uint64_t kBurnAhead = 5;  // keyed_sequence_burn: ticks beyond the newest sniffed
 
   // Which port each station listens on; every --link must name two --station.
   explicit Flood(const Options& o) : o_(o) {
@@ -574,9 +582,28 @@ class Flood {
     if (!sv.have_nonce || !jv.have_nonce || !sv.have_state) return 0;
     const SessionKey k = traffic_key(pair_keys(stolen_, s, o_.public_keys.at(j), j).tx, sv.nonce, jv.nonce);
     const ValueEncoding enc = (sv.flags & kFlagFloat32) ? ValueEncoding::float32 : ValueEncoding::float64;
+    if (c == keyed_burn) return burn(s, j, sv.newest_seq + kBurnAhead, k);
     const std::uint64_t seq = sv.newest_seq + 1 + (c == keyed_future ? 1'000'000ull : 0);
     return forge(s, j, seq, sv.incarnation, c == keyed_nan ? x_nan_.data() : c == keyed_envelope ? x_bad_.data() : x_.data(),
                  enc, k);
+  }
+
+  // keyed_sequence_burn: a captured genuine state datagram of s to j (its values, incarnation and layout)
+  // with sequence seq and a valid MAC under s's traffic key k; 0 before one was captured.
+  std::size_t burn(std::uint16_t s, std::uint16_t j, std::uint64_t seq, const SessionKey& k) {
+    std::lock_guard<std::mutex> lk(sh_.m);
+    for (const Captured& c : sh_.recent) {
+      const std::uint8_t* d = c.bytes.data();
+      if (c.src_port != port_of_[s] || c.dst_port != port_of_[j] || d[wire_offset::kind] != static_cast<std::uint8_t>(PayloadKind::state))
+        continue;
+      const std::size_t body = kHeaderBytes + get<std::uint16_t>(d, wire_offset::frag_len);
+      if (c.bytes.size() != body + kMacBytes || c.bytes.size() > d_.size()) continue;
+      std::memcpy(d_.data(), d, c.bytes.size());
+      std::memcpy(d_.data() + wire_offset::seq, &seq, sizeof seq);
+      crypto_generichash(d_.data() + body, kMacBytes, d_.data(), body, k.bytes.data(), k.bytes.size());
+      return c.bytes.size();
+    }
+    return 0;
   }
 
   // A hello in the stolen station s's name to j from a newer incarnation than the one sniffed, with a
@@ -636,7 +663,8 @@ class Flood {
       case cross_run_replay: replay(old_run_[rng_() % old_run_.size()], dg); break;
       case keyed_nan:
       case keyed_envelope:
-      case keyed_future: dg.n = keyed(c, s, j); break;
+      case keyed_future:
+      case keyed_burn: dg.n = keyed(c, s, j); break;
       case keyed_restart: dg.n = keyed_hello(s, j); break;
       default: break;
     }

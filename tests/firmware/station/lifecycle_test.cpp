@@ -253,6 +253,10 @@ TEST(StationLifecycle, AKeyCompromiseIsLoggedOnceAndNamedInTheExitStatus) {
   const auto m = key_compromise_messages(*a.plan, s);
   CHECK_EQUAL(1u, m.size());
   STRCMP_CONTAINS("key compromise suspected: station 1 has two live incarnations (100 and 200)", m[0].c_str());
+  p.key_compromise_conflict = true;  // the same-incarnation proof names the sequence instead
+  p.key_compromise_seq = 4242;
+  STRCMP_CONTAINS("key compromise suspected: station 1 sent two different authentic datagrams with sequence 4242",
+                  key_compromise_messages(*a.plan, s)[0].c_str());
   RunConditions c;
   c.key_compromise = true;
   c.no_neighbour = c.missed_cycles = c.held_by_gate = true;

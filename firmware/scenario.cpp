@@ -458,6 +458,7 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
   c.solver.kind = spec.solver;
   c.divergence_speed_m_per_s = spec.divergence_speed_m_per_s;
   c.consensus_passivity = spec.consensus_passivity;
+  c.state_check = spec.state_check;
   c.pspm_reservoir0_J = spec.pspm_reservoir0_J;
   c.predict_held_state = spec.tx_deadband.predictive;
   if (spec.tx_deadband.enabled()) c.predict_held_limit_m = spec.tx_deadband.prediction_limit_m();

@@ -49,6 +49,9 @@ void StationConfig::validate() const {
   if (!(predict_held_limit_m >= 0)) bad("predict_held_limit_m", ">= 0 (+inf: unlimited)");
   if (predict_held_state && consensus_passivity != ConsensusPassivity::kSetPositionModulation)
     bad("predict_held_state", "used only with consensus_passivity = pspm (eq. 18 does not cover extrapolated data)");
+  state_check.validate();
+  if (state_check.enabled() && consensus_passivity == ConsensusPassivity::kSetPositionModulation)
+    bad("state_check", "not used with consensus_passivity = pspm (its edges are never dropped)");
   if (static_cast<int>(neighbors.size()) > kMaxNeighbors) bad("neighbors", "at most " + std::to_string(kMaxNeighbors));
   for (const auto& n : neighbors) {
     if (!n.gains) bad("neighbors[].gains", "set");
@@ -186,6 +189,9 @@ void StationCore::init_edges() {
     edge_gate_.init(nn, bounds, releases);
     edge_energy_.set_leak(leaks);
   }
+  const Eigen::VectorXd x_hat0 = x_;  // every copy starts here, at rest
+  const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(dofs_);
+  edge_monitor_.init(nn, dofs_, cfg_.period_s, cfg_.state_check, x_hat0.data(), v0.data());
 }
 
 long StationCore::tick_bytes() const {
@@ -774,6 +780,12 @@ double StationCore::advance_state() {
   return f_dev;
 }
 
+bool StationCore::edge_excluded(int j, std::int64_t k, bool within_bound) {
+  const RxLink::TickView& view = views_[j];
+  if (!within_bound) return edge_monitor_.isolated(j);  // data over the delay bound are not checked (not used either)
+  return edge_monitor_.observe(j, k, rx_[j].newest_sequence(), view.x_hat, view.v_hat, view.index_delay, x_.data());
+}
+
 [[gnu::always_inline]] inline void StationCore::read_neighbours(std::int64_t k, std::uint32_t& flags) {
   // Over the delay bound or the energy bound: x_hat_j := x(k), delta_ij = 0 (the edge acts as the
   // damper D_ij + T/2 P_ij).
@@ -792,7 +804,10 @@ double StationCore::advance_state() {
     // The per-edge damage bound: an edge whose account is over its bound takes the same action.
     const bool gated = edge_gate_.update(j, edge_energy_.edge_J(j));
     if (gated) flags |= kEdgeEnergyGated;
-    active_[j] = (ok && !gated) ? 1 : 0;
+    // The state check: an edge whose reported states failed it (isolated) too.
+    const bool excluded = edge_excluded(j, k, ok);
+    if (excluded) flags |= kEdgeIsolated;
+    active_[j] = (ok && !gated && !excluded) ? 1 : 0;
     if (ok) {
       edge_was_dropped_[j] = 0;
     } else {

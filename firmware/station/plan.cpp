@@ -322,7 +322,8 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.loss_allowance_ticks = s.loss_allowance_ticks;
   spec.edge_energy_bound_J = s.edge_energy_bound_J;
   spec.edge_energy_leak_W = s.edge_energy_leak_W;
-  spec.state_check = state_check_params(s);
+  // pspm never drops an edge (rt::StationConfig refuses the check with it): the check runs with eq18 only
+  if (spec.consensus_passivity != rt::ConsensusPassivity::kSetPositionModulation) spec.state_check = state_check_params(s);
   spec.divergence_speed_m_per_s = s.divergence_speed_m_per_s;
   spec.tx_deadband.position_deadband_m = s.tx_deadband_mm * 1e-3;
   spec.tx_deadband.max_interval_ticks = s.tx_max_interval_ticks;

@@ -461,6 +461,7 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
   c.solver.kind = spec.solver;
   c.divergence_speed_m_per_s = spec.divergence_speed_m_per_s;
   c.consensus_passivity = spec.consensus_passivity;
+  c.state_check = spec.state_check;
   c.pspm_reservoir0_J = spec.pspm_reservoir0_J;
   c.resilient_f = spec.resilient_f;
   c.predict_held_state = spec.tx_deadband.predictive;

@@ -137,6 +137,9 @@ struct ScenarioSpec {
   // simulator's default; a station's is station.return_ramp_s).
   double return_ramp_s = 0;
   double divergence_speed_m_per_s = 50;  // a node faster than this: diverged, safe state (rt::StationConfig)
+  // The neighbour state check of every station (rt/edge_monitor.hpp): off here by default; the real
+  // station turns it on (station.state_check_*).
+  rt::EdgeMonitorParams state_check{};
   // --consensus-passivity eq18|pspm (rt/set_position_modulation.hpp): with pspm, B_i defaults to 0
   // (eq. 14 holds by construction) and pspm_reservoir0_J is each edge's initial reservoir.
   rt::ConsensusPassivity consensus_passivity = rt::ConsensusPassivity::kEq18Damping;

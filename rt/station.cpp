@@ -52,6 +52,9 @@ void StationConfig::validate() const {
     bad("predict_held_state", "used only with consensus_passivity = pspm (eq. 18 does not cover extrapolated data)");
   if (!(return_ramp_s >= 0 && std::isfinite(return_ramp_s))) bad("return_ramp_s", "finite and >= 0 (0: off)");
   if (!(return_ramp_after_s >= 0 && std::isfinite(return_ramp_after_s))) bad("return_ramp_after_s", "finite and >= 0");
+  state_check.validate();
+  if (state_check.enabled() && consensus_passivity == ConsensusPassivity::kSetPositionModulation)
+    bad("state_check", "not used with consensus_passivity = pspm (its edges are never dropped)");
   if (static_cast<int>(neighbors.size()) > kMaxNeighbors) bad("neighbors", "at most " + std::to_string(kMaxNeighbors));
   if (resilient_f < 0 || resilient_f > kMaxNeighbors) bad("resilient_f", "in [0, " + std::to_string(kMaxNeighbors) + "] (0: off)");
   if (resilient_f > 0 && consensus_passivity == ConsensusPassivity::kEq18Damping)
@@ -198,6 +201,9 @@ void StationCore::init_edges() {
   const bool ramps = cfg_.return_ramp_s > 0 && pspm_.empty();
   return_ramp_.init(nn, dofs_, ramps ? std::llround(cfg_.return_ramp_s / cfg_.period_s) : 0,
                     std::llround(cfg_.return_ramp_after_s / cfg_.period_s));
+  const Eigen::VectorXd x_hat0 = x_;  // every copy starts here, at rest
+  const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(dofs_);
+  edge_monitor_.init(nn, dofs_, cfg_.period_s, cfg_.state_check, x_hat0.data(), v0.data());
 }
 
 long StationCore::tick_bytes() const {
@@ -799,6 +805,12 @@ void StationCore::exclude_resilient(std::uint32_t& flags) {
   for (int j = 0; j < nn; ++j) resilient_excluded_[static_cast<std::size_t>(j)] += excluded_[static_cast<std::size_t>(j)];
 }
 
+bool StationCore::edge_excluded(int j, std::int64_t k, bool within_bound) {
+  const RxLink::TickView& view = views_[j];
+  if (!within_bound) return edge_monitor_.isolated(j);  // data over the delay bound are not checked (not used either)
+  return edge_monitor_.observe(j, k, rx_[j].newest_sequence(), view.x_hat, view.v_hat, view.index_delay, x_.data());
+}
+
 [[gnu::always_inline]] inline void StationCore::read_neighbours(std::int64_t k, std::uint32_t& flags) {
   // Over the delay bound, over the energy bound or left out by the resilient rule: x_hat_j := x(k),
   // delta_ij = 0 (the edge acts as the damper D_ij + T/2 P_ij).
@@ -810,8 +822,12 @@ void StationCore::exclude_resilient(std::uint32_t& flags) {
     // The per-edge damage bound: an edge whose account is over its bound takes the same action.
     const bool gated = edge_gate_.update(j, edge_energy_.edge_J(j));
     if (gated) flags |= kEdgeEnergyGated;
-    active_[j] = (ok && !gated) ? 1 : 0;
-    views_[j].x_hat = return_ramp_.target(j, k, ok, views_[j].x_hat, x_.data());  // x_hat itself unless ramping
+    // The state check: an edge whose reported states failed it (isolated) too.
+    const bool excluded = edge_excluded(j, k, ok);
+    if (excluded) flags |= kEdgeIsolated;
+    active_[j] = (ok && !gated && !excluded) ? 1 : 0;
+    // x_hat itself unless ramping (an isolation counts as an outage: a re-admitted edge ramps in too)
+    views_[j].x_hat = return_ramp_.target(j, k, ok && !excluded, views_[j].x_hat, x_.data());
     if (ok) {
       edge_was_dropped_[j] = 0;
     } else {

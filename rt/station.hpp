@@ -28,6 +28,7 @@
 
 #include "rt/cpu_avx.hpp"
 #include "rt/edge_energy.hpp"
+#include "rt/edge_monitor.hpp"
 #include "rt/gains.hpp"
 #include "rt/multi_term_operator.hpp"
 #include "rt/return_ramp.hpp"
@@ -43,6 +44,7 @@ using Vec3 = Eigen::Vector3d;
 inline constexpr int kMaxContactNodes = 8;
 inline constexpr int kMaxNeighbors = 16;
 static_assert(kMaxNeighbors <= kMaxEdgeAccounts, "one energy account per neighbour");
+static_assert(kMaxNeighbors <= kMaxMonitoredEdges, "one state check per neighbour");
 
 struct VirtualProxyParams {
   double mass_kg = 0.001;                    // m_i (eq. 21)
@@ -89,6 +91,9 @@ struct StationConfig {
   double damping_Ns_per_m = 0;   // B_i = beta I (eq. 15), set from eq. (18)
   std::vector<NeighborConfig> neighbors;
   RxRule rx_rule = RxRule::kNewestBySequence;  // receive rule of every neighbour (rt/rx_link.hpp)
+  // The neighbour state check of every edge (rt/edge_monitor.hpp; default off): an edge whose
+  // reported states fail it is isolated (acts as the damper) until re-admitted. Not with pspm.
+  EdgeMonitorParams state_check{};
   // kSetPositionModulation: every edge's P term acts towards a modulated set-position and its D term
   // on the local velocity only (rt/set_position_modulation.hpp); eq. (14) holds by construction with
   // c^2 = pspm_reservoir0_J per edge, so no index-delay bound applies (no edge is dropped) and B_i
@@ -155,6 +160,7 @@ enum TickFlags : std::uint32_t {
   kSafeState = 1u << 6,
   kEdgeEnergyGated = 1u << 7,  // an edge's energy account is over its bound: it acts as the damper
   kResilientExcluded = 1u << 8,  // the resilient rule left a neighbour out (StationConfig::resilient_f)
+  kEdgeIsolated = 1u << 9,       // a neighbour's reported states failed the state check: its edge acts as the damper
 };
 
 // The one definition of what each TickFlags bit means: its name (a word, as in a CSV column or an
@@ -175,6 +181,7 @@ inline constexpr TickFlagName kTickFlagNames[] = {
     {kSafeState, "safe_state", "the station is in its safe state"},
     {kEdgeEnergyGated, "edge_energy_gated", "an edge's energy account is over its bound: it acts as a damper"},
     {kResilientExcluded, "resilient_excluded", "the resilient consensus rule left out the neighbours farthest from this copy"},
+    {kEdgeIsolated, "edge_isolated", "a neighbour's reported states failed the state check (rt/edge_monitor.hpp): its edge is isolated"},
 };
 
 // Cumulative energies (J) for the passivity monitor.
@@ -232,6 +239,8 @@ class StationCore {
   const EdgeEnergyAccount& edge_energy() const { return edge_energy_; }
   // The per-edge damage bound on those accounts: trips, gated ticks, latch state per edge.
   const EdgeEnergyGate& edge_gate() const { return edge_gate_; }
+  // The neighbour state check (rt/edge_monitor.hpp): isolations, re-admissions, reasons per edge.
+  const EdgeMonitor& edge_monitor() const { return edge_monitor_; }
   const StationConfig& config() const { return cfg_; }
   std::uint64_t edge_drop_events() const {
     std::uint64_t total = 0;
@@ -321,6 +330,9 @@ class StationCore {
   // The resilient rule on this tick's views: excluded_[j] for the resilient_f candidates farthest
   // from x(k) (eq. 18: within their delay bound; pspm: any packet), counted; flags. RT-safe.
   void exclude_resilient(std::uint32_t& flags);
+  // 2'. whether edge j is excluded this tick by a check of its reported states (the state check,
+  // rt/edge_monitor.hpp, fed with its packet when within the delay bound). RT-safe.
+  bool edge_excluded(int j, std::int64_t k, bool within_bound);
   // 3. contact onset / release, decided from the state at the start of the tick.
   void update_contact_set(std::uint32_t& flags);
   // 4. b (rhs_) and the VP row's right-hand side (returned), contact springs included.
@@ -394,6 +406,7 @@ class StationCore {
   bool have_prev_energy_ = false;
   EdgeEnergyGate edge_gate_{};
   ReturnRamp return_ramp_{};
+  EdgeMonitor edge_monitor_{};
   std::array<double, kMaxNeighbors> edge_tick_J_{};  // this tick's coupling energy per edge
   std::uint64_t safe_state_ticks_ = 0;
   std::vector<SetPositionModulator> pspm_;  // one per edge when consensus_passivity = pspm

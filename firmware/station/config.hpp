@@ -18,6 +18,7 @@
 #include "platform/rt_thread.hpp"
 #include "platform/telemetry.hpp"
 #include "rt/edge_energy.hpp"
+#include "rt/edge_monitor.hpp"
 
 namespace haptic::firmware {
 
@@ -54,6 +55,13 @@ struct StationSection {
   int loss_allowance_max_ticks = 16;  // the paper links measure 8-12 (tools/run4); a loaded machine far more
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
   double edge_energy_leak_W = rt::kDefaultEdgeEnergyLeakW;
+  // The neighbour state check (rt/edge_monitor.hpp); 0 m = that check off.
+  double state_check_kinematic_m = rt::kDefaultStateCheckKinematicM;
+  double state_check_kinematic_window_s = 30.0;
+  double state_check_disagreement_m = rt::kDefaultStateCheckDisagreementM;
+  double state_check_disagreement_window_s = 0.2;
+  double state_check_readmit_s = 2.0;
+  int state_check_max_gap_ticks = 4;
   std::string solver = "auto";
   double tx_deadband_mm = 0;
   int tx_max_interval_ticks = 1;

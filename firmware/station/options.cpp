@@ -112,6 +112,23 @@ const std::vector<StationOption> kStation = {
          .with_note(" (0 = off)"), HAPTIC_FIELD(station, edge_energy_bound_J)},
     {R("station", "edge_energy_leak_W", rt::kDefaultEdgeEnergyLeakW, 0, 1, "energy that left the copy is taken off each edge's account "
                                                                           "up to this power").with_note(" (0 = no leak)"), HAPTIC_FIELD(station, edge_energy_leak_W)},
+    {R("station", "state_check_kinematic_m", rt::kDefaultStateCheckKinematicM, 0, 1,
+       "neighbour state check (rt/edge_monitor.hpp): a neighbour whose reported positions moved this much more than its own reported "
+       "velocities explain (at some node) is isolated: its edge acts as a damper").with_note(" (0 = off)"), HAPTIC_FIELD(station, state_check_kinematic_m)},
+    {R("station", "state_check_kinematic_window_s", 30, 0.01, 3600, "the time over which that unexplained motion adds up (its leak's time constant)"),
+     HAPTIC_FIELD(station, state_check_kinematic_window_s)},
+    {I("station", "state_check_max_gap_ticks", 4, 1, 1000, "packets further apart than this many sequences are not compared (re-anchored)"),
+     HAPTIC_FIELD(station, state_check_max_gap_ticks)},
+    {R("station", "state_check_disagreement_m", rt::kDefaultStateCheckDisagreementM, 0, 1,
+       "neighbour state check: a neighbour whose state (carried forward by its velocity) stays this far from this copy at some node, "
+       "filtered over state_check_disagreement_window_s, is isolated; off by default: copies that diverged in an outage "
+       "or an isolation would trip it on honest neighbours (5 mm: ~5x a clean run's)").with_note(" (0 = off)"), HAPTIC_FIELD(station, state_check_disagreement_m)},
+    {R("station", "state_check_disagreement_window_s", 0.2, 0.002, 60, "the time constant of that filter"),
+     HAPTIC_FIELD(station, state_check_disagreement_window_s)},
+    {R("station", "state_check_readmit_s", 2, 0, 3600, "an isolated neighbour is re-admitted after its packets were truthful this long "
+                                                      "(its own steps consistent, within 2 state_check_kinematic_m of this copy, at most half "
+                                                      "state_check_disagreement_m); doubled after each further isolation"),
+     HAPTIC_FIELD(station, state_check_readmit_s)},
     {T("station", "solver", "auto", "linear step: auto (both timed at start-up where it matters), auto-fixed (the simulator's size rule), "
                                     "direct or iterative (rt/step_solver)", "auto|auto-fixed|direct|iterative"), HAPTIC_FIELD(station, solver)},
     {R("station", "tx_deadband_mm", 0, 0, 100, "> 0: send a state only when some node moved more than this since the last one sent "

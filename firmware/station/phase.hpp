@@ -22,6 +22,9 @@ enum class PhaseStatus {
 //   12 key compromise suspected (a neighbour's key in two live incarnations: net/ refused both for the rest of the run
 //      and the station ran without it; before 11 and 7, which that loss of a neighbour may also cause: the theft is the
 //      cause; the systemd unit does not restart it, so the station does not forget the suspicion: the operator revokes the key),
+//   13 neighbour isolated (the neighbour state check, rt/edge_monitor.hpp, isolated an authenticated neighbour whose
+//      reported states were inconsistent with its own velocities or far from this copy; before 11 and 7 for the same reason
+//      as 12; not restarted by the systemd unit: a restart would forget the liar and let it drag the copies again),
 //   11 missed cycles (the run loop skipped more than station.max_missed_cycles periods in all: the
 //      host stalled the station; before 7, because a stalled station's neighbours see it silent and it may in turn
 //      see them out of bound: the stall is the cause, and the stalled station is the one that must say so),
@@ -50,6 +53,7 @@ enum ExitCode : int {
   kExitHeldByGate = 10,
   kExitMissedCycles = 11,
   kExitKeyCompromise = 12,
+  kExitNeighbourIsolated = 13,
 };
 
 // Safety stops: the exits after which force output stays off until the operator has looked (only

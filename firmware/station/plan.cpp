@@ -278,6 +278,18 @@ std::unique_ptr<StationPlan> make_plan(const StationFile& f, const RunOverrides&
 
 }  // namespace
 
+// The neighbour state check's parameters from the station.state_check_* keys (0 m: that check off).
+static rt::EdgeMonitorParams state_check_params(const StationSection& s) {
+  rt::EdgeMonitorParams p;
+  p.kinematic_bound_m = s.state_check_kinematic_m > 0 ? s.state_check_kinematic_m : rt::EdgeMonitorParams::kOff;
+  p.kinematic_window_s = s.state_check_kinematic_window_s;
+  p.max_gap_ticks = s.state_check_max_gap_ticks;
+  p.disagreement_bound_m = s.state_check_disagreement_m > 0 ? s.state_check_disagreement_m : rt::EdgeMonitorParams::kOff;
+  p.disagreement_window_s = s.state_check_disagreement_window_s;
+  p.readmit_s = s.state_check_readmit_s;
+  return p;
+}
+
 ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) {
   const StationSection& s = f.station;
   ScenarioSpec spec = make_scenario(s.scenario, "station.scenario");
@@ -331,6 +343,8 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.edge_energy_bound_J = s.edge_energy_bound_J;
   spec.edge_energy_leak_W = s.edge_energy_leak_W;
   spec.return_ramp_s = s.return_ramp_s;
+  // pspm never drops an edge (rt::StationConfig refuses the check with it): the check runs with eq18 only
+  if (spec.consensus_passivity != rt::ConsensusPassivity::kSetPositionModulation) spec.state_check = state_check_params(s);
   spec.divergence_speed_m_per_s = s.divergence_speed_m_per_s;
   spec.tx_deadband.position_deadband_m = s.tx_deadband_mm * 1e-3;
   spec.tx_deadband.max_interval_ticks = s.tx_max_interval_ticks;

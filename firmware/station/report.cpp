@@ -1,6 +1,7 @@
 #include "firmware/station/report.hpp"
 
 #include "firmware/station/neighbours.hpp"
+#include "firmware/station/state_check.hpp"
 #include "firmware/station/explain.hpp"
 
 #include "firmware/run/summary.hpp"
@@ -276,6 +277,7 @@ std::vector<std::string> RunConditions::names() const {
   if (safe_state_latched) n.push_back("safe_state_latched");
   if (passivity_not_met) n.push_back("passivity_condition_not_met");
   if (key_compromise) n.push_back("key_compromise_suspected");
+  if (neighbour_isolated) n.push_back("neighbour_isolated");
   if (missed_cycles) n.push_back("missed_cycles");
   if (no_neighbour) n.push_back("no_neighbour");
   if (failed) n.push_back("failed");
@@ -312,6 +314,8 @@ RunConditions run_conditions(const StationOutcome& o) {
   c.ended_before_release = sc.kind == UserScriptSpec::Kind::kPushHoldRelease && (p.ends_before_release || (o.run != nullptr && ran_s <= sc.release_s));
   const rt::StationCore* core = o.build ? o.build->core.get() : nullptr;
   c.held_by_gate = core && core->edge_gate().trips() > 0;
+  if (core) c.isolation_messages = state_check_messages(p, *core);
+  c.neighbour_isolated = core && core->edge_monitor().isolations() > 0;
   c.edge_drop_rule_acted = core && core->edge_drop_events() > 0;
   return c;
 }
@@ -322,6 +326,7 @@ int exit_code(const RunConditions& c) {
   if (c.safe_state_latched) return kExitSafeState;
   if (c.passivity_not_met) return kExitPassivityNotMet;
   if (c.key_compromise) return kExitKeyCompromise;
+  if (c.neighbour_isolated) return kExitNeighbourIsolated;
   if (c.missed_cycles) return kExitMissedCycles;
   if (c.no_neighbour) return kExitNoNeighbour;
   if (c.failed) return kExitRunFailed;
@@ -349,6 +354,8 @@ nlohmann::json station_summary(const StationOutcome& o, const RunConditions& c) 
   j["missed_cycles_total"] = c.missed_cycles_total;  // the run loop's (loop.missed_cycles)
   j["max_missed_cycles"] = o.plan->file.station.max_missed_cycles;
   j["key_compromise"] = c.key_compromise_messages;  // [] when none
+  if (o.build && o.build->core) j["state_check"] = state_check_json(*o.plan, *o.build->core);
+  j["isolation"] = c.isolation_messages;  // [] when none
   j["incarnation"] = o.endpoint ? o.endpoint->incarnation() : 0;  // ours, as announced to the neighbours
   j["conditions"] = c.names();
   j["exit_code"] = exit_code(c);

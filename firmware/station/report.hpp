@@ -46,6 +46,7 @@ struct RunConditions {
   bool safe_state_latched = false;      // loop-boundary exception, or a latched device fault
   bool passivity_not_met = false;       // B_i used < eq. (18) on the measured bounds
   bool key_compromise = false;          // a neighbour's key in two live incarnations: both refused (exit 12)
+  bool neighbour_isolated = false;      // the neighbour state check isolated a neighbour (exit 13)
   bool missed_cycles = false;           // the run loop skipped more than station.max_missed_cycles periods (exit 11)
   bool no_neighbour = false;            // none answered probing, or alone > station.max_no_neighbour_fraction
   bool ended_before_release = false;    // the run ended at or before the scripted release
@@ -55,6 +56,7 @@ struct RunConditions {
   std::optional<double> no_neighbour_fraction;  // of the run ticks; null when none ran
   std::uint64_t missed_cycles_total = 0;        // periods the run loop skipped
   std::vector<std::string> key_compromise_messages;  // one per neighbour (firmware/station/neighbours.hpp)
+  std::vector<std::string> isolation_messages;       // one per isolated neighbour (firmware/station/state_check.hpp)
   std::vector<std::string> names() const;       // the conditions that hold, as named in the summary
 };
 RunConditions run_conditions(const StationOutcome& o);

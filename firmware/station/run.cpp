@@ -646,6 +646,7 @@ int report_phase(const StationPlan& plan, StationResources& res, PhaseResults& p
   const RunConditions c = run_conditions(o);
   const int code = exit_code(c);
   for (const auto& m : c.key_compromise_messages) log.error(m);
+  for (const auto& m : c.isolation_messages) log.error(m);
   if (c.missed_cycles)
     log.error("missed " + std::to_string(c.missed_cycles_total) + " cycles (more than station.max_missed_cycles = " +
               std::to_string(plan.file.station.max_missed_cycles) + "): the host stalled this station (SIGSTOP, swap, a starved CPU); " +
@@ -681,6 +682,9 @@ std::string exit_code_help() {
          "round-trip bounds); 4, 5 and 6 are safety stops: the systemd unit does not restart them, the operator re-arms; "
          "12 key compromise suspected (a neighbour's key was seen in two live incarnations: both refused for the rest of the run, the station "
          "ran without that neighbour; station-<id>.json \"key_compromise\" names it; not restarted by the systemd unit: revoke the key); "
+         "13 neighbour isolated (the neighbour state check, station.state_check_*, found a neighbour's reported states inconsistent with "
+         "its own velocities or far from this copy: its edge acted as a damper until re-admitted; the log and station-<id>.json "
+         "\"isolation\" name the station, the reason and the times; not restarted by the systemd unit: a restart would forget it); "
          "11 missed cycles (the run loop skipped more than station.max_missed_cycles periods: the host stalled the station; not a safety stop, "
          "the systemd unit restarts it); 7 no neighbour (none answered probing, or none within its bound for more than station.max_no_neighbour_fraction "
          "of the run); 3 other run-time failure; 8 the run ended before the scripted release (e.g. --duration shorter than station.release_s); "

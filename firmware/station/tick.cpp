@@ -12,6 +12,8 @@ namespace haptic::firmware {
 
 namespace {
 
+OutgoingStateRewrite g_outgoing_rewrite = nullptr;  // the test seam (tick.hpp); null in the shipped station
+
 using platform::trace::Stage;
 using platform::trace::StageScope;
 
@@ -243,7 +245,8 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   {
     StageScope stage(Stage::tx);
     if (in.ep && (!in.tx_deadband || in.tx_deadband->should_send(kr, in.core->x_hat(), in.core->v_hat()))) {
-      sent = in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), in.core->x_hat(), in.core->v_hat(),
+      const double* rewritten = g_outgoing_rewrite ? g_outgoing_rewrite(*in.core, kr) : nullptr;
+      sent = in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), rewritten ? rewritten : in.core->x_hat(), in.core->v_hat(),
                                (out.flags & rt::kDiverged) != 0,  // safe state: the flag, never the state
                                in.core->vp_position_m().data());  // the proxy, for the neighbours' live views
       if (!sent) ++cnt.push_failures;
@@ -269,5 +272,7 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   if (in.gpio) in.gpio->tick_low();
   return out.flags;
 }
+
+void set_outgoing_state_rewrite(OutgoingStateRewrite rewrite) { g_outgoing_rewrite = rewrite; }
 
 }  // namespace haptic::firmware

@@ -86,6 +86,14 @@ void device_force_out(const TickInputs& in, const TickCounters& cnt, const rt::V
 // safe state for the tick); counts device-fault and outside-workspace ticks. RT-safe.
 rt::Vec3 read_device(const TickInputs& in, TickCounters& cnt);
 
+// A test seam, not an option: a test executable that links the station library (never the shipped
+// station) may install a rewrite of the state the tick sends, to play an authenticated insider that
+// lies (tests/firmware/station/insider_main.cpp). It gets the core and the run index and returns the
+// x_hat to send (dofs values, its own buffer) or null to send the core's. Set before the run; RT-safe
+// callers only.
+using OutgoingStateRewrite = const double* (*)(const rt::StationCore& core, std::int64_t kr);
+void set_outgoing_state_rewrite(OutgoingStateRewrite rewrite);
+
 // One run tick at epoch index k, run index kr = k - run_k0 (the index the core and the receive
 // links use, so a packet's sequence number seq becomes seq - run_k0 and nothing else). In the order
 // of DESIGN.md: GPIO high, newest device sample (none: NaN, the core's safe state for the tick),

@@ -1,0 +1,153 @@
+#include "rt/edge_monitor.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace haptic::rt {
+
+const char* edge_lie_name(EdgeLie lie) {
+  switch (lie) {
+    case EdgeLie::kKinematic: return "inconsistent_with_its_velocities";
+    case EdgeLie::kDisagreement: return "far_from_this_copy";
+    case EdgeLie::kNone: break;
+  }
+  return "none";
+}
+
+void EdgeMonitorParams::validate() const {
+  auto bad = [](const char* what) { throw std::invalid_argument(std::string("neighbour state check: ") + what); };
+  if (!(kinematic_bound_m > 0)) bad("the kinematic bound must be > 0 m (+inf: off)");
+  if (!(disagreement_bound_m > 0)) bad("the disagreement bound must be > 0 m (+inf: off)");
+  if (!(kinematic_window_s > 0 && std::isfinite(kinematic_window_s))) bad("the kinematic window must be finite and > 0 s");
+  if (!(disagreement_window_s > 0 && std::isfinite(disagreement_window_s))) bad("the disagreement window must be finite and > 0 s");
+  if (!(readmit_s >= 0 && std::isfinite(readmit_s))) bad("the re-admission time must be finite and >= 0 s");
+  if (max_gap_ticks < 1) bad("the largest checked gap must be >= 1 tick");
+}
+
+void EdgeMonitor::init(int edges, int dofs, double period_s, const EdgeMonitorParams& params, const double* x0, const double* v0) {
+  if (edges < 0 || edges > kMaxMonitoredEdges)
+    throw std::invalid_argument("neighbour state check: edges must be in [0, " + std::to_string(kMaxMonitoredEdges) + "]");
+  if (dofs <= 0 || dofs % 3 != 0 || !(period_s > 0)) throw std::invalid_argument("neighbour state check: bad state size or period");
+  params.validate();
+  edges_ = edges;
+  dofs_ = dofs;
+  T_ = period_s;
+  p_ = params;
+  ed_.assign(static_cast<std::size_t>(edges), Edge{});
+  for (auto& ed : ed_) {
+    ed.x_prev.assign(x0, x0 + dofs);
+    ed.v_prev.assign(v0, v0 + dofs);
+    ed.u.assign(static_cast<std::size_t>(dofs), 0.0);
+    ed.y.assign(static_cast<std::size_t>(dofs / 3), 0.0);
+  }
+}
+
+void EdgeMonitor::kinematic(Edge& ed, std::int64_t gap, const double* x, const double* v) {
+  ed.u_max = ed.r_max = 0;
+  if (gap > p_.max_gap_ticks) {  // too far apart to integrate the velocities: re-anchor
+    ++ed.unchecked_gaps;
+    return;
+  }
+  const double h = 0.5 * static_cast<double>(gap) * T_;
+  const double decay = std::exp(-2.0 * h / p_.kinematic_window_s);
+  for (int n = 0; n < dofs_ / 3; ++n) {
+    double uu = 0, rr = 0;
+    for (int d = 0; d < 3; ++d) {
+      const auto i = static_cast<std::size_t>(3 * n + d);
+      const double r = x[i] - ed.x_prev[i] - h * (v[i] + ed.v_prev[i]);
+      ed.u[i] = decay * ed.u[i] + r;
+      uu += ed.u[i] * ed.u[i];
+      rr += r * r;
+    }
+    if (uu > ed.u_max) {
+      ed.u_max = uu;
+      ed.u_node = n;
+    }
+    ed.r_max = std::max(ed.r_max, rr);
+  }
+  ed.u_max = std::sqrt(ed.u_max);
+  ed.r_max = std::sqrt(ed.r_max);
+}
+
+void EdgeMonitor::disagreement(Edge& ed, std::int64_t gap, const double* x, const double* v, std::int64_t delay, const double* own_x) {
+  const double a = std::min(1.0, static_cast<double>(gap) * T_ / p_.disagreement_window_s);
+  const double lead = (static_cast<double>(delay) - 0.5) * T_;  // x_hat(s) is x at s + 1/2
+  ed.y_max = 0;
+  for (int n = 0; n < dofs_ / 3; ++n) {
+    double dd = 0;
+    for (int d = 0; d < 3; ++d) {
+      const auto i = static_cast<std::size_t>(3 * n + d);
+      const double diff = x[i] + lead * v[i] - own_x[i];
+      dd += diff * diff;
+    }
+    double& y = ed.y[static_cast<std::size_t>(n)];
+    y += a * (std::sqrt(dd) - y);
+    if (y > ed.y_max) {
+      ed.y_max = y;
+      ed.y_node = n;
+    }
+  }
+}
+
+void EdgeMonitor::decide(Edge& ed, std::int64_t k) {
+  if (!ed.isolated) {
+    ed.u_peak = std::max(ed.u_peak, ed.u_max);
+    ed.y_peak = std::max(ed.y_peak, ed.y_max);
+    EdgeLie why = EdgeLie::kNone;
+    if (ed.u_max > p_.kinematic_bound_m) {
+      why = EdgeLie::kKinematic;
+      ed.trip_node = ed.u_node;
+      ed.trip_value_m = ed.u_max;
+    } else if (ed.y_max > p_.disagreement_bound_m) {
+      why = EdgeLie::kDisagreement;
+      ed.trip_node = ed.y_node;
+      ed.trip_value_m = ed.y_max;
+    }
+    if (why == EdgeLie::kNone) return;
+    ed.isolated = true;
+    ed.reason = why;
+    ed.isolated_k = k;
+    ed.truthful_since = -1;
+    ++ed.isolations;
+    return;
+  }
+  const bool truthful = ed.r_max <= 0.5 * p_.kinematic_bound_m && ed.y_max <= p_.readmit_disagreement_m();
+  if (!truthful) {
+    ed.truthful_since = -1;
+    return;
+  }
+  if (ed.truthful_since < 0) ed.truthful_since = k;
+  if (static_cast<double>(k - ed.truthful_since) * T_ < p_.readmit_after_s(ed.isolations)) return;
+  ed.isolated = false;
+  ed.readmitted_k = k;
+  ++ed.readmissions;
+  std::fill(ed.u.begin(), ed.u.end(), 0.0);
+  ed.u_max = 0;
+}
+
+bool EdgeMonitor::observe(int j, std::int64_t k, std::int64_t seq, const double* x_hat, const double* v_hat, std::int64_t index_delay,
+                          const double* own_x) {
+  Edge& ed = ed_[static_cast<std::size_t>(j)];
+  if (!p_.enabled()) return false;
+  if (seq > ed.seq) {  // a new packet: check it, then it is the anchor of the next
+    const std::int64_t gap = seq - ed.seq;
+    if (p_.kinematic_bound_m < EdgeMonitorParams::kOff) kinematic(ed, gap, x_hat, v_hat);
+    disagreement(ed, gap, x_hat, v_hat, index_delay, own_x);  // P trips only with a finite bound; re-admission reads it always
+    std::copy(x_hat, x_hat + dofs_, ed.x_prev.begin());
+    std::copy(v_hat, v_hat + dofs_, ed.v_prev.begin());
+    ed.seq = seq;
+    decide(ed, k);
+  }
+  if (ed.isolated) ++ed.isolated_ticks;
+  return ed.isolated;
+}
+
+std::uint64_t EdgeMonitor::isolations() const {
+  std::uint64_t n = 0;
+  for (const auto& ed : ed_) n += ed.isolations;
+  return n;
+}
+
+}  // namespace haptic::rt

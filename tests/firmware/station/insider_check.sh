@@ -1,0 +1,105 @@
+#!/usr/bin/env bash
+# An authenticated insider (rt/edge_monitor.hpp, "the neighbour state check"): four `haptic-station
+# run` processes over UDP on loopback (tools/run4/run4.sh, paper-best star, 6 s run) whose hub,
+# station 1, is haptic-insider (a TEST-ONLY build of the station, tests/firmware/station/insider_main.cpp)
+# lying from run time 1 s: a constant +2 cm offset, a 1 cm oscillation at the object's lowest elastic
+# mode in its shape, a 2 mm/s ramp. Then the same run with an honest hub. Checks:
+#  - clean: no station isolates anyone (state_check isolations 0, no exit 13);
+#  - each lie: every leaf isolates station 1 for its states being inconsistent with its own velocities,
+#    names it in its log and station-<id>.json "isolation", exits 13 with "neighbour_isolated"; the
+#    hub never isolates an honest leaf;
+#  - offset: every leaf isolates the hub at its first lying packet (within 0.1 s: the one-way delay),
+#    so the lie is never applied; that run is the reference of the others (isolation itself ends the
+#    consensus the clean run keeps);
+#  - bound: each leaf's copy (largest node displacement from the lie's start) moved at most BOUND_MM more
+#    than in the offset run: the stated bound (rt/README.md "The neighbour state check": d_K = 0.2 mm for
+#    the oscillation, 1.25 (rho t_d + c_l rho t_d^2 / 2) = 0.48 mm for the 2 mm/s ramp) plus 0.5 mm for
+#    the run-to-run variation of real-time runs.
+# Bounded: run4.sh stops every station after its planned time + 20 s. No root.
+# Usage: insider_check.sh BIN_DIR WORK_DIR   (BIN_DIR holds haptic-station, haptic-insider, haptic-lab's tools)
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+repo="$(cd "$here/../../.." && pwd)"
+bindir="$(cd "$1" && pwd)"; work="$2"
+[ -x "$bindir/haptic-insider" ] || { echo "SKIPPED: $bindir/haptic-insider not built"; exit 77; }
+[ -x /usr/bin/python3 ] || { echo "SKIPPED: /usr/bin/python3 missing for the checks"; exit 77; }
+source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loaded" skip, and the host after a failure
+quiet_host_or_skip "$bindir" "$work"
+rm -rf "$work"; mkdir -p "$work/bin"
+# haptic-lab starts "haptic-station" from HAPTIC_BIN_DIR: a wrapper there runs station 1 as the insider
+for f in "$bindir"/*; do ln -s "$f" "$work/bin/$(basename "$f")"; done
+rm "$work/bin/haptic-station"
+cat > "$work/bin/haptic-station" <<WRAP
+#!/usr/bin/env bash
+case " \$* " in
+  *station-1.toml*) [ -n "\${INSIDER_LIE:-}" ] && exec env HAPTIC_INSIDER_LIE="\$INSIDER_LIE" HAPTIC_INSIDER_AMPLITUDE="\$INSIDER_AMPLITUDE" \
+                      HAPTIC_INSIDER_FROM_S=1.0 "$bindir/haptic-insider" "\$@" ;;
+esac
+exec "$bindir/haptic-station" "\$@"
+WRAP
+chmod +x "$work/bin/haptic-station"
+run_case() {  # NAME LIE AMPLITUDE
+  echo "--- $1"
+  INSIDER_LIE="$2" INSIDER_AMPLITUDE="$3" "$repo/tools/run4/run4.sh" --transport udp --bin "$work/bin/haptic-station" --out "$work/$1" \
+      --duration 6 --push-end 2 --release 4 --no-plots > "$work/$1.log" 2>&1 || true  # a lie's leaves exit 13: run4.sh exits 1
+  tail -n 4 "$work/$1.log"
+}
+run_case clean "" 0
+run_case offset offset 0.02
+run_case mode mode 0.01
+run_case ramp ramp 0.002
+/usr/bin/python3 - "$work" <<'PY'
+import csv, glob, json, sys
+work = sys.argv[1]
+BOUND_MM = {"mode": 0.2 + 0.5, "ramp": 0.48 + 0.5}
+LIE_FROM_S, T = 1.0, 0.002
+fail = []
+
+def station(case, i):
+    return json.load(open("%s/%s/station-%d.json" % (work, case, i)))
+
+def moved_mm(case, i):
+    """max over time after the lie's start and nodes of |x(t) - x(lie start)| of station i's copy, mm"""
+    rows = [r for r in list(csv.reader(open("%s/%s/station-%d-state.csv" % (work, case, i))))[1:] if int(r[0]) * T >= LIE_FROM_S]
+    if not rows: return float("nan")
+    x0 = [float(v) for v in rows[0][1:]]
+    worst = 0.0
+    for r in rows:
+        x = [float(v) for v in r[1:]]
+        for p in range(len(x) // 3):
+            worst = max(worst, sum((x[3 * p + d] - x0[3 * p + d]) ** 2 for d in range(3)) ** 0.5)
+    return 1e3 * worst
+
+for i in range(1, 5):
+    s = station("clean", i)
+    if s["exit_code"] == 13 or s["state_check"]["isolations"] != 0:
+        fail.append("clean run: station %d isolated a neighbour: %s" % (i, s.get("isolation")))
+    print("clean station %d: exit %s, peaks kinematic %s mm, disagreement %s mm" % (i, s["exit_code"],
+          [round(1e3 * n["peak_kinematic_m"], 3) for n in s["state_check"]["neighbours"]],
+          [round(1e3 * n["peak_disagreement_m"], 3) for n in s["state_check"]["neighbours"]]))
+for case in ("offset", "mode", "ramp"):
+    hub = station(case, 1)
+    if hub["state_check"]["isolations"] != 0:
+        fail.append("%s: the insider hub isolated an honest leaf: %s" % (case, hub.get("isolation")))
+    for i in (2, 3, 4):
+        s = station(case, i)
+        n = s["state_check"]["neighbours"][0]
+        log = open("%s/%s/station-%d.log" % (work, case, i)).read()
+        dmg = moved_mm(case, i) - moved_mm("offset", i)
+        t_iso = n.get("last_isolated_run_s")
+        print("%s station %d: exit %s, isolated station %s %s time(s) at %s s (%s, %.3f mm at node %s), moved %.3f mm more than the offset run" % (
+              case, i, s["exit_code"], n["station"], n["isolations"], t_iso, n.get("reason"), 1e3 * n.get("trip_value_m", 0), n.get("trip_node"), dmg))
+        if s["exit_code"] != 13 or "neighbour_isolated" not in s["conditions"]:
+            fail.append("%s: station %d exit %s, conditions %s (want 13, neighbour_isolated)" % (case, i, s["exit_code"], s["conditions"]))
+        if n["station"] != 1 or n["isolations"] < 1 or n.get("reason") != "inconsistent_with_its_velocities":
+            fail.append("%s: station %d did not isolate station 1 as inconsistent: %s" % (case, i, n))
+        if not any("station 1 isolated" in line for line in s["isolation"]) or "station 1 isolated" not in log:
+            fail.append("%s: station %d's json/log do not name station 1 as isolated" % (case, i))
+        if case == "offset" and not (t_iso is not None and t_iso - LIE_FROM_S < 0.1):
+            fail.append("offset: station %d isolated the hub at %s s, not at its first lying packet" % (i, t_iso))
+        if case in BOUND_MM and not dmg < BOUND_MM[case]:
+            fail.append("%s: station %d's copy moved %.3f mm more than in the offset run (bound %.2f mm)" % (case, i, dmg, BOUND_MM[case]))
+for m in fail: print("FAIL: " + m)
+if not fail: print("ok: the lying hub is isolated and named by every leaf, honest copies within the bound, the clean run isolates no one")
+sys.exit(1 if fail else 0)
+PY

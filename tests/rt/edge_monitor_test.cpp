@@ -1,0 +1,320 @@
+// The neighbour state check (rt/edge_monitor.hpp): an authenticated insider that lies about its
+// state. Unit properties of the monitor on synthetic packets, then a star of four real StationCores
+// (hub 0, leaves 1-3, 2-tick delay both ways) whose hub reports its state with a lie added (x_hat
+// only: its velocities stay its copy's): a constant offset, an oscillation in the object's lowest
+// elastic mode, a slow ramp. Honest copies must move less than the stated bound (rt/README.md, "The
+// neighbour state check") against the same run without the lie, every leaf must isolate the hub
+// and name it, and the clean run (with a user pushing) isolates no one.
+#include <CppUTest/TestHarness.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "rt/edge_monitor.hpp"
+#include "rt/station.hpp"
+#include "tests/rt/fixtures.hpp"
+
+using namespace haptic;
+using namespace haptic::rt;
+using haptic::test::PaperWorld;
+
+namespace {
+
+constexpr double kT = 0.002;
+constexpr int kDelay = 2;  // the star's one-way delay, ticks
+
+EdgeMonitorParams check_params() {
+  EdgeMonitorParams p;
+  p.kinematic_bound_m = kDefaultStateCheckKinematicM;  // the station's defaults: P off
+  return p;
+}
+
+// One edge, 2 nodes, a rigid motion at velocity u reported consistently; lie(s) added to x from tick s.
+struct OneEdge {
+  EdgeMonitor m;
+  std::vector<double> x0 = std::vector<double>(6, 0.0), v0 = std::vector<double>(6, 0.0), own = std::vector<double>(6, 0.0);
+  explicit OneEdge(const EdgeMonitorParams& p) { m.init(1, 6, kT, p, x0.data(), v0.data()); }
+  // packet of tick s: x = u s T + lie, v = u (consistent); own copy at the true x. Returns isolated.
+  bool feed(std::int64_t s, double u, double lie_x, double lie_v = 0) {
+    std::vector<double> x(6), v(6);
+    for (int i = 0; i < 6; ++i) {
+      const double truth = (i % 3 == 0) ? u * (static_cast<double>(s) + 0.5) * kT : 0.0;
+      own[static_cast<std::size_t>(i)] = truth;
+      x[static_cast<std::size_t>(i)] = truth + (i % 3 == 0 ? lie_x : 0.0);
+      v[static_cast<std::size_t>(i)] = (i % 3 == 0) ? u + lie_v : 0.0;
+    }
+    return m.observe(0, s, s, x.data(), v.data(), 0, own.data());
+  }
+};
+
+}  // namespace
+
+TEST_GROUP(EdgeMonitor){};
+
+TEST(EdgeMonitor, consistent_states_are_never_isolated_and_a_jump_above_the_kinematic_bound_isolates_at_that_packet) {
+  OneEdge e(check_params());
+  const double dK = check_params().kinematic_bound_m;
+  for (int s = 0; s < 2000; ++s) CHECK_FALSE(e.feed(s, 0.05, 0.0));
+  CHECK_FALSE(e.feed(2000, 0.05, 0.9 * dK));  // below the bound: not yet
+  CHECK_TRUE(e.feed(2001, 0.05, 1.2 * dK));   // the lie now changed by more than the bound: this packet
+  CHECK_EQUAL(1u, e.m.isolations(0));
+  CHECK_TRUE(e.m.last_reason(0) == EdgeLie::kKinematic);
+  CHECK_EQUAL(2001, e.m.last_isolated_k(0));
+  DOUBLES_EQUAL(1.2 * dK, e.m.trip_value_m(0), 1e-3 * dK);
+}
+
+TEST(EdgeMonitor, a_lie_consistent_with_its_velocities_but_far_from_this_copy_is_isolated_within_the_window) {
+  auto with_p = check_params();
+  with_p.disagreement_bound_m = kSuggestedStateCheckDisagreementM;
+  OneEdge e(with_p);
+  // a consistent ramp (x and v both lie) at 0.1 m/s: K sees nothing; P when the filtered gap passes its bound
+  const double dP = with_p.disagreement_bound_m, tau = with_p.disagreement_window_s;
+  std::int64_t s = 0;
+  bool iso = false;
+  for (; s < 2000 && !iso; ++s) iso = e.feed(s, 0.0, 0.1 * static_cast<double>(s) * kT + 0.05 * kT, 0.1);
+  CHECK_TRUE(iso);
+  CHECK_TRUE(e.m.last_reason(0) == EdgeLie::kDisagreement);
+  // the lie reached the bound at dP / 0.1 s; the filter lags a ramp by its time constant tau
+  const double t = static_cast<double>(s) * kT;
+  CHECK_TRUE(t > dP / 0.1 && t < dP / 0.1 + tau + 0.02);
+  DOUBLES_EQUAL(0.0, e.m.peak_kinematic_m(0), 1e-9);
+}
+
+TEST(EdgeMonitor, an_isolated_edge_is_readmitted_only_after_readmit_s_of_truthful_packets) {
+  auto p = check_params();
+  OneEdge e(p);
+  std::int64_t s = 0;
+  for (; s < 100; ++s) e.feed(s, 0.01, 0.0);
+  CHECK_TRUE(e.feed(s++, 0.01, 0.02));  // +2 cm: isolated
+  const std::int64_t lying_until = s + 1000;
+  for (; s < lying_until; ++s) CHECK_TRUE(e.feed(s, 0.01, 0.02));  // it keeps the offset: stays isolated
+  const std::int64_t truth_from = s;
+  bool iso = true;
+  for (; s < truth_from + 5000 && iso; ++s) iso = e.feed(s, 0.01, 0.0);
+  CHECK_FALSE(iso);
+  const double truthful_s = static_cast<double>(s - truth_from) * kT;
+  // the disagreement filter must first fall from 20 mm to the re-admission level (0.2 s x ln(20 mm / level)), then readmit_s
+  const double fall_s = 0.2 * std::log(0.02 / p.readmit_disagreement_m());
+  CHECK_TRUE(truthful_s >= p.readmit_s + fall_s - 0.01);
+  CHECK_TRUE(truthful_s <= p.readmit_s + fall_s + 0.05);
+  CHECK_EQUAL(1u, e.m.readmissions(0));
+  for (int i = 0; i < 1000; ++i) CHECK_FALSE(e.feed(s++, 0.01, 0.0));
+  // it lies again: the second re-admission needs twice the truthful time
+  CHECK_TRUE(e.feed(s++, 0.01, 0.02));
+  for (int i = 0; i < 1000; ++i) CHECK_TRUE(e.feed(s++, 0.01, 0.02));
+  const std::int64_t again_from = s;
+  for (iso = true; s < again_from + 10000 && iso; ++s) iso = e.feed(s, 0.01, 0.0);
+  CHECK_FALSE(iso);
+  const double again_s = static_cast<double>(s - again_from) * kT;
+  CHECK_TRUE(again_s >= 2 * p.readmit_s + fall_s - 0.01 && again_s <= 2 * p.readmit_s + fall_s + 0.05);
+  CHECK_EQUAL(2u, e.m.readmissions(0));
+}
+
+TEST(EdgeMonitor, a_gap_longer_than_max_gap_ticks_re_anchors_without_a_check) {
+  OneEdge e(check_params());
+  CHECK_FALSE(e.feed(0, 0.0, 0.0));
+  const double jump = 25 * check_params().kinematic_bound_m;  // far above the kinematic bound
+  CHECK_FALSE(e.feed(10, 0.0, jump));  // 10 ticks later, off by `jump`: not compared (disagreement still filtered)
+  CHECK_EQUAL(1u, e.m.unchecked_gaps(0));
+  CHECK_TRUE(e.feed(11, 0.0, 0.0));    // the next packet is checked against it: a jump back
+}
+
+namespace {
+
+enum class Lie { kNone, kOffset, kMode, kRamp };
+
+// The object's lowest elastic mode (M-normalized shape scaled to 1 m at its largest node) and frequency.
+struct LowestMode {
+  Eigen::VectorXd shape;
+  double hz = 0;
+};
+const LowestMode& lowest_mode() {
+  static const LowestMode m = [] {
+    const auto& s = PaperWorld::get().scene;
+    const Eigen::MatrixXd K(s.K_int.as_full()), M(s.M.as_full());
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> es(K, M);
+    LowestMode r;
+    for (int i = 0; i < es.eigenvalues().size(); ++i)
+      if (es.eigenvalues()[i] > 1e-6 * es.eigenvalues().maxCoeff()) {  // the first after the six rigid modes
+        r.shape = es.eigenvectors().col(i);
+        r.hz = std::sqrt(es.eigenvalues()[i]) / (2 * M_PI);
+        break;
+      }
+    double big = 0;
+    for (int n = 0; n < s.nodes; ++n) big = std::max(big, r.shape.segment<3>(3 * n).norm());
+    r.shape /= big;
+    return r;
+  }();
+  return m;
+}
+
+struct StarResult {
+  std::vector<Eigen::VectorXd> leaf_x;  // per tick, the three leaves' x stacked
+  std::int64_t isolated_k[4] = {-1, -1, -1, -1};  // per leaf, first tick its hub edge was isolated
+  std::uint64_t isolations = 0;       // all edges of all stations
+  std::uint64_t hub_isolations = 0;   // the hub's edges (to its honest leaves)
+  EdgeLie reason[4] = {};
+};
+
+// Hub 0 (neighbours 1, 2, 3), leaves 1-3 (neighbour 0); 2-tick delay both ways. Leaf 1's user pushes
+// 5 mm into the object from 0.2 s to 0.7 s and holds. The hub lies from lie_t0 s on.
+StarResult run_star(Lie lie, double amplitude, int ticks, bool check = true, double lie_t0 = 1.0) {
+  const auto& w = PaperWorld::get();
+  const auto& dirs = test::tetra_dirs();
+  std::vector<StationConfig> cfg;
+  cfg.push_back(w.station(0, 4, {1, 2, 3}, 30, dirs[0]));
+  for (int l = 1; l <= 3; ++l) cfg.push_back(w.station(l, 4, {0}, 30, dirs[static_cast<std::size_t>(l)]));
+  if (check)
+    for (auto& c : cfg) c.state_check = check_params();
+  std::vector<std::unique_ptr<StationCore>> st;
+  for (auto& c : cfg) st.push_back(std::make_unique<StationCore>(c));
+  const int dofs = w.scene.dofs;
+  std::vector<std::vector<Eigen::VectorXd>> sx(4, std::vector<Eigen::VectorXd>(kDelay + 1, w.scene.x_d));
+  std::vector<std::vector<Eigen::VectorXd>> sv(4, std::vector<Eigen::VectorXd>(kDelay + 1, Eigen::VectorXd::Zero(dofs)));
+  const Eigen::Vector3d e = Eigen::Vector3d(1, 0.5, -0.3).normalized();
+  const LowestMode& mode = lowest_mode();
+  StarResult r;
+  for (int k = 0; k < ticks; ++k) {
+    if (k >= kDelay) {
+      const auto s = static_cast<std::size_t>((k - kDelay) % (kDelay + 1));
+      for (int l = 1; l <= 3; ++l) {
+        st[0]->rx(l - 1).offer(k - kDelay, 0, sx[static_cast<std::size_t>(l)][s].data(), sv[static_cast<std::size_t>(l)][s].data(), dofs);
+        st[static_cast<std::size_t>(l)]->rx(0).offer(k - kDelay, 0, sx[0][s].data(), sv[0][s].data(), dofs);
+      }
+    }
+    const double t = k * kT;
+    for (int i = 0; i < 4; ++i) {
+      Eigen::Vector3d q = w.face_center(dirs[static_cast<std::size_t>(i)]);
+      if (i == 1) q += 0.005 * std::clamp((t - 0.2) / 0.5, 0.0, 1.0) * w.face_inward(dirs[1]);
+      st[static_cast<std::size_t>(i)]->tick(k, q);
+    }
+    const auto s = static_cast<std::size_t>(k % (kDelay + 1));
+    for (int i = 0; i < 4; ++i) {
+      sx[static_cast<std::size_t>(i)][s] = Eigen::Map<const Eigen::VectorXd>(st[static_cast<std::size_t>(i)]->x_hat(), dofs);
+      sv[static_cast<std::size_t>(i)][s] = Eigen::Map<const Eigen::VectorXd>(st[static_cast<std::size_t>(i)]->v_hat(), dofs);
+    }
+    // the insider: its reported x_hat with the lie added, its velocities its copy's
+    const double tl = t + 0.5 * kT - lie_t0;
+    if (tl >= 0) {
+      if (lie == Lie::kOffset)
+        for (int n = 0; n < w.scene.nodes; ++n) sx[0][s].segment<3>(3 * n) += amplitude * e;
+      if (lie == Lie::kMode) sx[0][s] += amplitude * std::sin(2 * M_PI * mode.hz * tl) * mode.shape;
+      if (lie == Lie::kRamp)
+        for (int n = 0; n < w.scene.nodes; ++n) sx[0][s].segment<3>(3 * n) += amplitude * tl * e;
+    }
+    Eigen::VectorXd lx(3 * dofs);
+    for (int l = 1; l <= 3; ++l) {
+      lx.segment((l - 1) * dofs, dofs) = st[static_cast<std::size_t>(l)]->x();
+      const auto& mon = st[static_cast<std::size_t>(l)]->edge_monitor();
+      if (r.isolated_k[l] < 0 && mon.isolated(0)) {
+        r.isolated_k[l] = k;
+        r.reason[l] = mon.last_reason(0);
+      }
+    }
+    r.leaf_x.push_back(std::move(lx));
+  }
+  for (const auto& c : st) r.isolations += c->edge_monitor().isolations();
+  r.hub_isolations = st[0]->edge_monitor().isolations();
+  return r;
+}
+
+// max over ticks, leaves and nodes of |x_lie - x_clean|
+double damage_m(const StarResult& a, const StarResult& b) {
+  double d = 0;
+  for (std::size_t k = 0; k < a.leaf_x.size(); ++k)
+    for (Eigen::Index n = 0; n < a.leaf_x[k].size() / 3; ++n) d = std::max(d, (a.leaf_x[k].segment<3>(3 * n) - b.leaf_x[k].segment<3>(3 * n)).norm());
+  return d;
+}
+
+constexpr int kStarTicks = 2500;  // 5 s; the lie starts at 1 s
+
+const StarResult& clean_star() {
+  static const StarResult r = run_star(Lie::kNone, 0, kStarTicks);
+  return r;
+}
+
+// The reference: the same run with every leaf isolating the hub at the lie's first packet (a 1 m
+// jump), so the lie is never applied; honest copies are compared with it (isolation itself ends
+// the consensus, which the clean run keeps).
+const StarResult& isolated_at_onset() {
+  static const StarResult r = run_star(Lie::kOffset, 1.0, kStarTicks);
+  return r;
+}
+
+// The star's ratchet rate c (1/s): the speed at which an unchecked constant offset L drags the
+// copies is c L (rt/README.md); measured from the drift of an unchecked 2 cm lie over its 4 s.
+double ratchet_rate_per_s() {
+  static const double c = [] {
+    const double L = 0.02;
+    return damage_m(run_star(Lie::kOffset, L, kStarTicks, false), clean_star()) / (L * (kStarTicks * kT - 1.0));
+  }();
+  return c;
+}
+
+struct Isolation {
+  double t_d_s = 0;    // the latest leaf's isolation of the hub, after the lie's start
+  double moved_m = 0;  // honest copies vs the run isolated at the onset
+};
+
+Isolation isolate(Lie lie, double amplitude) {
+  const StarResult r = run_star(lie, amplitude, kStarTicks);
+  Isolation iso;
+  for (int l = 1; l <= 3; ++l) {
+    CHECK_TRUE(r.isolated_k[l] >= 0);
+    CHECK_TRUE(r.reason[l] == EdgeLie::kKinematic);
+    iso.t_d_s = std::max(iso.t_d_s, static_cast<double>(r.isolated_k[l]) * kT - 1.0);
+  }
+  CHECK_EQUAL(0u, r.hub_isolations);  // the lying hub's honest leaves are never isolated
+  iso.moved_m = damage_m(r, isolated_at_onset());
+  std::printf("\n  lie %d, %.4g: isolated within %.3f s, honest copies moved %.4f mm", static_cast<int>(lie), amplitude, iso.t_d_s, 1e3 * iso.moved_m);
+  return iso;
+}
+
+}  // namespace
+
+
+TEST(EdgeMonitor, a_clean_star_with_a_user_pushing_isolates_no_one) {
+  CHECK_EQUAL(0u, clean_star().isolations);
+}
+
+// A lie that changes by more than kinematic_bound_m within one packet is caught at that packet,
+// before the step uses it: the honest copies move as if the hub had been cut off at the onset.
+TEST(EdgeMonitor, a_hub_lying_by_a_constant_offset_is_isolated_by_every_leaf_at_its_first_lying_packet) {
+  for (double L : {0.02, 0.005}) {
+    const Isolation iso = isolate(Lie::kOffset, L);
+    CHECK_TRUE(iso.t_d_s <= (kDelay + 0.5) * kT);  // the first lying packet, when it arrives
+    CHECK_TRUE(iso.moved_m < 1e-6);
+  }
+}
+
+TEST(EdgeMonitor, a_hub_oscillating_in_the_lowest_mode_is_isolated_once_its_lie_passed_the_kinematic_bound) {
+  DOUBLES_EQUAL(11.9, lowest_mode().hz, 0.1);  // the object's lowest elastic mode
+  const Isolation iso = isolate(Lie::kMode, 0.01);
+  // the lie 0.01 sin(w t) passes d_K at t = asin(d_K / 0.01) / w: the first packet after it
+  const double dK = kDefaultStateCheckKinematicM;
+  CHECK_TRUE(iso.t_d_s <= std::asin(dK / 0.01) / (2 * M_PI * lowest_mode().hz) + (kDelay + 1.5) * kT);
+  // what the packets of at most d_K in the mode's shape moved: the stated bound for it is d_K
+  CHECK_TRUE(iso.moved_m < dK);
+}
+
+// A ramp of rho m/s is caught when its leaky sum has grown to d_K: t_d = -tau_K ln(1 - d_K / (rho tau_K))
+// (~ d_K / rho), plus the one-way delay; before that a leaf followed the lie at most at its own rate
+// c_l L(t), c_l = 4/3 c (a leaf pulled by the whole lie; the steady ratchet's c sees 3/4 of it): the
+// model says the copies moved rho t_d + c_l rho t_d^2 / 2 (~ d_K + c_l d_K^2 / (2 rho)); the stated
+// bound is 1.25 x that (the node peaks carry the deformation's transient, up to ~20 % here).
+TEST(EdgeMonitor, a_hub_lying_by_a_slow_ramp_is_isolated_when_it_reached_the_kinematic_bound_and_moved_copies_at_most_the_bound) {
+  const double dK = kDefaultStateCheckKinematicM, c = ratchet_rate_per_s();
+  CHECK_TRUE(c > 1.0);  // the unchecked lie does drag the copies
+  for (double rho : {0.002, 0.0005}) {
+    const Isolation iso = isolate(Lie::kRamp, rho);
+    const double t_d = -check_params().kinematic_window_s * std::log(1 - dK / (rho * check_params().kinematic_window_s)) + (kDelay + 1.5) * kT;
+    CHECK_TRUE(iso.t_d_s <= t_d);
+    const double bound = 1.25 * (4.0 / 3.0 * c * rho * t_d * t_d / 2 + rho * t_d);
+    std::printf(" (bound %.3f mm, c %.2f /s)", 1e3 * bound, c);
+    CHECK_TRUE(iso.moved_m < bound);
+  }
+}
+

@@ -133,7 +133,9 @@ bool EdgeMonitor::observe(int j, std::int64_t k, std::int64_t seq, const double*
   if (!p_.enabled()) return false;
   if (seq > ed.seq) {  // a new packet: check it, then it is the anchor of the next
     const std::int64_t gap = seq - ed.seq;
-    if (p_.kinematic_bound_m < EdgeMonitorParams::kOff) kinematic(ed, gap, x_hat, v_hat);
+    // The first packet only anchors: a neighbour may start from other than this copy's rest state
+    // (its clock ahead of ours, a rejoin), and a lie from its first packet on is a consistent one.
+    if (p_.kinematic_bound_m < EdgeMonitorParams::kOff && ed.seq >= 0) kinematic(ed, gap, x_hat, v_hat);
     disagreement(ed, gap, x_hat, v_hat, index_delay, own_x);  // P trips only with a finite bound; re-admission reads it always
     std::copy(x_hat, x_hat + dofs_, ed.x_prev.begin());
     std::copy(v_hat, v_hat + dofs_, ed.v_prev.begin());

@@ -224,9 +224,11 @@ struct SnapshotPicks {
   std::vector<std::vector<std::array<double, 3>>> vp;  // per time, per station (filled by pick_snapshot_proxies)
   std::vector<std::vector<double>> last_rows;         // the last common state tick's rows
   void take(const CommonTicks& ct, std::size_t n, double T) {
+    if (times_s.empty()) return;  // no snapshot asked for: nothing to keep
     for (std::size_t p = 0; p < times_s.size(); ++p)
       if (!k[p] && static_cast<double>(ct.k() + 1) * T >= times_s[p] - 1e-9) k[p] = ct.k(), x[p] = rows(ct, n);
-    last_rows = rows(ct, n);
+    last_rows.resize(n);
+    for (std::size_t i = 0; i < n; ++i) last_rows[i] = ct[i].row();  // in place: the rows' storage is reused tick after tick
   }
   static std::vector<std::vector<double>> rows(const CommonTicks& ct, std::size_t n) {
     std::vector<std::vector<double>> r;
@@ -308,8 +310,8 @@ json merged_link(const std::vector<StationFiles>& st, int to, const json& rx, Li
 // What one pass over a station's own trace (every row it wrote, not only the common ticks) gives:
 // its steps T_k and the states it pushed in two windows of run time.
 struct TraceScan {
-  json steps;                  // steps_json()
-  json sent_in_hold, sent_after;  // states_sent_between() of the hold window and after consensus
+  json steps;                     // min/mean/max of step_s and the integrated time's drift from the grid, or null
+  json sent_in_hold, sent_after;  // states it pushed in the hold window and after consensus, or null
 };
 
 // Station f's trace scanned once: the steps T_k it integrated with, from step_s (null: an older

@@ -31,7 +31,7 @@ if sys.argv[1:2] == ["--after-go"]:
 
 import matplotlib  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib import cm, colors, ticker  # noqa: E402
+from matplotlib import cm, colors  # noqa: E402
 from matplotlib.collections import PolyCollection  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402  (no pyplot: no global figure manager to import or keep)
 

@@ -227,6 +227,15 @@ bool wait_drops(Endpoint& e, std::uint64_t before, std::uint64_t n) {
   return false;
 }
 
+// Waits (bounded, 2 s) until station 0's I/O thread has read n more datagrams than `before`.
+bool wait_datagrams(Endpoint& e, std::uint64_t before, std::uint64_t n) {
+  for (int i = 0; i < 400; ++i) {
+    if (e.stats().datagrams_received >= before + n) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return false;
+}
+
 }  // namespace
 
 TEST_GROUP(Keys){};
@@ -686,13 +695,16 @@ TEST(Keys, EveryKindOfThisRunsDatagramsReplayedIsRefusedAndCountedUnderItsKind) 
   std::uint64_t kinds[4] = {0, 0, 0, 0};
   for (const auto& d : capture) ++kinds[kind_of(d) & 3];
   const std::uint64_t states = kinds[1], fingerprints = kinds[2], hellos = kinds[3];
-  CHECK(states >= 80 && fingerprints >= 10 && hellos >= 1);
+  // At least one of each kind (how many fingerprints and keep-alives leave depends on how often the
+  // loaded host runs station 1's I/O thread: 12-13 fingerprints quiet, fewer than 10 seen at load 8-9).
+  const std::string kinds_seen = "states " + std::to_string(states) + ", fingerprints " + std::to_string(fingerprints) +
+                                 ", hellos " + std::to_string(hellos);
+  CHECK_TEXT(states >= 40 && fingerprints >= 1 && hellos >= 1, kinds_seen.c_str());
   CHECK_EQUAL(capture.size(), states + fingerprints + hellos);
   // Once, so that what station 0 dropped the first time (sent before it had agreed) has been taken...
-  const std::uint64_t d0 = r.e0->stats().drops.total();
+  const std::uint64_t d0 = r.e0->stats().datagrams_received;
   for (const auto& d : capture) r.t1->inject(d);
-  CHECK(wait_drops(*r.e0, d0, 1));
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  CHECK_TRUE(wait_datagrams(*r.e0, d0, capture.size()));
   r.e0->drain([](auto...) {});
   // ...then again: every datagram refused, each counted once under its kind.
   const EndpointStats before = r.e0->stats();

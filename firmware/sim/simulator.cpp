@@ -12,6 +12,7 @@
 
 #include "firmware/station/link_impairment.hpp"
 #include "firmware/run/summary.hpp"
+#include "firmware/sim/in_place_slots.hpp"
 #include "firmware/session/recorder.hpp"
 #include "firmware/station/plan.hpp"
 #include "net/impairment.hpp"
@@ -26,10 +27,7 @@ namespace {
 struct InFlight {
   double arrive_s;
   std::uint64_t order;
-  std::int64_t seq;
-  double send_s;
-  std::shared_ptr<const std::vector<double>> payload;  // x_hat then v_hat
-  bool finite;  // every value of the payload finite (checked once, by the sender's copy)
+  SimPacket packet;
   bool operator>(const InFlight& o) const { return arrive_s != o.arrive_s ? arrive_s > o.arrive_s : order > o.order; }
 };
 
@@ -39,10 +37,7 @@ struct Channel {
   std::priority_queue<InFlight, std::vector<InFlight>, std::greater<>> queue;
   std::int64_t max_seq_delivered = -1;
   LinkStats stats;
-  // The payloads the receive link may read in place (RxLink::take): slot 0 or 1, the one it holds
-  // is held_slot (kNoSlot: none); kept alive here until the link gives the slot back.
-  std::shared_ptr<const std::vector<double>> held[2];
-  std::uint32_t held_slot = rt::RxLink::kNoSlot;
+  InPlaceSlots slots;  // the payloads the receive link reads in place
 };
 
 
@@ -201,28 +196,6 @@ Simulation::Simulation(const BuiltScenario& built, const SimOptions& options)
   std::sort(snap_times.begin(), snap_times.end());
 }
 
-// One arrived packet into channel c's receive link: a finite payload handed in place in a slot of
-// c.held (RxLink::take, the tick rules: the same verdicts and values as offer() for a finite payload
-// of the scene's size, without the copy), a non-finite one offered (checked: refused and counted).
-template <class Offer>
-void hand_in_packet(Channel& c, const InFlight& p, int dofs, Offer&& offer) {
-  const double* x = p.payload->data();
-  if (!p.finite) {
-    offer(rt::ReceivedState{c.rx_index, p.seq, p.send_s, x, x + dofs, dofs});
-    return;
-  }
-  const std::uint32_t slot = c.held_slot == 0 ? 1u : 0u;
-  c.held[slot] = p.payload;
-  std::uint32_t released = rt::RxLink::kNoSlot;
-  offer(rt::ReceivedState{c.rx_index, p.seq, p.send_s, x, x + dofs, dofs, slot, &released});
-  if (released == slot) {  // not used: the link keeps the packet it held
-    c.held[slot].reset();
-    return;
-  }
-  if (released != rt::RxLink::kNoSlot) c.held[released].reset();
-  c.held_slot = slot;
-}
-
 // 1. The packets that have arrived on station i's channels by t, each channel's in arrival order
 // (rt::drive_tick's source for station i's tick).
 template <class Offer>
@@ -233,12 +206,12 @@ void arrived_packets(Simulation& s, int i, double t, Offer&& offer) {
       const InFlight p = c.queue.top();
       c.queue.pop();
       ++c.stats.delivered;
-      const double d = p.arrive_s - p.send_s;
+      const double d = p.arrive_s - p.packet.send_s;
       c.stats.delay_sum_s += d;
       c.stats.delay_max_s = std::max(c.stats.delay_max_s, d);
-      if (p.seq < c.max_seq_delivered) ++c.stats.reordered;
-      c.max_seq_delivered = std::max(c.max_seq_delivered, p.seq);
-      hand_in_packet(c, p, s.dofs, offer);
+      if (p.packet.seq < c.max_seq_delivered) ++c.stats.reordered;
+      c.max_seq_delivered = std::max(c.max_seq_delivered, p.packet.seq);
+      c.slots.hand_in(c.rx_index, p.packet, s.dofs, offer);
     }
   }
 }
@@ -302,7 +275,7 @@ void send_states(Simulation& s, double t) {
       const auto fate = c.link.fate(static_cast<std::uint64_t>(core.sequence()), t);
       if (fate.lost) ++c.stats.lost;
       if (fate.duplicated) ++c.stats.duplicated;
-      for (int cp = 0; cp < fate.copies; ++cp) c.queue.push(InFlight{t + fate.delay_s[cp], s.order++, core.sequence(), t, payload, finite});
+      for (int cp = 0; cp < fate.copies; ++cp) c.queue.push(InFlight{t + fate.delay_s[cp], s.order++, SimPacket{core.sequence(), t, payload, finite}});
     }
   }
 }

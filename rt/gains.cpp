@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -19,30 +20,89 @@ double lambda_min_dense_or_gersh(const SpatialMatrix& A) {
   neg.S *= -1.0;
   return -lambda_max(neg);
 }
+// Gershgorin: every eigenvalue of a symmetric A is >= min_r (a_rr - sum_{c != r} |a_rc|). O(nnz);
+// where it proves a sign the eigen-solve above is not needed.
+double gershgorin_lower(const SpatialMatrix& A) {
+  double low = std::numeric_limits<double>::infinity();
+  for (int r = 0; r < A.S.outerSize(); ++r) {
+    double diag = 0, off = 0;
+    for (SparseRowMajor::InnerIterator it(A.S, r); it; ++it) {
+      if (it.col() == r)
+        diag += it.value();
+      else
+        off += std::abs(it.value());
+    }
+    low = std::min(low, diag - off);
+  }
+  return low;
+}
+// A = c I: every stored entry on the diagonal, all equal (none stored: c = 0).
+bool scalar_identity(const SpatialMatrix& A, double& c) {
+  c = A.S.nonZeros() > 0 ? A.S.valuePtr()[0] : 0.0;
+  if (A.S.nonZeros() != 0 && A.S.nonZeros() != A.S.rows()) return false;
+  for (int r = 0; r < A.S.outerSize(); ++r)
+    for (SparseRowMajor::InnerIterator it(A.S, r); it; ++it)
+      if (it.col() != r || it.value() != c) return false;
+  return true;
+}
+bool same_matrix(const SpatialMatrix& a, const SpatialMatrix& b) {
+  if (&a == &b) return true;
+  const auto& x = a.S;
+  const auto& y = b.S;
+  if (a.width != b.width || x.rows() != y.rows() || x.nonZeros() != y.nonZeros()) return false;
+  const auto nnz = static_cast<std::size_t>(x.nonZeros());
+  return std::equal(x.outerIndexPtr(), x.outerIndexPtr() + x.outerSize() + 1, y.outerIndexPtr()) &&
+         std::equal(x.innerIndexPtr(), x.innerIndexPtr() + nnz, y.innerIndexPtr()) && std::equal(x.valuePtr(), x.valuePtr() + nnz, y.valuePtr());
+}
+// Eq. (18)'s lambda_max(sum_j c_P,j P + c_D,j d_j I) = sum_j c_P,j lambda_max(P) + sum_j c_D,j d_j
+// when every neighbour has the same P and a scalar D (the paper's gains): the terms share their
+// eigenvectors. Used above kDenseEigenRows, where the alternative is a power iteration on the sum
+// per station (below, the dense solver keeps its own bits). False: not that case.
+bool eq18_shared_gains(double t_min_i, std::span<const Eq18Neighbor> nb, double& beta) {
+  const EdgeGains& g0 = *nb.front().gains;
+  if (g0.P.S.rows() <= kDenseEigenRows) return false;
+  double cP = 0, cD = 0;
+  for (const auto& n : nb) {
+    double d = 0;
+    if (!same_matrix(n.gains->P, g0.P) || !scalar_identity(n.gains->D, d)) return false;
+    cP += n.round_trip_ticks / 2.0 * n.t_max_j_s;
+    cD += std::max(0.0, 0.5 * (n.t_max_j_s / t_min_i - 1.0)) * d;
+  }
+  beta = cP * g0.lambda_max_P + cD;
+  return true;
+}
 }  // namespace
 
-EdgeGains matrix_edge_gains(const SpatialMatrix& P, const SpatialMatrix& D) {
+namespace {
+// P and D checked; their largest eigenvalues computed, or taken from `known` ({P's, D's}) when given.
+EdgeGains checked_gains(const SpatialMatrix& P, const SpatialMatrix& D, const double* known) {
   check_symmetric(P, "P_ij");
   check_symmetric(D, "D_ij");
   if (P.dofs() != D.dofs()) throw std::invalid_argument("P_ij and D_ij must have the same size");
   EdgeGains g;
   g.P = P;
   g.D = D;
-  g.lambda_max_P = lambda_max(P);
-  g.lambda_max_D = lambda_max(D);
-  if (!(lambda_min_dense_or_gersh(P) > 0)) throw std::invalid_argument("P_ij must be positive definite");
-  if (lambda_min_dense_or_gersh(D) < -1e-9 * std::max(1.0, g.lambda_max_D))
+  g.lambda_max_P = known ? known[0] : lambda_max(P);
+  g.lambda_max_D = known ? known[1] : lambda_max(D);
+  if (!(gershgorin_lower(P) > 0) && !(lambda_min_dense_or_gersh(P) > 0)) throw std::invalid_argument("P_ij must be positive definite");
+  if (gershgorin_lower(D) < 0 && lambda_min_dense_or_gersh(D) < -1e-9 * std::max(1.0, g.lambda_max_D))
     throw std::invalid_argument("D_ij must be positive semidefinite");
   g.description = "matrix gains";
   return g;
 }
+}  // namespace
+
+EdgeGains matrix_edge_gains(const SpatialMatrix& P, const SpatialMatrix& D) { return checked_gains(P, D, nullptr); }
 
 EdgeGains paper_edge_gains(const Scene& scene, double p, double d) {
   if (!(p > 0)) throw std::invalid_argument("consensus.p_N_per_m must be > 0");
   if (!(d >= 0)) throw std::invalid_argument("consensus.d_Ns_per_m must be >= 0");
   const SpatialMatrix I = SpatialMatrix::identity(scene.nodes);
-  EdgeGains g = matrix_edge_gains(linear_combination({{p / 2, &I}, {p / (2 * scene.lambda_max_K_int), &scene.K_int}}),
-                                  SpatialMatrix::identity(scene.nodes, d));
+  // lambda_max(P) = p/2 + p/2 lambda_max(K_int)/lambda_max_K_int = p and lambda_max(D) = d: given
+  // above kDenseEigenRows, where each would be a power iteration; below, the dense solver's values.
+  const double known[2] = {p, d};
+  EdgeGains g = checked_gains(linear_combination({{p / 2, &I}, {p / (2 * scene.lambda_max_K_int), &scene.K_int}}),
+                              SpatialMatrix::identity(scene.nodes, d), scene.nodes > kDenseEigenRows ? known : nullptr);
   std::ostringstream os;
   os << "P = " << p << "[I/2 + K_int/(2 lambda_max)], D = " << d << " I";
   g.description = os.str();
@@ -66,13 +126,17 @@ EdgeGains scalar_edge_gains(int nodes, double p, double d) {
 double damping_min_eq18(double t_min_i, std::span<const Eq18Neighbor> nb) {
   if (!(t_min_i > 0)) throw std::invalid_argument("eq. (18): T_i^min must be > 0");
   if (nb.empty()) return 0.0;
-  // Build sum_j c_P P_ij + c_D D_ij and take its largest eigenvalue (exact PSD bound for B_i = beta I).
-  SpatialMatrix acc;
-  bool first = true;
   for (const auto& n : nb) {
     if (!n.gains) throw std::invalid_argument("eq. (18): neighbour without gains");
     if (!(n.round_trip_ticks >= 0)) throw std::invalid_argument("eq. (18): round trip must be >= 0");
     if (!(n.t_max_j_s >= t_min_i * 0 && n.t_max_j_s > 0)) throw std::invalid_argument("eq. (18): T_j^max must be > 0");
+  }
+  double beta = 0;
+  if (eq18_shared_gains(t_min_i, nb, beta)) return std::max(0.0, beta);
+  // Build sum_j c_P P_ij + c_D D_ij and take its largest eigenvalue (exact PSD bound for B_i = beta I).
+  SpatialMatrix acc;
+  bool first = true;
+  for (const auto& n : nb) {
     const double cP = n.round_trip_ticks / 2.0 * n.t_max_j_s;
     const double cD = 0.5 * (n.t_max_j_s / t_min_i - 1.0);
     SpatialMatrix term = linear_combination({{cP, &n.gains->P}, {std::max(0.0, cD), &n.gains->D}});

@@ -90,35 +90,42 @@ double TetMesh::tet_volume(int t) const {
 }
 
 void finish_mesh(TetMesh& m) {
-  std::set<std::array<int, 2>> edges;
+  // Edges ascending and unique; the boundary faces (used by one tetrahedron) in ascending order of
+  // their sorted corners.
+  m.edges.clear();
+  m.edges.reserve(m.tets.size() * 6);
   struct FaceUse {
-    int count = 0;
-    std::array<int, 3> face{};
-    int opposite = 0;  // the tetrahedron's fourth node
+    std::array<int, 3> key;   // sorted corners
+    std::array<int, 3> face;  // as the tetrahedron lists them
+    int opposite;             // the tetrahedron's fourth node
   };
-  std::map<std::array<int, 3>, FaceUse> faces;  // sorted corners -> uses
+  std::vector<FaceUse> faces;
+  faces.reserve(m.tets.size() * 4);
   for (const auto& t : m.tets) {
     for (int a = 0; a < 4; ++a)
-      for (int b = a + 1; b < 4; ++b) edges.insert({std::min(t[a], t[b]), std::max(t[a], t[b])});
+      for (int b = a + 1; b < 4; ++b) m.edges.push_back({std::min(t[a], t[b]), std::max(t[a], t[b])});
     const std::array<std::array<int, 3>, 4> fs = {{{t[0], t[1], t[2]}, {t[0], t[1], t[3]}, {t[0], t[2], t[3]}, {t[1], t[2], t[3]}}};
     const std::array<int, 4> opposite = {t[3], t[2], t[1], t[0]};
     for (std::size_t i = 0; i < fs.size(); ++i) {
       auto key = fs[i];
       std::sort(key.begin(), key.end());
-      auto& e = faces[key];
-      e.count++;
-      e.face = fs[i];
-      e.opposite = opposite[i];
+      faces.push_back({key, fs[i], opposite[i]});
     }
   }
-  m.edges.assign(edges.begin(), edges.end());
+  std::sort(m.edges.begin(), m.edges.end());
+  m.edges.erase(std::unique(m.edges.begin(), m.edges.end()), m.edges.end());
+  std::sort(faces.begin(), faces.end(), [](const FaceUse& a, const FaceUse& b) { return a.key < b.key; });
   m.surface.clear();
-  for (const auto& [key, use] : faces) {
-    if (use.count != 1) continue;
-    auto f = use.face;
-    const Eigen::Vector3d n = (m.nodes[f[1]] - m.nodes[f[0]]).cross(m.nodes[f[2]] - m.nodes[f[0]]);
-    if (n.dot(m.nodes[f[0]] - m.nodes[use.opposite]) < 0) std::swap(f[1], f[2]);
-    m.surface.push_back(f);
+  for (std::size_t i = 0; i < faces.size();) {
+    std::size_t j = i + 1;
+    while (j < faces.size() && faces[j].key == faces[i].key) ++j;
+    if (j == i + 1) {
+      auto f = faces[i].face;
+      const Eigen::Vector3d n = (m.nodes[f[1]] - m.nodes[f[0]]).cross(m.nodes[f[2]] - m.nodes[f[0]]);
+      if (n.dot(m.nodes[f[0]] - m.nodes[faces[i].opposite]) < 0) std::swap(f[1], f[2]);
+      m.surface.push_back(f);
+    }
+    i = j;
   }
 }
 

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <map>
 #include <string>
 #include <stdexcept>
 
@@ -11,6 +10,24 @@
 #include "rt/lanes.hpp"
 
 namespace haptic::rt {
+
+namespace {
+// The union of the terms' off-diagonal patterns (entries with a non-zero value), each row's
+// columns ascending: ptr (rows + 1) and cols. Start-up, O(nnz log row length).
+void union_pattern(const std::vector<SparseRowMajor>& S, std::vector<int>& ptr, std::vector<int>& cols) {
+  const int rows = static_cast<int>(S[0].rows());
+  ptr.assign(static_cast<std::size_t>(rows) + 1, 0);
+  for (int r = 0; r < rows; ++r) {
+    const std::size_t begin = cols.size();
+    for (const auto& m : S)
+      for (SparseRowMajor::InnerIterator it(m, r); it; ++it)
+        if (it.col() != r && it.value() != 0.0) cols.push_back(static_cast<int>(it.col()));
+    std::sort(cols.begin() + static_cast<std::ptrdiff_t>(begin), cols.end());
+    cols.erase(std::unique(cols.begin() + static_cast<std::ptrdiff_t>(begin), cols.end()), cols.end());
+    ptr[static_cast<std::size_t>(r) + 1] = static_cast<int>(cols.size());
+  }
+}
+}  // namespace
 
 MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& terms) {
   if (terms.empty() || static_cast<int>(terms.size()) > kMaxTerms)
@@ -26,20 +43,23 @@ MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& te
   for (const auto* m : terms) S.push_back(iso ? m->S : m->as_full());
   rows_ = static_cast<int>(S[0].rows());
   diag_.assign(static_cast<std::size_t>(rows_) * static_cast<std::size_t>(terms_), 0.0);
-  // Which terms have off-diagonal entries, and the union pattern (rows sorted by column).
+  // Which terms have off-diagonal entries, and the union pattern (rows sorted by column) with
+  // every term's value on it (terms x entries, 0 where a term has none).
   std::vector<bool> has_off(static_cast<std::size_t>(terms_), false);
-  std::vector<std::map<int, std::vector<double>>> row_entries(static_cast<std::size_t>(rows_));
+  std::vector<int> ptr, cols;
+  union_pattern(S, ptr, cols);
+  const auto T = static_cast<std::size_t>(terms_);
+  std::vector<double> vals(cols.size() * T, 0.0);
   for (int t = 0; t < terms_; ++t)
     for (int r = 0; r < rows_; ++r)
       for (SparseRowMajor::InnerIterator it(S[static_cast<std::size_t>(t)], r); it; ++it) {
         const int c = static_cast<int>(it.col());
         if (c == r) {
-          diag_[static_cast<std::size_t>(r) * static_cast<std::size_t>(terms_) + static_cast<std::size_t>(t)] += it.value();
+          diag_[static_cast<std::size_t>(r) * T + static_cast<std::size_t>(t)] += it.value();
         } else if (it.value() != 0.0) {
           has_off[static_cast<std::size_t>(t)] = true;
-          auto& v = row_entries[static_cast<std::size_t>(r)][c];
-          v.resize(static_cast<std::size_t>(terms_), 0.0);
-          v[static_cast<std::size_t>(t)] += it.value();
+          const auto e = std::lower_bound(cols.begin() + ptr[static_cast<std::size_t>(r)], cols.begin() + ptr[static_cast<std::size_t>(r) + 1], c) - cols.begin();
+          vals[static_cast<std::size_t>(e) * T + static_cast<std::size_t>(t)] += it.value();
         }
       }
   for (int t = 0; t < terms_; ++t)
@@ -49,28 +69,24 @@ MultiTermOperator::MultiTermOperator(const std::vector<const SpatialMatrix*>& te
   // Shared values: every slot's off-diagonal values a multiple of slot 0's (to 1e-14 per entry).
   ratio_.assign(static_cast<std::size_t>(off_terms_), 1.0);
   shared_ = off_terms_ > 1;
+  const std::size_t entries = cols.size();
   for (int s = 1; s < off_terms_ && shared_; ++s) {
     const auto ts = static_cast<std::size_t>(off_term_[static_cast<std::size_t>(s)]);
     const auto t0 = static_cast<std::size_t>(off_term_[0]);
     double ratio = 0;
-    for (const auto& row : row_entries)
-      for (const auto& [c, v] : row)
-        if (ratio == 0 && v[t0] != 0.0) ratio = v[ts] / v[t0];
-    for (const auto& row : row_entries)
-      for (const auto& [c, v] : row)
-        if (!(std::abs(v[ts] - ratio * v[t0]) <= 1e-14 * std::abs(v[ts]))) shared_ = false;
+    for (std::size_t e = 0; e < entries && ratio == 0; ++e)
+      if (vals[e * T + t0] != 0.0) ratio = vals[e * T + ts] / vals[e * T + t0];
+    for (std::size_t e = 0; e < entries; ++e)
+      if (!(std::abs(vals[e * T + ts] - ratio * vals[e * T + t0]) <= 1e-14 * std::abs(vals[e * T + ts]))) shared_ = false;
     ratio_[static_cast<std::size_t>(s)] = ratio;
   }
   if (!shared_) ratio_.assign(static_cast<std::size_t>(off_terms_), 1.0);
   const int stored_slots = shared_ ? 1 : off_terms_;
-  rowptr_.assign(static_cast<std::size_t>(rows_) + 1, 0);
-  for (int r = 0; r < rows_; ++r) {
-    for (const auto& [c, v] : row_entries[static_cast<std::size_t>(r)]) {
-      col_.push_back(c);
-      for (int s = 0; s < stored_slots; ++s) off_.push_back(v[static_cast<std::size_t>(off_term_[static_cast<std::size_t>(s)])]);
-    }
-    rowptr_[static_cast<std::size_t>(r) + 1] = static_cast<int>(col_.size());
-  }
+  rowptr_ = std::move(ptr);
+  col_ = std::move(cols);
+  off_.reserve(entries * static_cast<std::size_t>(stored_slots));
+  for (std::size_t e = 0; e < entries; ++e)
+    for (int s = 0; s < stored_slots; ++s) off_.push_back(vals[e * T + static_cast<std::size_t>(off_term_[static_cast<std::size_t>(s)])]);
   prepare_consensus_ring();
 }
 

@@ -1,8 +1,8 @@
 #include "rt/scene.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
-#include <map>
 #include <stdexcept>
 #include <string>
 
@@ -25,25 +25,49 @@ void Material::validate() const {
     throw std::invalid_argument("scene.youngs_modulus_Pa must be > 0 (Pa)");
 }
 
+namespace {
+// Index of each tetrahedron edge (6 per tet, a < b) in mesh.edges; throws if one is missing.
+std::vector<int> tet_edge_index(const TetMesh& mesh) {
+  std::vector<std::pair<std::array<int, 2>, int>> sorted;
+  sorted.reserve(mesh.edges.size());
+  for (std::size_t i = 0; i < mesh.edges.size(); ++i) sorted.push_back({mesh.edges[i], static_cast<int>(i)});
+  std::sort(sorted.begin(), sorted.end());
+  std::vector<int> index;
+  index.reserve(mesh.tets.size() * 6);
+  for (const auto& q : mesh.tets)
+    for (int a = 0; a < 4; ++a)
+      for (int b = a + 1; b < 4; ++b) {
+        const std::array<int, 2> e{std::min(q[a], q[b]), std::max(q[a], q[b])};
+        const auto it = std::lower_bound(sorted.begin(), sorted.end(), std::make_pair(e, -1));
+        if (it == sorted.end() || it->first != e) throw std::out_of_range("scene: a tetrahedron edge is not in the mesh's edges");
+        index.push_back(it->second);
+      }
+  return index;
+}
+}  // namespace
+
 LumpedModel lump_material(const TetMesh& mesh, const Material& material) {
   material.validate();
   LumpedModel out;
   out.node_mass_kg.assign(mesh.nodes.size(), 0.0);
-  std::map<std::array<int, 2>, double> edge_volume;
+  const std::vector<int> edge_of = tet_edge_index(mesh);
+  std::vector<double> edge_volume(mesh.edges.size(), 0.0);
   for (int t = 0; t < static_cast<int>(mesh.tets.size()); ++t) {
     const double v = std::abs(mesh.tet_volume(t));  // orientation is the readers' check (scene/mesh_check)
     if (!(v > 0)) throw std::invalid_argument("scene: tetrahedron " + std::to_string(t) + " has no volume");
     out.volume_m3 += v;
     const auto& q = mesh.tets[static_cast<std::size_t>(t)];
+    const int* e = edge_of.data() + 6 * static_cast<std::size_t>(t);
     for (int a = 0; a < 4; ++a) {
       out.node_mass_kg[static_cast<std::size_t>(q[a])] += material.density_kg_per_m3 * v / 4.0;
-      for (int b = a + 1; b < 4; ++b) edge_volume[{std::min(q[a], q[b]), std::max(q[a], q[b])}] += v;
+      for (int b = a + 1; b < 4; ++b) edge_volume[static_cast<std::size_t>(*e++)] += v;
     }
   }
   out.edge_stiffness_N_per_m.reserve(mesh.edges.size());
-  for (const auto& e : mesh.edges) {
+  for (std::size_t i = 0; i < mesh.edges.size(); ++i) {
+    const auto& e = mesh.edges[i];
     const double len2 = (mesh.nodes[static_cast<std::size_t>(e[0])] - mesh.nodes[static_cast<std::size_t>(e[1])]).squaredNorm();
-    out.edge_stiffness_N_per_m.push_back(material.youngs_modulus_Pa * edge_volume.at(e) / len2);
+    out.edge_stiffness_N_per_m.push_back(material.youngs_modulus_Pa * edge_volume[i] / len2);
   }
   return out;
 }

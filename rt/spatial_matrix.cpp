@@ -88,7 +88,7 @@ SpatialMatrix linear_combination(std::initializer_list<std::pair<double, const S
 
 double lambda_max(const SpatialMatrix& A) {
   const Eigen::Index n = A.S.rows();
-  if (n <= 600) {
+  if (n <= kDenseEigenRows) {
     Eigen::MatrixXd D = Eigen::MatrixXd(A.S);
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(D, Eigen::EigenvaluesOnly);
     return es.eigenvalues().maxCoeff();

@@ -33,8 +33,9 @@ struct SpatialMatrix {
 // sum_k c_k A_k. Isotropic if every term is isotropic. Start-up only (allocates).
 SpatialMatrix linear_combination(std::initializer_list<std::pair<double, const SpatialMatrix*>> terms);
 
-// Largest eigenvalue of a symmetric SpatialMatrix (dense solver up to 600 rows of S, Lanczos-free
-// power iteration with a verified residual beyond). Start-up only.
+// Largest eigenvalue of a symmetric SpatialMatrix (dense solver up to kDenseEigenRows rows of S,
+// Lanczos-free power iteration with a verified residual beyond). Start-up only.
+inline constexpr int kDenseEigenRows = 600;
 double lambda_max(const SpatialMatrix& A);
 
 }  // namespace haptic::rt

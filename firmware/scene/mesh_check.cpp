@@ -75,11 +75,11 @@ void check_nodes_used_and_connected(const RawTetMesh& raw) {
 // Every boundary node's boundary triangles form one fan (joined through edges at the node); two fans
 // mean two parts of the surface touch at that node only (e.g. two balls meshed touching at a point),
 // which the edge and face checks do not see.
-void check_boundary_vertices(const RawTetMesh& raw, const std::map<std::array<int, 3>, std::vector<std::size_t>>& faces) {
+// `boundary`: the faces on one tetrahedron (sorted corners, that tetrahedron), ascending.
+void check_boundary_vertices(const RawTetMesh& raw, const std::vector<std::pair<std::array<int, 3>, std::size_t>>& boundary) {
   std::map<int, std::vector<std::pair<std::array<int, 3>, std::size_t>>> around;  // node -> its boundary faces (with their tet)
-  for (const auto& [k, ts] : faces)
-    if (ts.size() == 1)
-      for (int v : k) around[v].push_back({k, ts[0]});
+  for (const auto& [k, t] : boundary)
+    for (int v : k) around[v].push_back({k, t});
   for (const auto& [v, fs] : around) {
     std::vector<int> parent(fs.size());
     for (std::size_t i = 0; i < fs.size(); ++i) parent[i] = static_cast<int>(i);
@@ -101,31 +101,39 @@ void check_boundary_vertices(const RawTetMesh& raw, const std::map<std::array<in
 
 // Faces on more than two tetrahedra; boundary edges not on exactly two boundary faces.
 void check_manifold(const RawTetMesh& raw) {
-  std::map<std::array<int, 3>, std::vector<std::size_t>> faces;
+  // Every face (sorted corners) with the tetrahedra that have it, ascending by face, then tetrahedron.
+  std::vector<std::pair<std::array<int, 3>, std::size_t>> uses;
+  uses.reserve(raw.tets.size() * 4);
   for (std::size_t t = 0; t < raw.tets.size(); ++t) {
     const auto& q = raw.tets[t];
     const std::array<std::array<int, 3>, 4> fs = {{{q[0], q[1], q[2]}, {q[0], q[1], q[3]}, {q[0], q[2], q[3]}, {q[1], q[2], q[3]}}};
     for (auto k : fs) {
       std::sort(k.begin(), k.end());
-      faces[k].push_back(t);
+      uses.push_back({k, t});
     }
   }
-  std::map<std::array<int, 2>, std::vector<std::size_t>> boundary_edges;  // edge -> tets of its boundary faces
-  for (const auto& [k, ts] : faces) {
-    if (ts.size() > 2)
-      fail(raw.element_file, raw.tet_line[ts[2]], "element " + std::to_string(raw.tet_id[ts[2]]) + ": non-manifold mesh: a face is shared by " +
-                                                      std::to_string(ts.size()) + " tetrahedra (elements " + std::to_string(raw.tet_id[ts[0]]) + ", " +
-                                                      std::to_string(raw.tet_id[ts[1]]) + ", ...)");
-    if (ts.size() == 1)
-      for (auto e : {std::array<int, 2>{k[0], k[1]}, std::array<int, 2>{k[0], k[2]}, std::array<int, 2>{k[1], k[2]}}) boundary_edges[e].push_back(ts[0]);
+  std::sort(uses.begin(), uses.end());
+  std::vector<std::pair<std::array<int, 3>, std::size_t>> boundary;  // faces on one tetrahedron
+  for (std::size_t i = 0; i < uses.size();) {
+    std::size_t j = i + 1;
+    while (j < uses.size() && uses[j].first == uses[i].first) ++j;
+    if (j - i > 2)
+      fail(raw.element_file, raw.tet_line[uses[i + 2].second], "element " + std::to_string(raw.tet_id[uses[i + 2].second]) + ": non-manifold mesh: a face is shared by " +
+                                                                   std::to_string(j - i) + " tetrahedra (elements " + std::to_string(raw.tet_id[uses[i].second]) + ", " +
+                                                                   std::to_string(raw.tet_id[uses[i + 1].second]) + ", ...)");
+    if (j - i == 1) boundary.push_back(uses[i]);
+    i = j;
   }
+  std::map<std::array<int, 2>, std::vector<std::size_t>> boundary_edges;  // edge -> tets of its boundary faces
+  for (const auto& [k, t] : boundary)
+    for (auto e : {std::array<int, 2>{k[0], k[1]}, std::array<int, 2>{k[0], k[2]}, std::array<int, 2>{k[1], k[2]}}) boundary_edges[e].push_back(t);
   for (const auto& [e, ts] : boundary_edges)
     if (ts.size() != 2)
       fail(raw.element_file, raw.tet_line[ts[0]], "element " + std::to_string(raw.tet_id[ts[0]]) + ": non-manifold surface: the boundary edge between nodes " +
                                                       std::to_string(raw.node_id[static_cast<std::size_t>(e[0])]) + " and " +
                                                       std::to_string(raw.node_id[static_cast<std::size_t>(e[1])]) + " is on " + std::to_string(ts.size()) +
                                                       " boundary triangles (2 expected)");
-  check_boundary_vertices(raw, faces);
+  check_boundary_vertices(raw, boundary);
 }
 
 }  // namespace

@@ -323,6 +323,51 @@ TEST(Station, eq18_damping_for_the_paper_star_is_round_trip_times_lambda_max_P) 
   DOUBLES_EQUAL(0.5 * (1.5 - 1) * 5.0, damping_min_eq18(0.002, nb2), 1e-9);
 }
 
+namespace {
+// sum_j c_P,j P_j + c_D,j D_j of eq. (18), assembled, for an eigen-solve of its own.
+SpatialMatrix eq18_sum(double t_min, const std::vector<Eq18Neighbor>& nb) {
+  SpatialMatrix acc;
+  for (std::size_t j = 0; j < nb.size(); ++j) {
+    const double cP = nb[j].round_trip_ticks / 2.0 * nb[j].t_max_j_s, cD = std::max(0.0, 0.5 * (nb[j].t_max_j_s / t_min - 1.0));
+    const SpatialMatrix term = linear_combination({{cP, &nb[j].gains->P}, {cD, &nb[j].gains->D}});
+    acc = j == 0 ? term : linear_combination({{1.0, &acc}, {1.0, &term}});
+  }
+  return acc;
+}
+}  // namespace
+
+// Above kDenseEigenRows the paper's gains give lambda_max(P) = p and eq. (18)'s beta in closed form
+// (every neighbour the same P, D = d I): equal to the power iteration on the assembled sum.
+TEST(Station, eq18_with_the_same_gains_on_a_large_scene_is_lambda_max_of_the_sum) {
+  const Scene scene = build_scene(make_lattice_ball(700, 0.05), SceneParams{});
+  CHECK_TRUE(scene.nodes > kDenseEigenRows);
+  const EdgeGains g = paper_edge_gains(scene), copy = paper_edge_gains(scene);
+  DOUBLES_EQUAL(1000.0, g.lambda_max_P, 0.0);
+  DOUBLES_EQUAL(1000.0, lambda_max(g.P), 1e-2);  // the power iteration: to ~1e-6
+  const std::vector<Eq18Neighbor> nb = {{11, 0.0024, &g}, {8, 0.002, &copy}};
+  const double beta = damping_min_eq18(0.002, nb);
+  DOUBLES_EQUAL((11 / 2.0 * 0.0024 + 8 / 2.0 * 0.002) * 1000.0 + 0.5 * (0.0024 / 0.002 - 1) * 5.0, beta, 1e-12);
+  DOUBLES_EQUAL(lambda_max(eq18_sum(0.002, nb)), beta, 1e-5 * beta);
+}
+
+// Different P on two edges: no closed form, the eigen-solve of the sum, bit for bit.
+TEST(Station, eq18_with_different_gains_on_a_large_scene_solves_the_sum) {
+  const Scene scene = build_scene(make_lattice_ball(700, 0.05), SceneParams{});
+  const EdgeGains g = paper_edge_gains(scene), stiff = paper_edge_gains(scene, 2000.0, 5.0);
+  const std::vector<Eq18Neighbor> nb = {{11, 0.002, &g}, {8, 0.002, &stiff}};
+  DOUBLES_EQUAL(lambda_max(eq18_sum(0.002, nb)), damping_min_eq18(0.002, nb), 0.0);
+}
+
+// The gains' positive-definiteness check on a large scene: an indefinite P is still refused where
+// Gershgorin's discs prove nothing (the eigen-solve decides).
+TEST(Station, an_indefinite_P_on_a_large_scene_is_refused) {
+  const Scene scene = build_scene(make_lattice_ball(700, 0.05), SceneParams{});
+  const SpatialMatrix I = SpatialMatrix::identity(scene.nodes);
+  const SpatialMatrix P = linear_combination({{1.0, &scene.K_int}, {-1.0, &I}});
+  CHECK_THROWS(std::invalid_argument, matrix_edge_gains(P, SpatialMatrix::identity(scene.nodes, 5.0)));
+  CHECK_EQUAL(std::string("matrix gains"), matrix_edge_gains(linear_combination({{1.0, &scene.K_int}, {1.0, &I}}), I).description);
+}
+
 TEST(Station, tick_allocates_nothing_over_10000_ticks_of_four_users_with_contact) {
   for (int variant = 0; variant < 3; ++variant) {  // direct, iterative, direct with set-position modulation
   const StepSolverKind solver = variant == 1 ? StepSolverKind::kIterative : StepSolverKind::kDirect;

@@ -23,6 +23,8 @@
 #include <memory>
 #include <vector>
 
+#include "firmware/scenario.hpp"
+#include "firmware/sim/simulator.hpp"
 #include "tests/support/dense_reference.hpp"
 #include "rt/gains.hpp"
 #include "rt/rx_link.hpp"
@@ -456,6 +458,43 @@ void BM_StartupToFirstTick(benchmark::State& state) {
   }
 }
 
+// The paper-best scenario on the ~16k-node mesh (tools/bench/scenes/ball16k.msh, mm), ending after
+// its first tick: what `sim --scene ... --scene-unit-m 0.001` and a station with that scene file build.
+haptic::firmware::ScenarioSpec mesh_scenario() {
+  haptic::firmware::ScenarioSpec spec = haptic::firmware::make_scenario("paper-best");
+  spec.scene_file.path = std::string(HAPTIC_SOURCE_DIR) + "/tools/bench/scenes/ball16k.msh";
+  spec.scene_file.unit_m = 0.001;
+  spec.duration_s = spec.period_s;
+  return spec;
+}
+
+// The simulator's start-up on the mesh: read it, build the scene, the gains and eq. (18) for every
+// user, every station's core (4), then one tick; no output written.
+void BM_SimStartupMesh(benchmark::State& state) {
+  const haptic::firmware::ScenarioSpec spec = mesh_scenario();
+  for (auto _ : state) {
+    const haptic::firmware::BuiltScenario built = haptic::firmware::build_scenario(spec);
+    const haptic::firmware::SimResult r = haptic::firmware::run_simulation(built, {});
+    benchmark::DoNotOptimize(r.ticks);
+    state.counters["nodes"] = built.scene.nodes;
+    state.counters["stations"] = spec.users;
+  }
+}
+
+// One station's start-up on the mesh (`haptic-station run` without its probing): the same scenario
+// build, station 1's core (the hub: 3 neighbours), its first tick.
+void BM_StationStartupMesh(benchmark::State& state) {
+  const haptic::firmware::ScenarioSpec spec = mesh_scenario();
+  for (auto _ : state) {
+    const haptic::firmware::BuiltScenario built = haptic::firmware::build_scenario(spec);
+    StationCore st(built.station_config(0));
+    auto out = drive_tick(st, TickDrive{0, 0, built.vp_start[0], spec.period_s}, [](auto&&) {});
+    benchmark::DoNotOptimize(out);
+    state.counters["nodes"] = built.scene.nodes;
+    state.SetLabel(st.solver_name());
+  }
+}
+
 void run_ticks_child(StationCore& st, const World& w) {
   const int dofs = w.scene.dofs;
   const int nn = static_cast<int>(w.cfg.neighbors.size());
@@ -577,7 +616,9 @@ BENCHMARK(BM_Tick)->ArgsProduct({{33, 300, 1000, 3000, 10000, 16000}, {kEigenCgA
 BENCHMARK(BM_TickFloor)->Arg(33)->Arg(300)->Arg(1000)->Arg(3000)->Arg(10000)->Arg(16000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TickTolerance)->ArgsProduct({{1000, 3000, 10000}, {4, 6, 8, 10, 12}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TickWorstCase)->ArgsProduct({{33, 3000}, {kAutoArg}})->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_StartupToFirstTick)->Args({5000, 3})->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_StartupToFirstTick)->Args({5000, 3})->Args({16000, 3})->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SimStartupMesh)->Iterations(1)->MeasureProcessCPUTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_StationStartupMesh)->Iterations(1)->MeasureProcessCPUTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_StationPeakMemory)->ArgsProduct({{3000}, {1, 6, 16}, {kAutoArg, kDirectArg}})->Iterations(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_StationPeakMemory)->ArgsProduct({{16000}, {3}, {kAutoArg, kCholmodArg}})->Iterations(1)->Unit(benchmark::kMillisecond);
 

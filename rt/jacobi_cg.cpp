@@ -106,7 +106,7 @@ void JacobiCg::store_rows(const SparseRowMajor& R, int band, long upper_entries)
         }
       rowptr_[static_cast<Index>(i) + 1] = static_cast<int>(val_.size());
     }
-    window_chunk_ = 3 * std::max(band, 1);  // >= band: the copied slots do not overlap their source
+    window_chunk_ = std::max(band, 1);  // >= band: the copied slots do not overlap their source (2 band + 1 slots)
     window_.assign(static_cast<Index>(window_chunk_ + band + 1) * 4, 0.0);
     diag_.shrink_to_fit();
   } else {

@@ -106,10 +106,8 @@ void JacobiCg::store_rows(const SparseRowMajor& R, int band, long upper_entries)
         }
       rowptr_[static_cast<Index>(i) + 1] = static_cast<int>(val_.size());
     }
-    unsigned slots = 1;
-    while (slots <= static_cast<unsigned>(band)) slots *= 2;  // > band: rows i..i+band live at once
-    ring_mask_ = slots - 1;
-    ring_.assign(static_cast<Index>(slots) * 4, 0.0);  // 4 doubles a row (W <= 3; aligned lanes)
+    window_chunk_ = std::max(band, 1);  // >= band: the copied slots do not overlap their source (2 band + 1 slots)
+    window_.assign(static_cast<Index>(window_chunk_ + band + 1) * 4, 0.0);
     diag_.shrink_to_fit();
   } else {
     diag_ = {};
@@ -125,23 +123,25 @@ bool JacobiCg::use_avx(bool allow) {
 }
 
 long JacobiCg::stored_doubles() const {
-  return static_cast<long>(val_.size() + diag_.size() + dinv_.size() + ring_.size() + p_.size() + q_.size()) +
+  return static_cast<long>(val_.size() + diag_.size() + dinv_.size() + window_.size() + p_.size() + q_.size()) +
          static_cast<long>(rowptr_.size() + colidx_.size()) / 2 + static_cast<long>(offset_.size()) / 4;
 }
 
 // One matrix pass: row_done(i, acc) receives acc = (A x)_i (W columns) for i = 0, 1, ..., n-1 in
-// order. Upper storage: acc = partial_i + a_ii x_i + sum_{j>i} a_ij x_j, where partial_i (S
-// doubles per row, the first W used) collected a_ki x_k from the rows k < i in ascending k: the
-// same terms in the same order as the full row's sum, so the two storages give the same bits for an
-// exactly symmetric A. partial is indexed by (row & mask), must be zero on entry and is left zero.
-// Wide (W = 3, S = 4): a row's columns in 4-lane vectors (the 4th lane reads the next node and is
-// dropped; rows that reach the last node stay scalar), each lane the same multiply and add in the
-// same order as the scalar loop (no FMA), so the results are identical bit for bit (rt/lanes.hpp).
+// order. Upper storage: acc = partial_i + a_ii x_i + sum_{j>i} a_ij x_j, where partial_i collected
+// a_ki x_k from the rows k < i in ascending k: the same terms in the same order as the full row's
+// sum, so the two storages give the same bits for an exactly symmetric A. Entries are addressed from
+// row i's own x and partial slot by the 16-bit offset (a sliding window, no wrap: Window below).
+// Wide (W = 3): a row's columns in 4-lane vectors (the 4th lane reads the next node and is dropped;
+// rows that reach the last node stay scalar), each lane the same multiply and add in the same order
+// as the scalar loop (no FMA), so the results are identical bit for bit (rt/lanes.hpp). The entry
+// loops are unrolled by 2: the same adds in the same order.
 
 namespace {
 
 struct UpperRows {
   int n;
+  int band;  // the largest j - i of a stored entry
   const int* rowptr;
   const std::uint16_t* offset;
   const double* val;
@@ -162,16 +162,36 @@ template <int W, class RowDone>
   return row_done;
 }
 
+// The partial sums: S doubles a slot (S = 4 for the passes: aligned, non-overlapping 32-byte slots,
+// so a slot's store forwards to its next load). Node j's slot is at position j - base; base moves
+// by `chunk` (>= band) when row i reaches position chunk, the band of slots ahead then copied to
+// the front, so a row addresses its partial slots and its x's by the same offset without a wrap.
+struct Window {
+  double* partial;  // (chunk + band + 1) * S doubles; or the output array itself when chunk >= n
+  int chunk;
+};
+
 template <int W, int S, bool Wide, class RowDone>
-[[gnu::always_inline]] inline RowDone upper_rows(const UpperRows& m, const double* __restrict x, double* __restrict partial,
-                                                 unsigned mask, RowDone row_done) {
+[[gnu::always_inline]] inline RowDone upper_rows(const UpperRows& m, const double* __restrict x, Window win, RowDone row_done) {
   const int n = m.n;
+  const int band = m.band;
   const int* rp = m.rowptr;
   const std::uint16_t* off = m.offset;
   const double* v = m.val;
+  double* __restrict partial = win.partial;
+  // Slot j collects a_ij x_i from the rows i < j; it is zeroed a band ahead (at row j - band: no
+  // earlier row reaches it), so no pass over it is needed before.
+  for (long k = 0; k < static_cast<long>(std::min(band + 1, n)) * S; ++k) partial[k] = 0.0;
+  int base = 0;
   for (int i = 0; i < n; ++i) {
     const int e0 = rp[i], e1 = rp[i + 1];
-    double* own = partial + static_cast<long>(static_cast<unsigned>(i) & mask) * S;
+    if (i - base == win.chunk) {  // the live slots (nodes i .. i + band - 1) to the front
+      __builtin_memcpy(partial, partial + static_cast<long>(win.chunk) * S, sizeof(double) * S * static_cast<std::size_t>(band));
+      base = i;
+    }
+    double* own = partial + static_cast<long>(i - base) * S;
+    if (i > 0 && i + band < n)
+      for (int c = 0; c < S; ++c) own[static_cast<long>(band) * S + c] = 0.0;
     const double* xi = x + static_cast<long>(i) * W;
     double acc[W];
     if constexpr (Wide) {
@@ -183,19 +203,17 @@ template <int W, int S, bool Wide, class RowDone>
         __builtin_memcpy(&o, own, sizeof o);
         const double di = m.diag[i];
         Lanes4 a4 = o + Lanes4{di, di, di, di} * xv;
-        const Lanes4 zero = {};
-        __builtin_memcpy(own, &zero, sizeof zero);
+#pragma GCC unroll 2
         for (int e = e0; e < e1; ++e) {
           const double a = v[e];
           const Lanes4 av = {a, a, a, a};
-          const unsigned j = static_cast<unsigned>(i) + off[e];
+          const long d = off[e];
           Lanes4 xj, pj;
-          __builtin_memcpy(&xj, x + static_cast<long>(j) * 3, sizeof xj);
-          double* pp = partial + static_cast<long>(j & mask) * 4;
-          __builtin_memcpy(&pj, pp, sizeof pj);
+          __builtin_memcpy(&xj, xi + 3 * d, sizeof xj);
+          __builtin_memcpy(&pj, own + 4 * d, sizeof pj);
           a4 += av * xj;
           pj += av * xv;
-          __builtin_memcpy(pp, &pj, sizeof pj);
+          __builtin_memcpy(own + 4 * d, &pj, sizeof pj);
         }
         row_done.wide(i, a4);
         continue;
@@ -206,12 +224,11 @@ template <int W, int S, bool Wide, class RowDone>
       xl[c] = xi[c];
       acc[c] = own[c] + m.diag[i] * xl[c];
     }
-    for (int c = 0; c < S; ++c) own[c] = 0;
     for (int e = e0; e < e1; ++e) {
       const double a = v[e];
-      const unsigned j = static_cast<unsigned>(i) + off[e];
-      const double* xj = x + static_cast<long>(j) * W;
-      double* pj = partial + static_cast<long>(j & mask) * S;
+      const long d = off[e];
+      const double* xj = xi + d * W;
+      double* pj = own + d * S;
       for (int c = 0; c < W; ++c) {
         acc[c] += a * xj[c];
         pj[c] += a * xl[c];
@@ -224,28 +241,29 @@ template <int W, int S, bool Wide, class RowDone>
 
 #if defined(__x86_64__)
 template <int W, class RowDone>
-__attribute__((target("avx"))) void upper_rows_avx(const UpperRows& m, const double* x, double* partial, unsigned mask,
+__attribute__((target("avx"))) void upper_rows_avx(const UpperRows& m, const double* x, Window win,
                                                    RowDone& row_done) {  // by reference: AVX-sized members
-  row_done = upper_rows<W, 4, W == 3>(m, x, partial, mask, row_done);
+  row_done = upper_rows<W, 4, W == 3>(m, x, win, row_done);
 }
 #endif
 
 }  // namespace
 
 template <int W, class RowDone>
-RowDone JacobiCg::pass(const double* x, double* partial, unsigned mask, RowDone row_done) const {
+RowDone JacobiCg::pass(const double* x, RowDone row_done) {
   if (!upper_) return full_rows<W>(n_, rowptr_.data(), colidx_.data(), val_.data(), x, row_done);
-  const UpperRows m{n_, rowptr_.data(), offset_.data(), val_.data(), diag_.data()};
+  const UpperRows m{n_, band_, rowptr_.data(), offset_.data(), val_.data(), diag_.data()};
+  const Window win{window_.data(), window_chunk_};
 #if defined(__x86_64__)
   if (avx_) {
-    upper_rows_avx<W>(m, x, partial, mask, row_done);
+    upper_rows_avx<W>(m, x, win, row_done);
     return row_done;
   }
 #endif
-  return upper_rows<W, 4, false>(m, x, partial, mask, row_done);
+  return upper_rows<W, 4, false>(m, x, win, row_done);
 }
 
-// Scalar; y itself collects the partial sums (stride W, mask: every row its own slot).
+// Scalar; y itself collects the partial sums.
 template <int W>
 void JacobiCg::multiply_fixed(const double* x, double* y) const {
   const auto done = [y](int i, const double* acc) {
@@ -255,8 +273,7 @@ void JacobiCg::multiply_fixed(const double* x, double* y) const {
     full_rows<W>(n_, rowptr_.data(), colidx_.data(), val_.data(), x, done);
     return;
   }
-  for (long k = 0; k < static_cast<long>(n_) * W; ++k) y[k] = 0;
-  upper_rows<W, W, false>(UpperRows{n_, rowptr_.data(), offset_.data(), val_.data(), diag_.data()}, x, y, ~0u, done);
+  upper_rows<W, W, false>(UpperRows{n_, band_, rowptr_.data(), offset_.data(), val_.data(), diag_.data()}, x, Window{y, n_}, done);
 }
 
 void JacobiCg::multiply(const double* x, double* y, int width) const {
@@ -439,10 +456,9 @@ template <int W>
 int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int max_iterations) {
   double* p = p_.data();
   double* q = q_.data();
-  double* ring = ring_.data();
   const double* dinv = dinv_.data();
   // r = b - A x, p = z = D^{-1} r and the products, in the initial matvec's pass (row-local).
-  const InitialRows<W> init = pass<W>(x, ring, ring_mask_, InitialRows<W>{b, r, p, dinv});
+  const InitialRows<W> init = pass<W>(x, InitialRows<W>{b, r, p, dinv});
   double rr = lane_sum<W>(init.rr);
   double rz[W];
   for (int c = 0; c < W; ++c) rz[c] = init.rz[c];
@@ -451,7 +467,7 @@ int JacobiCg::solve_fixed(const double* b, double* x, double* r, double tol, int
   while (rr > threshold) {
     if (it == max_iterations) return max_iterations + 1;
     ++it;
-    const DirectionRows<W> dir = pass<W>(p, ring, ring_mask_, DirectionRows<W>{p, q});
+    const DirectionRows<W> dir = pass<W>(p, DirectionRows<W>{p, q});
     const Lanes4 pq = dir.pq;
     double alpha[W];
     for (int c = 0; c < W; ++c) alpha[c] = pq[c] > 0 ? rz[c] / pq[c] : 0.0;

@@ -5,9 +5,10 @@
 //
 // Storage: A's diagonal plus its STRICT UPPER triangle in compressed rows with 16-bit column
 // offsets j - i (value 8 B + offset 2 B per stored entry; at 9915 nodes 0.75 MB a pass instead of
-// the full rows' 1.67 MB). Row i of a pass gathers sum_{j>i} a_ij x_j and scatters a_ij x_i into a
-// small ring of partial sums for the rows j - i <= band ahead (a window that stays in cache), so
-// (A x)_i is final when row i is done and row-local work (r, p, dot products) fuses into the pass.
+// the full rows' 1.67 MB). Row i of a pass gathers sum_{j>i} a_ij x_j and scatters a_ij x_i into
+// the partial sums of the rows j - i <= band ahead (a sliding window of slots, zeroed a band ahead,
+// that stays in cache), so (A x)_i is final when row i is done and
+// row-local work (r, p, dot products) fuses into the pass.
 // A pass adds row i's terms in ascending column order, as the full rows do: for an exactly
 // symmetric A the results are the full product's bits. When an offset does not fit in 16 bits the
 // full rows with 32-bit columns are kept and used instead.
@@ -47,7 +48,7 @@ class JacobiCg {
   // x (guess in, solution out), residual := b - A x. Stops when sum_c |r_c|^2 <= tol^2 |b|^2 or
   // after max_iterations. Returns the iterations done (max_iterations + 1 if not converged).
   // RT-safe: no allocation, at most max_iterations + 1 matrix passes. Not for concurrent calls on
-  // one object (the passes share the ring of partial sums).
+  // one object (the passes use its work vectors).
   int solve(const double* b, double* x, double* residual, int width, double tol, int max_iterations);
   // y := A x (width interleaved columns). RT-safe; x and y must not overlap.
   void multiply(const double* x, double* y, int width) const;
@@ -55,7 +56,7 @@ class JacobiCg {
  private:
   void store_rows(const SparseRowMajor& R, int band, long upper_entries);  // start-up
   template <int W, class RowDone>
-  RowDone pass(const double* x, double* partial, unsigned mask, RowDone row_done) const;
+  RowDone pass(const double* x, RowDone row_done);
   template <int W>
   void multiply_fixed(const double* x, double* y) const;
   template <int W>
@@ -72,8 +73,8 @@ class JacobiCg {
   std::vector<std::uint16_t> offset_;       // upper: j - i
   std::vector<int> colidx_;                 // full rows only
   std::vector<double> val_, diag_, dinv_;   // diag_ used by the upper storage only
-  std::vector<double> ring_;                // upper: partial sums of the rows ahead, (mask + 1) * 4
-  unsigned ring_mask_ = 0;
+  std::vector<double> window_;  // upper: the passes' partial sums, (chunk + band + 1) * 4
+  int window_chunk_ = 0;
   std::vector<double> p_, q_;  // work vectors, n * 3
   double kappa_scaled_ = 1, kappa_a_ = 1;
   int cap_ = 1;

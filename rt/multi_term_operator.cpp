@@ -312,6 +312,7 @@ struct ConsensusPass {
     const double* dg = a.diag + 4L * i;
     Lanes4 acc0 = dg[0] * vi, acc1 = dg[1] * di, acc2 = dg[2] * sxi, acc3 = dg[3] * svi;
     Lanes4 ok = {}, op = {};
+#pragma GCC unroll 2
     for (int e = a.rowptr[i]; e < a.rowptr[i + 1]; ++e) {
       const double* rj = reinterpret_cast<const double*>(own_bytes + a.rel[e]);
       Lanes4 uk, up;

@@ -118,6 +118,7 @@ void parse_io_options(const toml::node_view<const toml::node>& net, const std::s
   e.wire.max_datagram_bytes = integer_of<std::size_t>(net, "max_datagram_bytes", P);
   e.io_busy_poll = boolean_of(net, "io_busy_poll", P);
   e.tx_spin = boolean_of(net, "tx_spin", P);
+  e.tx_direct = boolean_of(net, "tx_direct", P);
   e.io_cpu = integer_of<int>(net, "io_cpu", P);
   e.tx_spin_lead_s = real_of(net, "tx_spin_lead_us", P) * 1e-6;
   e.tx_spin_tail_s = real_of(net, "tx_spin_tail_us", P) * 1e-6;

@@ -51,6 +51,9 @@ const EndpointConfig& checked(const EndpointConfig& cfg, const Transport* t) {
     throw std::invalid_argument("net.peer_silence_s must be in [0.01, 60] s");
   if (cfg.io_cpu < -1 || cfg.io_cpu >= CPU_SETSIZE)
     throw std::invalid_argument("net.io_cpu must be -1 (unpinned) or a CPU number; got " + std::to_string(cfg.io_cpu));
+  if (cfg.tx_spin && cfg.tx_direct)
+    throw std::invalid_argument("net.tx_spin and net.tx_direct are both true: choose one (tx_direct: the tick sends "
+                                "itself; tx_spin: the I/O thread spins for the push)");
   if (cfg.tx_spin) {
     if (!(cfg.tx_period_s > 0.0 && cfg.tx_period_s <= 1.0))
       throw std::invalid_argument("net.tx_spin needs the tick period (0, 1] s; got " + std::to_string(cfg.tx_period_s));
@@ -97,6 +100,9 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
       pairwise_(cfg.pairwise_keys),
       rx_(cfg.value_count),
       tx_(cfg.value_count),
+      tx_direct_(cfg.tx_direct),
+      direct_(encoder_, *transport_, cfg.tx_direct ? cfg.peers.size() : kDirectMaxDatagrams + 1, cfg.value_count,
+              cfg.wire.max_datagram_bytes),
       ceiling_(cfg.max_sequence_ahead_ticks, cfg.sequence_epoch_ns, to_ns(cfg.tx_period_s)),
       io_(cfg.io_cpu, cfg.io_priority),
       busy_poll_(cfg.io_busy_poll),
@@ -104,7 +110,7 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
       spin_(cfg.tx_spin ? to_ns(cfg.tx_period_s) : 0, to_ns(cfg.tx_spin_lead_s), to_ns(cfg.tx_spin_tail_s)),
       epoch_s_(cfg.impairment_epoch_s),
       silence_ns_(to_ns(cfg.peer_silence_s)),
-      rx_buf_(kMaxDatagramBytes + 1),
+      rx_store_(kRxBatch * (cfg.wire.max_datagram_bytes + 1)),
       tx_buf_(cfg.wire.max_datagram_bytes),
       delay_(cfg.delay_queue_datagrams, cfg.wire.max_datagram_bytes),
       rate_limit_(rx_rate_per_s(cfg, frags_per_packet_), std::max(16.0, 0.1 * rx_rate_per_s(cfg, frags_per_packet_)),
@@ -126,6 +132,8 @@ Endpoint::Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transpo
     }
     peers_.push_back(std::move(p));
   }
+  for (std::size_t i = 0; i < kRxBatch; ++i)  // one larger than a legal datagram: MSG_TRUNC tells the real size
+    rx_batch_[i] = RxDatagram{rx_store_.data() + i * (cfg.wire.max_datagram_bytes + 1), cfg.wire.max_datagram_bytes + 1, 0, -2};
   publish_stats();
   if (tx_period_ns_ > 0) hello_interval_ns_ = tx_period_ns_;
 }
@@ -163,16 +171,34 @@ bool Endpoint::push_state(std::uint64_t seq, double send_time_s, const double* x
   // Never transmit a non-finite state: send the safe-state flag (and zeros) instead.
   for (std::size_t i = 0; i < 2 * std::size_t{value_count_} && !safe_state; ++i) safe_state = !std::isfinite(dst[i]);
   TxMeta& m = tx_.meta(idx);
-  m = TxMeta{seq, send_time_s, monotonic_ns(), safe_state, false, {0, 0, 0}};  // vDSO clock read, no syscall
+  m = TxMeta{seq, send_time_s, monotonic_ns(), safe_state, false, {0, 0, 0}, DirectPush{}};  // vDSO clock read, no syscall
   if (proxy != nullptr && std::isfinite(proxy[0]) && std::isfinite(proxy[1]) && std::isfinite(proxy[2]))
     m.has_proxy = true, m.proxy[0] = proxy[0], m.proxy[1] = proxy[1], m.proxy[2] = proxy[2];
+  const bool sent = tx_direct_ && try_direct(m, dst);
   tx_.producer_publish(idx);
+  if (sent) {  // the I/O thread does the bookkeeping at its next wake-up; wake it only for a backlog
+    if (tx_.ready_size() >= kDirectBacklogWake) io_.wake();
+    return true;
+  }
+  ++tx_io_owed_;
   // Dekker pair with spin_for_push() (seq_cst, no fences): if we see the I/O thread spinning,
   // its end-of-window check sees this push; otherwise we wake it.
   tx_pushed_.fetch_add(1, std::memory_order_seq_cst);
   if (tx_spinning_.load(std::memory_order_seq_cst)) return true;  // the spin sees it
   io_.wake();  // EFD_NONBLOCK: never blocks
   return true;
+}
+
+bool Endpoint::try_direct(TxMeta& m, const double* x) {
+  if (!direct_.enabled() || tx_io_owed_ != tx_io_done_.load(std::memory_order_acquire)) return false;
+  const std::size_t n = peers_.size();
+  for (std::size_t i = 0; i < n; ++i)
+    if (!peers_[i]->ticket.reader_try_snapshot(direct_tickets_[i]) || !direct_tickets_[i].ready) return false;
+  const OutgoingState o = outgoing(m, x, 0, m.send_time_s >= 0.0 ? to_ns(m.send_time_s) : m.push_ns);
+  m.direct.stamp_ns = o.send_time_ns;
+  direct_.send(o, direct_tickets_, n, m.direct);
+  m.direct.done_ns = monotonic_ns();
+  return m.direct.complete;
 }
 
 std::uint32_t Endpoint::rtt_bound_ticks(std::size_t i, double period_s) const {
@@ -240,10 +266,21 @@ void Endpoint::publish_stats() {
     ps.key_compromise_conflict = w.conflicting_datagrams;
     ps.key_compromise_seq = w.conflict_seq;
     p.box.writer_publish(ps);
+    if (tx_direct_ && direct_.enabled()) p.ticket.writer_publish(ticket_of(p));
   }
   counters_.drops = decoder_.drops();
   counters_.tx_spin_windows = spin_.windows();
   counters_box_.writer_publish(counters_);
+}
+
+DirectTicket Endpoint::ticket_of(const PeerState& p) const {
+  DirectTicket t;
+  t.ready = (!pairwise_ || p.keys.agreed()) && !p.link.impaired;
+  t.station_id = p.link.station_id;
+  t.key = pairwise_ ? p.keys.tx_traffic() : encoder_.config().key;
+  t.echo = p.round_trip.newest_echo();
+  t.previous = p.round_trip.previous_echo();
+  return t;
 }
 
 EndpointStats Endpoint::stats() const {
@@ -265,6 +302,8 @@ void Endpoint::io_step(std::int64_t now_ns, bool rx, bool caught_spinning) {
     apply_probe_command();
     probe_done_.store(req, std::memory_order_release);
   }
+  // The pushes first: a push the tick sent itself gets its send record before any echo of it is read.
+  handle_tx(now_ns, caught_spinning);
   if (rx) handle_rx(now_ns);
   handle_tx(now_ns, caught_spinning);
   if (now_ns >= next_hello_ns_) send_wanted_hellos(now_ns, now_ns);
@@ -317,7 +356,8 @@ void Endpoint::run() {
     if (fds[1].revents & POLLIN) io_.clear_wake();
     io_step(monotonic_ns(), (fds[0].revents & POLLIN) != 0);
   }
-  // Final snapshot, and the CPU time for stats() after the thread is gone.
+  // The pushes' bookkeeping (direct TX), a final snapshot, and the CPU time for stats() after the thread is gone.
+  handle_tx(monotonic_ns());
   publish_stats();
   io_.body_stopping();
 }
@@ -373,17 +413,12 @@ DecodeLimits Endpoint::rx_limits(int source, std::int64_t now_ns) const {
   return lim;
 }
 
-void Endpoint::receive_one(std::size_t n, int source, std::int64_t now_ns) {
+void Endpoint::receive_one(const RxDatagram& d, std::int64_t now_ns) {
   DecodedState st;
-  const DecodeLimits lim = rx_limits(source, now_ns);
-  const std::size_t len = std::min<std::size_t>(n, rx_buf_.size());
-  if (n > rx_buf_.size()) {
-    // Larger than any legal datagram: the decoder drops it as oversized from its length.
-    const std::size_t max_datagram = tx_buf_.size();
-    decoder_.decode(rx_buf_.data(), n > max_datagram ? max_datagram + 1 : len, st, lim);
-    return;
-  }
-  const DecodeStatus ds = decoder_.decode(rx_buf_.data(), len, st, lim);
+  const DecodeLimits lim = rx_limits(d.source, now_ns);
+  // A datagram larger than the buffer (one more than the largest legal one) was truncated: the
+  // decoder drops it as oversized from its length alone.
+  const DecodeStatus ds = decoder_.decode(d.buf, std::min(d.len, d.cap), st, lim);
   if (ds != DecodeStatus::complete && ds != DecodeStatus::fingerprint && ds != DecodeStatus::hello) return;
   const int pi = find_peer(st.sender);
   if (pi < 0) return;  // cannot happen: the decoder knows the same peers
@@ -475,30 +510,35 @@ void Endpoint::deliver(const DecodedState& st) {
 }
 
 void Endpoint::handle_rx(std::int64_t now_ns) {
-  for (int budget = 0; budget < 4096; ++budget) {
-    if (budget > 0) {
-      // A push is waiting: send it first. Under a flood this batch could otherwise hold our own
-      // state back for thousands of datagrams (measured: round-trip bounds up by 2-3 ticks and
-      // echoes missing at 20,000 junk datagrams/s, tools/flood).
-      if (tx_.ready_size() > 0) return;
-      now_ns = io_clock();  // each datagram's own receive time (echo slots, rate buckets)
-    }
-    int source = kSourceUnchecked;
-    const long n = transport_->receive_from(rx_buf_.data(), rx_buf_.size(), source);
-    if (n == Transport::kNoDatagram) return;
-    if (n < 0) {
-      ++counters_.receive_errors;
+  bool first = true;
+  for (std::size_t budget = 4096; budget > 0;) {
+    // A push is waiting: send it first. Under a flood the receiving could otherwise hold our own
+    // state back for thousands of datagrams (measured: round-trip bounds up by 2-3 ticks and
+    // echoes missing at 20,000 junk datagrams/s, tools/flood). Checked per batch of kRxBatch.
+    if (!first && tx_.ready_size() > 0) return;
+    for (auto& d : rx_batch_) d.source = kSourceUnchecked;
+    const long got = transport_->receive_batch(rx_batch_, std::min(kRxBatch, budget));
+    if (got <= 0) {
+      if (got < 0) ++counters_.receive_errors;
       return;
     }
-    ++counters_.datagrams_received;
-    // Per-source rate limit before any decoding or MAC work (a flood costs recv + this).
-    if (!admit(source, now_ns)) continue;
-    if (n == 0) {
-      decoder_.count_drop(DropReason::zero_length);
-      continue;
+    for (long i = 0; i < got; ++i, first = false) {
+      if (!first) now_ns = io_clock();  // each datagram's own receive time (echo slots, rate buckets)
+      take_datagram(rx_batch_[i], now_ns);
     }
-    receive_one(static_cast<std::size_t>(n), source, now_ns);
+    budget -= static_cast<std::size_t>(got);
   }
+}
+
+void Endpoint::take_datagram(const RxDatagram& d, std::int64_t now_ns) {
+  ++counters_.datagrams_received;
+  // Per-source rate limit before any decoding or MAC work (a flood costs recv + this).
+  if (!admit(d.source, now_ns)) return;
+  if (d.len == 0) {
+    decoder_.count_drop(DropReason::zero_length);
+    return;
+  }
+  receive_one(d, now_ns);
 }
 
 // ------------------------------------------------------------------ sending
@@ -570,43 +610,90 @@ void Endpoint::send_now(std::uint16_t dest, const std::uint8_t* d, std::size_t l
 void Endpoint::handle_tx(std::int64_t now_ns, bool caught_spinning) {
   std::uint32_t idx = 0;
   while (tx_.consumer_pop(idx)) {
-    const TxMeta m = tx_.meta(idx);
-    const double* x = tx_.values(idx);
-    spin_.on_push(m.push_ns);
-    ++counters_.tx_packets;
-    if (caught_spinning) ++counters_.tx_caught_spinning;
-    const double handoff = static_cast<double>(monotonic_ns() - m.push_ns) * 1e-9;
-    counters_.tx_handoff_sum_s += handoff;
-    counters_.tx_handoff_max_s = std::max(counters_.tx_handoff_max_s, handoff);
-    const std::int64_t stamp = m.send_time_s >= 0.0 ? to_ns(m.send_time_s) : now_ns;
-    send_records_.record(m.seq, stamp);
-    if (m.safe_state) ++counters_.tx_safe_state;
-    send_wanted_hellos(stamp, now_ns);
-    send_fingerprints(stamp);
-    ++pushes_sent_;
-    last_push_ns_ = now_ns;
-    for (auto& pp : peers_) {
-      PeerState& p = *pp;
-      if (pairwise_ && !p.keys.agreed()) {  // no state leaves before the pair has agreed
-        ++p.stats.tx_without_keys;
-        continue;
-      }
-      OutgoingState o;
-      o.dest = p.link.station_id;
-      o.seq = m.seq;
-      o.send_time_ns = stamp;
-      const EchoSlot* e = p.round_trip.echo_as_of(stamp);
-      o.has_echo = e != nullptr;
-      o.echo_seq = e ? e->seq : 0;
-      o.echo_hold_ns = e ? stamp - e->receive_time_ns : 0;
-      o.value_count = value_count_;
-      o.x_hat = x;
-      o.v_hat = x + value_count_;
-      o.safe_state = m.safe_state;
-      o.proxy = m.has_proxy ? m.proxy : nullptr;
-      send_state(p, o, now_ns);
-    }
+    take_push(tx_.meta(idx), tx_.values(idx), now_ns, caught_spinning);
     tx_.consumer_release(idx);
+  }
+}
+
+void Endpoint::count_push(const TxMeta& m, bool caught_spinning) {
+  ++counters_.tx_packets;
+  if (caught_spinning) ++counters_.tx_caught_spinning;
+  const std::int64_t handed = m.direct.attempted ? m.direct.done_ns : monotonic_ns();  // push -> the kernel
+  const double handoff = static_cast<double>(handed - m.push_ns) * 1e-9;
+  counters_.tx_handoff_sum_s += handoff;
+  counters_.tx_handoff_max_s = std::max(counters_.tx_handoff_max_s, handoff);
+  if (m.safe_state) ++counters_.tx_safe_state;
+  if (!tx_direct_) return;
+  if (!m.direct.attempted) ++counters_.tx_direct_declined;
+  else if (m.direct.complete) ++counters_.tx_direct;
+  else ++counters_.tx_direct_unfinished;
+  if (m.direct.attempted && (m.direct.error == EAGAIN || m.direct.error == EWOULDBLOCK || m.direct.error == ENOBUFS))
+    ++counters_.tx_direct_would_block;
+}
+
+void Endpoint::take_push(const TxMeta& m, const double* x, std::int64_t now_ns, bool caught_spinning) {
+  spin_.on_push(m.push_ns);
+  count_push(m, caught_spinning);
+  const std::int64_t stamp =
+      m.direct.attempted ? m.direct.stamp_ns : (m.send_time_s >= 0.0 ? to_ns(m.send_time_s) : now_ns);
+  send_records_.record(m.seq, stamp);
+  send_wanted_hellos(stamp, now_ns);
+  send_fingerprints(stamp);
+  ++pushes_sent_;
+  last_push_ns_ = now_ns;
+  for (std::size_t i = 0; i < peers_.size(); ++i) send_push_to(*peers_[i], i, m, x, stamp, now_ns);
+  // A push the tick left to us (whole or in part) is sent: the tick may send directly again.
+  if (!m.direct.complete) tx_io_done_.fetch_add(1, std::memory_order_release);
+}
+
+OutgoingState Endpoint::outgoing(const TxMeta& m, const double* x, std::uint16_t dest, std::int64_t stamp_ns) const {
+  OutgoingState o;
+  o.dest = dest;
+  o.seq = m.seq;
+  o.send_time_ns = stamp_ns;
+  o.value_count = value_count_;
+  o.x_hat = x;
+  o.v_hat = x + value_count_;
+  o.safe_state = m.safe_state;
+  o.proxy = m.has_proxy ? m.proxy : nullptr;
+  return o;
+}
+
+void Endpoint::send_push_to(PeerState& p, std::size_t i, const TxMeta& m, const double* x, std::int64_t stamp_ns,
+                            std::int64_t now_ns) {
+  OutgoingState o = outgoing(m, x, p.link.station_id, stamp_ns);
+  if (m.direct.attempted) {
+    finish_direct(p, o, m.direct.peer[i]);
+    return;
+  }
+  if (pairwise_ && !p.keys.agreed()) {  // no state leaves before the pair has agreed
+    ++p.stats.tx_without_keys;
+    return;
+  }
+  const EchoSlot* e = p.round_trip.echo_as_of(stamp_ns);
+  o.has_echo = e != nullptr;
+  o.echo_seq = e ? e->seq : 0;
+  o.echo_hold_ns = e ? stamp_ns - e->receive_time_ns : 0;
+  send_state(p, o, now_ns);
+}
+
+void Endpoint::finish_direct(PeerState& p, OutgoingState o, const DirectPeerSend& d) {
+  ++p.stats.packets_sent;
+  p.stats.datagrams_sent += d.datagrams_sent;
+  p.stats.bytes_sent += d.bytes_sent;
+  if (d.datagrams_sent >= frags_per_packet_) return;
+  if (pairwise_ && !p.keys.agreed()) {  // the pair's keys were dropped since (a restart): no state leaves
+    ++p.stats.tx_without_keys;
+    return;
+  }
+  // The rest with the echo the tick chose, so every fragment of the packet carries the same header.
+  o.has_echo = d.has_echo;
+  o.echo_seq = d.echo_seq;
+  o.echo_hold_ns = d.echo_hold_ns;
+  const SessionKey* key = pairwise_ ? &p.keys.tx_traffic() : nullptr;
+  for (std::size_t f = d.datagrams_sent; f < frags_per_packet_; ++f) {
+    const std::size_t len = encoder_.encode_fragment(o, f, tx_buf_.data(), tx_buf_.size(), key);
+    if (len) send_now(o.dest, tx_buf_.data(), len, p);
   }
 }
 

@@ -35,6 +35,14 @@
 // push arrives or `tx_spin_tail_s` after the instant; the push is then sent within a ring
 // poll (~0.1 us) instead of after a thread wake-up (tens of us on a VM). A push outside the
 // window falls back to the eventfd wake-up: nothing is lost, it is only slower (counted).
+//
+// Direct TX (EndpointConfig::tx_direct, net/tx_direct.hpp): the tick encodes the push and sends it
+// itself, one non-blocking sendmmsg for all neighbours, and publishes the push on the TX ring
+// without waking the I/O thread, which does the push's bookkeeping at its next wake-up (it wakes
+// for received datagrams; the tick wakes it when kDirectBacklogWake pushes wait). The I/O thread's
+// path is taken for the whole push when a neighbour is not ready, an earlier push is still owed
+// by the I/O thread (order kept), or the push is too large; datagrams the kernel would not take
+// are sent by the I/O thread (counted: tx_direct_unfinished, tx_direct_would_block).
 #include <atomic>
 #include <cstdint>
 #include <limits>
@@ -57,6 +65,7 @@
 #include "net/rtt.hpp"
 #include "net/sequence_ceiling.hpp"
 #include "net/state_channel.hpp"
+#include "net/tx_direct.hpp"
 #include "net/tx_spin.hpp"
 #include "net/transport.hpp"
 #include "net/wire.hpp"
@@ -98,6 +107,8 @@ struct EndpointConfig {
   double peer_silence_s = 0.25;
   // Sent to every neighbour while the station runs (scene_nodes = 0: none sent).
   Fingerprint fingerprint{};
+  // Direct TX (see above; net.tx_direct): the tick sends its push itself. Not with tx_spin.
+  bool tx_direct = false;
   double tx_spin_lead_s = 100e-6;
   double tx_spin_tail_s = 300e-6;
   double impairment_epoch_s = -1.0;  // blackout times are relative to this (monotonic_s); <0: start()
@@ -158,6 +169,9 @@ class Endpoint {
   static constexpr std::size_t kRxBuffers = 64;
   static constexpr std::size_t kRxHeld = 32;  // RX buffers the RT side may keep (one per neighbour: net.peers <= this)
   static constexpr std::size_t kTxBuffers = 16;
+  // Direct TX: the tick wakes the I/O thread when this many pushes wait for its bookkeeping.
+  static constexpr std::size_t kDirectBacklogWake = 4;
+  static constexpr std::size_t kRxBatch = 16;  // datagrams per recvmmsg
 
   // Allocates everything. Throws std::invalid_argument naming the config key on bad config.
   Endpoint(const EndpointConfig& cfg, std::unique_ptr<Transport> transport);
@@ -294,6 +308,7 @@ class Endpoint {
     bool safe_state;
     bool has_proxy;
     double proxy[3];
+    DirectPush direct;  // what the tick sent itself (direct TX)
   };
   // One neighbour, by role (each part in its own file, unit-tested alone).
   struct PeerState {
@@ -306,6 +321,7 @@ class Endpoint {
     PairAgreement keys;        // pairwise keys (EndpointConfig::pairwise_keys)
     PeerStats stats;           // the rest (sent counters, fingerprint, safe state); I/O thread only
     platform::SnapshotBox<PeerStats> box;  // published copy of everything
+    platform::SnapshotBox<DirectTicket> ticket;  // what the tick needs to send to it (direct TX)
     std::atomic<std::int32_t> own_loss_allowance{-1};  // set_loss_allowance(); sent in fingerprints
   };
 
@@ -323,7 +339,8 @@ class Endpoint {
   void handle_rx(std::int64_t now_ns);
   bool admit(int source, std::int64_t now_ns);
   DecodeLimits rx_limits(int source, std::int64_t now_ns) const;
-  void receive_one(std::size_t n, int source, std::int64_t now_ns);
+  void take_datagram(const RxDatagram& d, std::int64_t now_ns);  // counted, rate-limited, then receive_one
+  void receive_one(const RxDatagram& d, std::int64_t now_ns);
   void on_authentic(PeerState& p, std::uint64_t incarnation, std::int64_t now_ns);  // incarnation, up
   void on_hello(PeerState& p, const DecodedState& st);                               // key agreement
   void on_fingerprint(PeerState& p, const DecodedState& st);
@@ -331,6 +348,15 @@ class Endpoint {
   void deliver(const DecodedState& st);
   // Sending: per push the wanted hellos, fingerprints and the state to every neighbour.
   void handle_tx(std::int64_t now_ns, bool caught_spinning = false);
+  void take_push(const TxMeta& m, const double* x, std::int64_t now_ns, bool caught_spinning);
+  void count_push(const TxMeta& m, bool caught_spinning);  // tx_* counters, hand-off
+  OutgoingState outgoing(const TxMeta& m, const double* x, std::uint16_t dest, std::int64_t stamp_ns) const;
+  void send_push_to(PeerState& p, std::size_t i, const TxMeta& m, const double* x, std::int64_t stamp_ns, std::int64_t now_ns);
+  // A neighbour's part of a push the tick sent itself: its counters, and the datagrams it could not send.
+  void finish_direct(PeerState& p, OutgoingState o, const DirectPeerSend& d);
+  // The tick: sends m's push itself when every neighbour's ticket is ready and nothing is owed; true when all went.
+  bool try_direct(TxMeta& m, const double* x);
+  DirectTicket ticket_of(const PeerState& p) const;
   void send_state(PeerState& p, const OutgoingState& o, std::int64_t now_ns);  // impaired, fragmented
   void send_fingerprints(std::int64_t stamp_ns, bool all = false);  // all: not only the scheduled ones
   // While no push comes (the planned pause between probing and the run), a fingerprint to every
@@ -358,6 +384,14 @@ class Endpoint {
   // The rings to and from the RT thread, and what the RT side touches.
   StateChannel<RxMeta, kRxBuffers> rx_;
   StateChannel<TxMeta, kTxBuffers> tx_;
+  // Direct TX (the tick's side): its encoder batch, the tickets it read, and how many pushes it
+  // left to the I/O thread (owed) against how many the I/O thread has sent (done): equal = the
+  // tick may send directly without overtaking an earlier push.
+  bool tx_direct_;
+  DirectSender direct_;
+  DirectTicket direct_tickets_[kDirectMaxDatagrams];
+  std::uint64_t tx_io_owed_ = 0;
+  std::atomic<std::uint64_t> tx_io_done_{0};
   std::atomic<std::uint64_t> tx_overruns_{0};
   // true while the I/O thread spins on the TX ring (push_state() then skips the wake-up;
   // seq_cst on both sides: a push is either seen by the spin or wakes the thread).
@@ -376,7 +410,8 @@ class Endpoint {
   double epoch_s_;  // impairment epoch
   std::int64_t silence_ns_;
   std::int64_t step_now_ns_ = -1;  // step_without_thread()'s clock (-1: the I/O thread's, monotonic_ns())
-  std::vector<std::uint8_t> rx_buf_, tx_buf_;
+  std::vector<std::uint8_t> rx_store_, tx_buf_;
+  RxDatagram rx_batch_[kRxBatch];
   DelayQueue delay_;
   SendRecords send_records_;
   SourceRateLimit rate_limit_;

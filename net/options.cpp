@@ -46,6 +46,7 @@ std::vector<OptionDecl> make_net_options() {
       flag("net", "io_busy_poll", false, "the I/O thread polls its socket instead of sleeping in it"),
       integer("net", "io_cpu", -1, -1, 1023, "pin the I/O thread to this CPU (-1: unpinned)"),
       flag("net", "tx_spin", false, "tick-synchronous TX (net/endpoint.hpp): the I/O thread spins around each push"),
+      flag("net", "tx_direct", false, "direct TX (net/tx_direct.hpp): the tick sends its push itself, no thread wake-up; not with tx_spin"),
       real("net", "tx_spin_lead_us", 100, 0, 1e6, "with tx_spin: spin from this long before the next push is due (lead + tail < the tick period)"),
       real("net", "tx_spin_tail_us", 300, 1, 1e6, "with tx_spin: spin until this long after it"),
       real("net", "peer_silence_s", 0.25, 0.01, 60, "a neighbour with no authentic datagram for this long is marked down; a newer incarnation of it (a restart) "

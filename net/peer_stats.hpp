@@ -94,6 +94,10 @@ struct EndpointCounters {
   // inside a spin window; spin windows opened (net.tx_spin).
   std::uint64_t tx_packets = 0, tx_caught_spinning = 0, tx_spin_windows = 0;
   double tx_handoff_sum_s = 0.0, tx_handoff_max_s = 0.0;
+  // Direct TX (net.tx_direct), per push: sent whole by the tick; started by the tick and finished
+  // by the I/O thread (of which: the socket would block); sent by the I/O thread because a
+  // neighbour was not ready or an earlier push was still owed.
+  std::uint64_t tx_direct = 0, tx_direct_unfinished = 0, tx_direct_would_block = 0, tx_direct_declined = 0;
 };
 
 // The totals (EndpointCounters) plus what only the caller's side knows.

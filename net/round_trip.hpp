@@ -67,6 +67,13 @@ struct EchoSlot {
   std::int64_t receive_time_ns = 0;  // ours
 };
 
+// Of the newest two received packets, the newest one received by stamp_ns (nullptr: none). RT-safe.
+inline const EchoSlot* newest_echo_by(const EchoSlot& newest, const EchoSlot& previous, std::int64_t stamp_ns) {
+  if (newest.valid && newest.receive_time_ns <= stamp_ns) return &newest;
+  if (previous.valid && previous.receive_time_ns <= stamp_ns) return &previous;
+  return nullptr;
+}
+
 class RoundTrip {
  public:
   explicit RoundTrip(const RttConfig& cfg = {}) : rtt_(cfg) {}
@@ -76,11 +83,10 @@ class RoundTrip {
   void note_received(std::uint64_t seq, std::int64_t send_time_ns, std::int64_t now_ns);
   // The newest packet received by stamp_ns (the send stamp of the packet that echoes it), so the
   // neighbour's age bound (now - its own send time of the echo) never understates the age; nullptr: none. RT-safe.
-  const EchoSlot* echo_as_of(std::int64_t stamp_ns) const {
-    if (echo_.valid && echo_.receive_time_ns <= stamp_ns) return &echo_;
-    if (previous_echo_.valid && previous_echo_.receive_time_ns <= stamp_ns) return &previous_echo_;
-    return nullptr;
-  }
+  const EchoSlot* echo_as_of(std::int64_t stamp_ns) const { return newest_echo_by(echo_, previous_echo_, stamp_ns); }
+  // The newest two, as echo_as_of() chooses from them (for the tick's direct TX, tx_direct.hpp).
+  const EchoSlot& newest_echo() const { return echo_; }
+  const EchoSlot& previous_echo() const { return previous_echo_; }
 
   // ---- what the neighbour echoes (its packets to us) ----
   // The echo of one of our sequences, held hold_ns by the neighbour, in its packet stamped

@@ -8,6 +8,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -95,19 +96,98 @@ RawEthernetTransport::~RawEthernetTransport() {
   if (fd_ >= 0) ::close(fd_);
 }
 
-bool RawEthernetTransport::send_to(std::uint16_t dest, const std::uint8_t* data, std::size_t len) {
+bool RawEthernetTransport::address_of(std::uint16_t dest, sockaddr_ll& sll) const {
   for (const auto& p : peers_) {
     if (p.station_id != dest) continue;
-    sockaddr_ll sll{};
+    sll = sockaddr_ll{};
     sll.sll_family = AF_PACKET;
     sll.sll_protocol = htons(ethertype_);
     sll.sll_ifindex = ifindex_;
     sll.sll_halen = 6;
     std::memcpy(sll.sll_addr, p.mac.data(), 6);
-    const ssize_t n = ::sendto(fd_, data, len, 0, reinterpret_cast<sockaddr*>(&sll), sizeof sll);
-    return n == static_cast<ssize_t>(len);
+    return true;
   }
   return false;
+}
+
+int RawEthernetTransport::source_of(const sockaddr_ll& from) const {
+  for (const auto& p : peers_)
+    if (from.sll_halen == 6 && std::memcmp(from.sll_addr, p.mac.data(), 6) == 0) return p.station_id;
+  return -1;
+}
+
+bool RawEthernetTransport::send_to(std::uint16_t dest, const std::uint8_t* data, std::size_t len) {
+  sockaddr_ll sll{};
+  if (!address_of(dest, sll)) return false;
+  const ssize_t n = ::sendto(fd_, data, len, 0, reinterpret_cast<sockaddr*>(&sll), sizeof sll);
+  return n == static_cast<ssize_t>(len);
+}
+
+std::size_t RawEthernetTransport::send_batch(const TxDatagram* d, std::size_t n, int& error) {
+  error = 0;
+  std::size_t done = 0;
+  while (done < n) {
+    mmsghdr m[kBatch];
+    iovec io[kBatch];
+    sockaddr_ll to[kBatch];
+    std::size_t k = 0;
+    for (; k < kBatch && done + k < n; ++k) {
+      const TxDatagram& t = d[done + k];
+      if (!address_of(t.dest, to[k])) break;  // unknown station: send what comes before it, then fail
+      io[k] = iovec{const_cast<std::uint8_t*>(t.data), t.len};
+      m[k] = mmsghdr{};
+      m[k].msg_hdr.msg_name = &to[k];
+      m[k].msg_hdr.msg_namelen = sizeof to[k];
+      m[k].msg_hdr.msg_iov = &io[k];
+      m[k].msg_hdr.msg_iovlen = 1;
+    }
+    if (k == 0) {
+      error = EINVAL;
+      return done;
+    }
+    const int sent = ::sendmmsg(fd_, m, static_cast<unsigned>(k), MSG_DONTWAIT);
+    if (sent < 0) {
+      error = errno;
+      return done;
+    }
+    done += static_cast<std::size_t>(sent);
+    if (static_cast<std::size_t>(sent) < k) {
+      // The kernel stops at the first frame it could not take: ask why with that one alone.
+      const ssize_t r = ::sendto(fd_, d[done].data, d[done].len, MSG_DONTWAIT, reinterpret_cast<sockaddr*>(&to[sent]), sizeof to[sent]);
+      if (r != static_cast<ssize_t>(d[done].len)) {
+        error = r < 0 ? errno : EMSGSIZE;
+        return done;
+      }
+      ++done;
+    }
+  }
+  return done;
+}
+
+long RawEthernetTransport::receive_batch(RxDatagram* d, std::size_t n) {
+  mmsghdr m[kBatch];
+  iovec io[kBatch];
+  sockaddr_ll from[kBatch];
+  const std::size_t k = std::min(n, kBatch);
+  for (std::size_t i = 0; i < k; ++i) {
+    io[i] = iovec{d[i].buf, d[i].cap};
+    m[i] = mmsghdr{};
+    m[i].msg_hdr.msg_name = &from[i];
+    m[i].msg_hdr.msg_namelen = sizeof from[i];
+    m[i].msg_hdr.msg_iov = &io[i];
+    m[i].msg_hdr.msg_iovlen = 1;
+  }
+  const int got = ::recvmmsg(fd_, m, static_cast<unsigned>(k), MSG_DONTWAIT | MSG_TRUNC, nullptr);
+  if (got < 0) return (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) ? 0 : -1;
+  std::size_t kept = 0;
+  for (int i = 0; i < got; ++i) {
+    if (from[i].sll_pkttype == PACKET_OUTGOING) continue;  // our own frames looped back to us
+    if (kept != static_cast<std::size_t>(i)) std::memcpy(d[kept].buf, d[i].buf, std::min<std::size_t>(m[i].msg_len, d[i].cap));
+    d[kept].len = m[i].msg_len;
+    d[kept].source = source_of(from[i]);
+    ++kept;
+  }
+  return static_cast<long>(kept);
 }
 
 long RawEthernetTransport::receive(std::uint8_t* buf, std::size_t cap) {
@@ -128,12 +208,7 @@ long RawEthernetTransport::receive_from(std::uint8_t* buf, std::size_t cap, int&
     const ssize_t n = ::recvfrom(fd_, buf, cap, MSG_TRUNC, reinterpret_cast<sockaddr*>(&from), &flen);
     if (n < 0) return (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) ? kNoDatagram : -1;
     if (from.sll_pkttype == PACKET_OUTGOING) continue;
-    source = -1;
-    for (const auto& p : peers_)
-      if (from.sll_halen == 6 && std::memcmp(from.sll_addr, p.mac.data(), 6) == 0) {
-        source = p.station_id;
-        break;
-      }
+    source = source_of(from);
     return static_cast<long>(n);
   }
 }

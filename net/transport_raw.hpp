@@ -3,6 +3,8 @@
 // Ethernet payload, with the project's own EtherType 0x88B5, which is IEEE 802 "Local
 // Experimental EtherType 1" (reserved by IEEE Std 802 for local experiments; never assigned to
 // a product protocol). Needs CAP_NET_RAW (root). Non-blocking socket bound to one interface.
+#include <linux/if_packet.h>
+
 #include <array>
 #include <cstdint>
 #include <string>
@@ -40,11 +42,17 @@ class RawEthernetTransport final : public Transport {
   long receive(std::uint8_t* buf, std::size_t cap) override;
   // The source is the peer whose configured MAC sent the frame.
   long receive_from(std::uint8_t* buf, std::size_t cap, int& source) override;
+  // One sendmmsg per kBatch frames (MSG_DONTWAIT), one recvmmsg per batch received.
+  std::size_t send_batch(const TxDatagram* d, std::size_t n, int& error) override;
+  long receive_batch(RxDatagram* d, std::size_t n) override;
   std::size_t max_datagram_bytes() const override { return mtu_; }
   const char* name() const override { return "raw-ethernet"; }
   const MacAddress& local_mac() const { return local_mac_; }
 
  private:
+  // The link-layer address of station dest (false: not a configured peer).
+  bool address_of(std::uint16_t dest, sockaddr_ll& sll) const;
+  int source_of(const sockaddr_ll& from) const;
   int fd_ = -1;
   int ifindex_ = 0;
   std::uint16_t ethertype_;

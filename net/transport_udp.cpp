@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <stdexcept>
@@ -131,13 +132,89 @@ std::uint16_t UdpTransport::local_port() const {
   return ntohs(reinterpret_cast<sockaddr_in6*>(&ss)->sin6_port);
 }
 
+const UdpTransport::Peer* UdpTransport::find(std::uint16_t id) const {
+  for (const auto& p : peers_)
+    if (p.id == id) return &p;
+  return nullptr;
+}
+
+int UdpTransport::source_of(const sockaddr_storage& from) const {
+  for (const auto& p : peers_)
+    if (same_endpoint(from, p.addr)) return p.id;
+  return -1;
+}
+
 bool UdpTransport::send_to(std::uint16_t dest, const std::uint8_t* data, std::size_t len) {
-  for (const auto& p : peers_) {
-    if (p.id != dest) continue;
-    const ssize_t n = ::sendto(fd_, data, len, 0, reinterpret_cast<const sockaddr*>(&p.addr), p.len);
-    return n == static_cast<ssize_t>(len);
+  const Peer* p = find(dest);
+  if (p == nullptr) return false;
+  const ssize_t n = ::sendto(fd_, data, len, 0, reinterpret_cast<const sockaddr*>(&p->addr), p->len);
+  return n == static_cast<ssize_t>(len);
+}
+
+std::size_t UdpTransport::send_batch(const TxDatagram* d, std::size_t n, int& error) {
+  error = 0;
+  std::size_t done = 0;
+  while (done < n) {
+    mmsghdr m[kBatch];
+    iovec io[kBatch];
+    std::size_t k = 0;
+    for (; k < kBatch && done + k < n; ++k) {
+      const TxDatagram& t = d[done + k];
+      const Peer* p = find(t.dest);
+      if (p == nullptr) break;  // unknown station: send what comes before it, then fail
+      io[k] = iovec{const_cast<std::uint8_t*>(t.data), t.len};
+      m[k] = mmsghdr{};
+      m[k].msg_hdr.msg_name = const_cast<sockaddr_storage*>(&p->addr);
+      m[k].msg_hdr.msg_namelen = p->len;
+      m[k].msg_hdr.msg_iov = &io[k];
+      m[k].msg_hdr.msg_iovlen = 1;
+    }
+    if (k == 0) {
+      error = EINVAL;
+      return done;
+    }
+    const int sent = ::sendmmsg(fd_, m, static_cast<unsigned>(k), MSG_DONTWAIT);
+    if (sent < 0) {
+      error = errno;
+      return done;
+    }
+    done += static_cast<std::size_t>(sent);
+    if (static_cast<std::size_t>(sent) < k) {
+      // The kernel stops at the first datagram it could not take: ask why with that one alone.
+      const TxDatagram& t = d[done];
+      const Peer* p = find(t.dest);
+      const ssize_t r = ::sendto(fd_, t.data, t.len, MSG_DONTWAIT, reinterpret_cast<const sockaddr*>(&p->addr), p->len);
+      if (r != static_cast<ssize_t>(t.len)) {
+        error = r < 0 ? errno : EMSGSIZE;
+        return done;
+      }
+      ++done;
+    }
   }
-  return false;
+  return done;
+}
+
+long UdpTransport::receive_batch(RxDatagram* d, std::size_t n) {
+  mmsghdr m[kBatch];
+  iovec io[kBatch];
+  sockaddr_storage from[kBatch];
+  const std::size_t k = std::min(n, kBatch);
+  for (std::size_t i = 0; i < k; ++i) {
+    io[i] = iovec{d[i].buf, d[i].cap};
+    m[i] = mmsghdr{};
+    m[i].msg_hdr.msg_name = &from[i];
+    m[i].msg_hdr.msg_namelen = sizeof from[i];
+    m[i].msg_hdr.msg_iov = &io[i];
+    m[i].msg_hdr.msg_iovlen = 1;
+  }
+  // MSG_TRUNC: each msg_len is the datagram's real size (see receive()).
+  const int got = ::recvmmsg(fd_, m, static_cast<unsigned>(k), MSG_DONTWAIT | MSG_TRUNC, nullptr);
+  if (got < 0) return (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) ? 0 : -1;
+  for (int i = 0; i < got; ++i) {
+    d[i].len = m[i].msg_len;
+    d[i].source = source_of(from[i]);
+  }
+  return got;
 }
 
 long UdpTransport::receive(std::uint8_t* buf, std::size_t cap) {
@@ -153,12 +230,7 @@ long UdpTransport::receive_from(std::uint8_t* buf, std::size_t cap, int& source)
   socklen_t flen = sizeof from;
   const ssize_t n = ::recvfrom(fd_, buf, cap, MSG_TRUNC, reinterpret_cast<sockaddr*>(&from), &flen);
   if (n < 0) return (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) ? kNoDatagram : -1;
-  source = -1;
-  for (const auto& p : peers_)
-    if (same_endpoint(from, p.addr)) {
-      source = p.id;
-      break;
-    }
+  source = source_of(from);
   return static_cast<long>(n);  // MSG_TRUNC: the real size (see receive())
 }
 

@@ -37,6 +37,9 @@ class UdpTransport final : public Transport {
   long receive(std::uint8_t* buf, std::size_t cap) override;
   // The source is the peer whose configured address (address and port) sent it.
   long receive_from(std::uint8_t* buf, std::size_t cap, int& source) override;
+  // One sendmmsg per kBatch datagrams (MSG_DONTWAIT), one recvmmsg per batch received.
+  std::size_t send_batch(const TxDatagram* d, std::size_t n, int& error) override;
+  long receive_batch(RxDatagram* d, std::size_t n) override;
   std::size_t max_datagram_bytes() const override { return family_ == AF_INET6 ? 1452 : 1472; }
   const char* name() const override { return family_ == AF_INET6 ? "udp6" : "udp4"; }
   std::uint16_t local_port() const;
@@ -49,6 +52,8 @@ class UdpTransport final : public Transport {
     sockaddr_storage addr;
     socklen_t len;
   };
+  const Peer* find(std::uint16_t id) const;
+  int source_of(const sockaddr_storage& from) const;
   int fd_ = -1;
   int family_ = AF_INET;
   std::vector<Peer> peers_;

@@ -161,14 +161,31 @@ std::size_t Encoder::fragment_count(std::uint32_t value_count) const {
 }
 
 namespace {
-// Value idx of a state packet's payload x_hat ++ v_hat ++ proxy. In safe state the state is not
-// sent (it may be non-finite): zeros and the flag instead; no proxy: zeros and no flag. RT-safe.
-double payload_value(const OutgoingState& s, std::size_t idx) {
+// Values [first, first + count) of a state packet's payload x_hat ++ v_hat ++ proxy, in the wire
+// encoding T, to out. In safe state the state is not sent (it may be non-finite): zeros and the
+// flag instead; no proxy: zeros and no flag. One tight loop per source array (the codec's
+// per-value branches cost more than the copy). RT-safe.
+template <class T>
+void put_payload(const OutgoingState& s, std::size_t first, std::size_t count, std::uint8_t* out) {
   const std::size_t n = s.value_count;
-  if (s.safe_state) return 0.0;
-  if (idx < n) return s.x_hat[idx];
-  if (idx < 2 * n) return s.v_hat[idx - n];
-  return s.proxy != nullptr ? s.proxy[idx - 2 * n] : 0.0;
+  const double* src[3] = {s.x_hat, s.v_hat, s.proxy};
+  const std::size_t begin[3] = {0, n, 2 * n}, end[3] = {n, 2 * n, 2 * n + kProxyValues};
+  for (std::size_t a = 0; a < 3 && count > 0; ++a) {
+    if (first >= end[a]) continue;
+    const std::size_t m = std::min(count, end[a] - first);
+    const double* from = src[a] + (first - begin[a]);
+    if (s.safe_state || src[a] == nullptr) {
+      std::memset(out, 0, m * sizeof(T));
+    } else {
+      for (std::size_t i = 0; i < m; ++i) {
+        const T v = static_cast<T>(from[i]);
+        std::memcpy(out + i * sizeof(T), &v, sizeof(T));
+      }
+    }
+    out += m * sizeof(T);
+    first += m;
+    count -= m;
+  }
 }
 }  // namespace
 
@@ -199,19 +216,10 @@ std::size_t Encoder::encode_fragment(const OutgoingState& s, std::size_t index, 
   put<std::uint16_t>(out, o::frag_stride, static_cast<std::uint16_t>(stride_));
 
   // Payload slice: values [offset/vb, (offset+len)/vb) of the concatenation x_hat ++ v_hat ++ proxy.
-  std::uint8_t* p = out + kHeaderBytes;
-  const std::size_t first = offset / value_bytes_;
-  const std::size_t n = len / value_bytes_;
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::size_t idx = first + i;
-    const double v = payload_value(s, idx);
-    if (value_bytes_ == 8) {
-      std::memcpy(p + 8 * i, &v, 8);
-    } else {
-      const float f = static_cast<float>(v);
-      std::memcpy(p + 4 * i, &f, 4);
-    }
-  }
+  if (value_bytes_ == 8)
+    put_payload<double>(s, offset / value_bytes_, len / value_bytes_, out + kHeaderBytes);
+  else
+    put_payload<float>(s, offset / value_bytes_, len / value_bytes_, out + kHeaderBytes);
   mac(out, kHeaderBytes + len, key ? *key : cfg_.key, out + kHeaderBytes + len);
   return size;
 }
@@ -308,15 +316,16 @@ double DecodedState::value(std::size_t i) const {
 
 namespace {
 // Every payload value finite (float32 or float64 bit patterns: exponent not all ones). RT-safe.
+// No early exit: the loop vectorizes (a payload is almost always all finite).
 bool payload_finite(const std::uint8_t* p, std::size_t values, std::size_t vb) {
+  unsigned bad = 0;
   if (vb == 8) {
     for (std::size_t i = 0; i < values; ++i)
-      if ((get<std::uint64_t>(p, 8 * i) & 0x7FF0000000000000ull) == 0x7FF0000000000000ull) return false;
+      bad |= (get<std::uint64_t>(p, 8 * i) & 0x7FF0000000000000ull) == 0x7FF0000000000000ull;
   } else {
-    for (std::size_t i = 0; i < values; ++i)
-      if ((get<std::uint32_t>(p, 4 * i) & 0x7F800000u) == 0x7F800000u) return false;
+    for (std::size_t i = 0; i < values; ++i) bad |= (get<std::uint32_t>(p, 4 * i) & 0x7F800000u) == 0x7F800000u;
   }
-  return true;
+  return bad == 0;
 }
 
 // The first 8 bytes of an (authenticated) datagram's MAC: what tells two authentic datagrams apart.

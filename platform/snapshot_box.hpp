@@ -51,6 +51,19 @@ class SnapshotBox {
     return out;
   }
 
+  // Reader side, once: copies the newest complete record into out and returns true, or returns
+  // false (out unspecified) when a write was in progress or overlapped the copy. Wait-free: for an
+  // RT reader that takes another path when the record is being written.
+  bool reader_try_snapshot(T& out) const {
+    std::array<std::uint64_t, kWords> w{};
+    const std::uint64_t s0 = seq_.load(std::memory_order_acquire);
+    if (s0 & 1u) return false;
+    for (std::size_t i = 0; i < kWords; ++i) w[i] = words_[i].load(std::memory_order_acquire);
+    if (seq_.load(std::memory_order_relaxed) != s0) return false;
+    std::memcpy(static_cast<void*>(&out), w.data(), sizeof(T));
+    return true;
+  }
+
   // How many times writer_publish() ran (readers can tell whether anything changed). Any thread.
   std::uint64_t publications() const { return seq_.load(std::memory_order_acquire) / 2; }
 

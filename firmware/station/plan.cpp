@@ -578,6 +578,9 @@ void check_io_cpu(const StationFile& f, const net::NetConfig& nc) {
 
 void check_tx_spin(const StationFile& f, const net::NetConfig& nc) {
   const auto& e = nc.endpoint;
+  if (e.tx_spin && e.tx_direct)
+    bad(f.net_section + ".tx_spin and " + f.net_section + ".tx_direct are both true: choose one (tx_direct: the tick "
+        "sends its push itself; tx_spin: the I/O thread spins for it)");
   if (!e.tx_spin) return;
   const double period_us = static_cast<double>(f.loop.period_ns) * 1e-3;
   const double lead_us = e.tx_spin_lead_s * 1e6, tail_us = e.tx_spin_tail_s * 1e6;

@@ -344,6 +344,8 @@ void Endpoint::run() {
     wake_at = std::min(wake_at, delay_.next_release_ns());
     if (pairwise_ && hellos_wanted()) wake_at = std::min(wake_at, next_hello_ns_);
     if (pairwise_) wake_at = std::min(wake_at, std::max(next_keepalive_ns_, last_push_ns_ + silence_ns_ / 3));
+    if (tx_direct_ && direct_.enabled())  // the bookkeeping of pushes the tick sent itself (it does not wake us)
+      wake_at = std::min(wake_at, now + (tx_period_ns_ > 0 ? 2 * tx_period_ns_ : 4'000'000));
     const TxSpinSchedule::Plan plan = spin_.plan(now);
     if (plan.spin) {
       spin_for_push(plan.until_ns);  // without a push, the loop moves on to the next slot

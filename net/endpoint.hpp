@@ -39,7 +39,8 @@
 // Direct TX (EndpointConfig::tx_direct, net/tx_direct.hpp): the tick encodes the push and sends it
 // itself, one non-blocking sendmmsg for all neighbours, and publishes the push on the TX ring
 // without waking the I/O thread, which does the push's bookkeeping at its next wake-up (it wakes
-// for received datagrams; the tick wakes it when kDirectBacklogWake pushes wait). The I/O thread's
+// for received datagrams, at least every two periods on its own; the tick wakes it only when
+// kDirectBacklogWake pushes wait). The I/O thread's
 // path is taken for the whole push when a neighbour is not ready, an earlier push is still owed
 // by the I/O thread (order kept), or the push is too large; datagrams the kernel would not take
 // are sent by the I/O thread (counted: tx_direct_unfinished, tx_direct_would_block).
@@ -169,8 +170,9 @@ class Endpoint {
   static constexpr std::size_t kRxBuffers = 64;
   static constexpr std::size_t kRxHeld = 32;  // RX buffers the RT side may keep (one per neighbour: net.peers <= this)
   static constexpr std::size_t kTxBuffers = 16;
-  // Direct TX: the tick wakes the I/O thread when this many pushes wait for its bookkeeping.
-  static constexpr std::size_t kDirectBacklogWake = 4;
+  // Direct TX: the I/O thread wakes for the pushes' bookkeeping at least every two periods (4 ms
+  // without a period) on its own; the tick wakes it only when this many pushes wait (a late I/O thread).
+  static constexpr std::size_t kDirectBacklogWake = 8;
   static constexpr std::size_t kRxBatch = 16;  // datagrams per recvmmsg
 
   // Allocates everything. Throws std::invalid_argument naming the config key on bad config.

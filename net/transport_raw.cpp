@@ -150,16 +150,8 @@ std::size_t RawEthernetTransport::send_batch(const TxDatagram* d, std::size_t n,
       error = errno;
       return done;
     }
+    // Fewer than k: the next round starts at the one the kernel did not take, and sendmmsg says why (-1).
     done += static_cast<std::size_t>(sent);
-    if (static_cast<std::size_t>(sent) < k) {
-      // The kernel stops at the first frame it could not take: ask why with that one alone.
-      const ssize_t r = ::sendto(fd_, d[done].data, d[done].len, MSG_DONTWAIT, reinterpret_cast<sockaddr*>(&to[sent]), sizeof to[sent]);
-      if (r != static_cast<ssize_t>(d[done].len)) {
-        error = r < 0 ? errno : EMSGSIZE;
-        return done;
-      }
-      ++done;
-    }
   }
   return done;
 }

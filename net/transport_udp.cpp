@@ -178,18 +178,8 @@ std::size_t UdpTransport::send_batch(const TxDatagram* d, std::size_t n, int& er
       error = errno;
       return done;
     }
+    // Fewer than k: the next round starts at the one the kernel did not take, and sendmmsg says why (-1).
     done += static_cast<std::size_t>(sent);
-    if (static_cast<std::size_t>(sent) < k) {
-      // The kernel stops at the first datagram it could not take: ask why with that one alone.
-      const TxDatagram& t = d[done];
-      const Peer* p = find(t.dest);
-      const ssize_t r = ::sendto(fd_, t.data, t.len, MSG_DONTWAIT, reinterpret_cast<const sockaddr*>(&p->addr), p->len);
-      if (r != static_cast<ssize_t>(t.len)) {
-        error = r < 0 ? errno : EMSGSIZE;
-        return done;
-      }
-      ++done;
-    }
   }
   return done;
 }

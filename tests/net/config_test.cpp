@@ -96,6 +96,12 @@ TEST(NetConfig, Float32IsTheDefaultAndTickSynchronousTxIsOptIn) {
   DOUBLES_EQUAL(50e-6, s.endpoint.tx_spin_lead_s, 1e-12);
 }
 
+TEST(NetConfig, DirectTxIsOptInAndNamedWhenMistyped) {
+  CHECK_FALSE(parse_net_config(udp_doc(), 99).endpoint.tx_direct);
+  CHECK(parse_net_config(udp_doc("tx_direct = true\n"), 99).endpoint.tx_direct);
+  CHECK(error_of(udp_doc("tx_direct = 1\n")).find("net.tx_direct") != std::string::npos);
+}
+
 TEST(NetConfig, DeployStyleNetworkSectionIsAccepted) {
   const std::string doc = "[station]\nid = 1\n[network]\ntransport = \"udp\"\nlisten = \"192.168.10.11:47000\"\nshared_session_key = \"" +
                           kKey + "\"\npeers = [{ station = 2, address = \"192.168.10.12:47000\" }]\n";

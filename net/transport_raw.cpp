@@ -1,5 +1,7 @@
 #include "net/transport_raw.hpp"
 
+#include "net/batch_io.hpp"
+
 #include <arpa/inet.h>
 #include <linux/if_packet.h>
 #include <net/ethernet.h>
@@ -8,7 +10,6 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -124,62 +125,23 @@ bool RawEthernetTransport::send_to(std::uint16_t dest, const std::uint8_t* data,
 }
 
 std::size_t RawEthernetTransport::send_batch(const TxDatagram* d, std::size_t n, int& error) {
-  error = 0;
-  std::size_t done = 0;
-  while (done < n) {
-    mmsghdr m[kBatch];
-    iovec io[kBatch];
-    sockaddr_ll to[kBatch];
-    std::size_t k = 0;
-    for (; k < kBatch && done + k < n; ++k) {
-      const TxDatagram& t = d[done + k];
-      if (!address_of(t.dest, to[k])) break;  // unknown station: send what comes before it, then fail
-      io[k] = iovec{const_cast<std::uint8_t*>(t.data), t.len};
-      m[k] = mmsghdr{};
-      m[k].msg_hdr.msg_name = &to[k];
-      m[k].msg_hdr.msg_namelen = sizeof to[k];
-      m[k].msg_hdr.msg_iov = &io[k];
-      m[k].msg_hdr.msg_iovlen = 1;
-    }
-    if (k == 0) {
-      error = EINVAL;
-      return done;
-    }
-    const int sent = ::sendmmsg(fd_, m, static_cast<unsigned>(k), MSG_DONTWAIT);
-    if (sent < 0) {
-      error = errno;
-      return done;
-    }
-    // Fewer than k: the next round starts at the one the kernel did not take, and sendmmsg says why (-1).
-    done += static_cast<std::size_t>(sent);
-  }
-  return done;
+  return batch_io::send(fd_, d, n, error, [this](std::uint16_t dest, sockaddr_storage& to, socklen_t& len) {
+    sockaddr_ll sll{};
+    if (!address_of(dest, sll)) return false;
+    std::memcpy(&to, &sll, sizeof sll);
+    len = sizeof sll;
+    return true;
+  });
 }
 
 long RawEthernetTransport::receive_batch(RxDatagram* d, std::size_t n) {
-  mmsghdr m[kBatch];
-  iovec io[kBatch];
-  sockaddr_ll from[kBatch];
-  const std::size_t k = std::min(n, kBatch);
-  for (std::size_t i = 0; i < k; ++i) {
-    io[i] = iovec{d[i].buf, d[i].cap};
-    m[i] = mmsghdr{};
-    m[i].msg_hdr.msg_name = &from[i];
-    m[i].msg_hdr.msg_namelen = sizeof from[i];
-    m[i].msg_hdr.msg_iov = &io[i];
-    m[i].msg_hdr.msg_iovlen = 1;
-  }
-  const int got = ::recvmmsg(fd_, m, static_cast<unsigned>(k), MSG_DONTWAIT | MSG_TRUNC, nullptr);
-  if (got < 0) return (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) ? 0 : -1;
-  std::size_t kept = 0;
-  for (int i = 0; i < got; ++i) {
-    if (from[i].sll_pkttype == PACKET_OUTGOING) continue;  // our own frames looped back to us
-    if (kept != static_cast<std::size_t>(i)) std::memcpy(d[kept].buf, d[i].buf, std::min<std::size_t>(m[i].msg_len, d[i].cap));
-    d[kept].len = m[i].msg_len;
-    d[kept].source = source_of(from[i]);
-    ++kept;
-  }
-  return static_cast<long>(kept);
+  return batch_io::receive(fd_, d, n, [this](const sockaddr_storage& from, int& source) {
+    sockaddr_ll sll{};
+    std::memcpy(&sll, &from, sizeof sll);
+    if (sll.sll_pkttype == PACKET_OUTGOING) return false;  // our own frames looped back to us
+    source = source_of(sll);
+    return true;
+  });
 }
 
 long RawEthernetTransport::receive(std::uint8_t* buf, std::size_t cap) {

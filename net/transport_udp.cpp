@@ -1,10 +1,11 @@
 #include "net/transport_udp.hpp"
 
+#include "net/batch_io.hpp"
+
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <stdexcept>
@@ -152,59 +153,20 @@ bool UdpTransport::send_to(std::uint16_t dest, const std::uint8_t* data, std::si
 }
 
 std::size_t UdpTransport::send_batch(const TxDatagram* d, std::size_t n, int& error) {
-  error = 0;
-  std::size_t done = 0;
-  while (done < n) {
-    mmsghdr m[kBatch];
-    iovec io[kBatch];
-    std::size_t k = 0;
-    for (; k < kBatch && done + k < n; ++k) {
-      const TxDatagram& t = d[done + k];
-      const Peer* p = find(t.dest);
-      if (p == nullptr) break;  // unknown station: send what comes before it, then fail
-      io[k] = iovec{const_cast<std::uint8_t*>(t.data), t.len};
-      m[k] = mmsghdr{};
-      m[k].msg_hdr.msg_name = const_cast<sockaddr_storage*>(&p->addr);
-      m[k].msg_hdr.msg_namelen = p->len;
-      m[k].msg_hdr.msg_iov = &io[k];
-      m[k].msg_hdr.msg_iovlen = 1;
-    }
-    if (k == 0) {
-      error = EINVAL;
-      return done;
-    }
-    const int sent = ::sendmmsg(fd_, m, static_cast<unsigned>(k), MSG_DONTWAIT);
-    if (sent < 0) {
-      error = errno;
-      return done;
-    }
-    // Fewer than k: the next round starts at the one the kernel did not take, and sendmmsg says why (-1).
-    done += static_cast<std::size_t>(sent);
-  }
-  return done;
+  return batch_io::send(fd_, d, n, error, [this](std::uint16_t dest, sockaddr_storage& to, socklen_t& len) {
+    const Peer* p = find(dest);
+    if (p == nullptr) return false;
+    to = p->addr;
+    len = p->len;
+    return true;
+  });
 }
 
 long UdpTransport::receive_batch(RxDatagram* d, std::size_t n) {
-  mmsghdr m[kBatch];
-  iovec io[kBatch];
-  sockaddr_storage from[kBatch];
-  const std::size_t k = std::min(n, kBatch);
-  for (std::size_t i = 0; i < k; ++i) {
-    io[i] = iovec{d[i].buf, d[i].cap};
-    m[i] = mmsghdr{};
-    m[i].msg_hdr.msg_name = &from[i];
-    m[i].msg_hdr.msg_namelen = sizeof from[i];
-    m[i].msg_hdr.msg_iov = &io[i];
-    m[i].msg_hdr.msg_iovlen = 1;
-  }
-  // MSG_TRUNC: each msg_len is the datagram's real size (see receive()).
-  const int got = ::recvmmsg(fd_, m, static_cast<unsigned>(k), MSG_DONTWAIT | MSG_TRUNC, nullptr);
-  if (got < 0) return (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) ? 0 : -1;
-  for (int i = 0; i < got; ++i) {
-    d[i].len = m[i].msg_len;
-    d[i].source = source_of(from[i]);
-  }
-  return got;
+  return batch_io::receive(fd_, d, n, [this](const sockaddr_storage& from, int& source) {
+    source = source_of(from);
+    return true;
+  });
 }
 
 long UdpTransport::receive(std::uint8_t* buf, std::size_t cap) {

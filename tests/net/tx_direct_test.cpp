@@ -104,6 +104,21 @@ std::vector<std::uint64_t> completed_at_1(const RecordingTransport& t) {
 }
 
 // stamp < 0: the sender stamps it (the tick when it sends itself).
+// Pushes 1..3 went to both neighbours, each datagram once and in order, and station 1 completes them.
+void check_three_pushes_delivered(const RecordingTransport& t) {
+  check_each_once_in_order(t, 1, 3);
+  check_each_once_in_order(t, 2, 3);
+  CHECK((std::vector<std::uint64_t>{1, 2, 3}) == completed_at_1(t));
+}
+
+void check_peers_sent(const EndpointStats& s, std::uint64_t packets, std::uint64_t datagrams) {
+  for (const PeerStats& p : s.peers) {
+    CHECK_EQUAL(packets, p.packets_sent);
+    CHECK_EQUAL(datagrams, p.datagrams_sent);
+    CHECK_EQUAL(0u, p.send_errors);
+  }
+}
+
 void push(Endpoint& ep, std::uint64_t k, double stamp_s = 0.0) {
   std::vector<double> x(kValues), v(kValues);
   haptic::net::test::fill_state(0, k, x, v);
@@ -124,18 +139,12 @@ TEST(TxDirect, TheTickSendsEveryPushItselfOnceAndTheIoThreadOnlyKeepsTheBooks) {
   }
   ep.step_without_thread(monotonic_ns());  // the bookkeeping: nothing is sent again
   CHECK_EQUAL(12u, t.sent.size());
-  check_each_once_in_order(t, 1, 3);
-  check_each_once_in_order(t, 2, 3);
-  CHECK((std::vector<std::uint64_t>{1, 2, 3}) == completed_at_1(t));
+  check_three_pushes_delivered(t);
   const EndpointStats s = ep.stats();
   CHECK_EQUAL(3u, s.tx_packets);
   CHECK_EQUAL(3u, s.tx_direct);
   CHECK_EQUAL(0u, s.tx_direct_unfinished + s.tx_direct_declined + s.tx_direct_would_block);
-  for (const PeerStats& p : s.peers) {
-    CHECK_EQUAL(3u, p.packets_sent);
-    CHECK_EQUAL(6u, p.datagrams_sent);
-    CHECK_EQUAL(0u, p.send_errors);
-  }
+  check_peers_sent(s, 3, 6);
   std::uint64_t bytes = 0;
   for (const auto& d : t.sent) bytes += d.second.size();
   CHECK_EQUAL(bytes, s.peers[0].bytes_sent + s.peers[1].bytes_sent);
@@ -156,19 +165,14 @@ TEST(TxDirect, ASendThatWouldBlockIsFinishedByTheIoThreadInOrderAndCounted) {
   push(ep, 3);  // nothing owed any more: direct again
   CHECK_EQUAL(12u, t.sent.size());
   ep.step_without_thread(monotonic_ns());
-  check_each_once_in_order(t, 1, 3);
-  check_each_once_in_order(t, 2, 3);
-  CHECK((std::vector<std::uint64_t>{1, 2, 3}) == completed_at_1(t));
+  check_three_pushes_delivered(t);
   const EndpointStats s = ep.stats();
   CHECK_EQUAL(3u, s.tx_packets);
   CHECK_EQUAL(1u, s.tx_direct);
   CHECK_EQUAL(1u, s.tx_direct_unfinished);
   CHECK_EQUAL(1u, s.tx_direct_would_block);
   CHECK_EQUAL(1u, s.tx_direct_declined);
-  for (const PeerStats& p : s.peers) {
-    CHECK_EQUAL(3u, p.packets_sent);
-    CHECK_EQUAL(6u, p.datagrams_sent);
-  }
+  check_peers_sent(s, 3, 6);
 }
 
 TEST(TxDirect, TheRestOfAnUnfinishedPacketCarriesTheHeaderTheTickChose) {

@@ -160,7 +160,10 @@ json endpoint_json(const net::EndpointStats& st, const net::EndpointConfig& ec, 
   j["io_thread"] = {{"cpu_s", st.io_thread_cpu_s},         {"tx_spin", ec.tx_spin},
                     {"tx_packets", st.tx_packets},         {"tx_caught_spinning", st.tx_caught_spinning},
                     {"tx_spin_windows", st.tx_spin_windows}, {"tx_handoff_mean_us", or_null(st.tx_packets > 0, st.tx_handoff_mean_s * 1e6)},
-                    {"tx_handoff_max_us", or_null(st.tx_packets > 0, st.tx_handoff_max_s * 1e6)}};
+                    {"tx_handoff_max_us", or_null(st.tx_packets > 0, st.tx_handoff_max_s * 1e6)},
+                    {"tx_direct", ec.tx_direct},           {"tx_direct_sent", st.tx_direct},
+                    {"tx_direct_unfinished", st.tx_direct_unfinished}, {"tx_direct_would_block", st.tx_direct_would_block},
+                    {"tx_direct_declined", st.tx_direct_declined}};
   return j;
 }
 

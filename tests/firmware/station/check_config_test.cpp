@@ -131,6 +131,14 @@ TEST(CheckConfig, ATxSpinWindowLongerThanThePeriodIsRejected) {
   LONGS_EQUAL(kExitOk, check(s.text()).code);
 }
 
+TEST(CheckConfig, TickSynchronousAndDirectTxTogetherAreRejectedNamingBoth) {
+  test::StationText s = hub();
+  s.net_extra = "tx_spin = true\ntx_direct = true\n";
+  rejected_with_key(s.text(), "net.tx_spin and net.tx_direct are both true");
+  s.net_extra = "tx_direct = true\n";
+  LONGS_EQUAL(kExitOk, check(s.text()).code);
+}
+
 TEST(CheckConfig, AnOutDirThatCannotBeCreatedIsRejected) {
   const std::string dir = test::fresh_dir("outdir");
   const std::string file = dir + "/plain-file";

@@ -302,9 +302,9 @@ void Endpoint::io_step(std::int64_t now_ns, bool rx, bool caught_spinning) {
     apply_probe_command();
     probe_done_.store(req, std::memory_order_release);
   }
-  // The pushes first: a push the tick sent itself gets its send record before any echo of it is read.
-  handle_tx(now_ns, caught_spinning);
-  if (rx) handle_rx(now_ns);
+  // Direct TX: the pushes the tick sent itself get their send records before any echo of them is read.
+  if (tx_direct_) handle_tx(now_ns, caught_spinning);
+  if (rx || rx_pending()) handle_rx(now_ns);
   handle_tx(now_ns, caught_spinning);
   if (now_ns >= next_hello_ns_) send_wanted_hellos(now_ns, now_ns);
   send_keepalive(now_ns);
@@ -352,6 +352,7 @@ void Endpoint::run() {
       continue;
     }
     wake_at = std::min(wake_at, plan.wake_ns);
+    if (rx_pending()) wake_at = now;  // the rest of a batch already read
     const timespec timeout = to_timespec(std::max<std::int64_t>(0, wake_at - now));
     const int r = ::ppoll(fds, 2, &timeout, nullptr);
     if (r < 0 && errno != EINTR) break;
@@ -512,24 +513,29 @@ void Endpoint::deliver(const DecodedState& st) {
 }
 
 void Endpoint::handle_rx(std::int64_t now_ns) {
-  bool first = true;
-  for (std::size_t budget = 4096; budget > 0;) {
-    // A push is waiting: send it first. Under a flood the receiving could otherwise hold our own
-    // state back for thousands of datagrams (measured: round-trip bounds up by 2-3 ticks and
-    // echoes missing at 20,000 junk datagrams/s, tools/flood). Checked per batch of kRxBatch.
-    if (!first && tx_.ready_size() > 0) return;
-    for (auto& d : rx_batch_) d.source = kSourceUnchecked;
-    const long got = transport_->receive_batch(rx_batch_, std::min(kRxBatch, budget));
-    if (got <= 0) {
-      if (got < 0) ++counters_.receive_errors;
-      return;
+  for (int n = 0; n < 4096; ++n) {
+    if (n > 0) {
+      // A push is waiting: send it first. Under a flood this batch could otherwise hold our own
+      // state back for thousands of datagrams (measured: round-trip bounds up by 2-3 ticks and
+      // echoes missing at 20,000 junk datagrams/s, tools/flood). The rest of a batch already read
+      // waits in rx_batch_ for the next call (rx_pending()).
+      if (tx_.ready_size() > 0) return;
+      now_ns = io_clock();  // each datagram's own receive time (echo slots, rate buckets)
     }
-    for (long i = 0; i < got; ++i, first = false) {
-      if (!first) now_ns = io_clock();  // each datagram's own receive time (echo slots, rate buckets)
-      take_datagram(rx_batch_[i], now_ns);
-    }
-    budget -= static_cast<std::size_t>(got);
+    // With a push waiting, read one datagram, not a batch: the push leaves after at most one.
+    if (!rx_pending() && !refill_rx(tx_.ready_size() > 0 ? 1 : kRxBatch)) return;
+    take_datagram(rx_batch_[rx_next_++], now_ns);
   }
+}
+
+bool Endpoint::refill_rx(std::size_t n) {
+  for (auto& d : rx_batch_) d.source = kSourceUnchecked;
+  rx_next_ = rx_count_ = 0;
+  const long got = transport_->receive_batch(rx_batch_, n);
+  if (got < 0) ++counters_.receive_errors;
+  if (got <= 0) return false;
+  rx_count_ = static_cast<std::size_t>(got);
+  return true;
 }
 
 void Endpoint::take_datagram(const RxDatagram& d, std::int64_t now_ns) {

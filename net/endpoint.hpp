@@ -342,6 +342,8 @@ class Endpoint {
   bool admit(int source, std::int64_t now_ns);
   DecodeLimits rx_limits(int source, std::int64_t now_ns) const;
   void take_datagram(const RxDatagram& d, std::int64_t now_ns);  // counted, rate-limited, then receive_one
+  bool refill_rx(std::size_t n);  // reads up to n datagrams into rx_batch_; false: none (or an error, counted)
+  bool rx_pending() const { return rx_next_ < rx_count_; }  // datagrams read but not yet handled
   void receive_one(const RxDatagram& d, std::int64_t now_ns);
   void on_authentic(PeerState& p, std::uint64_t incarnation, std::int64_t now_ns);  // incarnation, up
   void on_hello(PeerState& p, const DecodedState& st);                               // key agreement
@@ -414,6 +416,7 @@ class Endpoint {
   std::int64_t step_now_ns_ = -1;  // step_without_thread()'s clock (-1: the I/O thread's, monotonic_ns())
   std::vector<std::uint8_t> rx_store_, tx_buf_;
   RxDatagram rx_batch_[kRxBatch];
+  std::size_t rx_next_ = 0, rx_count_ = 0;  // rx_batch_[rx_next_, rx_count_) are read, not yet handled
   DelayQueue delay_;
   SendRecords send_records_;
   SourceRateLimit rate_limit_;

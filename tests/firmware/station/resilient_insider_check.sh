@@ -20,31 +20,23 @@
 #    in summary.json) is below CONSENSUS_MM = 1 mm, and the honest copies' mean end position is
 #    within DRAG_MM = 2 mm of the clean run's (the clean run's own figures are printed: the
 #    run-to-run variation of real-time runs);
-#  - the consistent lie with F = 0 is printed for comparison (the drag the rule removes; not checked:
-#    with F = 0 and a consistent lie nothing but the envelope and the energy gate bounds it).
+#  - the consistent lie with F = 0: its drag is printed for comparison (not checked: with F = 0 nothing
+#    but the envelope and the energy gate bounds it); a station whose gate tripped exits 10 and logged the
+#    trip when it happened ("energy gate tripped on station 1's edge");
+#  - summary.json (haptic-station merge): resilient_excluded_ticks = the links' sum (absent with F = 0),
+#    state_check isolations = the links' sum, one flag per isolating link.
 # Bounded: haptic-lab stops every station after its planned time + 20 s. No root.
 # Usage: resilient_insider_check.sh BIN_DIR WORK_DIR  (BIN_DIR holds haptic-station, haptic-insider, haptic-jitter)
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
-repo="$(cd "$here/../../.." && pwd)"
+source "$here/insider_bin.sh"                  # the wrapper that makes station 1 the insider
+source "$here/../../support/quiet_host.sh"     # a measured "host too loaded" skip, and the host after a failure
 bindir="$(cd "$1" && pwd)"; work="$2"
-[ -x "$bindir/haptic-insider" ] || { echo "SKIPPED: $bindir/haptic-insider not built"; exit 77; }
-[ -x /usr/bin/python3 ] || { echo "SKIPPED: /usr/bin/python3 missing for the checks"; exit 77; }
-source "$here/../../support/quiet_host.sh"  # a measured "host too loaded" skip, and the host after a failure
+insider_skip_unless_built "$bindir"
 quiet_host_or_skip "$bindir" "$work"
-rm -rf "$work"; mkdir -p "$work/bin"
-# haptic-lab starts "haptic-station" from HAPTIC_BIN_DIR: a wrapper there runs station 1 as the insider
-for f in "$bindir"/*; do ln -s "$f" "$work/bin/$(basename "$f")"; done
-rm "$work/bin/haptic-station"
-cat > "$work/bin/haptic-station" <<WRAP
-#!/usr/bin/env bash
-case " \$* " in
-  *station-1.toml*) [ -n "\${INSIDER_LIE:-}" ] && exec env HAPTIC_INSIDER_LIE="\$INSIDER_LIE" HAPTIC_INSIDER_AMPLITUDE="\$INSIDER_AMPLITUDE" \
-                      HAPTIC_INSIDER_FROM_S=1.0 "$bindir/haptic-insider" "\$@" ;;
-esac
-exec "$bindir/haptic-station" "\$@"
-WRAP
-chmod +x "$work/bin/haptic-station"
+repo="$(cd "$here/../../.." && pwd)"
+rm -rf "$work"
+insider_bin "$bindir" "$work"  # station 1 runs as haptic-insider when INSIDER_LIE is set
 export HAPTIC_BIN_DIR="$work/bin"
 lab="$repo/tools/lab/haptic-lab"
 run_case() {  # NAME LIE AMPLITUDE F

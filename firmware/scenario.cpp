@@ -178,9 +178,12 @@ void ScenarioSpec::validate() const {
   if (loss_allowance_ticks < -1 || loss_allowance_ticks > 1000) bad("--loss-allowance must be in [0, 1000] ticks (-1: from the loss model)");
   if (!(edge_energy_bound_J >= 0 && edge_energy_bound_J <= 1e6)) bad("--edge-energy-bound must be in [0, 1e6] J (0 = off)");
   if (!(edge_energy_leak_W >= 0 && edge_energy_leak_W <= 1)) bad("--edge-energy-leak-W must be in [0, 1] W (0 = the account only grows)");
+  if (!(edge_energy_hold_s >= 0 && edge_energy_hold_s <= 3600)) bad("--edge-energy-hold-s must be in [0, 3600] s (0 = off)");
   if (!(tx_deadband.position_deadband_m >= 0 && tx_deadband.position_deadband_m < 0.1)) bad("--tx-deadband-mm must be in [0, 100)");
   if (tx_deadband.max_interval_ticks < 1 || tx_deadband.max_interval_ticks > 1000) bad("--tx-max-interval must be in [1, 1000]");
   if (resilient_f < 0 || resilient_f > 16) bad("--resilient-f must be in [0, 16] (0 = off)");
+  if (state_check.enabled() && consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation)
+    bad("--state-check-kinematic-m / --state-check-disagreement-m need --consensus-passivity eq18 (pspm never drops an edge)");
   if (resilient_f > 0 && consensus_passivity == rt::ConsensusPassivity::kEq18Damping && !(edge_energy_bound_J > 0))
     bad("--resilient-f needs --edge-energy-bound > 0 with eq. (18): the energy bound covers an edge left out on one side (rt/README.md)");
   if (tx_deadband.predictive && consensus_passivity != rt::ConsensusPassivity::kSetPositionModulation)
@@ -455,6 +458,7 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
       nc.energy_release_J = 0.5 * spec.edge_energy_bound_J;
     }
     nc.energy_leak_W = spec.edge_energy_leak_W;
+    nc.energy_hold_s = spec.edge_energy_hold_s;
     c.neighbors.push_back(nc);
   }
   c.rx_rule = spec.receive_rule;

@@ -133,6 +133,9 @@ struct ScenarioSpec {
   // exceeds this acts as the damper until the account has fallen to half of it. 0 = off.
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
   double edge_energy_leak_W = rt::kDefaultEdgeEnergyLeakW;  // the accounts' leak (rt/edge_energy.hpp)
+  // The gate's timed release (rt/edge_energy.hpp): a tripped edge released after this long x 2^(trips - 1).
+  // 0 = off (the simulator's default; a station's is station.edge_energy_hold_s).
+  double edge_energy_hold_s = 0;
   // An edge returning after an outage ramps in over this long (rt/return_ramp.hpp); 0 = off (the
   // simulator's default; a station's is station.return_ramp_s).
   double return_ramp_s = 0;

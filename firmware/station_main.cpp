@@ -155,6 +155,7 @@ struct SimArgs {
               consensus_passivity = "eq18";
   double pspm_reservoir_J = 0.0;
   int resilient_f = 0;
+  double state_check_kinematic_m = 0, state_check_disagreement_m = 0, edge_energy_hold_s = 0;  // off (0) in the simulator
   double timer_jitter_ms = 0, step_jitter = 0, clock_drift_ppm = 0;  // station clocks (variable steps T_k)
   double jitter = -1, delay_correlation = 0, node_mass_kg = -1;     // delay model and object (stability maps)
   double burst_enter = 0, burst_length = 5, burst_loss = 1;         // Gilbert-Elliott burst loss (off at 0)
@@ -255,6 +256,24 @@ void add_sim_consensus_options(CLI::App* sim, SimArgs& a) {
   sim->add_option("--resilient-f", a.resilient_f,
                   "Resilient consensus: each station leaves out, every tick, the F neighbours whose received object is farthest from "
                   "its copy (rt/resilient.hpp; W-MSR needs a (2F+1)-robust topology: haptic-topology --robustness) (default 0: off)");
+  sim->add_option("--state-check-kinematic-m", a.state_check_kinematic_m,
+                  "Neighbour state check (rt/edge_monitor.hpp): isolate a neighbour whose reported positions moved this much more than its "
+                  "reported velocities explain, m (the station's station.state_check_kinematic_m, default 2e-4 there) (default 0: off)")
+      ->check(CLI::Range(0.0, 1.0));
+  sim->add_option("--state-check-disagreement-m", a.state_check_disagreement_m,
+                  "Neighbour state check: isolate a neighbour whose state, filtered over 0.2 s, stays this far from the copy, m (default 0: off)")
+      ->check(CLI::Range(0.0, 1.0));
+  sim->add_option("--edge-energy-hold-s", a.edge_energy_hold_s,
+                  "The energy gate releases a tripped edge after holding it this long, doubled per further trip, forgiving its account's "
+                  "excess over the release level (the station's station.edge_energy_hold_s, default 2 there) (default 0: off)")
+      ->check(CLI::Range(0.0, 3600.0));
+}
+
+// The safeguards' options of `sim` (the state check, the gate's timed release) into the spec.
+void apply_sim_safeguards(const SimArgs& a, haptic::firmware::ScenarioSpec& spec) {
+  if (a.state_check_kinematic_m > 0) spec.state_check.kinematic_bound_m = a.state_check_kinematic_m;
+  if (a.state_check_disagreement_m > 0) spec.state_check.disagreement_bound_m = a.state_check_disagreement_m;
+  spec.edge_energy_hold_s = a.edge_energy_hold_s;
 }
 
 // The `sim` subcommand's options into `a`. Not RT-safe.
@@ -602,6 +621,7 @@ ScenarioSpec sim_scenario_spec(const SimArgs& a) {
     throw std::invalid_argument("--pspm-reservoir-J = " + std::to_string(a.pspm_reservoir_J) + " must be finite and >= 0");
   spec.pspm_reservoir0_J = a.pspm_reservoir_J;
   spec.resilient_f = a.resilient_f;
+  apply_sim_safeguards(a, spec);
   return spec;
 }
 

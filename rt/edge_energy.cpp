@@ -64,11 +64,13 @@ double EdgeEnergyAccount::total_J() const {
   return t;
 }
 
-void EdgeEnergyGate::init(int edges, std::span<const double> bound_J, std::span<const double> release_J) {
+void EdgeEnergyGate::init(int edges, std::span<const double> bound_J, std::span<const double> release_J, std::span<const std::int64_t> hold_ticks) {
   if (edges < 0 || edges > kMaxEdgeAccounts)
     throw std::invalid_argument("edge energy gate: edges must be in [0, " + std::to_string(kMaxEdgeAccounts) + "]");
   if (static_cast<int>(bound_J.size()) != edges || static_cast<int>(release_J.size()) != edges)
     throw std::invalid_argument("edge energy gate: one bound and one release level per edge needed");
+  if (!hold_ticks.empty() && static_cast<int>(hold_ticks.size()) != edges)
+    throw std::invalid_argument("edge energy gate: one hold per edge needed (or none)");
   *this = EdgeEnergyGate{};
   edges_ = edges;
   for (int j = 0; j < edges; ++j) {
@@ -78,15 +80,24 @@ void EdgeEnergyGate::init(int edges, std::span<const double> bound_J, std::span<
       throw std::invalid_argument("edge energy gate: the release level must be finite and below the bound");
     bound_[idx(j)] = b;
     release_[idx(j)] = r;
+    hold_[idx(j)] = hold_ticks.empty() ? 0 : hold_ticks[idx(j)];
+    if (hold_[idx(j)] < 0) throw std::invalid_argument("edge energy gate: the hold must be >= 0 ticks (0: no timed release)");
   }
 }
 
 bool EdgeEnergyGate::update(int j, double account_J) {
   const std::size_t i = idx(j);
+  const double a = account_J - forgiven_[i];
   if (tripped_[i]) {
-    if (account_J <= release_[i]) tripped_[i] = 0;
-  } else if (account_J > bound_[i]) {
+    const bool timed = hold_[i] > 0 && ++held_[i] >= hold_after_trip(j, trips_[i]);
+    if (a <= release_[i] || timed) {
+      if (a > release_[i]) forgiven_[i] += a - release_[i], ++timed_releases_[i];
+      tripped_[i] = 0;
+      ++releases_[i];
+    }
+  } else if (a > bound_[i]) {
     tripped_[i] = 1;
+    held_[i] = 0;
     ++trips_[i];
   }
   if (tripped_[i]) ++gated_ticks_[i];

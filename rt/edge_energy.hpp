@@ -26,6 +26,10 @@ inline constexpr double kDefaultEdgeEnergyBoundJ = 0.1;
 // The default leak of the accounts (station.edge_energy_leak_W, sim --edge-energy-leak-W): 1 mW, about
 // 8x the average inflow measured at a station that only receives (0.13 mW; rt/README.md).
 inline constexpr double kDefaultEdgeEnergyLeakW = 1e-3;
+// The station's default timed release of a tripped edge (station.edge_energy_hold_s; the simulator's
+// --edge-energy-hold-s default is 0, off): held this long x 2^(trips - 1), like the state check's
+// re-admission (station.state_check_readmit_s).
+inline constexpr double kDefaultEdgeEnergyHoldS = 2.0;
 
 class EdgeEnergyAccount {
  public:
@@ -75,12 +79,24 @@ class EdgeEnergyAccount {
 // D_ij + T/2 P_ij: its account can only fall), so the net energy the edge ever puts into the
 // copy is at most bound_J + one tick's. The decision is taken at the start of a tick from the
 // account after the previous tick.
+//
+// The timed release (hold_ticks > 0; rt/README.md "The timed release"): a tripped edge whose account
+// stays above the release level (a damper only dissipates what this copy's own motion gives it; a
+// leaf at rest never gets there) is released after it has stayed within its account (tripped, the
+// damper, its account only falling) for hold_ticks x 2^(n - 1) ticks, n = its trips so far (at most
+// x 1024): the excess of its account over the release level is then forgiven (forgiven_J: the gate
+// compares account - forgiven with its levels; the account itself stays the true one). A neighbour
+// that lies again trips again after at most bound - release more, and is held twice as long; so
+// over a time t the edge puts in at most bound + one tick + r (bound - release + one tick) (+ the
+// leak), r <= log2(1 + t / hold) timed releases. Every trip is counted and stays counted.
+
 class EdgeEnergyGate {
  public:
   static constexpr double kOff = std::numeric_limits<double>::infinity();
   // Start-up (throws std::invalid_argument): per edge bound (> 0, +inf = off) and release level
-  // (finite, < bound when the bound is finite).
-  void init(int edges, std::span<const double> bound_J, std::span<const double> release_J);
+  // (finite, < bound when the bound is finite); the timed release's hold per edge in ticks (>= 0,
+  // 0 = none: released at the release level only; empty: none anywhere).
+  void init(int edges, std::span<const double> bound_J, std::span<const double> release_J, std::span<const std::int64_t> hold_ticks = {});
   // Start of a tick: updates the latch of edge j from its account; true = act as the damper this
   // tick. RT-safe.
   bool update(int j, double account_J);
@@ -92,6 +108,12 @@ class EdgeEnergyGate {
   std::uint64_t trips(int j) const { return trips_[idx(j)]; }            // times the latch closed
   std::uint64_t gated_ticks(int j) const { return gated_ticks_[idx(j)]; }  // ticks acted as the damper
   std::uint64_t trips() const;  // over all edges
+  std::uint64_t releases(int j) const { return releases_[idx(j)]; }              // latch opened (either rule)
+  std::uint64_t timed_releases(int j) const { return timed_releases_[idx(j)]; }  // of those, by the timed release
+  double forgiven_J(int j) const { return forgiven_[idx(j)]; }                  // account excess forgiven at timed releases
+  std::int64_t hold_ticks(int j) const { return hold_[idx(j)]; }
+  // The ticks the n-th trip (n >= 1) holds the edge before its timed release: hold x 2^(n-1), at most x 1024.
+  std::int64_t hold_after_trip(int j, std::uint64_t n) const { return hold_[idx(j)] << (n > 11 ? 10 : n - 1); }
   // The energy the damper action took out of the copy on edge j's gated ticks (>= 0): what the gate
   // removed, so a run it held says how much (firmware's summaries: "gate").
   double removed_J(int j) const { return removed_[idx(j)]; }
@@ -102,8 +124,9 @@ class EdgeEnergyGate {
  private:
   static std::size_t idx(int j) { return static_cast<std::size_t>(j); }
   int edges_ = 0;
-  std::array<double, kMaxEdgeAccounts> bound_{}, release_{}, removed_{};
-  std::array<std::uint64_t, kMaxEdgeAccounts> trips_{}, gated_ticks_{};
+  std::array<double, kMaxEdgeAccounts> bound_{}, release_{}, removed_{}, forgiven_{};
+  std::array<std::uint64_t, kMaxEdgeAccounts> trips_{}, gated_ticks_{}, releases_{}, timed_releases_{};
+  std::array<std::int64_t, kMaxEdgeAccounts> hold_{}, held_{};  // the timed release's hold, ticks held since the trip
   std::array<unsigned char, kMaxEdgeAccounts> tripped_{};
 };
 

@@ -67,6 +67,7 @@ void StationConfig::validate() const {
     if (n.index_delay_bound_ticks < 0) bad("neighbors[].index_delay_bound_ticks", ">= 0");
     if (!(n.damping_share >= 0 && std::isfinite(n.damping_share))) bad("neighbors[].damping_share", "finite and >= 0");
     if (!(n.energy_bound_J > 0)) bad("neighbors[].energy_bound_J", "> 0 (+inf: off)");
+    if (!(n.energy_hold_s >= 0 && n.energy_hold_s <= 3600)) bad("neighbors[].energy_hold_s", "in [0, 3600] s (0: no timed release)");
     if (!(n.energy_leak_W >= 0 && std::isfinite(n.energy_leak_W))) bad("neighbors[].energy_leak_W", ">= 0 and finite");
     if (std::isfinite(n.energy_bound_J) && !(std::isfinite(n.energy_release_J) && n.energy_release_J < n.energy_bound_J))
       bad("neighbors[].energy_release_J", "finite and below energy_bound_J");
@@ -190,12 +191,14 @@ void StationCore::init_edges() {
     for (const auto& nb : cfg_.neighbors) shares.push_back(nb.damping_share);
     edge_energy_.init(nn, shares);
     std::vector<double> bounds, releases, leaks;
+    std::vector<std::int64_t> holds;
     for (const auto& nb : cfg_.neighbors) {
       bounds.push_back(nb.energy_bound_J);
       releases.push_back(nb.energy_release_J);
       leaks.push_back(nb.energy_leak_W);
+      holds.push_back(static_cast<std::int64_t>(std::llround(nb.energy_hold_s / cfg_.period_s)));
     }
-    edge_gate_.init(nn, bounds, releases);
+    edge_gate_.init(nn, bounds, releases, holds);
     edge_energy_.set_leak(leaks);
   }
   const bool ramps = cfg_.return_ramp_s > 0 && pspm_.empty();
@@ -826,8 +829,9 @@ bool StationCore::edge_excluded(int j, std::int64_t k, bool within_bound) {
     const bool excluded = edge_excluded(j, k, ok);
     if (excluded) flags |= kEdgeIsolated;
     active_[j] = (ok && !gated && !excluded) ? 1 : 0;
-    // x_hat itself unless ramping (an isolation counts as an outage: a re-admitted edge ramps in too)
-    views_[j].x_hat = return_ramp_.target(j, k, ok && !excluded, views_[j].x_hat, x_.data());
+    // x_hat itself unless ramping (an isolation or a gate's hold counts as an outage: a re-admitted or
+    // released edge ramps in too)
+    views_[j].x_hat = return_ramp_.target(j, k, ok && !excluded && !gated, views_[j].x_hat, x_.data());
     if (ok) {
       edge_was_dropped_[j] = 0;
     } else {

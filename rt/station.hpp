@@ -69,6 +69,10 @@ struct NeighborConfig {
   // latched until the account has fallen to energy_release_J. +inf: off.
   double energy_bound_J = EdgeEnergyGate::kOff;
   double energy_release_J = 0;
+  // The timed release (EdgeEnergyGate, rt/README.md "The timed release"): a tripped edge is released
+  // after it stayed tripped this long x 2^(trips - 1), the excess of its account forgiven. 0: off
+  // (released at energy_release_J only).
+  double energy_hold_s = 0;
   // The account's leak (EdgeEnergyAccount::set_leak): energy that left the copy is taken off this
   // edge's account up to this power, W (0: the account only grows).
   double energy_leak_W = 0;

@@ -557,6 +557,52 @@ void write_merged_snapshots(const std::vector<StationFiles>& st, double T, const
   write_snapshots_json(dir + "/snapshots.json", st[0].summary["scene_surface"].get<std::vector<std::array<int, 3>>>(), contacts, snaps);
 }
 
+// The receiver's neighbour-state-check entry for neighbour `from` (station-<id>.json "state_check"), or null.
+const json* state_check_entry(const json& s, int from) {
+  if (!s.contains("state_check") || !s["state_check"].contains("neighbours")) return nullptr;
+  for (const json& n : s["state_check"]["neighbours"])
+    if (n.value("station", 0) == from) return &n;
+  return nullptr;
+}
+
+// What the resilient rule and the neighbour state check did, as the stations counted it: per link
+// (to <- from) the receiver's resilient_excluded_ticks (with the rule on) and its state check's
+// isolations, readmissions and isolated ticks; per station row their sums; the run's totals
+// ("resilient_excluded_ticks" with the rule on anywhere, "state_check" when the stations have the
+// check); each isolation is a flag (a safeguard that acted is said on the result line).
+void add_edge_safeguards(const std::vector<StationFiles>& st, json& j) {
+  std::uint64_t excluded = 0, isolations = 0, readmissions = 0, isolated_ticks = 0;
+  bool rule = false, check = false;
+  for (json& l : j["link_stats"]) {
+    const json& s = st[static_cast<std::size_t>(l["to"].get<int>() - 1)].summary;
+    const int from = l["from"].get<int>();
+    for (const json& rx : s["links"])
+      if (rx["peer"].get<int>() == from && rx.contains("resilient_excluded_ticks")) {
+        l["resilient_excluded_ticks"] = rx["resilient_excluded_ticks"];
+        excluded += rx["resilient_excluded_ticks"].get<std::uint64_t>(), rule = true;
+      }
+    if (const json* n = state_check_entry(s, from)) {
+      for (const char* k : {"isolations", "readmissions", "isolated_ticks"}) l["state_check_" + std::string(k)] = n->value(k, std::uint64_t{0});
+      isolations += n->value("isolations", std::uint64_t{0}), readmissions += n->value("readmissions", std::uint64_t{0});
+      isolated_ticks += n->value("isolated_ticks", std::uint64_t{0}), check = true;
+      if (n->value("isolations", std::uint64_t{0}) > 0)
+        j["flags"].push_back("station " + std::to_string(l["to"].get<int>()) + " isolated station " + std::to_string(from) + " " +
+                             std::to_string(n->value("isolations", std::uint64_t{0})) + " time(s) (neighbour state check: " +
+                             n->value("reason", std::string("?")) + ")");
+    }
+  }
+  for (json& row : j["stations"]) {
+    const json& s = st[static_cast<std::size_t>(row["station"].get<int>() - 1)].summary;
+    json sum = nullptr;
+    for (const json& rx : s["links"])
+      if (rx.contains("resilient_excluded_ticks")) sum = (sum.is_null() ? std::uint64_t{0} : sum.get<std::uint64_t>()) + rx["resilient_excluded_ticks"].get<std::uint64_t>();
+    row["resilient_excluded_ticks"] = sum;
+    row["state_check_isolations"] = s.contains("state_check") ? s["state_check"].value("isolations", json(nullptr)) : json(nullptr);
+  }
+  if (rule) j["resilient_excluded_ticks"] = excluded;
+  if (check) j["state_check"] = {{"isolations", isolations}, {"readmissions", readmissions}, {"isolated_ticks", isolated_ticks}};
+}
+
 // What the stations' energy gates and edge-drop rules did, added up (older station files without
 // "gate": their trip and drop counts), with the merged run's worst port energy.
 GateSummary merged_gate(const std::vector<StationFiles>& st, const json& merged) {
@@ -610,6 +656,7 @@ json merge_run(const std::string& dir) {
   add_windowed_sends(windows, scans, j);
   j["stations"] = station_rows(st, scans);
   j["flags"] = merge_flags(st);  // N > N̄ on a link, a starving host: said on the result line too
+  add_edge_safeguards(st, j);  // the resilient rule's exclusions, the state check's isolations (flagged)
   const GateSummary gate = merged_gate(st, j);
   j["gate"] = gate_json(gate);
   j["verdict"] = run_verdict(j.value("diverged", false), j.value("unstable", false), gate, j["eq13_broken"].get<bool>());

@@ -387,6 +387,7 @@ SimResult finish(Simulation& s, std::int64_t ticks_run) {
     c.stats.max_index_delay = core.rx(c.rx_index).counters().max_index_delay;
     c.stats.bound_violations = core.edge_drop_events(c.rx_index);
     c.stats.resilient_excluded_ticks = core.resilient_excluded_ticks(c.rx_index);
+    c.stats.state_check_isolations = core.edge_monitor().isolations(c.rx_index);
     c.stats.edge_energy = edge_energy_summary(core, c.rx_index);
     if (const rt::SetPositionModulator* m = core.set_position_modulator(c.rx_index)) {
       c.stats.pspm_limited_ticks = m->limited_ticks();
@@ -441,6 +442,7 @@ nlohmann::json sim_link_json(const BuiltScenario& b, const SimResult& r, const L
   ls.edge_energy = l.edge_energy;
   nlohmann::json j = link_json(ls);
   if (b.spec.resilient_f > 0) j["resilient_excluded_ticks"] = l.resilient_excluded_ticks;  // only when on: summaries unchanged when off
+  if (b.spec.state_check.enabled()) j["state_check_isolations"] = l.state_check_isolations;  // likewise
   j["packets_per_s"] = run_s > 0 ? nlohmann::json(static_cast<double>(l.sent) / run_s) : nlohmann::json(nullptr);
   j["bytes_per_s"] = run_s > 0 ? nlohmann::json(static_cast<double>(l.bytes_sent) / run_s) : nlohmann::json(nullptr);
   j["sent_in_hold_window"] = sent_between(l, r.metrics.hold_window_start_s, r.metrics.hold_window_end_s, T);
@@ -511,6 +513,9 @@ void write_summary_json(const std::string& path, const BuiltScenario& b, const S
   j["steps_clamped"] = r.steps_clamped;
   j["consensus_passivity"] = rt::consensus_passivity_name(b.spec.consensus_passivity);
   if (b.spec.resilient_f > 0) j["resilient_f"] = b.spec.resilient_f;  // only when on: summaries unchanged when off
+  if (b.spec.state_check.enabled()) j["state_check"] = {{"kinematic_m", b.spec.state_check.kinematic_bound_m < rt::EdgeMonitorParams::kOff ? nlohmann::json(b.spec.state_check.kinematic_bound_m) : nlohmann::json(nullptr)},
+                                                     {"disagreement_m", b.spec.state_check.disagreement_bound_m < rt::EdgeMonitorParams::kOff ? nlohmann::json(b.spec.state_check.disagreement_bound_m) : nlohmann::json(nullptr)}};
+  if (b.spec.edge_energy_hold_s > 0) j["edge_energy_hold_s"] = b.spec.edge_energy_hold_s;
   if (b.spec.consensus_passivity == rt::ConsensusPassivity::kSetPositionModulation) j["pspm_reservoir0_J"] = b.spec.pspm_reservoir0_J;
   j["push_pattern"] = b.spec.script.push_pattern == UserScriptSpec::PushPattern::kAsymmetric ? "asymmetric" : "spread";
   j["push_depth_m"] = b.push_depth_m;

@@ -25,6 +25,7 @@ struct LinkStats {
   std::int64_t max_index_delay = 0;   // max N_ij^k seen by the receiver
   std::uint64_t bound_violations = 0; // edge drop events at the receiver
   std::uint64_t resilient_excluded_ticks = 0;  // ticks the receiver's resilient rule left this edge out (--resilient-f)
+  std::uint64_t state_check_isolations = 0;    // times the receiver's state check isolated this edge (--state-check-*)
   std::uint64_t bytes_sent = 0;       // UDP payload bytes of the states sent (float32 wire, headers, MACs)
   std::vector<std::int64_t> sent_ticks;  // tick of every state sent (bandwidth by window)
   EdgeEnergySummary edge_energy{};       // the receiver's energy account of this edge and its bound

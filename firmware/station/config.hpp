@@ -55,6 +55,7 @@ struct StationSection {
   int loss_allowance_max_ticks = 16;  // the paper links measure 8-12 (tools/run4); a loaded machine far more
   double edge_energy_bound_J = rt::kDefaultEdgeEnergyBoundJ;
   double edge_energy_leak_W = rt::kDefaultEdgeEnergyLeakW;
+  double edge_energy_hold_s = rt::kDefaultEdgeEnergyHoldS;
   // The neighbour state check (rt/edge_monitor.hpp); 0 m = that check off.
   double state_check_kinematic_m = rt::kDefaultStateCheckKinematicM;
   double state_check_kinematic_window_s = 30.0;

@@ -112,6 +112,10 @@ const std::vector<StationOption> kStation = {
          .with_note(" (0 = off)"), HAPTIC_FIELD(station, edge_energy_bound_J)},
     {R("station", "edge_energy_leak_W", rt::kDefaultEdgeEnergyLeakW, 0, 1, "energy that left the copy is taken off each edge's account "
                                                                           "up to this power").with_note(" (0 = no leak)"), HAPTIC_FIELD(station, edge_energy_leak_W)},
+    {R("station", "edge_energy_hold_s", rt::kDefaultEdgeEnergyHoldS, 0, 3600, "the energy gate releases a tripped edge after it held it "
+                                                                            "this long, doubled after each further trip, forgiving its account's excess "
+                                                                            "over the release level (every trip stays counted: exit 10)")
+         .with_note(" (0 = only when the account fell to half the bound)"), HAPTIC_FIELD(station, edge_energy_hold_s)},
     {R("station", "state_check_kinematic_m", rt::kDefaultStateCheckKinematicM, 0, 1,
        "neighbour state check (rt/edge_monitor.hpp): a neighbour whose reported positions moved this much more than its own reported "
        "velocities explain (at some node) is isolated: its edge acts as a damper").with_note(" (0 = off)"), HAPTIC_FIELD(station, state_check_kinematic_m)},

@@ -48,6 +48,8 @@ std::string as_station_keys(std::string message) {
                                                               {"--duration", "station.duration_s"}, {"--release", "station.release_s"}, {"--delay-matrix", "station.delay_matrix"},
                                                               {"--push-end", "station.push_end_s"},
                                                               {"--resilient-f", "station.resilient_f"}, {"--edge-energy-bound", "station.edge_energy_bound_J"},
+                                                              {"--edge-energy-hold-s", "station.edge_energy_hold_s"},
+                                                              {"--state-check-kinematic-m", "station.state_check_kinematic_m"},
                                                               {"--tx-predict needs --consensus-passivity pspm", "station.tx_predict = true needs station.consensus_passivity = \"pspm\""}};
   for (const auto& [flag, key] : kKeys)
     for (auto at = message.find(flag); at != std::string::npos; at = message.find(flag, at)) message.replace(at, std::strlen(flag), key);
@@ -342,6 +344,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.loss_allowance_ticks = s.loss_allowance_ticks;
   spec.edge_energy_bound_J = s.edge_energy_bound_J;
   spec.edge_energy_leak_W = s.edge_energy_leak_W;
+  spec.edge_energy_hold_s = s.edge_energy_hold_s;
   spec.return_ramp_s = s.return_ramp_s;
   // pspm never drops an edge (rt::StationConfig refuses the check with it): the check runs with eq18 only
   if (spec.consensus_passivity != rt::ConsensusPassivity::kSetPositionModulation) spec.state_check = state_check_params(s);

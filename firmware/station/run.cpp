@@ -346,18 +346,28 @@ void run_phase(StationPlan& plan, StationResources& res, PhaseResults& pr, Stati
   TickInputs in;
   if (!prepare_run(plan, res, pr, in, log)) return;
   RunObserver observer = base;
-  // Neighbours going silent and coming back: logged once each (station id, session time).
+  // Neighbours going silent and coming back: logged once each (station id, session time). The edges'
+  // safeguards (an isolation, a gate trip or release) when they act, from the tick's event ring.
   PeerEventLog events(plan, plan.times.run_epoch_ns(), plan.net.endpoint.peer_silence_s + 0.1);
   nlohmann::json& ev = pr.lifecycle["neighbour_events"] = nlohmann::json::array();
-  if (res.ep) {
-    observer.idle = [&] {
+  EdgeEventWatch edge_watch;
+  in.edge_events = &edge_watch;
+  const auto say_edge_events = [&] {
+    for (const EdgeEvent& e : edge_watch.drain()) {
+      const std::string line = edge_event_line(e, plan.neighbours()[static_cast<std::size_t>(e.edge)] + 1, *pr.build.core);
+      log.say(line);
+      ev.push_back(line);
+    }
+  };
+  observer.idle = [&] {
+    if (res.ep)
       for (const auto& line : events.poll(res.ep->stats())) {
         log.say(line);
         ev.push_back(line);
       }
-    };
-    res.ep->sending_resumes(net::monotonic_ns());  // echoes held through the set-up gap are no round trips
-  }
+    say_edge_events();
+  };
+  if (res.ep) res.ep->sending_resumes(net::monotonic_ns());  // echoes held through the set-up gap are no round trips
   // A rejoining station refreshes the adopted state at its first tick (RT-safe, preallocated).
   Eigen::VectorXd x = pr.build.core->x(), v = pr.build.core->v();
   bool first = plan.times.rejoin;
@@ -384,6 +394,8 @@ void run_phase(StationPlan& plan, StationResources& res, PhaseResults& pr, Stati
   }
   pr.run = loop.run_result(run_index, observer);
   pr.ran = true;
+  say_edge_events();  // the last events (the loop ended before the next serve)
+  if (edge_watch.dropped() > 0) log.say("warning: " + std::to_string(edge_watch.dropped()) + " edge events did not fit the tick's event ring (the totals follow)");
   pr.counters.outages.finish();  // the loop ended: a span still open closes at the last tick
   finish_records(pr, log);
   say_after_run(plan, res, pr, ev, log);

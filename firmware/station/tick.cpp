@@ -229,6 +229,7 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   const auto out = rt::drive_tick(*in.core, rt::TickDrive{kr, in.run_k0, q, step_s}, [&](auto&& offer) { drain_rx(in, cnt, offer); },
                                   RunTickObserver{in, cnt, kr});
   platform::trace::solve_end();
+  if (in.edge_events) in.edge_events->after_tick(*in.core, kr);  // an isolation or a gate trip: logged by the non-RT side
   // The force the device is told, in the object frame (ramp-in applied): what the trace, the
   // telemetry and the checks on them see.
   const double ramp = ramp_in_factor(cnt.ticks_run, in.ramp_ticks);
@@ -245,8 +246,9 @@ std::uint32_t run_tick(const TickInputs& in, TickRecords& rec, TickCounters& cnt
   {
     StageScope stage(Stage::tx);
     if (in.ep && (!in.tx_deadband || in.tx_deadband->should_send(kr, in.core->x_hat(), in.core->v_hat()))) {
-      const double* rewritten = g_outgoing_rewrite ? g_outgoing_rewrite(*in.core, kr) : nullptr;
-      sent = in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), rewritten ? rewritten : in.core->x_hat(), in.core->v_hat(),
+      const OutgoingState lie = g_outgoing_rewrite ? g_outgoing_rewrite(*in.core, kr) : OutgoingState{};
+      sent = in.ep->push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), lie.x_hat ? lie.x_hat : in.core->x_hat(),
+                               lie.v_hat ? lie.v_hat : in.core->v_hat(),
                                (out.flags & rt::kDiverged) != 0,  // safe state: the flag, never the state
                                in.core->vp_position_m().data());  // the proxy, for the neighbours' live views
       if (!sent) ++cnt.push_failures;

@@ -10,6 +10,7 @@
 #include "drivers/workspace_map.hpp"
 #include "drivers/simulated_device.hpp"
 #include "firmware/session/recorder.hpp"
+#include "firmware/station/edge_events.hpp"
 #include "firmware/station/records.hpp"
 #include "firmware/station/outage.hpp"
 #include "firmware/view/frame.hpp"
@@ -47,6 +48,7 @@ struct TickInputs {
   const std::int64_t* seq_shift_ticks = nullptr;
   const drivers::WorkspaceMap* map = nullptr;  // device -> object frame; null = identity
   std::int64_t ramp_ticks = 0;                 // force ramp-in over this many coupled ticks (0 = none)
+  EdgeEventWatch* edge_events = nullptr;       // may be null: the edges' safeguard events for the log (edge_events.hpp)
 };
 
 // Counted by the tick; read by the non-RT side after the loop ended.
@@ -89,9 +91,13 @@ rt::Vec3 read_device(const TickInputs& in, TickCounters& cnt);
 // A test seam, not an option: a test executable that links the station library (never the shipped
 // station) may install a rewrite of the state the tick sends, to play an authenticated insider that
 // lies (tests/firmware/station/insider_main.cpp). It gets the core and the run index and returns the
-// x_hat to send (dofs values, its own buffer) or null to send the core's. Set before the run; RT-safe
-// callers only.
-using OutgoingStateRewrite = const double* (*)(const rt::StationCore& core, std::int64_t kr);
+// x_hat and v_hat to send (dofs values each, its own buffers; a null one: the core's). Set before the
+// run; RT-safe callers only.
+struct OutgoingState {
+  const double* x_hat = nullptr;
+  const double* v_hat = nullptr;
+};
+using OutgoingStateRewrite = OutgoingState (*)(const rt::StationCore& core, std::int64_t kr);
 void set_outgoing_state_rewrite(OutgoingStateRewrite rewrite);
 
 // One run tick at epoch index k, run index kr = k - run_k0 (the index the core and the receive

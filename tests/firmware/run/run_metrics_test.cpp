@@ -365,6 +365,42 @@ TEST(RunMerge, ALinkOverItsIndexDelayBoundAndAStarvingHostAreFlagged) {
   STRCMP_CONTAINS("; FLAGGED: link 2<-1: N max 74 > N̄ 3 (5 edge drops); station 2: host STARVING", merge_result_line(s).c_str());
 }
 
+// What the edges' safeguards did is added up like the other per-station counters: the resilient rule's
+// resilient_excluded_ticks per link (the receiver's), per station and in total (only when a station had
+// the rule on), the neighbour state check's isolations per link, per station and in summary.json
+// "state_check", each isolation a flag on the result line; files without them add nothing.
+TEST(RunMerge, TheResilientRulesExclusionsAndTheStateChecksIsolationsAreAddedUpAndEachIsolationIsFlagged) {
+  const std::string dir = write_two_stations("haptic-metrics-merge-safeguards", shrinking_gap);
+  const json plain = merge_run(dir);
+  CHECK_FALSE(plain.contains("resilient_excluded_ticks") || plain.contains("state_check"));
+  CHECK_TRUE(plain["stations"][0]["resilient_excluded_ticks"].is_null());
+  json s1 = station_json(1, 2, 0.01), s2 = station_json(2, 2, 0.01);
+  s1["links"][0]["resilient_excluded_ticks"] = 7;  // station 1 left station 2 out on 7 ticks
+  s2["links"][0]["resilient_excluded_ticks"] = 5;
+  s1["state_check"] = {{"isolations", 2},
+                       {"neighbours", json::array({{{"station", 2}, {"isolations", 2}, {"readmissions", 1}, {"isolated_ticks", 300},
+                                                    {"reason", "inconsistent_with_its_velocities"}}})}};
+  s2["state_check"] = {{"isolations", 0}, {"neighbours", json::array({{{"station", 1}, {"isolations", 0}, {"readmissions", 0}, {"isolated_ticks", 0}}})}};
+  std::ofstream(dir + "/station-1.json") << s1.dump();
+  std::ofstream(dir + "/station-2.json") << s2.dump();
+  const json s = merge_run(dir);
+  CHECK_EQUAL(12u, s["resilient_excluded_ticks"].get<unsigned>());
+  for (const auto& l : s["link_stats"]) {  // link to <- from: the receiver's counts
+    const bool at_1 = l["to"].get<int>() == 1;
+    CHECK_EQUAL(at_1 ? 7u : 5u, l["resilient_excluded_ticks"].get<unsigned>());
+    CHECK_EQUAL(at_1 ? 2u : 0u, l["state_check_isolations"].get<unsigned>());
+    CHECK_EQUAL(at_1 ? 300u : 0u, l["state_check_isolated_ticks"].get<unsigned>());
+  }
+  CHECK_EQUAL(7u, s["stations"][0]["resilient_excluded_ticks"].get<unsigned>());
+  CHECK_EQUAL(2u, s["stations"][0]["state_check_isolations"].get<unsigned>());
+  CHECK_EQUAL(2u, s["state_check"]["isolations"].get<unsigned>());
+  CHECK_EQUAL(1u, s["state_check"]["readmissions"].get<unsigned>());
+  CHECK_EQUAL(300u, s["state_check"]["isolated_ticks"].get<unsigned>());
+  CHECK_EQUAL(1u, s["flags"].size());
+  STRCMP_EQUAL("station 1 isolated station 2 2 time(s) (neighbour state check: inconsistent_with_its_velocities)", s["flags"][0].get<std::string>().c_str());
+  STRCMP_CONTAINS("; FLAGGED: station 1 isolated station 2", merge_result_line(s).c_str());
+}
+
 // A merge reads the stations' files a row at a time: a run 100 times longer (200,000 traced ticks a
 // station: held at once, ~180 MB of rows) merges in the same memory as a short one.
 TEST(RunMerge, TheMergesMemoryDoesNotGrowWithTheRunsLength) {

@@ -21,23 +21,12 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../../.." && pwd)"
 bindir="$(cd "$1" && pwd)"; work="$2"
-[ -x "$bindir/haptic-insider" ] || { echo "SKIPPED: $bindir/haptic-insider not built"; exit 77; }
-[ -x /usr/bin/python3 ] || { echo "SKIPPED: /usr/bin/python3 missing for the checks"; exit 77; }
+source "$here/insider_bin.sh"  # the wrapper that makes station 1 the insider
+insider_skip_unless_built "$bindir"
 source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loaded" skip, and the host after a failure
 quiet_host_or_skip "$bindir" "$work"
-rm -rf "$work"; mkdir -p "$work/bin"
-# haptic-lab starts "haptic-station" from HAPTIC_BIN_DIR: a wrapper there runs station 1 as the insider
-for f in "$bindir"/*; do ln -s "$f" "$work/bin/$(basename "$f")"; done
-rm "$work/bin/haptic-station"
-cat > "$work/bin/haptic-station" <<WRAP
-#!/usr/bin/env bash
-case " \$* " in
-  *station-1.toml*) [ -n "\${INSIDER_LIE:-}" ] && exec env HAPTIC_INSIDER_LIE="\$INSIDER_LIE" HAPTIC_INSIDER_AMPLITUDE="\$INSIDER_AMPLITUDE" \
-                      HAPTIC_INSIDER_FROM_S=1.0 "$bindir/haptic-insider" "\$@" ;;
-esac
-exec "$bindir/haptic-station" "\$@"
-WRAP
-chmod +x "$work/bin/haptic-station"
+rm -rf "$work"
+insider_bin "$bindir" "$work"  # station 1 runs as haptic-insider when INSIDER_LIE is set
 run_case() {  # NAME LIE AMPLITUDE
   echo "--- $1"
   INSIDER_LIE="$2" INSIDER_AMPLITUDE="$3" "$repo/tools/run4/run4.sh" --transport udp --bin "$work/bin/haptic-station" --out "$work/$1" \

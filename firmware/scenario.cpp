@@ -179,6 +179,7 @@ void ScenarioSpec::validate() const {
   if (!(edge_energy_bound_J >= 0 && edge_energy_bound_J <= 1e6)) bad("--edge-energy-bound must be in [0, 1e6] J (0 = off)");
   if (!(edge_energy_leak_W >= 0 && edge_energy_leak_W <= 1)) bad("--edge-energy-leak-W must be in [0, 1] W (0 = the account only grows)");
   if (!(edge_energy_hold_s >= 0 && edge_energy_hold_s <= 3600)) bad("--edge-energy-hold-s must be in [0, 3600] s (0 = off)");
+  if (!(drop_fade_s >= 0 && drop_fade_s <= 10)) bad("--drop-fade-s must be in [0, 10] s (0 = the immediate drop)");
   if (!(tx_deadband.position_deadband_m >= 0 && tx_deadband.position_deadband_m < 0.1)) bad("--tx-deadband-mm must be in [0, 100)");
   if (tx_deadband.max_interval_ticks < 1 || tx_deadband.max_interval_ticks > 1000) bad("--tx-max-interval must be in [1, 1000]");
   if (resilient_f < 0 || resilient_f > 16) bad("--resilient-f must be in [0, 16] (0 = off)");
@@ -470,6 +471,7 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
   c.resilient_f = spec.resilient_f;
   c.predict_held_state = spec.tx_deadband.predictive;
   c.return_ramp_s = spec.return_ramp_s;
+  c.drop_fade_s = spec.drop_fade_s;
   if (spec.tx_deadband.enabled()) c.predict_held_limit_m = spec.tx_deadband.prediction_limit_m();
   c.vp = spec.vp;
   c.contact_nodes = contact_nodes[static_cast<std::size_t>(i)];

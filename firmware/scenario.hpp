@@ -139,6 +139,9 @@ struct ScenarioSpec {
   // An edge returning after an outage ramps in over this long (rt/return_ramp.hpp); 0 = off (the
   // simulator's default; a station's is station.return_ramp_s).
   double return_ramp_s = 0;
+  // An edge whose data ages out fades out over this long (rt/drop_fade.hpp); 0 = the paper's
+  // immediate drop (the simulator's default, --drop-fade-s; a station's is station.drop_fade_s).
+  double drop_fade_s = 0;
   double divergence_speed_m_per_s = 50;  // a node faster than this: diverged, safe state (rt::StationConfig)
   // The neighbour state check of every station (rt/edge_monitor.hpp): off here by default; the real
   // station turns it on (station.state_check_*).

@@ -166,7 +166,7 @@ struct SimArgs {
   std::uint64_t seed = 1;
   int nodes = -1, allowance = -1, trace_node = -1, tx_interval = 1;
   std::optional<int> trace_every;  // unset: trace.csv at default_trace_every(users), series.csv every tick
-  double tx_deadband_mm = 0, edge_energy_bound = -1, edge_energy_leak = -1;
+  double tx_deadband_mm = 0, edge_energy_bound = -1, edge_energy_leak = -1, drop_fade = 0;
   std::string scene;                          // --scene FILE
   std::string solver = "auto";                // --solver
   double scene_unit_m = 1, density = 0, youngs = 0;
@@ -355,6 +355,11 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
                   "Energy that left a station's copy (to its user, its object's damping) is taken off each edge's energy account up "
                   "to this power, W, so a station that only receives does not fill its accounts; 0 = no leak (default " +
                       std::to_string(haptic::rt::kDefaultEdgeEnergyLeakW) + ")")
+      ->check(kNonNegative);
+  sim->add_option("--drop-fade-s", a.drop_fade,
+                  "An edge whose data ages out (over its delay bound) holds the last state it used and fades its stiffness to 0 over "
+                  "this long instead of dropping at once (rt/drop_fade.hpp; isolated or gated edges drop at once); 0 = the paper's "
+                  "immediate drop (default 0)")
       ->check(kNonNegative);
   sim->add_option("--receive-rule", a.receive_rule,
                   "Which packet a tick uses: newest (by sequence number) or paper (the most recently received, Fig. 4; late data used) (default newest)");
@@ -600,6 +605,7 @@ ScenarioSpec sim_scenario_spec(const SimArgs& a) {
   if (a.allowance >= 0) spec.loss_allowance_ticks = a.allowance;
   if (a.edge_energy_bound != -1) spec.edge_energy_bound_J = a.edge_energy_bound;
   if (a.edge_energy_leak != -1) spec.edge_energy_leak_W = a.edge_energy_leak;
+  spec.drop_fade_s = a.drop_fade;
   spec.tx_deadband.position_deadband_m = a.tx_deadband_mm * 1e-3;
   spec.tx_deadband.max_interval_ticks = a.tx_interval;
   spec.tx_deadband.predictive = a.tx_predict;

@@ -32,14 +32,18 @@ void ReturnRamp::start(Edge& e, std::int64_t k, const double* x_hat, const doubl
   ++e.ramps;
 }
 
-const double* ReturnRamp::target(int j, std::int64_t k, bool present, const double* x_hat, const double* x) {
+const double* ReturnRamp::target(int j, std::int64_t k, bool present, const double* x_hat, const double* x, const double* faded) {
   if (!on()) return x_hat;
   Edge& e = edges_[static_cast<std::size_t>(j)];
   if (!present) {
     if (e.down_since < 0) e.down_since = k;
     return x_hat;
   }
-  if (e.armed || (e.down_since >= 0 && k - e.down_since >= after_ticks_)) start(e, k, x_hat, x);
+  if (faded) {
+    start(e, k, x_hat, faded);
+  } else if (e.armed || (e.down_since >= 0 && k - e.down_since >= after_ticks_)) {
+    start(e, k, x_hat, x);
+  }
   e.down_since = -1;
   e.armed = false;
   if (e.start_k < 0) return x_hat;

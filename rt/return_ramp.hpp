@@ -19,7 +19,8 @@
 // state; the account does.
 // A return ramps when the data was missing for at least after_ticks (a short drop returns as before,
 // bit for bit), or when arm_all() was called (a rejoined station's first coupling: its links never
-// had data). Off (ramp_ticks = 0): target() returns x_hat_j unchanged.
+// had data), or when the edge returns during a drop's fade (the ramp starts at the fade's target:
+// no step). Off (ramp_ticks = 0): target() returns x_hat_j unchanged.
 // init() allocates; everything else is RT-safe (no allocation, no lock, no wait).
 #include <cstdint>
 #include <vector>
@@ -37,7 +38,12 @@ class ReturnRamp {
   // Tick k of edge j: `present` = its data is within the index-delay bound this tick; x_hat the held
   // packet's state, x this station's copy at the start of the tick. Returns what the edge couples to
   // (x_hat, or the ramp's target in a buffer of the ramp's own, valid until the next call for j).
-  const double* target(int j, std::int64_t k, bool present, const double* x_hat, const double* x);
+  // `faded`: the edge came back while its drop was fading (rt/drop_fade.hpp): the fade's target at
+  // k, where a ramp then starts (o_j = x_hat_j(k_r) - faded), whatever the outage's length.
+  const double* target(int j, std::int64_t k, bool present, const double* x_hat, const double* x,
+                       const double* faded = nullptr);
+  // The target of edge j's last present tick while ramping(j) (the buffer target() returned).
+  const double* last_target(int j) const { return edge(j).target.data(); }
   bool ramping(int j) const { return edge(j).start_k >= 0; }
   std::uint64_t ramps(int j) const { return edge(j).ramps; }  // ramps started on edge j
   // The offset o_j (its largest coordinate, m) the last ramp of edge j started from (0: none yet).

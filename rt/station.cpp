@@ -52,6 +52,7 @@ void StationConfig::validate() const {
     bad("predict_held_state", "used only with consensus_passivity = pspm (eq. 18 does not cover extrapolated data)");
   if (!(return_ramp_s >= 0 && std::isfinite(return_ramp_s))) bad("return_ramp_s", "finite and >= 0 (0: off)");
   if (!(return_ramp_after_s >= 0 && std::isfinite(return_ramp_after_s))) bad("return_ramp_after_s", "finite and >= 0");
+  if (!(drop_fade_s >= 0 && std::isfinite(drop_fade_s))) bad("drop_fade_s", "finite and >= 0 (0: the immediate drop)");
   state_check.validate();
   if (state_check.enabled() && consensus_passivity == ConsensusPassivity::kSetPositionModulation)
     bad("state_check", "not used with consensus_passivity = pspm (its edges are never dropped)");
@@ -204,6 +205,7 @@ void StationCore::init_edges() {
   const bool ramps = cfg_.return_ramp_s > 0 && pspm_.empty();
   return_ramp_.init(nn, dofs_, ramps ? std::llround(cfg_.return_ramp_s / cfg_.period_s) : 0,
                     std::llround(cfg_.return_ramp_after_s / cfg_.period_s));
+  drop_fade_.init(nn, dofs_, pspm_.empty() ? std::llround(cfg_.drop_fade_s / cfg_.period_s) : 0);
   const Eigen::VectorXd x_hat0 = x_;  // every copy starts here, at rest
   const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(dofs_);
   edge_monitor_.init(nn, dofs_, cfg_.period_s, cfg_.state_check, x_hat0.data(), v0.data());
@@ -814,6 +816,27 @@ bool StationCore::edge_excluded(int j, std::int64_t k, bool within_bound) {
   return edge_monitor_.observe(j, k, rx_[j].newest_sequence(), view.x_hat, view.v_hat, view.index_delay, x_.data());
 }
 
+const double* StationCore::edge_target(int j, std::int64_t k, bool ok, bool distrusted, bool was_active) {
+  RxLink::TickView& view = views_[j];
+  const double* faded = nullptr;  // back during a fade: the ramp starts at the fade's target
+  if (distrusted) {
+    drop_fade_.stop(j);  // a liar's (or an over-bound account's) last state is not used
+  } else if (ok) {
+    faded = drop_fade_.handover(j, k, x_.data());
+  } else if (was_active && !drop_fade_.fading(j)) {  // aged out: the anchor is what it coupled to last tick
+    drop_fade_.start(j, k, return_ramp_.ramping(j) ? return_ramp_.last_target(j) : view.x_hat);
+  }
+  // x_hat itself unless ramping (an isolation or a gate's hold counts as an outage: a re-admitted or
+  // released edge ramps in too)
+  const double* t = return_ramp_.target(j, k, ok && !distrusted, view.x_hat, x_.data(), faded);
+  if (ok || distrusted) return t;
+  const double* f = drop_fade_.target(j, k, x_.data());
+  if (!f) return t;  // dropped: the damper
+  active_[j] = 1;
+  view.fresh = false;  // delta_ij = 0: the held velocity is as old as the anchor
+  return f;
+}
+
 [[gnu::always_inline]] inline void StationCore::read_neighbours(std::int64_t k, std::uint32_t& flags) {
   // Over the delay bound, over the energy bound or left out by the resilient rule: x_hat_j := x(k),
   // delta_ij = 0 (the edge acts as the damper D_ij + T/2 P_ij).
@@ -828,10 +851,9 @@ bool StationCore::edge_excluded(int j, std::int64_t k, bool within_bound) {
     // The state check: an edge whose reported states failed it (isolated) too.
     const bool excluded = edge_excluded(j, k, ok);
     if (excluded) flags |= kEdgeIsolated;
+    const bool was_active = active_[j] != 0;
     active_[j] = (ok && !gated && !excluded) ? 1 : 0;
-    // x_hat itself unless ramping (an isolation or a gate's hold counts as an outage: a re-admitted or
-    // released edge ramps in too)
-    views_[j].x_hat = return_ramp_.target(j, k, ok && !excluded && !gated, views_[j].x_hat, x_.data());
+    views_[j].x_hat = edge_target(j, k, ok, gated || excluded, was_active);
     if (ok) {
       edge_was_dropped_[j] = 0;
     } else {
@@ -844,7 +866,10 @@ bool StationCore::edge_excluded(int j, std::int64_t k, bool within_bound) {
   for (int j = 0; j < neighbor_count(); ++j) {
     const bool excluded = excluded_[static_cast<std::size_t>(j)] != 0;
     if (pspm_.empty()) {
-      if (excluded) active_[j] = 0;
+      if (excluded) {
+        active_[j] = 0;
+        drop_fade_.stop(j);  // left out: at once
+      }
       continue;
     }
     auto& m = pspm_[static_cast<std::size_t>(j)];

@@ -31,6 +31,7 @@
 #include "rt/edge_monitor.hpp"
 #include "rt/gains.hpp"
 #include "rt/multi_term_operator.hpp"
+#include "rt/drop_fade.hpp"
 #include "rt/return_ramp.hpp"
 #include "rt/rx_link.hpp"
 #include "rt/scene.hpp"
@@ -119,6 +120,12 @@ struct StationConfig {
   // edge couples at once (the paper's law). Not with kSetPositionModulation (no edge is dropped).
   double return_ramp_s = 0;
   double return_ramp_after_s = 0.1;
+  // An edge dropped because its data aged out (over the index-delay bound; not an isolated or gated
+  // one: those drop at once) couples to the last state it used, frozen, with its stiffness faded
+  // linearly to 0 over drop_fade_s (rt/drop_fade.hpp); back during the fade, it hands over to the
+  // return ramp. 0: off, the edge drops at once (the paper's x_hat_j := x(k)). Not with
+  // kSetPositionModulation (no edge is dropped).
+  double drop_fade_s = 0;
   // Resilient consensus (rt/resilient.hpp): each tick the resilient_f neighbours whose received
   // configuration is farthest from this copy's are left out (eq. 18: the over-bound damper; pspm:
   // the modulator's target is this copy's own state). 0: off. With eq. 18 every neighbour's
@@ -286,6 +293,13 @@ class StationCore {
   void arm_return_ramps() { return_ramp_.arm_all(); }
   // The edges' return ramps (started, running, offsets).
   const ReturnRamp& return_ramp() const { return return_ramp_; }
+  // The edges' drop fades (StationConfig::drop_fade_s: started, running).
+  const DropFade& drop_fade() const { return drop_fade_; }
+  // What edge n coupled to on the last tick (its data, a ramp's or a fade's target), or nullptr when
+  // it acted as the damper (x_hat_n := x(k)); valid until the next tick.
+  const double* coupled_state(int n) const {
+    return active_[static_cast<std::size_t>(n)] ? views_[static_cast<std::size_t>(n)].x_hat : nullptr;
+  }
   // Tests: false runs the baseline build of the station's own lane kernels (post-solve, warm start,
   // contact correction); returns whether AVX is used.
   bool use_avx(bool allow) { return avx_kernels_ = allow && cpu_has_avx(); }
@@ -337,6 +351,10 @@ class StationCore {
   // 2'. whether edge j is excluded this tick by a check of its reported states (the state check,
   // rt/edge_monitor.hpp, fed with its packet when within the delay bound). RT-safe.
   bool edge_excluded(int j, std::int64_t k, bool within_bound);
+  // 2''. what edge j couples to this tick: its data or the return ramp's target; over the bound only
+  // (not `distrusted`: gated or isolated) and used on the last tick, the drop's fading target (then
+  // active_[j] = 1 and no neighbour velocity). RT-safe.
+  const double* edge_target(int j, std::int64_t k, bool ok, bool distrusted, bool was_active);
   // 3. contact onset / release, decided from the state at the start of the tick.
   void update_contact_set(std::uint32_t& flags);
   // 4. b (rhs_) and the VP row's right-hand side (returned), contact springs included.
@@ -410,6 +428,7 @@ class StationCore {
   bool have_prev_energy_ = false;
   EdgeEnergyGate edge_gate_{};
   ReturnRamp return_ramp_{};
+  DropFade drop_fade_{};
   EdgeMonitor edge_monitor_{};
   std::array<double, kMaxNeighbors> edge_tick_J_{};  // this tick's coupling energy per edge
   std::uint64_t safe_state_ticks_ = 0;

@@ -148,6 +148,7 @@ void write_core_attrs(hid_t g, const rt::StationConfig& c) {
   h5::attr(g, "predict_held_limit_m", c.predict_held_limit_m);
   h5::attr(g, "return_ramp_s", c.return_ramp_s);
   h5::attr(g, "return_ramp_after_s", c.return_ramp_after_s);
+  h5::attr(g, "drop_fade_s", c.drop_fade_s);
   h5::attr(g, "solver_kind", static_cast<std::int64_t>(c.solver.kind));
   h5::attr(g, "solver_iterative_from_rows", static_cast<std::int64_t>(c.solver.iterative_from_rows));
   h5::attr(g, "solver_relative_tolerance", c.solver.relative_tolerance);
@@ -184,6 +185,7 @@ void read_core_attrs(hid_t g, rt::StationConfig& c) {
     c.return_ramp_s = h5::attr_f64(g, "return_ramp_s");
     c.return_ramp_after_s = h5::attr_f64(g, "return_ramp_after_s");
   }
+  if (h5::has_attr(g, "drop_fade_s")) c.drop_fade_s = h5::attr_f64(g, "drop_fade_s");  // older logs: the immediate drop
   c.solver.kind = static_cast<rt::StepSolverKind>(h5::attr_i64(g, "solver_kind"));
   c.solver.iterative_from_rows = static_cast<int>(h5::attr_i64(g, "solver_iterative_from_rows"));
   c.solver.relative_tolerance = h5::attr_f64(g, "solver_relative_tolerance");

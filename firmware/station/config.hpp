@@ -81,6 +81,7 @@ struct StationSection {
   double clock_offset_limit_ms = 1000.0;  // the grid offset used (sequences mapped) up to this; refused beyond
   double rejoin_probe_s = 0.4;
   double return_ramp_s = 2.0;
+  double drop_fade_s = 0.5;
   int age_slack_ticks = 10;
 };
 

@@ -139,10 +139,16 @@ std::vector<std::string> return_ramp_events(const StationPlan& plan, const rt::S
   std::vector<std::string> lines;
   const auto& nbrs = plan.neighbours();
   const auto& ramp = core.return_ramp();
+  const auto& fade = core.drop_fade();
   for (std::size_t n = 0; n < nbrs.size() && static_cast<int>(n) < core.neighbor_count(); ++n) {
     const int j = static_cast<int>(n);
-    if (ramp.ramps(j) == 0) continue;
     char b[300];
+    if (fade.fades(j) > 0) {
+      std::snprintf(b, sizeof b, "neighbour %d: its data aged out %llu time(s); the edge was released over station.drop_fade_s = %.3g s",
+                    nbrs[n] + 1, static_cast<unsigned long long>(fade.fades(j)), core.config().drop_fade_s);
+      lines.emplace_back(b);
+    }
+    if (ramp.ramps(j) == 0) continue;
     std::snprintf(b, sizeof b,
                   "neighbour %d: its data returned after an outage %llu time(s); the copies were pulled together over station.return_ramp_s = "
                   "%.3g s (last offset %.3g mm)",

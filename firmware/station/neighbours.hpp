@@ -59,7 +59,8 @@ std::vector<std::string> energy_bound_events(const StationPlan& plan, const rt::
 // The edges whose data came back after an outage (or a rejoin) and were ramped in
 // (rt/return_ramp.hpp), one line per such neighbour: "neighbour 1: its data returned after an
 // outage 1 time(s); the copies were pulled together over station.return_ramp_s = 2 s (last offset
-// 7.2 mm)". After the run loop. Not RT-safe.
+// 7.2 mm)"; and those whose drop for age faded out (rt/drop_fade.hpp): "neighbour 1: its data aged
+// out 1 time(s); the edge was released over station.drop_fade_s = 0.4 s". After the run loop. Not RT-safe.
 std::vector<std::string> return_ramp_events(const StationPlan& plan, const rt::StationCore& core);
 
 // The round trips net/ measured above the bound during the run, one line per neighbour that had

@@ -174,6 +174,10 @@ const std::vector<StationOption> kStation = {
     {R("station", "return_ramp_s", 2.0, 0, 60, "a neighbour's data back after an outage (or a rejoin) pulls the copies together over this long "
                                               "instead of at once (rt/return_ramp.hpp)").with_note(" (0 = at once)"),
      HAPTIC_FIELD(station, return_ramp_s)},
+    {R("station", "drop_fade_s", 0.5, 0, 10, "a neighbour whose data ages out (over its delay bound) is released over this long: its edge "
+                                             "holds the last state it used and its stiffness fades to 0 (rt/drop_fade.hpp); an isolated "
+                                             "or gated edge drops at once").with_note(" (0 = at once, the paper's)"),
+     HAPTIC_FIELD(station, drop_fade_s)},
     {I("station", "age_slack_ticks", 10, 0, 100000, "age guard: a run packet is used only if its echo-based age bound is <= R_ij + this"),
      HAPTIC_FIELD(station, age_slack_ticks)},
 };

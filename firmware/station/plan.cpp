@@ -346,6 +346,7 @@ ScenarioSpec station_scenario_spec(const StationFile& f, const RunOverrides& o) 
   spec.edge_energy_leak_W = s.edge_energy_leak_W;
   spec.edge_energy_hold_s = s.edge_energy_hold_s;
   spec.return_ramp_s = s.return_ramp_s;
+  spec.drop_fade_s = s.drop_fade_s;
   // pspm never drops an edge (rt::StationConfig refuses the check with it): the check runs with eq18 only
   if (spec.consensus_passivity != rt::ConsensusPassivity::kSetPositionModulation) spec.state_check = state_check_params(s);
   spec.divergence_speed_m_per_s = s.divergence_speed_m_per_s;

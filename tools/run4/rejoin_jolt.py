@@ -5,11 +5,14 @@ I:KILL_S:RESTART_S): per neighbour, the largest change of its user's force |F(t'
   rejoin: from the restart until 0.1 s before the release (the restarted station's first packets
   and the copies pulled together again);
   kill:   from 0.1 s before the kill until the restart (the station gone: its edge dropped);
+  whole:  from 0.1 s before the kill until 0.1 s before the release (both moments, and across the
+          restart);
   hold:   the same run before the kill, while holding (what the scripted users cause themselves);
 and, with --clean DIR (the same run4.sh options without --kill), the same statistic over the same
 rejoin window in that clean run: the baseline the users' script causes without any kill.
-With --max-N X: exit 1 when a neighbour's rejoin figure is above X N (exit 0 otherwise).
-Usage: rejoin_jolt.py KILL_OUT [--clean CLEAN_OUT] [--window-s 0.1] [--max-N X] [--json FILE]"""
+With --max-N X: exit 1 when a neighbour's figure over --check's window (default whole) is above X N
+(exit 0 otherwise).
+Usage: rejoin_jolt.py KILL_OUT [--clean CLEAN_OUT] [--window-s 0.1] [--max-N X] [--check whole|rejoin|kill] [--json FILE]"""
 import argparse, csv, json, math, os, sys
 
 
@@ -39,14 +42,18 @@ def main():
     ap.add_argument('out')
     ap.add_argument('--clean', help='a run with the same options and no --kill: the baseline over the same window')
     ap.add_argument('--window-s', type=float, default=0.1)
-    ap.add_argument('--max-N', type=float, help='exit 1 when a neighbour\'s largest change after the restart is above this')
+    ap.add_argument('--max-N', type=float, help='exit 1 when a neighbour\'s largest change over the --check window is above this')
+    ap.add_argument('--check', choices=('whole', 'rejoin', 'kill'), default='whole',
+                    help='the window --max-N checks: whole (kill - 0.1 s to release - 0.1 s, the default), rejoin or kill')
     ap.add_argument('--json', help='write the figures here')
     a = ap.parse_args()
     restart = json.load(open(os.path.join(a.out, 'restart.json')))
     who, t_kill, t_re = restart['station'], restart['kill_run_s'], restart['restart_run_s']
     s1 = json.load(open(os.path.join(a.out, f'station-{1 if who != 1 else 2}.json')))
     push_end, release = s1['push_end_s'], s1['release_time_s']
-    windows = {'rejoin': (t_re, release - 0.1), 'kill': (t_kill - 0.1, t_re), 'hold': (push_end + 0.5, t_kill - 0.1)}
+    windows = {'rejoin': (t_re, release - 0.1), 'kill': (t_kill - 0.1, t_re), 'whole': (t_kill - 0.1, release - 0.1),
+               'hold': (push_end + 0.5, t_kill - 0.1)}
+    when = {'whole': 'from 0.1 s before its kill until the release', 'rejoin': 'after its restart', 'kill': 'at its kill'}[a.check]
     figures, fails = {}, []
     print(f'station {who} killed at {t_kill} s, restarted at {t_re} s; largest force change within {a.window_s * 1e3:.0f} ms at its neighbours:')
     for i in range(1, 5):
@@ -59,12 +66,13 @@ def main():
         if a.clean:
             fig['clean'], fig['clean_at_s'] = change_within(forces(a.clean, i), *windows['rejoin'], a.window_s)
         figures[i] = fig
-        at = fig['rejoin_at_s']
+        at, ak = fig['rejoin_at_s'], fig['kill_at_s']
         print(f'  station {i}: rejoin {fig["rejoin"]:.4f} N' + (f' (at {at[0]:.3f}-{at[1]:.3f} s)' if at else '') +
-              f'; kill {fig["kill"]:.4f} N; hold before the kill {fig["hold"]:.4f} N' +
+              f'; kill {fig["kill"]:.4f} N' + (f' (at {ak[0]:.3f}-{ak[1]:.3f} s)' if ak else '') +
+              f'; whole {fig["whole"]:.4f} N; hold before the kill {fig["hold"]:.4f} N' +
               (f'; clean run, same window {fig["clean"]:.4f} N' if a.clean else ''))
-        if a.max_N is not None and not fig['rejoin'] <= a.max_N:
-            fails.append(f'station {i}\'s force changed {fig["rejoin"]:.4f} N within {a.window_s * 1e3:.0f} ms after station {who}\'s restart '
+        if a.max_N is not None and not fig[a.check] <= a.max_N:
+            fails.append(f'station {i}\'s force changed {fig[a.check]:.4f} N within {a.window_s * 1e3:.0f} ms {when} of station {who} '
                          f'(> {a.max_N} N)')
     if a.json:
         with open(a.json, 'w') as f:

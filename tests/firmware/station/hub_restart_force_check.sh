@@ -4,11 +4,12 @@
 # SIGKILLed at run time 5 s, during the hold, and restarted at 8 s with the same configuration (the
 # lab options of station_run4_rejoin: net.tx_spin, net.io_cpu = 0, device.ramp_in_s = 1). It must
 # rejoin and bring the copies to consensus again (tools/run4/rejoin_check.py), and no neighbour's
-# user force may change by more than 0.1 N within any 100 ms from the restart until the release
-# (tools/run4/rejoin_jolt.py --max-N 0.1; the copies drifted apart while the hub was away and are
-# pulled together again: rt/return_ramp.hpp). Printed, not checked: the same figure at the kill and
-# in the undisturbed hold before it. Every station must exit 0 (an energy gate that acted fails;
-# the figures are printed all the same).
+# user force may change by more than 0.1 N within any 100 ms from 0.1 s before the kill until the
+# release (tools/run4/rejoin_jolt.py --max-N 0.1, window `whole`): at the kill the hub's data age
+# out and its edge is released over station.drop_fade_s (rt/drop_fade.hpp); at the restart the
+# copies, drifted apart while the hub was away, are pulled together again (rt/return_ramp.hpp).
+# Printed, not checked: the kill and rejoin parts, and the undisturbed hold before the kill. Every
+# station must exit 0 (an energy gate that acted fails; the figures are printed all the same).
 # Bounded: run4.sh stops every process after its planned time + 20 s. No root (UDP on 127.0.0.1).
 # Usage: hub_restart_force_check.sh HAPTIC_STATION_BIN WORK_DIR
 set -euo pipefail

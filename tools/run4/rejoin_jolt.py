@@ -53,7 +53,8 @@ def main():
     push_end, release = s1['push_end_s'], s1['release_time_s']
     windows = {'rejoin': (t_re, release - 0.1), 'kill': (t_kill - 0.1, t_re), 'whole': (t_kill - 0.1, release - 0.1),
                'hold': (push_end + 0.5, t_kill - 0.1)}
-    when = {'whole': 'from 0.1 s before its kill until the release', 'rejoin': 'after its restart', 'kill': 'at its kill'}[a.check]
+    when = {'whole': f'between 0.1 s before station {who}\'s kill and the release', 'rejoin': f'after station {who}\'s restart',
+            'kill': f'around station {who}\'s kill'}[a.check]
     figures, fails = {}, []
     print(f'station {who} killed at {t_kill} s, restarted at {t_re} s; largest force change within {a.window_s * 1e3:.0f} ms at its neighbours:')
     for i in range(1, 5):
@@ -72,8 +73,7 @@ def main():
               f'; whole {fig["whole"]:.4f} N; hold before the kill {fig["hold"]:.4f} N' +
               (f'; clean run, same window {fig["clean"]:.4f} N' if a.clean else ''))
         if a.max_N is not None and not fig[a.check] <= a.max_N:
-            fails.append(f'station {i}\'s force changed {fig[a.check]:.4f} N within {a.window_s * 1e3:.0f} ms {when} of station {who} '
-                         f'(> {a.max_N} N)')
+            fails.append(f'station {i}\'s force changed {fig[a.check]:.4f} N within {a.window_s * 1e3:.0f} ms {when} (> {a.max_N} N)')
     if a.json:
         with open(a.json, 'w') as f:
             json.dump({'killed': who, 'kill_run_s': t_kill, 'restart_run_s': t_re, 'window_s': a.window_s, 'neighbours': figures}, f, indent=1)

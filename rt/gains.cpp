@@ -54,6 +54,16 @@ bool same_matrix(const SpatialMatrix& a, const SpatialMatrix& b) {
   return std::equal(x.outerIndexPtr(), x.outerIndexPtr() + x.outerSize() + 1, y.outerIndexPtr()) &&
          std::equal(x.innerIndexPtr(), x.innerIndexPtr() + nnz, y.innerIndexPtr()) && std::equal(x.valuePtr(), x.valuePtr() + nnz, y.valuePtr());
 }
+// Eq. (18)'s coefficients of neighbour n's P_ij and D_ij: c_P = (N_ij + N_ji)/2 T_j^max and
+// c_D = max(0, (T_j^max / T_i^min - 1)/2).
+struct Eq18Coefficients {
+  double P, D;
+};
+Eq18Coefficients eq18_coefficients(double t_min_i, const Eq18Neighbor& n) {
+  const double cP = n.round_trip_ticks / 2.0 * n.t_max_j_s;
+  const double cD = 0.5 * (n.t_max_j_s / t_min_i - 1.0);
+  return {cP, std::max(0.0, cD)};
+}
 // Eq. (18)'s lambda_max(sum_j c_P,j P + c_D,j d_j I) = sum_j c_P,j lambda_max(P) + sum_j c_D,j d_j
 // when every neighbour has the same P and a scalar D (the paper's gains): the terms share their
 // eigenvectors. Used above kDenseEigenRows, where the alternative is a power iteration on the sum
@@ -65,8 +75,9 @@ bool eq18_shared_gains(double t_min_i, std::span<const Eq18Neighbor> nb, double&
   for (const auto& n : nb) {
     double d = 0;
     if (!same_matrix(n.gains->P, g0.P) || !scalar_identity(n.gains->D, d)) return false;
-    cP += n.round_trip_ticks / 2.0 * n.t_max_j_s;
-    cD += std::max(0.0, 0.5 * (n.t_max_j_s / t_min_i - 1.0)) * d;
+    const Eq18Coefficients c = eq18_coefficients(t_min_i, n);
+    cP += c.P;
+    cD += c.D * d;
   }
   beta = cP * g0.lambda_max_P + cD;
   return true;
@@ -137,9 +148,8 @@ double damping_min_eq18(double t_min_i, std::span<const Eq18Neighbor> nb) {
   SpatialMatrix acc;
   bool first = true;
   for (const auto& n : nb) {
-    const double cP = n.round_trip_ticks / 2.0 * n.t_max_j_s;
-    const double cD = 0.5 * (n.t_max_j_s / t_min_i - 1.0);
-    SpatialMatrix term = linear_combination({{cP, &n.gains->P}, {std::max(0.0, cD), &n.gains->D}});
+    const Eq18Coefficients c = eq18_coefficients(t_min_i, n);
+    SpatialMatrix term = linear_combination({{c.P, &n.gains->P}, {c.D, &n.gains->D}});
     acc = first ? term : linear_combination({{1.0, &acc}, {1.0, &term}});
     first = false;
   }

@@ -5,7 +5,8 @@
 # tools/run4/rejoin_check.py checks each run: rejoined (coupled) within 2 s of its restart, the copies
 # in consensus (< 1 mm) at the end, no station's device force changing by more than the hold force
 # from just before the kill to the release (tick to tick, within any 100 ms, and for the others away
-# from its value at the restart). The lab configurations' options (net.tx_spin = true, net.io_cpu = 0) and a real
+# from its value at the restart). The lab configurations' options (net.tx_direct = true, net.io_cpu = 0; under
+# the emulated impairment the pushes take the I/O thread's path, as run4_check.sh says) and a real
 # device's default force ramp-in (device.ramp_in_s = 1; a simulated user's default is none, and
 # without it the restarted station's own force rises from 0 to its hold force within 100 ms).
 # Bounded: run4.sh stops every process after its planned time + 15 s.
@@ -25,7 +26,7 @@ for case in 2 1 2-fresh; do
   out="$work/kill-$case"
   if ! "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out" --duration 14 --release 10 \
        --kill "$who:5:8" "${extra[@]}" --no-plots --state-every 1 --station max_no_neighbour_fraction=0.5 \
-       --net tx_spin=true --net io_cpu=0 --device ramp_in_s=1 > "$work/run4-kill-$case.log" 2>&1; then
+       --net tx_direct=true --net io_cpu=0 --device ramp_in_s=1 > "$work/run4-kill-$case.log" 2>&1; then
     # A station whose per-edge energy gate acted exits 10 (held by the gate) and says so: a reported
     # safeguard, not a failed rejoin; it is printed with the gate's figures and the worst port energy.
     # (A restarted station's eq. (13) account starts at 0 with the adopted, deformed state, whose stored

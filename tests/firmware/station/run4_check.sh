@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Short four-process run (tools/run4/run4.sh) with the options the lab configurations ship
-# (firmware/deploy/lab-4-stations: net.tx_spin = true, net.io_cpu = 0) and checks on the merged summary.json:
+# (firmware/deploy/lab-4-stations: net.tx_direct = true, net.io_cpu = 0) and checks on the merged summary.json:
 # not diverged, passivity condition (18) met with the measured bounds, consensus reached after
 # the release, packets flowed on every directed link. Exit 77 (CTest: skipped) with the reason
-# when the raw-Ethernet run cannot be done here (needs root and `ip netns`).
+# when the raw-Ethernet run cannot be done here (needs root and `ip netns`). Under run4.sh's emulated impairment the pushes take the I/O
+# thread's path (direct TX declines an impaired link: io_thread.tx_direct_declined); the shipped lab
+# run, station_device_documented_lab, has the tick send every push itself.
 set -euo pipefail
 mode="$1"; bin="$2"; out="$3"
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -17,7 +19,7 @@ source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loa
 quiet_host_or_skip "$(dirname "$bin")" "$out"
 rm -rf "$out"; mkdir -p "$out"
 "$repo/tools/run4/run4.sh" --transport "$mode" --bin "$bin" --out "$out" --duration 4 --push-end 1.5 --release 2.5 \
-  --probe 1.0 --seed 3 --no-plots --net tx_spin=true --net io_cpu=0
+  --probe 1.0 --seed 3 --no-plots --net tx_direct=true --net io_cpu=0
 /usr/bin/python3 - "$out/summary.json" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))

@@ -6,7 +6,9 @@
 # (device_read, rx_drain, solve, publish, tx, monitor) with stage time <= tick execution time.
 # Fails with the reason when tracing is impossible here (LTTng compiled out or lttng missing).
 # Counts only its own four processes (their PIDs from run4.sh's station-pids.txt). The lab
-# configurations' options (firmware/deploy/lab-4-stations: net.tx_spin = true, net.io_cpu = 0).
+# configurations' options (firmware/deploy/lab-4-stations: net.tx_direct = true, net.io_cpu = 0). Under run4.sh's emulated impairment the pushes take the I/O
+# thread's path (direct TX declines an impaired link: io_thread.tx_direct_declined); the shipped lab
+# run, station_device_documented_lab, has the tick send every push itself.
 set -euo pipefail
 bin="$1"; out="$2"
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -17,7 +19,7 @@ quiet_host_or_skip "$(dirname "$bin")" "$out"
 rm -rf "$out"; mkdir -p "$out"
 set +e
 "$repo/tools/trace/record.sh" -o "$out/trace" -- "$repo/tools/run4/run4.sh" --transport udp --bin "$bin" --out "$out/run" \
-  --duration 3 --push-end 1.0 --release 2.0 --probe 1.0 --seed 2 --no-plots --net tx_spin=true --net io_cpu=0 > "$out/record.log" 2>&1
+  --duration 3 --push-end 1.0 --release 2.0 --probe 1.0 --seed 2 --no-plots --net tx_direct=true --net io_cpu=0 > "$out/record.log" 2>&1
 rc=$?
 set -e
 if [ $rc -ne 0 ]; then cat "$out/record.log"; echo "FAILED: record.sh around run4.sh exited $rc (3 = tracing impossible here)"; exit 1; fi

@@ -2,12 +2,15 @@
 
 #include <poll.h>
 #include <pthread.h>
+#include <linux/futex.h>
 #include <sys/eventfd.h>
+#include <sys/syscall.h>
 #include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
+#include <climits>
 #include <stdexcept>
 #include <system_error>
 
@@ -102,31 +105,29 @@ double IoThread::cpu_s() const {
   return static_cast<double>(platform::clock_ns(static_cast<clockid_t>(id))) * 1e-9;
 }
 
-DeliveryWaiter::DeliveryWaiter() : fd_(make_eventfd()) {}
-
-DeliveryWaiter::~DeliveryWaiter() {
-  if (fd_ >= 0) ::close(fd_);
+namespace {
+long futex(std::atomic<std::uint32_t>& word, int op, std::uint32_t val, const timespec* timeout) {
+  return ::syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&word), op, val, timeout, nullptr, 0);
 }
+}  // namespace
 
 void DeliveryWaiter::delivered() {
   // Either the waiter's look after enter() sees this delivery or we see the waiter.
   delivered_.fetch_add(1, std::memory_order_seq_cst);
-  if (waiters_.load(std::memory_order_seq_cst) > 0) write_one(fd_);
+  if (waiters_.load(std::memory_order_seq_cst) > 0) futex(delivered_, FUTEX_WAKE_PRIVATE, INT32_MAX, nullptr);
 }
 
-void DeliveryWaiter::enter() {
-  // Register first, then look: a delivery either is seen by the caller's look or writes the eventfd.
+std::uint32_t DeliveryWaiter::enter() {
+  // Register first, then look: a delivery either is seen by the caller's look or wakes it.
   waiters_.fetch_add(1, std::memory_order_seq_cst);
-  (void)delivered_.load(std::memory_order_seq_cst);  // pairs with delivered()
+  return delivered_.load(std::memory_order_seq_cst);  // pairs with delivered()
 }
 
-void DeliveryWaiter::block(double timeout_s) {
-  pollfd p{fd_, POLLIN, 0};
+void DeliveryWaiter::block(std::uint32_t seen, double timeout_s) {
+  // Returns when woken, at once when a delivery came after enter() (the word is no longer seen),
+  // on the timeout or a signal: the caller looks again either way.
   const timespec t = platform::to_timespec(static_cast<std::int64_t>(std::max(0.0, timeout_s) * 1e9));
-  if (::ppoll(&p, 1, &t, nullptr) > 0) {
-    std::uint64_t v;
-    [[maybe_unused]] auto r = ::read(fd_, &v, sizeof v);
-  }
+  futex(delivered_, FUTEX_WAIT_PRIVATE, seen, &t);
 }
 
 }  // namespace haptic::net

@@ -58,34 +58,36 @@ class IoThread {
 // A non-RT thread waiting for deliveries (Endpoint::wait_rx) while the producer never pays a
 // syscall unless someone waits: the waiter registers, then looks; the producer publishes, then
 // looks for waiters (a Dekker pair, seq_cst on both sides, no fences: ThreadSanitizer checks it).
+// The waiter sleeps on a futex, the delivery count: a delivery after its look changes the count,
+// so its FUTEX_WAIT returns at once (no lost wake-up); one system call a side where an eventfd
+// took a write, a ppoll and a read.
 class DeliveryWaiter {
  public:
-  DeliveryWaiter();  // creates the eventfd (throws std::system_error)
-  ~DeliveryWaiter();
+  DeliveryWaiter() = default;
   DeliveryWaiter(const DeliveryWaiter&) = delete;
   DeliveryWaiter& operator=(const DeliveryWaiter&) = delete;
-  // Producer, after publishing a delivery: wakes a waiter if there is one. RT-safe.
+  // Producer, after publishing a delivery: wakes the waiters if there are any. RT-safe.
   void delivered();
   // Waiter: up to timeout_s until ready() is true; ready()'s result. Not RT-safe.
   template <class Ready>
   bool wait(double timeout_s, Ready&& ready) {
-    enter();
+    const std::uint32_t seen = enter();
     if (ready()) {
       leave();
       return true;
     }
-    block(timeout_s);
+    block(seen, timeout_s);
     leave();
     return ready();
   }
 
  private:
-  void enter();
+  std::uint32_t enter();
   void leave() { waiters_.fetch_sub(1, std::memory_order_relaxed); }
-  void block(double timeout_s);
-  int fd_ = -1;
+  void block(std::uint32_t seen, double timeout_s);
   std::atomic<int> waiters_{0};
-  std::atomic<std::uint64_t> delivered_{0};
+  std::atomic<std::uint32_t> delivered_{0};  // the futex word
+  static_assert(sizeof(std::atomic<std::uint32_t>) == sizeof(std::uint32_t) && std::atomic<std::uint32_t>::is_always_lock_free);
 };
 
 }  // namespace haptic::net

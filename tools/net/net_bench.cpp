@@ -22,7 +22,11 @@
 //    (b) round trip / 2 ping-pongs (BM_OneWayLatency_*): minimal UDP, the wire codec inline,
 //        and our stack (eventfd hand-off; OurStackDirect: direct TX at both ends) echoed by a
 //        non-RT thread blocked in wait_rx() (one more thread wake-up per hop than a station,
-//        whose tick polls the ring).
+//        whose tick polls the ring). The *OneCpuEach pair places each process on one CPU, as
+//        two single-core hosts: the parent's threads on CPU 0, the child's on CPU 1, for the
+//        minimal pair and the stack (direct TX, I/O threads pinned by net.io_cpu) alike, so each
+//        hop has one cross-CPU wake-up in both and the stack's hand-off to the waiting thread
+//        stays on its CPU. The unpinned pair lets the scheduler place the four threads.
 #include <benchmark/benchmark.h>
 #include <net/if.h>
 #include <netinet/in.h>
@@ -45,6 +49,7 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -152,12 +157,17 @@ BENCHMARK(BM_VerifyDecode)->Args({33, 0})->Args({33, 1})->Args({3000, 0});
 
 constexpr std::uint32_t kValues = 99;  // 33-node scene
 constexpr std::size_t kUdpPayload = 2 * kValues * sizeof(double);  // same payload size
-std::atomic<int>* g_phase = nullptr;  // shared with the echo process: 0 udp, 1 stack, 2 quit
+std::atomic<int>* g_phase = nullptr;  // shared with the echo process: 0 udp, 1 stack (eventfd), 2 quit, 3 direct TX, 4 / 5 direct TX one CPU each, float64 / float32
 pid_t g_child = -1;
 int g_udp = -1;
 sockaddr_in g_echo_addr{};
 std::unique_ptr<Endpoint> g_ep, g_ep_direct;  // the ping-pong's stack: eventfd hand-off, direct TX
 std::uint16_t g_port_child_udp = 0;
+// The one-CPU-each ping-pongs: the parent's minimal socket and the child's echo address, and the
+// parent's direct-TX endpoint with its I/O thread on CPU 0 (phase 4 in the child).
+int g_udp_one_cpu = -1;
+sockaddr_in g_echo_one_cpu_addr{};
+std::unique_ptr<Endpoint> g_ep_one_cpu[2];  // float64 (phase 4), float32 (phase 5: the lab's encoding)
 
 int udp_socket(std::uint16_t& port) {
   int s = ::socket(AF_INET, SOCK_DGRAM, 0);
@@ -532,15 +542,10 @@ void BM_OneWayPeriodicRaw(benchmark::State& st) {
   one_way_periodic(st, g_raw_medium);
 }
 
-[[noreturn]] void echo_process(int udp, std::unique_ptr<UdpTransport> stack_transport,
-                               std::unique_ptr<UdpTransport> direct_transport, int codec, int oneway_udp,
-                               std::vector<std::unique_ptr<Transport>> periodic_t) {
-  std::vector<std::thread> periodic_threads;
-  std::vector<std::unique_ptr<Endpoint>> periodic_eps;
-  periodic_receivers(g_udp_medium.shared, oneway_udp, std::move(periodic_t), periodic_threads, periodic_eps);
-  std::thread codec_thread([codec] { codec_echo(codec); });
-  // UDP echo on its own thread (blocking recv), the stack echo in this thread when phase 1.
-  std::thread udp_echo([udp] {
+// Child: a UDP echo thread (blocking recvfrom, a 1-byte datagram ends it), pinned to cpu (>= 0).
+std::thread udp_echo_thread(int udp, int cpu) {
+  return std::thread([udp, cpu] {
+    if (cpu >= 0) pin_self(cpu);
     std::vector<std::uint8_t> b(65536);
     for (;;) {
       sockaddr_in from{};
@@ -551,27 +556,61 @@ void BM_OneWayPeriodicRaw(benchmark::State& st) {
       ::sendto(udp, b.data(), static_cast<std::size_t>(n), 0, reinterpret_cast<sockaddr*>(&from), fl);
     }
   });
-  Endpoint ep(stack_config(1, 0), std::move(stack_transport));
-  EndpointConfig dc = stack_config(1, 0);
-  dc.tx_direct = true;
-  Endpoint direct(dc, std::move(direct_transport));
-  ep.start();
-  direct.start();
+}
+
+// Child: echoes every state a waits for in phase pa (b in phase pb) until phase 2.
+void stack_echo(Endpoint& a, int pa, Endpoint* b = nullptr, int pb = -1) {
   for (int phase; (phase = g_phase->load(std::memory_order_acquire)) != 2;) {
-    if (phase != 1 && phase != 3) {
+    if (phase != pa && phase != pb) {
       ::usleep(2000);
       continue;
     }
-    Endpoint& e = phase == 1 ? ep : direct;
+    Endpoint& e = phase == pa ? a : *b;
     if (!e.wait_rx(0.01)) continue;
     e.drain([&](std::uint16_t, std::uint64_t seq, double, const double* x, const double* v, std::uint32_t) {
       e.push_state(seq, -1.0, x, v);
     });
   }
+}
+
+[[noreturn]] void echo_process(int udp, int udp_one_cpu, std::unique_ptr<UdpTransport> stack_transport,
+                               std::unique_ptr<UdpTransport> direct_transport,
+                               std::unique_ptr<UdpTransport> one_cpu_transport[2], int codec, int oneway_udp,
+                               std::vector<std::unique_ptr<Transport>> periodic_t) {
+  std::vector<std::thread> periodic_threads;
+  std::vector<std::unique_ptr<Endpoint>> periodic_eps;
+  periodic_receivers(g_udp_medium.shared, oneway_udp, std::move(periodic_t), periodic_threads, periodic_eps);
+  std::thread codec_thread([codec] { codec_echo(codec); });
+  // UDP echoes on their own threads (blocking recv; the one-CPU-each one on CPU 1), the stack
+  // echo in this thread when phase 1 or 3, on a thread of its own on CPU 1 when phase 4.
+  std::thread udp_echo = udp_echo_thread(udp, -1);
+  std::thread udp_echo_one_cpu = udp_echo_thread(udp_one_cpu, 1);
+  Endpoint ep(stack_config(1, 0), std::move(stack_transport));
+  EndpointConfig dc = stack_config(1, 0);
+  dc.tx_direct = true;
+  Endpoint direct(dc, std::move(direct_transport));
+  dc.io_cpu = g_pin ? 1 : -1;
+  Endpoint one_cpu(dc, std::move(one_cpu_transport[0]));
+  EndpointConfig dc32 = dc;
+  dc32.wire = wire(1, ValueEncoding::float32);
+  Endpoint one_cpu32(dc32, std::move(one_cpu_transport[1]));
+  ep.start();
+  direct.start();
+  one_cpu.start();
+  one_cpu32.start();
+  std::thread stack_echo_one_cpu([&one_cpu, &one_cpu32] {
+    pin_self(1);
+    stack_echo(one_cpu, 4, &one_cpu32, 5);
+  });
+  stack_echo(ep, 1, &direct, 3);
+  stack_echo_one_cpu.join();
   ep.stop();
   direct.stop();
+  one_cpu.stop();
+  one_cpu32.stop();
   g_udp_medium.shared->quit.store(true, std::memory_order_release);
   udp_echo.join();
+  udp_echo_one_cpu.join();
   codec_thread.join();
   for (auto& t : periodic_threads) t.join();
   for (auto& e : periodic_eps) e->stop();
@@ -620,15 +659,24 @@ void start_echo_process() {
   std::uint16_t parent_codec_port = 0;
   g_codec = udp_socket(parent_codec_port);
   int child_codec = udp_socket(g_port_child_codec);
+  std::uint16_t parent_one_cpu_port = 0, child_one_cpu_port = 0;
+  g_udp_one_cpu = udp_socket(parent_one_cpu_port);
+  const int child_udp_one_cpu = udp_socket(child_one_cpu_port);
   auto [parent_t, child_t] = udp_pair();
   auto [parent_direct, child_direct] = udp_pair();
+  std::unique_ptr<UdpTransport> parent_one_cpu[2], child_one_cpu[2];
+  for (int e = 0; e < 2; ++e) std::tie(parent_one_cpu[e], child_one_cpu[e]) = udp_pair();
   g_child = ::fork();
   if (g_child == 0) {
     parent_t.reset();
     parent_direct.reset();
+    for (auto& t : parent_one_cpu) t.reset();
     per_parent.clear();
-    echo_process(child_udp, std::move(child_t), std::move(child_direct), child_codec, child_oneway, std::move(per_child));
+    echo_process(child_udp, child_udp_one_cpu, std::move(child_t), std::move(child_direct), child_one_cpu,
+                 child_codec, child_oneway, std::move(per_child));
   }
+  ::close(child_udp_one_cpu);
+  g_echo_one_cpu_addr = loopback(child_one_cpu_port);
   ::close(child_oneway);
   per_child.clear();
   periodic_senders(m, std::move(per_parent));
@@ -637,6 +685,7 @@ void start_echo_process() {
   g_codec_addr = loopback(g_port_child_codec);
   child_t.reset();
   child_direct.reset();
+  for (auto& t : child_one_cpu) t.reset();
   g_echo_addr = loopback(g_port_child_udp);
   g_ep = std::make_unique<Endpoint>(stack_config(0, 1), std::move(parent_t));
   g_ep->start();
@@ -644,22 +693,49 @@ void start_echo_process() {
   dc.tx_direct = true;
   g_ep_direct = std::make_unique<Endpoint>(dc, std::move(parent_direct));
   g_ep_direct->start();
+  dc.io_cpu = g_pin ? 0 : -1;
+  for (int e = 0; e < 2; ++e) {
+    dc.wire = wire(0, e ? ValueEncoding::float32 : ValueEncoding::float64);
+    g_ep_one_cpu[e] = std::make_unique<Endpoint>(dc, std::move(parent_one_cpu[e]));
+    g_ep_one_cpu[e]->start();
+  }
 }
 
-void BM_OneWayLatency_MinimalUdpPingPong(benchmark::State& st) {
+// The calling thread on one CPU while it lives (nothing when not pinning), its affinity restored.
+struct OnCpu {
+  cpu_set_t old{};
+  explicit OnCpu(int cpu) {
+    ::pthread_getaffinity_np(::pthread_self(), sizeof old, &old);
+    pin_self(cpu);
+  }
+  ~OnCpu() { ::pthread_setaffinity_np(::pthread_self(), sizeof old, &old); }
+};
+
+void minimal_ping_pong(benchmark::State& st, int fd, const sockaddr_in& echo, std::size_t payload) {
   start_echo_process();
   g_phase->store(0, std::memory_order_release);
-  std::vector<std::uint8_t> b(kUdpPayload, 0x5A), r(65536);
+  std::vector<std::uint8_t> b(payload, 0x5A), r(65536);
   for (auto _ : st) {
     const auto t0 = std::chrono::steady_clock::now();
-    ::sendto(g_udp, b.data(), b.size(), 0, reinterpret_cast<sockaddr*>(&g_echo_addr), sizeof g_echo_addr);
-    ::recv(g_udp, r.data(), r.size(), 0);
+    ::sendto(fd, b.data(), b.size(), 0, reinterpret_cast<const sockaddr*>(&echo), sizeof echo);
+    ::recv(fd, r.data(), r.size(), 0);
     const auto t1 = std::chrono::steady_clock::now();
     st.SetIterationTime(std::chrono::duration<double>(t1 - t0).count() / 2.0);
   }
+}
+void BM_OneWayLatency_MinimalUdpPingPong(benchmark::State& st) {
+  minimal_ping_pong(st, g_udp, g_echo_addr, kUdpPayload);
   st.SetLabel("one-way = round trip / 2, 1584-byte UDP payload, loopback, two processes");
 }
 BENCHMARK(BM_OneWayLatency_MinimalUdpPingPong)->UseManualTime()->Unit(benchmark::kMicrosecond)->MinTime(2.0);
+void BM_OneWayLatency_MinimalUdpPingPongOneCpuEach(benchmark::State& st) {
+  start_echo_process();
+  const OnCpu on(0);
+  minimal_ping_pong(st, g_udp_one_cpu, g_echo_one_cpu_addr, static_cast<std::size_t>(st.range(0)));
+  st.counters["pinned"] = g_pin ? 1.0 : 0.0;
+  st.SetLabel("as MinimalUdpPingPong with this payload (bytes: a 33-node state's x and v in float64 / float32), this thread on CPU 0, the echo's on CPU 1");
+}
+BENCHMARK(BM_OneWayLatency_MinimalUdpPingPongOneCpuEach)->Arg(kUdpPayload)->Arg(kUdpPayload / 2)->UseManualTime()->Unit(benchmark::kMicrosecond)->MinTime(2.0);
 
 void BM_OneWayLatency_WireCodecInline(benchmark::State& st) {
   start_echo_process();
@@ -710,7 +786,7 @@ void stack_ping_pong(benchmark::State& st, Endpoint& ep, int phase) {
   start_echo_process();
   g_phase->store(phase, std::memory_order_release);
   std::vector<double> x(kValues, 0.25), v(kValues, -0.5);
-  static std::uint64_t seqs[4] = {};  // across runs: the decoders reject replayed sequences
+  static std::uint64_t seqs[6] = {};  // across runs: the decoders reject replayed sequences
   std::uint64_t& seq = seqs[phase];
   std::uint64_t lost = 0;
   // Warm up the path.
@@ -748,7 +824,7 @@ void stack_ping_pong(benchmark::State& st, Endpoint& ep, int phase) {
   st.counters["rx"] = static_cast<double>(es.peers[0].packets_received);
   st.counters["tx_overruns"] = static_cast<double>(es.tx_overruns);
   st.counters["tx_direct"] = static_cast<double>(es.tx_direct);
-  st.SetLabel(phase == 3 ? "one-way = round trip / 2 via push_state (the caller sends)/UDP/I-O thread/drain, 33-node state"
+  st.SetLabel(phase >= 3 ? "one-way = round trip / 2 via push_state (the caller sends)/UDP/I-O thread/drain, 33-node state"
                          : "one-way = round trip / 2 via push_state/I-O thread/UDP/I-O thread/drain, 33-node state");
 }
 
@@ -760,8 +836,16 @@ void BM_OneWayLatency_OurStackDirect(benchmark::State& st) {
   start_echo_process();
   stack_ping_pong(st, *g_ep_direct, 3);
 }
+void BM_OneWayLatency_OurStackDirectOneCpuEach(benchmark::State& st) {
+  start_echo_process();
+  const OnCpu on(0);
+  const int f32 = static_cast<int>(st.range(0));
+  stack_ping_pong(st, *g_ep_one_cpu[f32], 4 + f32);
+  st.counters["pinned"] = g_pin ? 1.0 : 0.0;
+}
 BENCHMARK(BM_OneWayLatency_OurStackDirect)->UseManualTime()->Unit(benchmark::kMicrosecond)->MinTime(2.0);
 BENCHMARK(BM_OneWayLatency_OurStack)->UseManualTime()->Unit(benchmark::kMicrosecond)->MinTime(2.0);
+BENCHMARK(BM_OneWayLatency_OurStackDirectOneCpuEach)->ArgName("f32")->Arg(0)->Arg(1)->UseManualTime()->Unit(benchmark::kMicrosecond)->MinTime(2.0);
 
 // The minimal receivers' stop datagram, on medium m.
 void send_quit(Medium& m) {
@@ -774,12 +858,14 @@ void stop_children() {
     g_phase->store(2, std::memory_order_release);
     const char quit = 'q';
     ::sendto(g_udp, &quit, 1, 0, reinterpret_cast<sockaddr*>(&g_echo_addr), sizeof g_echo_addr);
+    ::sendto(g_udp_one_cpu, &quit, 1, 0, reinterpret_cast<sockaddr*>(&g_echo_one_cpu_addr), sizeof g_echo_one_cpu_addr);
     ::sendto(g_codec, &quit, 1, 0, reinterpret_cast<sockaddr*>(&g_codec_addr), sizeof g_codec_addr);
     send_quit(g_udp_medium);
     int status = 0;
     ::waitpid(g_child, &status, 0);
     g_ep->stop();
     g_ep_direct->stop();
+    for (auto& e : g_ep_one_cpu) e->stop();
   }
   if (g_raw_medium.child > 0) {
     g_raw_medium.shared->quit.store(true, std::memory_order_release);

@@ -513,6 +513,7 @@ void Endpoint::deliver(const DecodedState& st) {
 }
 
 void Endpoint::handle_rx(std::int64_t now_ns) {
+  bool drained = false;  // the last read returned fewer datagrams than it asked for: the socket was empty
   for (int n = 0; n < 4096; ++n) {
     if (n > 0) {
       // A push is waiting: send it first. Under a flood this batch could otherwise hold our own
@@ -523,7 +524,14 @@ void Endpoint::handle_rx(std::int64_t now_ns) {
       now_ns = io_clock();  // each datagram's own receive time (echo slots, rate buckets)
     }
     // With a push waiting, read one datagram, not a batch: the push leaves after at most one.
-    if (!rx_pending() && !refill_rx(tx_.ready_size() > 0 ? 1 : kRxBatch)) return;
+    // After a short read, back to ppoll rather than a read that would find nothing (it wakes
+    // again at once for what came since).
+    if (!rx_pending()) {
+      if (drained) return;
+      const std::size_t want = tx_.ready_size() > 0 ? 1 : kRxBatch;
+      if (!refill_rx(want)) return;
+      drained = rx_count_ < want;
+    }
     take_datagram(rx_batch_[rx_next_++], now_ns);
   }
 }

@@ -1,8 +1,9 @@
 #!/usr/bin/python3
 """Prints the medians of tools/bench/results/rt_tick.json and the ratios the issues ask for,
-and draws tick cost against scene size (rt_tick_scaling.png); with net_oneway_periodic.json
-(bench_net --benchmark_filter=Periodic --benchmark_repetitions=N) prints the one-way latency
-of our stack against minimal UDP per repetition and draws net_oneway_periodic.png.
+and draws tick cost against scene size (rt_tick_scaling.png); for every net_oneway*.json with
+BM_OneWayPeriodic* runs (bench_net --benchmark_filter=Periodic --benchmark_repetitions=N) prints
+each mode's median p50 latency and its ratio to minimal UDP, and draws net_oneway_periodic.png
+(a row a file, a panel an encoding, a dot a repetition).
 
 usage: /usr/bin/python3 tools/bench/summarize.py RESULTS_DIR
 """
@@ -21,49 +22,69 @@ def medians(path):
     return out, data.get("context", {})
 
 
-MODES = [("udp", "minimal UDP"), ("stack_wake", "stack, eventfd wake-up"), ("stack_spin", "stack, tick-synchronous TX")]
+MODES = [("udp", "minimal pair"), ("stack_wake", "stack, eventfd wake-up"), ("stack_spin", "stack, tick-synchronous TX"),
+         ("stack_direct", "stack, direct TX")]
+
+
+def oneway_runs(path):
+    """The BM_OneWayPeriodic* repetitions of one bench_net JSON, by encoding, and the modes it has."""
+    data = json.load(open(path))
+    runs = [b for b in data["benchmarks"] if b.get("run_type") == "iteration" and "BM_OneWayPeriodic" in b["name"]]
+    modes = [m for m in MODES if runs and all(m[0] + "_p50_us" in b for b in runs)]
+    by_enc = {}
+    for b in runs:
+        enc = ("raw " if "Raw" in b["name"] else "") + ("float32" if "f32:1" in b["name"] else "float64")
+        by_enc.setdefault(enc, []).append(b)
+    return by_enc, modes, data.get("context", {})
 
 
 def net_oneway(d):
-    p = os.path.join(d, "net_oneway_periodic.json")
-    if not os.path.exists(p):
+    """Every net_oneway*.json with periodic runs: the ratios printed, one row of the figure each."""
+    import glob
+    files = []
+    for p in sorted(glob.glob(os.path.join(d, "net_oneway*.json"))):
+        by_enc, modes, ctx = oneway_runs(p)
+        if not by_enc:
+            continue
+        files.append((os.path.basename(p), by_enc, modes))
+        print("\n%s (load %s): one-way latency, 2 ms periodic sender, modes interleaved period by period" % (
+            os.path.basename(p), ", ".join("%.2f" % x for x in ctx.get("load_avg", []))))
+        for enc, bs in sorted(by_enc.items()):
+            def med(k):
+                return sorted(x[k] for x in bs)[len(bs) // 2]
+            cells = ["%s p50 %.0f us" % (label, med(m + "_p50_us")) for m, label in modes]
+            ratios = ["%s/minimal %.2f" % (m, med("ratio_%s_p50" % m)) for m, _ in modes if m != "udp" and ("ratio_%s_p50" % m) in bs[0]]
+            print("  %-13s median of %d: %s; p50 %s" % (enc, len(bs), ", ".join(cells), ", ".join(ratios)))
+    if not files:
         return
-    data = json.load(open(p))
-    runs = [b for b in data["benchmarks"] if b.get("run_type") == "iteration" and "BM_OneWayPeriodic" in b["name"]]
-    print("\none-way latency, 2 ms periodic sender (SCHED_FIFO), modes interleaved period by period (us):")
-    print("%-8s %-4s | %-26s | %-26s | %-26s | spin/udp ratio p50 mean p99" % ("payload", "rep", *[m[1] for m in MODES]))
-    by_enc = {}
-    for b in runs:
-        enc = "float32" if "f32:1" in b["name"] else "float64"
-        cells = ["p50 %5.0f mean %5.0f p99 %5.0f" % (b[m + "_p50_us"], b[m + "_mean_us"], b[m + "_p99_us"]) for m, _ in MODES]
-        r = (b["ratio_stack_spin_p50"], b["ratio_stack_spin_mean"], b["ratio_stack_spin_p99"])
-        by_enc.setdefault(enc, []).append(b)
-        print("%-8s %-4d | %s | %s | %s | %.2f %.2f %.2f" % (enc, b.get("repetition_index", 0), *cells, *r))
-    for enc, bs in by_enc.items():
-        med = lambda k: sorted(x[k] for x in bs)[len(bs) // 2]
-        print("%s, median over %d repetitions: spin/udp p50 %.2f, mean %.2f, p99 %.2f; eventfd/udp p50 %.2f; spin caught %.0f %%"
-              % (enc, len(bs), med("ratio_stack_spin_p50"), med("ratio_stack_spin_mean"), med("ratio_stack_spin_p99"),
-                 med("ratio_stack_wake_p50"), 100 * med("spin_caught_fraction")))
     try:
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
-        fig, axes = plt.subplots(1, len(by_enc), figsize=(5 * len(by_enc), 4), sharey=True, squeeze=False)
-        for ax, (enc, bs) in zip(axes[0], sorted(by_enc.items())):
-            for i, (m, label) in enumerate(MODES):
-                xs = [i + 0.12 * (j - len(bs) / 2) for j in range(len(bs))]
-                ax.scatter(xs, [b[m + "_p50_us"] for b in bs], marker="o", color="C%d" % i, label=label + " p50")
-                ax.scatter(xs, [b[m + "_p99_us"] for b in bs], marker="^", color="C%d" % i, alpha=0.5)
-            ax.set_xticks(range(len(MODES)))
-            ax.set_xticklabels([m[1] for m in MODES], fontsize=7)
-            ax.set_yscale("log")
-            ax.set_title("%s (o p50, ^ p99; one dot per repetition)" % enc, fontsize=8)
-            ax.grid(True, which="both", alpha=0.3)
-        axes[0][0].set_ylabel("one-way latency (us)")
-        fig.tight_layout()
-        fig.savefig(os.path.join(d, "net_oneway_periodic.png"), dpi=100)
     except ImportError:
         print("matplotlib missing: no plot")
+        return
+    cols = max(len(f[1]) for f in files)
+    fig, axes = plt.subplots(len(files), cols, figsize=(4.6 * cols, 3.2 * len(files)), sharey=True, squeeze=False)
+    for row, (name, by_enc, modes) in enumerate(files):
+        for col in range(cols):
+            ax = axes[row][col]
+            if col >= len(by_enc):
+                ax.axis("off")
+                continue
+            enc, bs = sorted(by_enc.items())[col]
+            for i, (m, label) in enumerate(modes):
+                xs = [i + 0.1 * (j - len(bs) / 2) for j in range(len(bs))]
+                ax.scatter(xs, [b[m + "_p50_us"] for b in bs], marker="o", color="C%d" % i, label=label + " p50")
+                ax.scatter(xs, [b[m + "_p99_us"] for b in bs], marker="^", color="C%d" % i, alpha=0.4)
+            ax.set_xticks(range(len(modes)))
+            ax.set_xticklabels([m[1].replace("stack, ", "stack,\n") for m in modes], fontsize=7)
+            ax.set_yscale("log")
+            ax.set_title("%s, %s (o p50, ^ p99, a dot a repetition)" % (name, enc), fontsize=7)
+            ax.grid(True, which="both", alpha=0.3)
+        axes[row][0].set_ylabel("one-way latency (us)")
+    fig.tight_layout()
+    fig.savefig(os.path.join(d, "net_oneway_periodic.png"), dpi=100)
 
 
 UNIT_US = {"ns": 1e-3, "us": 1.0, "ms": 1e3, "s": 1e6}

@@ -164,7 +164,7 @@ sockaddr_in g_echo_addr{};
 std::unique_ptr<Endpoint> g_ep, g_ep_direct;  // the ping-pong's stack: eventfd hand-off, direct TX
 std::uint16_t g_port_child_udp = 0;
 // The one-CPU-each ping-pongs: the parent's minimal socket and the child's echo address, and the
-// parent's direct-TX endpoint with its I/O thread on CPU 0 (phase 4 in the child).
+// parent's direct-TX endpoints with their I/O threads on CPU 0 (phases 4 and 5 in the child).
 int g_udp_one_cpu = -1;
 sockaddr_in g_echo_one_cpu_addr{};
 std::unique_ptr<Endpoint> g_ep_one_cpu[2];  // float64 (phase 4), float32 (phase 5: the lab's encoding)
@@ -582,7 +582,7 @@ void stack_echo(Endpoint& a, int pa, Endpoint* b = nullptr, int pb = -1) {
   periodic_receivers(g_udp_medium.shared, oneway_udp, std::move(periodic_t), periodic_threads, periodic_eps);
   std::thread codec_thread([codec] { codec_echo(codec); });
   // UDP echoes on their own threads (blocking recv; the one-CPU-each one on CPU 1), the stack
-  // echo in this thread when phase 1 or 3, on a thread of its own on CPU 1 when phase 4.
+  // echo in this thread when phase 1 or 3, on a thread of its own on CPU 1 when phase 4 or 5.
   std::thread udp_echo = udp_echo_thread(udp, -1);
   std::thread udp_echo_one_cpu = udp_echo_thread(udp_one_cpu, 1);
   Endpoint ep(stack_config(1, 0), std::move(stack_transport));

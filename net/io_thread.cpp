@@ -1,6 +1,5 @@
 #include "net/io_thread.hpp"
 
-#include <poll.h>
 #include <pthread.h>
 #include <linux/futex.h>
 #include <sys/eventfd.h>
@@ -10,7 +9,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <climits>
 #include <stdexcept>
 #include <system_error>
 

@@ -403,21 +403,28 @@ void report_one_way(benchmark::State& st, const Medium& md, int enc, bool rt, st
 
 // The sender thread as a tick: SCHED_FIFO like the station's RT thread when we may (it preempts
 // a spinning SCHED_OTHER I/O thread at once, as in a station), pinned; restored by the destructor.
+// The calling thread on one CPU while it lives (nothing when not pinning), its affinity restored.
+struct OnCpu {
+  cpu_set_t old{};
+  explicit OnCpu(int cpu) {
+    ::pthread_getaffinity_np(::pthread_self(), sizeof old, &old);
+    pin_self(cpu);
+  }
+  ~OnCpu() { ::pthread_setaffinity_np(::pthread_self(), sizeof old, &old); }
+};
+
 struct TickThread {
+  const OnCpu on{1};
   int old_policy = 0;
   sched_param old_param{};
-  cpu_set_t old_affinity{};
   bool rt = false;
   TickThread() {
     ::pthread_getschedparam(::pthread_self(), &old_policy, &old_param);
     const sched_param fifo{80};
     rt = ::pthread_setschedparam(::pthread_self(), SCHED_FIFO, &fifo) == 0;
-    ::pthread_getaffinity_np(::pthread_self(), sizeof old_affinity, &old_affinity);
-    pin_self(1);
   }
   ~TickThread() {
     if (rt) ::pthread_setschedparam(::pthread_self(), old_policy, &old_param);
-    ::pthread_setaffinity_np(::pthread_self(), sizeof old_affinity, &old_affinity);
   }
 };
 
@@ -701,16 +708,6 @@ void start_echo_process() {
   }
 }
 
-// The calling thread on one CPU while it lives (nothing when not pinning), its affinity restored.
-struct OnCpu {
-  cpu_set_t old{};
-  explicit OnCpu(int cpu) {
-    ::pthread_getaffinity_np(::pthread_self(), sizeof old, &old);
-    pin_self(cpu);
-  }
-  ~OnCpu() { ::pthread_setaffinity_np(::pthread_self(), sizeof old, &old); }
-};
-
 void minimal_ping_pong(benchmark::State& st, int fd, const sockaddr_in& echo, std::size_t payload) {
   start_echo_process();
   g_phase->store(0, std::memory_order_release);
@@ -729,7 +726,7 @@ void BM_OneWayLatency_MinimalUdpPingPong(benchmark::State& st) {
 }
 BENCHMARK(BM_OneWayLatency_MinimalUdpPingPong)->UseManualTime()->Unit(benchmark::kMicrosecond)->MinTime(2.0);
 void BM_OneWayLatency_MinimalUdpPingPongOneCpuEach(benchmark::State& st) {
-  start_echo_process();
+  start_echo_process();  // before pinning: the forked child must not inherit CPU 0
   const OnCpu on(0);
   minimal_ping_pong(st, g_udp_one_cpu, g_echo_one_cpu_addr, static_cast<std::size_t>(st.range(0)));
   st.counters["pinned"] = g_pin ? 1.0 : 0.0;
@@ -837,7 +834,7 @@ void BM_OneWayLatency_OurStackDirect(benchmark::State& st) {
   stack_ping_pong(st, *g_ep_direct, 3);
 }
 void BM_OneWayLatency_OurStackDirectOneCpuEach(benchmark::State& st) {
-  start_echo_process();
+  start_echo_process();  // before pinning: the forked child must not inherit CPU 0
   const OnCpu on(0);
   const int f32 = static_cast<int>(st.range(0));
   stack_ping_pong(st, *g_ep_one_cpu[f32], 4 + f32);

@@ -26,16 +26,11 @@ if [ "$mode" = station ]; then  # four station processes: a measured "host too l
 else
   trap cleanup EXIT
 fi
-shot() {  # shot NAME URL: a screenshot after 6 s of page life; again after 15, 25, 40 s if the page had not drawn yet
-  # (a slow, loaded machine: the canvas is still blank or uniformly black while the page is "connecting...")
-  for ms in 6000 15000 25000 40000; do
-    timeout 60 "$chrome" --headless=new --no-sandbox --disable-gpu --enable-unsafe-swiftshader --use-angle=swiftshader --hide-scrollbars \
-      --user-data-dir="$out/profile-$1" --window-size=1400,900 --timeout="$ms" --screenshot="$out/$1.png" "$2" > "$out/chrome-$1.log" 2>&1
-    /usr/bin/python3 -c 'import sys, matplotlib.image as m, numpy as n; a = m.imread(sys.argv[1])[10:446, 10:566, :3]
-sys.exit(0 if n.mean(n.any(a < 0.95, axis=2)) > 0.03 and n.mean(n.all(a >= 0.95, axis=2)) > 0.3 else 1)' \
-      "$out/$1.png" 2>/dev/null && return 0
-    echo "note: screenshot $1 after $ms ms: the canvas was not drawn yet"
-  done
+shot() {  # shot NAME URL: a screenshot once the page drew a frame (its status says "t = ") and lived 4 s
+  # (not chromium --screenshot: it shoots at the load event, before a loaded host's first frame arrives)
+  /usr/bin/python3 "$repo/tests/support/chrome_shot.py" --chrome "$chrome" --url "$2" --out "$out/$1.png" \
+    --profile "$out/profile-$1" --log "$out/chrome-$1.log" --min-ms 4000 --max-ms 90000 \
+    --ready '/ · t = /.test(document.getElementById("status").textContent)'
 }
 wait_port() {  # wait_port PORT SECONDS: the page is served there
   for _ in $(seq 1 $(( $2 * 10 ))); do

@@ -5,6 +5,7 @@
 #include <sched.h>
 
 #include "net/keys.hpp"
+#include "net/wire.hpp"
 #include "net/options.hpp"
 #include "platform/toml_config.hpp"
 
@@ -131,6 +132,25 @@ void parse_io_options(const toml::node_view<const toml::node>& net, const std::s
   e.max_sequence_ahead_ticks = integer_of<std::uint64_t>(net, "max_sequence_ahead_ticks", P);
   e.rx_rate_limit_per_s = real_of(net, "rx_rate_limit_per_s", P);
   c.envelope_radii = real_of(net, "envelope_radii", P);
+}
+
+// One state packet of this scene (x_hat, v_hat, the proxy) must fit kMaxFragments datagrams of
+// max_datagram_bytes: said when the file is read (--check-config), with the smallest size that fits.
+void check_packet_fits(const EndpointConfig& e, const std::string& P) {
+  const Encoder enc(e.wire);
+  if (enc.fragment_count(e.value_count) != 0) return;
+  const std::size_t payload = enc.payload_bytes(e.value_count), vb = enc.value_bytes();
+  const std::size_t stride = (payload + kMaxFragments - 1) / kMaxFragments;
+  const std::size_t need = (stride + vb - 1) / vb * vb + kHeaderBytes + kMacBytes;
+  const std::string what = "this scene's state packet (" + std::to_string(e.value_count / 3) + " nodes, " +
+                           (vb == 4 ? "float32" : "float64") + ": " + std::to_string(payload) + " bytes) in at most " +
+                           std::to_string(kMaxFragments) + " datagrams";
+  const std::string key = P + "max_datagram_bytes = " + std::to_string(e.wire.max_datagram_bytes);
+  if (need <= 65507)
+    bad(key, "at least " + std::to_string(need) + " for " + what + " (and at most the transport's MTU)" +
+                 (vb == 8 ? "; or " + P + "encoding = \"float32\" halves the packet" : std::string()));
+  bad(key, "large enough for " + what + ": no UDP datagram is (at most 65507 bytes)" +
+               (vb == 8 ? "; " + P + "encoding = \"float32\" halves the packet" : std::string()));
 }
 
 // Where this station listens: bind (udp; never the wildcard without listen_any) or interface (raw).
@@ -279,6 +299,7 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
     parse_peer(toml::node_view<const toml::node>{node}, P + "peers[" + std::to_string(idx++) + "]", P, imp, c);
   }
   e.wire.validate();
+  check_packet_fits(e, P);
   e.rtt.validate();
   return c;
 }

@@ -34,7 +34,7 @@ inline constexpr std::size_t kKeyBytes = 32;
 inline constexpr std::size_t kMinDatagramBytes = kHeaderBytes + kMacBytes + 8;
 inline constexpr std::size_t kMaxDatagramBytes = 65507;  // largest UDP/IPv4 payload
 inline constexpr std::size_t kDefaultDatagramBytes = 1400;  // fits UDP/IPv4, UDP/IPv6 and raw Ethernet
-inline constexpr std::size_t kMaxFragments = 256;
+inline constexpr std::size_t kMaxFragments = 512;  // 16,703 nodes in float32 are 306 datagrams of 1400 bytes
 inline constexpr std::uint16_t kNoStation = 0xFFFF;
 
 enum class PayloadKind : std::uint8_t { state = 1, fingerprint = 2, hello = 3 };

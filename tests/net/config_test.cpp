@@ -6,6 +6,7 @@
 #include <string>
 
 #include "net/config.hpp"
+#include "net/wire.hpp"
 
 using namespace haptic::net;
 
@@ -20,9 +21,9 @@ std::string udp_doc(const std::string& extra_net = "", const std::string& peer_e
          "[[net.peers]]\nid = 3\naddress = \"127.0.0.1:7003\"\nmean_delay_ms = 200\n";
 }
 
-std::string error_of(const std::string& doc) {
+std::string error_of(const std::string& doc, std::uint32_t values = 99) {
   try {
-    parse_net_config(doc, 99);
+    parse_net_config(doc, values);
   } catch (const std::invalid_argument& e) {
     return e.what();
   }
@@ -83,6 +84,29 @@ TEST(NetConfig, BadValuesNameTheirKey) {
   CHECK(error_of(bad_preset).find("net.impairment.preset") != std::string::npos);
   CHECK(error_of("[net\n").find("TOML parse error") != std::string::npos);
   CHECK(error_of("[station]\nid = 1\n").find("[net]") != std::string::npos);
+}
+
+// A scene whose state packet needs more than kMaxFragments datagrams is refused when the file is
+// read (--check-config), naming the key with the smallest size that fits; that size is accepted and
+// the endpoint then needs kMaxFragments datagrams or fewer. Float64 also names the encoding.
+TEST(NetConfig, AStatePacketTooLargeForTheFragmentsNamesTheSmallestDatagramThatFits) {
+  const std::uint32_t dofs = 3 * 40000;  // 40,000 nodes: 960 kB in float32
+  std::string e;
+  try {
+    parse_net_config(udp_doc(), dofs);
+  } catch (const std::invalid_argument& x) {
+    e = x.what();
+  }
+  STRCMP_CONTAINS("net.max_datagram_bytes = 1400 must be at least ", e.c_str());
+  STRCMP_CONTAINS("40000 nodes, float32", e.c_str());
+  const int need = std::stoi(e.substr(e.find("at least ") + 9));
+  const NetConfig ok = parse_net_config(udp_doc("max_datagram_bytes = " + std::to_string(need) + "\n"), dofs);
+  const Encoder enc(ok.endpoint.wire);
+  CHECK(enc.fragment_count(dofs) >= 1 && enc.fragment_count(dofs) <= kMaxFragments);
+  CHECK(error_of(udp_doc("max_datagram_bytes = " + std::to_string(need - 4) + "\n"), dofs).find("net.max_datagram_bytes") != std::string::npos);
+  STRCMP_CONTAINS("net.encoding = \"float32\"", error_of(udp_doc("encoding = \"float64\"\n"), dofs).c_str());
+  CHECK(error_of(udp_doc(), 99).empty());  // a small scene: one datagram
+  CHECK(error_of(udp_doc(), 3 * 16703).empty());  // the 16,703-node ball: 306 datagrams of 1400 bytes
 }
 
 TEST(NetConfig, Float32IsTheDefaultAndTickSynchronousTxIsOptIn) {

@@ -136,6 +136,37 @@ TEST(Wire, ThreeThousandNodeSceneIsFragmentedAndReassembledWithoutAllocation) {
   MEMCMP_EQUAL(big.v.data(), v.data(), 8 * big.count);
 }
 
+// The ~16k-node scene (the 16,703-node ball) in float32 takes more than 256 datagrams of 1400 bytes
+// (306): every fragment index up to kMaxFragments - 1 is held by the reassembly bitmap, delivered
+// in reverse order, without allocation.
+TEST(Wire, ASixteenThousandNodeSceneTakesMoreThan256DatagramsAndIsReassembled) {
+  Scene big(16703);
+  Encoder e32{cfg_for(1, ValueEncoding::float32)};
+  Decoder d{cfg_for(0), peers, big.count};
+  const auto dgs = encode_all(e32, big.out(0, 9));
+  CHECK_EQUAL(306u, dgs.size());
+  DecodedState st;
+  DecodeStatus last = DecodeStatus::dropped;
+  std::uint64_t allocs = 0;
+  {
+    haptic::test::AllocationCounter counter;
+    for (std::size_t i = dgs.size(); i-- > 0;) {
+      last = d.decode(dgs[i].data(), dgs[i].size(), st);
+      if (i > 0) CHECK(last == DecodeStatus::fragment_stored);
+    }
+    allocs = counter.allocations();
+  }
+  CHECK_EQUAL(0u, allocs);
+  CHECK(last == DecodeStatus::complete);
+  CHECK_EQUAL(0u, d.drops().total());
+  std::vector<double> x(big.count), v(big.count);
+  st.copy_out(x.data(), v.data());
+  for (std::uint32_t i = 0; i < big.count; ++i) {
+    CHECK_EQUAL(static_cast<double>(static_cast<float>(big.x[i])), x[i]);
+    CHECK_EQUAL(static_cast<double>(static_cast<float>(big.v[i])), v[i]);
+  }
+}
+
 TEST(Wire, EncodeDoesNotAllocate) {
   std::vector<std::uint8_t> buf(kDefaultDatagramBytes);
   const auto o = scene.out(0, 3);

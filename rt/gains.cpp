@@ -105,6 +105,8 @@ EdgeGains checked_gains(const SpatialMatrix& P, const SpatialMatrix& D, const do
 
 EdgeGains matrix_edge_gains(const SpatialMatrix& P, const SpatialMatrix& D) { return checked_gains(P, D, nullptr); }
 
+bool same_gains(const EdgeGains& a, const EdgeGains& b) { return same_matrix(a.P, b.P) && same_matrix(a.D, b.D); }
+
 EdgeGains paper_edge_gains(const Scene& scene, double p, double d) {
   if (!(p > 0)) throw std::invalid_argument("consensus.p_N_per_m must be > 0");
   if (!(d >= 0)) throw std::invalid_argument("consensus.d_Ns_per_m must be >= 0");

@@ -23,6 +23,8 @@ EdgeGains paper_edge_gains(const Scene& scene, double p_N_per_m = 1000.0, double
 EdgeGains scalar_edge_gains(int nodes, double p_N_per_m, double d_Ns_per_m);
 // Any matrices (checked symmetric; P positive definite, D positive semidefinite).
 EdgeGains matrix_edge_gains(const SpatialMatrix& P, const SpatialMatrix& D);
+// The same P and D, stored alike, value for value (two copies of one edge's gains). Start-up only.
+bool same_gains(const EdgeGains& a, const EdgeGains& b);
 
 // One neighbour j of station i as eq. (18) sees it.
 struct Eq18Neighbor {

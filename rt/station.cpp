@@ -106,6 +106,15 @@ StationCore::StationCore(const StationConfig& config)
   n_ = scene_.nodes;
   dofs_ = scene_.dofs;
   const int nn = neighbor_count();
+  // Neighbours whose gains are equal but held in separate objects (the scenario builder keeps one
+  // copy per edge) share the first one: one gain group, its sums in the fused passes, instead of
+  // two matvecs a tick for each further copy (and two more for the energy).
+  for (int j = 1; j < nn; ++j)
+    for (int i = 0; i < j; ++i)
+      if (same_gains(*cfg_.neighbors[static_cast<std::size_t>(i)].gains, *cfg_.neighbors[static_cast<std::size_t>(j)].gains)) {
+        cfg_.neighbors[static_cast<std::size_t>(j)].gains = cfg_.neighbors[static_cast<std::size_t>(i)].gains;
+        break;
+      }
   bool iso = scene_.M.is_isotropic() && scene_.B.is_isotropic() && scene_.K.is_isotropic();
   for (const auto& nb : cfg_.neighbors) iso = iso && nb.gains->P.is_isotropic() && nb.gains->D.is_isotropic();
   w_ = iso ? 3 : 1;

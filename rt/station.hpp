@@ -223,6 +223,8 @@ class StationCore {
   RxLink& rx(int neighbor_index) { return rx_[static_cast<std::size_t>(neighbor_index)]; }
   const RxLink& rx(int neighbor_index) const { return rx_[static_cast<std::size_t>(neighbor_index)]; }
   int neighbor_count() const { return static_cast<int>(cfg_.neighbors.size()); }
+  // Gain groups among the neighbours (equal gains are one group, whichever object holds them).
+  int gain_groups() const { return static_cast<int>(group_leaders_.size()); }
   const NeighborConfig& neighbor(int n) const { return cfg_.neighbors[static_cast<std::size_t>(n)]; }
 
   // One step at cycle k (the caller's loop index, the same index its rx(n).offer sequence numbers

@@ -136,6 +136,49 @@ TEST(Station, edges_with_their_own_gains_match_the_dense_solve) {
   CHECK_TRUE(compare_with_dense(true, 400, StepSolverKind::kDirect, nullptr, &other) < 1e-10);
 }
 
+TEST(Station, neighbours_with_equal_gains_held_in_separate_objects_are_one_gain_group_with_the_same_bits) {
+  // The scenario builder keeps one copy of the gains per edge: equal copies must not each cost a
+  // further group (two matvecs a tick more, two more for the energy). They are one group, and the
+  // station computes exactly what it computes with one shared object; other gains stay a group.
+  const auto& w = PaperWorld::get();
+  const auto dir = test::tetra_dirs()[0];
+  const EdgeGains copies[3] = {w.gains, w.gains, w.gains};
+  const EdgeGains other = paper_edge_gains(w.scene, 1300.0, 1.5);
+  auto shared = w.station(0, 4, {1, 2, 3}, 20.0, dir);
+  auto separate = shared, mixed = shared;
+  for (int n = 0; n < 3; ++n) separate.neighbors[static_cast<std::size_t>(n)].gains = &copies[n];
+  mixed.neighbors[2].gains = &other;
+  for (auto* c : {&shared, &separate}) {
+    c->solver.kind = StepSolverKind::kIterative;
+    c->solver.relative_tolerance = 1e-8;
+  }
+  StationCore a(shared), b(separate);
+  CHECK_EQUAL(1, a.gain_groups());
+  CHECK_EQUAL(1, b.gain_groups());
+  CHECK_EQUAL(2, StationCore(mixed).gain_groups());
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::VectorXd xj = w.scene.x_d, vj = Eigen::VectorXd::Zero(w.scene.dofs);
+  const Eigen::Vector3d in = w.face_inward(dir), p0 = w.face_center(dir);
+  for (int k = 0; k < 300; ++k) {
+    for (int n = 0; n < 3; ++n) {
+      for (int i = 0; i < w.scene.dofs; ++i) {
+        xj[i] = w.scene.x_d[i] + 1e-3 * u(rng);
+        vj[i] = 1e-2 * u(rng);
+      }
+      a.rx(n).offer(k, 0, xj.data(), vj.data(), w.scene.dofs);
+      b.rx(n).offer(k, 0, xj.data(), vj.data(), w.scene.dofs);
+    }
+    const Eigen::Vector3d q = p0 + 0.01 * std::sin(0.02 * k) * in;
+    const auto fa = a.tick(q).device_force_N, fb = b.tick(q).device_force_N;
+    CHECK_TRUE(fa == fb);
+    CHECK_TRUE(a.x() == b.x());
+    CHECK_TRUE(a.v() == b.v());
+    CHECK_EQUAL(a.solver_last_iterations(), b.solver_last_iterations());
+  }
+  CHECK_EQUAL(a.energy().controller_J, b.energy().controller_J);
+}
+
 TEST(Station, iterative_solver_matches_the_dense_solve_through_contact_losses_and_over_bound_edges) {
   CHECK_TRUE(compare_with_dense(false, 400, StepSolverKind::kIterative) < 1e-9);
   CHECK_TRUE(compare_with_dense(true, 400, StepSolverKind::kIterative) < 1e-9);

@@ -323,6 +323,20 @@ void BM_Tick(benchmark::State& state) {
   station_counters(state, st, w);
 }
 
+// BM_Tick/NODES/0 with each neighbour's gains in an object of its own, equal in value: how the
+// scenario builder (firmware/scenario.cpp) and so `sim` and every station hold them, one copy per
+// edge. Args: nodes.
+void BM_TickEdgeCopies(benchmark::State& state) {
+  World w(static_cast<int>(state.range(0)));
+  std::vector<EdgeGains> copies(w.cfg.neighbors.size(), w.gains);
+  for (std::size_t n = 0; n < copies.size(); ++n) w.cfg.neighbors[n].gains = &copies[n];
+  StationCore st(w.cfg);
+  run_ticks(state, st, w);
+  if (!st.in_contact()) state.SkipWithError("contact not active");
+  station_counters(state, st, w);
+  state.counters["gain_groups"] = st.gain_groups();
+}
+
 // The floor of BM_Tick/NODES/0: reading once, in one pass, as many bytes as that tick touches
 // (StationCore::tick_bytes(): each array it reads or writes counted once), from a buffer that stays
 // as warm as the tick's own arrays do between ticks (the same process, the same size). Read with
@@ -611,6 +625,7 @@ BENCHMARK(BM_Tick)->ArgsProduct({{3000}, {kDirectArg, kIterativeArg, kDenseOnceA
 BENCHMARK(BM_Tick)->ArgsProduct({{10000}, {kAutoArg}})->Unit(benchmark::kMicrosecond);
 // 16,000 nodes (a 15,943-node lattice ball), its baselines, and every size's floor
 BENCHMARK(BM_Tick)->ArgsProduct({{300, 1000, 16000}, {kAutoArg}})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_TickEdgeCopies)->Arg(3000)->Arg(16000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Tick)->ArgsProduct({{1000, 10000, 16000}, {kCholmodArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Tick)->ArgsProduct({{33, 300, 1000, 3000, 10000, 16000}, {kEigenCgArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TickFloor)->Arg(33)->Arg(300)->Arg(1000)->Arg(3000)->Arg(10000)->Arg(16000)->Unit(benchmark::kMicrosecond);

@@ -337,6 +337,19 @@ void BM_TickEdgeCopies(benchmark::State& state) {
   state.counters["gain_groups"] = st.gain_groups();
 }
 
+// BM_Tick/NODES/0 under set-position modulation (consensus_passivity = pspm, as the deadband's
+// predictive mode needs): each edge's modulator takes one P d matvec a tick besides the step.
+// Args: nodes.
+void BM_TickPspm(benchmark::State& state) {
+  World w(static_cast<int>(state.range(0)));
+  w.cfg.consensus_passivity = ConsensusPassivity::kSetPositionModulation;
+  w.cfg.pspm_reservoir0_J = 1e-3;
+  StationCore st(w.cfg);
+  run_ticks(state, st, w);
+  if (!st.in_contact()) state.SkipWithError("contact not active");
+  station_counters(state, st, w);
+}
+
 // The floor of BM_Tick/NODES/0: reading once, in one pass, as many bytes as that tick touches
 // (StationCore::tick_bytes(): each array it reads or writes counted once), from a buffer that stays
 // as warm as the tick's own arrays do between ticks (the same process, the same size). Read with
@@ -626,6 +639,7 @@ BENCHMARK(BM_Tick)->ArgsProduct({{10000}, {kAutoArg}})->Unit(benchmark::kMicrose
 // 16,000 nodes (a 15,943-node lattice ball), its baselines, and every size's floor
 BENCHMARK(BM_Tick)->ArgsProduct({{300, 1000, 16000}, {kAutoArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TickEdgeCopies)->Arg(3000)->Arg(16000)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_TickPspm)->Arg(3000)->Arg(16000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Tick)->ArgsProduct({{1000, 10000, 16000}, {kCholmodArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Tick)->ArgsProduct({{33, 300, 1000, 3000, 10000, 16000}, {kEigenCgArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TickFloor)->Arg(33)->Arg(300)->Arg(1000)->Arg(3000)->Arg(10000)->Arg(16000)->Unit(benchmark::kMicrosecond);

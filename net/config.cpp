@@ -136,21 +136,25 @@ void parse_io_options(const toml::node_view<const toml::node>& net, const std::s
 
 // One state packet of this scene (x_hat, v_hat, the proxy) must fit kMaxFragments datagrams of
 // max_datagram_bytes: said when the file is read (--check-config), with the smallest size that fits.
-void check_packet_fits(const EndpointConfig& e, const std::string& P) {
+void check_packet_fits(const NetConfig& c, const std::string& P) {
+  const EndpointConfig& e = c.endpoint;
   const Encoder enc(e.wire);
   if (enc.fragment_count(e.value_count) != 0) return;
   const std::size_t payload = enc.payload_bytes(e.value_count), vb = enc.value_bytes();
   const std::size_t stride = (payload + kMaxFragments - 1) / kMaxFragments;
   const std::size_t need = (stride + vb - 1) / vb * vb + kHeaderBytes + kMacBytes;
+  // udp: what the address family sends unfragmented; raw: the interface's MTU, known when it opens
+  socklen_t blen = 0;
+  const bool udp = c.transport == "udp";
+  const std::size_t most = udp ? UdpTransport::max_datagram_bytes_for(parse_udp_address(c.bind, P + "bind", blen).ss_family) : kMaxDatagramBytes;
   const std::string what = "this scene's state packet (" + std::to_string(e.value_count / 3) + " nodes, " +
                            (vb == 4 ? "float32" : "float64") + ": " + std::to_string(payload) + " bytes) in at most " +
                            std::to_string(kMaxFragments) + " datagrams";
+  const std::string f32 = vb == 8 ? "; " + P + "encoding = \"float32\" halves the packet" : std::string();
   const std::string key = P + "max_datagram_bytes = " + std::to_string(e.wire.max_datagram_bytes);
-  if (need <= 65507)
-    bad(key, "at least " + std::to_string(need) + " for " + what + " (and at most the transport's MTU)" +
-                 (vb == 8 ? "; or " + P + "encoding = \"float32\" halves the packet" : std::string()));
-  bad(key, "large enough for " + what + ": no UDP datagram is (at most 65507 bytes)" +
-               (vb == 8 ? "; " + P + "encoding = \"float32\" halves the packet" : std::string()));
+  if (need <= most) bad(key, "at least " + std::to_string(need) + " for " + what + (udp ? "" : " (and at most the interface's MTU)") + f32);
+  bad(key, "large enough for " + what + ": no datagram of transport = \"" + c.transport + "\" is (at most " + std::to_string(most) +
+               " bytes): the scene has too many nodes for the network" + f32);
 }
 
 // Where this station listens: bind (udp; never the wildcard without listen_any) or interface (raw).
@@ -159,6 +163,15 @@ void parse_local_address(const toml::node_view<const toml::node>& net, const std
   if (c.transport == "udp")
     c.bind = net["bind"] ? text(net["bind"], P + "bind", "") : text(net["listen"], P + "listen", "");
   if (c.transport == "udp" && c.bind.empty()) bad(P + "bind", "set for transport = \"udp\" (\"a.b.c.d:port\" or \"[v6]:port\")");
+  if (c.transport == "udp") {  // said when the file is read, not first at start-up
+    socklen_t blen = 0;
+    const int family = parse_udp_address(c.bind, bind_key, blen).ss_family;
+    const std::size_t most = UdpTransport::max_datagram_bytes_for(family);
+    if (c.endpoint.wire.max_datagram_bytes > most)
+      bad(P + "max_datagram_bytes = " + std::to_string(c.endpoint.wire.max_datagram_bytes),
+          "at most " + std::to_string(most) + " for transport = \"udp\" over " + (family == AF_INET6 ? "IPv6" : "IPv4") +
+              " (no datagram is sent that IP would fragment)");
+  }
   if (c.transport == "udp" && !c.listen_any) {
     socklen_t blen = 0;
     const sockaddr_storage a = parse_udp_address(c.bind, bind_key, blen);
@@ -299,7 +312,7 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
     parse_peer(toml::node_view<const toml::node>{node}, P + "peers[" + std::to_string(idx++) + "]", P, imp, c);
   }
   e.wire.validate();
-  check_packet_fits(e, P);
+  check_packet_fits(c, P);
   e.rtt.validate();
   return c;
 }

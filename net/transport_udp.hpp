@@ -40,7 +40,9 @@ class UdpTransport final : public Transport {
   // One sendmmsg per kBatch datagrams (MSG_DONTWAIT), one recvmmsg per batch received.
   std::size_t send_batch(const TxDatagram* d, std::size_t n, int& error) override;
   long receive_batch(RxDatagram* d, std::size_t n) override;
-  std::size_t max_datagram_bytes() const override { return family_ == AF_INET6 ? 1452 : 1472; }
+  std::size_t max_datagram_bytes() const override { return max_datagram_bytes_for(family_); }
+  // The largest UDP payload sent without IP fragmentation on a 1500-byte MTU, per address family.
+  static constexpr std::size_t max_datagram_bytes_for(int family) { return family == AF_INET6 ? 1452 : 1472; }
   const char* name() const override { return family_ == AF_INET6 ? "udp6" : "udp4"; }
   std::uint16_t local_port() const;
   // Adds or replaces a peer's address (start-up only, before the I/O thread runs).

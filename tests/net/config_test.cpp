@@ -90,7 +90,7 @@ TEST(NetConfig, BadValuesNameTheirKey) {
 // read (--check-config), naming the key with the smallest size that fits; that size is accepted and
 // the endpoint then needs kMaxFragments datagrams or fewer. Float64 also names the encoding.
 TEST(NetConfig, AStatePacketTooLargeForTheFragmentsNamesTheSmallestDatagramThatFits) {
-  const std::uint32_t dofs = 3 * 40000;  // 40,000 nodes: 960 kB in float32
+  const std::uint32_t dofs = 3 * 29000;  // 29,000 nodes: 696 kB in float32, 1448-byte datagrams
   std::string e;
   try {
     parse_net_config(udp_doc(), dofs);
@@ -98,7 +98,7 @@ TEST(NetConfig, AStatePacketTooLargeForTheFragmentsNamesTheSmallestDatagramThatF
     e = x.what();
   }
   STRCMP_CONTAINS("net.max_datagram_bytes = 1400 must be at least ", e.c_str());
-  STRCMP_CONTAINS("40000 nodes, float32", e.c_str());
+  STRCMP_CONTAINS("29000 nodes, float32", e.c_str());
   const int need = std::stoi(e.substr(e.find("at least ") + 9));
   const NetConfig ok = parse_net_config(udp_doc("max_datagram_bytes = " + std::to_string(need) + "\n"), dofs);
   const Encoder enc(ok.endpoint.wire);
@@ -106,7 +106,13 @@ TEST(NetConfig, AStatePacketTooLargeForTheFragmentsNamesTheSmallestDatagramThatF
   CHECK(error_of(udp_doc("max_datagram_bytes = " + std::to_string(need - 4) + "\n"), dofs).find("net.max_datagram_bytes") != std::string::npos);
   STRCMP_CONTAINS("net.encoding = \"float32\"", error_of(udp_doc("encoding = \"float64\"\n"), dofs).c_str());
   CHECK(error_of(udp_doc(), 99).empty());  // a small scene: one datagram
-  CHECK(error_of(udp_doc(), 3 * 16703).empty());  // the 16,703-node ball: 306 datagrams of 1400 bytes
+  // above what UDP sends unfragmented: said here too, not first when the transport opens
+  STRCMP_CONTAINS("net.max_datagram_bytes = 1473 must be at most 1472 for transport = \"udp\" over IPv4",
+                  error_of(udp_doc("max_datagram_bytes = 1473\n")).c_str());
+  CHECK(error_of(udp_doc("max_datagram_bytes = 1472\n")).empty());
+  CHECK(error_of(udp_doc(), 3 * 16703).empty());
+  // 40,000 nodes need 1964-byte datagrams: more than UDP sends unfragmented, at any setting
+  STRCMP_CONTAINS("too many nodes for the network", error_of(udp_doc("max_datagram_bytes = 1472\n"), 3 * 40000).c_str());  // the 16,703-node ball: 306 datagrams of 1400 bytes
 }
 
 TEST(NetConfig, Float32IsTheDefaultAndTickSynchronousTxIsOptIn) {

@@ -23,7 +23,8 @@ void EdgeMonitorParams::validate() const {
   if (!(kinematic_window_s > 0 && std::isfinite(kinematic_window_s))) bad("the kinematic window must be finite and > 0 s");
   if (!(disagreement_window_s > 0 && std::isfinite(disagreement_window_s))) bad("the disagreement window must be finite and > 0 s");
   if (!(readmit_s >= 0 && std::isfinite(readmit_s))) bad("the re-admission time must be finite and >= 0 s");
-  if (max_gap_ticks < 1) bad("the largest checked gap must be >= 1 tick");
+  if (max_gap_ticks < 1) bad("the largest integrated gap must be >= 1 tick");
+  if (max_checked_gap_ticks < max_gap_ticks) bad("the largest checked gap must be >= the largest integrated gap");
 }
 
 void EdgeMonitor::init(int edges, int dofs, double period_s, const EdgeMonitorParams& params, const double* x0, const double* v0) {
@@ -45,19 +46,21 @@ void EdgeMonitor::init(int edges, int dofs, double period_s, const EdgeMonitorPa
 }
 
 void EdgeMonitor::kinematic(Edge& ed, std::int64_t gap, const double* x, const double* v) {
-  ed.u_max = ed.r_max = 0;
-  if (gap > p_.max_gap_ticks) {  // too far apart to integrate the velocities: re-anchor
+  ed.u_max = ed.r_max = ed.gap_ratio = 0;
+  if (gap > p_.max_checked_gap_ticks) {  // too far apart to say what honest motion did: re-anchor
     ++ed.unchecked_gaps;
     return;
   }
+  const bool integrate = gap <= p_.max_gap_ticks;  // else this packet alone, against gap_bound_m (U only leaks)
   const double h = 0.5 * static_cast<double>(gap) * T_;
   const double decay = std::exp(-2.0 * h / p_.kinematic_window_s);
+  int r_node = -1;
   for (int n = 0; n < dofs_ / 3; ++n) {
     double uu = 0, rr = 0;
     for (int d = 0; d < 3; ++d) {
       const auto i = static_cast<std::size_t>(3 * n + d);
       const double r = x[i] - ed.x_prev[i] - h * (v[i] + ed.v_prev[i]);
-      ed.u[i] = decay * ed.u[i] + r;
+      ed.u[i] = decay * ed.u[i] + (integrate ? r : 0.0);
       uu += ed.u[i] * ed.u[i];
       rr += r * r;
     }
@@ -65,10 +68,20 @@ void EdgeMonitor::kinematic(Edge& ed, std::int64_t gap, const double* x, const d
       ed.u_max = uu;
       ed.u_node = n;
     }
-    ed.r_max = std::max(ed.r_max, rr);
+    if (rr > ed.r_max) {
+      ed.r_max = rr;
+      r_node = n;
+    }
   }
   ed.u_max = std::sqrt(ed.u_max);
   ed.r_max = std::sqrt(ed.r_max);
+  if (!integrate) {
+    ++ed.gap_checks;
+    ed.gap_ratio = ed.r_max / p_.gap_bound_m(gap);
+    ed.gap_residual_m = ed.r_max;
+    ed.gap_node = r_node;
+    ed.r_max = ed.gap_ratio * p_.kinematic_bound_m;  // re-admission's "own step consistent", in the bound's units
+  }
 }
 
 void EdgeMonitor::disagreement(Edge& ed, std::int64_t gap, const double* x, const double* v, std::int64_t delay, const double* own_x) {
@@ -95,11 +108,16 @@ void EdgeMonitor::decide(Edge& ed, std::int64_t k) {
   if (!ed.isolated) {
     ed.u_peak = std::max(ed.u_peak, ed.u_max);
     ed.y_peak = std::max(ed.y_peak, ed.y_max);
+    ed.gap_peak = std::max(ed.gap_peak, ed.gap_ratio);
     EdgeLie why = EdgeLie::kNone;
     if (ed.u_max > p_.kinematic_bound_m) {
       why = EdgeLie::kKinematic;
       ed.trip_node = ed.u_node;
       ed.trip_value_m = ed.u_max;
+    } else if (ed.gap_ratio > 1) {
+      why = EdgeLie::kKinematic;
+      ed.trip_node = ed.gap_node;
+      ed.trip_value_m = ed.gap_residual_m;
     } else if (ed.y_max > p_.disagreement_bound_m) {
       why = EdgeLie::kDisagreement;
       ed.trip_node = ed.y_node;

@@ -8,8 +8,12 @@
 //  K (kinematic): the neighbour's x_hat must move as its own reported velocities say. NPMI gives
 //    x_hat(s+1) - x_hat(s) = T/2 (v_hat(s) + v_hat(s+1)) exactly at a fixed step, so per node the
 //    unexplained displacement U += x_hat(s) - x_hat(s0) - g T/2 (v_hat(s0) + v_hat(s)) over a gap of
-//    g = s - s0 <= max_gap_ticks packets (longer gaps re-anchor, unchecked), leaking with the time
-//    constant kinematic_window_s. Isolate when some node's |U| > kinematic_bound_m. A state offset
+//    g = s - s0 <= max_gap_ticks packets, leaking with the time constant kinematic_window_s. Isolate
+//    when some node's |U| > kinematic_bound_m. A packet after a longer gap (lost packets, a stalled
+//    sender or receiver) is compared alone: its residual over the gap, whose honest size grows as the
+//    velocities curve in between (~ (g T)^3 |jerk| / 12), against gap_bound_m(g) = kinematic_bound_m
+//    (g / max_gap_ticks)^2; it does not enter U. Gaps above max_checked_gap_ticks re-anchor,
+//    unchecked (counted): a jump hidden in one is a consistent lie (below). A state offset
 //    that changes (a jump, an oscillation, a ramp faster than kinematic_bound_m / kinematic_window_s)
 //    without the reported velocities to match is caught when it has changed by kinematic_bound_m.
 //  P (disagreement; always filtered, isolates only with a finite bound): the neighbour's state, carried forward to this tick by its own velocity
@@ -45,7 +49,8 @@ struct EdgeMonitorParams {
   static constexpr double kOff = std::numeric_limits<double>::infinity();
   double kinematic_bound_m = kOff;     // check K's threshold (+inf: off)
   double kinematic_window_s = 30.0;    // check K's leak time constant
-  int max_gap_ticks = 4;               // check K compares packets at most this many sequences apart
+  int max_gap_ticks = 4;               // check K integrates packets at most this many sequences apart
+  int max_checked_gap_ticks = 32;      // ... and compares one packet against gap_bound_m after a gap up to this
   double disagreement_bound_m = kOff;  // check P's threshold (+inf: off)
   double disagreement_window_s = 0.2;  // check P's filter time constant
   double readmit_s = 2.0;              // truthful time before an isolated edge is re-admitted
@@ -59,6 +64,11 @@ struct EdgeMonitorParams {
   // The truthful time the n-th isolation (n >= 1) needs before re-admission: readmit_s x 2^(n-1),
   // at most x 1024 (a liar that lies again after each re-admission gets there ever more slowly).
   double readmit_after_s(std::uint64_t n) const { return readmit_s * static_cast<double>(1u << (n > 11 ? 10 : n - 1)); }
+  // Check K's bound on one packet's residual after a gap of g > max_gap_ticks sequences.
+  double gap_bound_m(std::int64_t g) const {
+    const double r = static_cast<double>(g) / static_cast<double>(max_gap_ticks);
+    return kinematic_bound_m * r * r;
+  }
   void validate() const;  // throws std::invalid_argument
 };
 
@@ -88,7 +98,10 @@ class EdgeMonitor {
   std::uint64_t isolations() const;  // over all edges
   std::uint64_t readmissions(int j) const { return e(j).readmissions; }
   std::uint64_t isolated_ticks(int j) const { return e(j).isolated_ticks; }
-  std::uint64_t unchecked_gaps(int j) const { return e(j).unchecked_gaps; }  // packets after a gap > max_gap_ticks
+  std::uint64_t gap_checks(int j) const { return e(j).gap_checks; }  // packets after a gap in (max_gap_ticks, max_checked_gap_ticks]
+  std::uint64_t unchecked_gaps(int j) const { return e(j).unchecked_gaps; }  // packets after a gap > max_checked_gap_ticks
+  // The largest residual/gap_bound_m of a packet after a gap while admitted (honest: well below 1).
+  double peak_gap_ratio(int j) const { return e(j).gap_peak; }
   // The last isolation: its reason, tick, the node and value (m) that tripped it; the last re-admission's tick (-1: none).
   EdgeLie last_reason(int j) const { return e(j).reason; }
   std::int64_t last_isolated_k(int j) const { return e(j).isolated_k; }
@@ -112,8 +125,9 @@ class EdgeMonitor {
     int trip_node = -1;
     double trip_value_m = 0;
     double u_max = 0, y_max = 0, r_max = 0, u_peak = 0, y_peak = 0;
-    std::uint64_t isolations = 0, readmissions = 0, isolated_ticks = 0, unchecked_gaps = 0;
-    int u_node = -1, y_node = -1;
+    double gap_ratio = 0, gap_peak = 0, gap_residual_m = 0;  // after a gap: residual / gap_bound_m (0: no gap), its peak, the residual
+    std::uint64_t isolations = 0, readmissions = 0, isolated_ticks = 0, gap_checks = 0, unchecked_gaps = 0;
+    int u_node = -1, y_node = -1, gap_node = -1;
   };
   const Edge& e(int j) const { return ed_[static_cast<std::size_t>(j)]; }
   // The new packet's checks: U and one packet's residual (K), the filtered disagreement (P).

@@ -63,6 +63,7 @@ struct StationSection {
   double state_check_disagreement_window_s = 0.2;
   double state_check_readmit_s = 2.0;
   int state_check_max_gap_ticks = 4;
+  int state_check_max_checked_gap_ticks = 32;
   std::string solver = "auto";
   double tx_deadband_mm = 0;
   int tx_max_interval_ticks = 1;

@@ -121,8 +121,12 @@ const std::vector<StationOption> kStation = {
        "velocities explain (at some node) is isolated: its edge acts as a damper").with_note(" (0 = off)"), HAPTIC_FIELD(station, state_check_kinematic_m)},
     {R("station", "state_check_kinematic_window_s", 30, 0.01, 3600, "the time over which that unexplained motion adds up (its leak's time constant)"),
      HAPTIC_FIELD(station, state_check_kinematic_window_s)},
-    {I("station", "state_check_max_gap_ticks", 4, 1, 1000, "packets further apart than this many sequences are not compared (re-anchored)"),
+    {I("station", "state_check_max_gap_ticks", 4, 1, 1000, "packets at most this many sequences apart add up their unexplained motion"),
      HAPTIC_FIELD(station, state_check_max_gap_ticks)},
+    {I("station", "state_check_max_checked_gap_ticks", 32, 1, 1000,
+       "a packet after a longer gap (up to this many sequences) is compared alone, against state_check_kinematic_m x (gap / "
+       "state_check_max_gap_ticks)^2; further apart: not compared (re-anchored)"),
+     HAPTIC_FIELD(station, state_check_max_checked_gap_ticks)},
     {R("station", "state_check_disagreement_m", rt::kDefaultStateCheckDisagreementM, 0, 1,
        "neighbour state check: a neighbour whose state (carried forward by its velocity) stays this far from this copy at some node, "
        "filtered over state_check_disagreement_window_s, is isolated; off by default: copies that diverged in an outage "

@@ -286,6 +286,10 @@ static rt::EdgeMonitorParams state_check_params(const StationSection& s) {
   p.kinematic_bound_m = s.state_check_kinematic_m > 0 ? s.state_check_kinematic_m : rt::EdgeMonitorParams::kOff;
   p.kinematic_window_s = s.state_check_kinematic_window_s;
   p.max_gap_ticks = s.state_check_max_gap_ticks;
+  p.max_checked_gap_ticks = s.state_check_max_checked_gap_ticks;
+  if (p.max_checked_gap_ticks < p.max_gap_ticks)
+    bad("station.state_check_max_checked_gap_ticks = " + std::to_string(p.max_checked_gap_ticks) +
+        " must be at least station.state_check_max_gap_ticks = " + std::to_string(p.max_gap_ticks));
   p.disagreement_bound_m = s.state_check_disagreement_m > 0 ? s.state_check_disagreement_m : rt::EdgeMonitorParams::kOff;
   p.disagreement_window_s = s.state_check_disagreement_window_s;
   p.readmit_s = s.state_check_readmit_s;

@@ -73,6 +73,7 @@ nlohmann::json state_check_json(const StationPlan& plan, const rt::StationCore& 
             {"kinematic_bound_m", finite_or_null(p.kinematic_bound_m)},
             {"kinematic_window_s", p.kinematic_window_s},
             {"max_gap_ticks", p.max_gap_ticks},
+            {"max_checked_gap_ticks", p.max_checked_gap_ticks},
             {"disagreement_bound_m", finite_or_null(p.disagreement_bound_m)},
             {"disagreement_window_s", p.disagreement_window_s},
             {"readmit_s", p.readmit_s},
@@ -88,6 +89,8 @@ nlohmann::json state_check_json(const StationPlan& plan, const rt::StationCore& 
               {"isolated_at_end", m.isolated(n)},
               {"peak_kinematic_m", m.peak_kinematic_m(n)},
               {"peak_disagreement_m", m.peak_disagreement_m(n)},
+              {"gap_checks", m.gap_checks(n)},
+              {"peak_gap_ratio", m.peak_gap_ratio(n)},
               {"unchecked_gaps", m.unchecked_gaps(n)}};
     if (m.isolations(n) > 0) {
       e["reason"] = rt::edge_lie_name(m.last_reason(n));

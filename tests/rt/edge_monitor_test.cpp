@@ -113,13 +113,70 @@ TEST(EdgeMonitor, an_isolated_edge_is_readmitted_only_after_readmit_s_of_truthfu
   CHECK_EQUAL(2u, e.m.readmissions(0));
 }
 
-TEST(EdgeMonitor, a_gap_longer_than_max_gap_ticks_re_anchors_without_a_check) {
-  OneEdge e(check_params());
+TEST(EdgeMonitor, a_jump_inside_a_packet_gap_is_isolated_at_the_packet_after_it_against_a_bound_growing_with_the_gap) {
+  const auto p = check_params();
+  for (const std::int64_t g : {5, 10, 20, 32}) {
+    const double bound = p.gap_bound_m(g);
+    CHECK_TRUE(bound > p.kinematic_bound_m);
+    OneEdge below(p), above(p);
+    for (std::int64_t s = 0; s < 100; ++s) {
+      CHECK_FALSE(below.feed(s, 0.05, 0.0));
+      CHECK_FALSE(above.feed(s, 0.05, 0.0));
+    }
+    CHECK_FALSE(below.feed(99 + g, 0.05, 0.9 * bound));  // g sequences later, 0.9 of the bound off: let through
+    CHECK_TRUE(above.feed(99 + g, 0.05, 1.1 * bound));   // 1.1 of it: isolated at this packet
+    CHECK_EQUAL(1u, above.m.gap_checks(0));
+    CHECK_EQUAL(0u, above.m.unchecked_gaps(0));
+    CHECK_TRUE(above.m.last_reason(0) == EdgeLie::kKinematic);
+    DOUBLES_EQUAL(1.1 * bound, above.m.trip_value_m(0), 1e-3 * bound);
+    DOUBLES_EQUAL(0.9, below.m.peak_gap_ratio(0), 1e-3);
+    // the gap's residual does not add up: the next consistent packets after the tolerated one stay admitted
+    for (std::int64_t s = 100 + g; s < 200 + g; ++s) CHECK_FALSE(below.feed(s, 0.05, 0.9 * bound));
+  }
+}
+
+TEST(EdgeMonitor, a_gap_longer_than_max_checked_gap_ticks_re_anchors_without_a_check) {
+  const auto p = check_params();
+  OneEdge e(p);
   CHECK_FALSE(e.feed(0, 0.0, 0.0));
-  const double jump = 25 * check_params().kinematic_bound_m;  // far above the kinematic bound
-  CHECK_FALSE(e.feed(10, 0.0, jump));  // 10 ticks later, off by `jump`: not compared (disagreement still filtered)
+  const std::int64_t g = p.max_checked_gap_ticks + 1;
+  const double jump = 2 * p.gap_bound_m(g);  // far above any bound
+  CHECK_FALSE(e.feed(g, 0.0, jump));  // not compared (disagreement still filtered)
   CHECK_EQUAL(1u, e.m.unchecked_gaps(0));
-  CHECK_TRUE(e.feed(11, 0.0, 0.0));    // the next packet is checked against it: a jump back
+  CHECK_EQUAL(0u, e.m.gap_checks(0));
+  CHECK_TRUE(e.feed(g + 1, 0.0, 0.0));  // the next packet is checked against it: a jump back
+}
+
+// An honest neighbour's NPMI trajectory (x(s+1) - x(s) = T/2 (v(s) + v(s+1)) exactly) whose velocity
+// curves hard: the object's lowest elastic mode (11.9 Hz) at 1 mm on a 50 mm/s drift, three axes,
+// received after every gap from 1 to max_checked_gap_ticks sequences: never isolated.
+TEST(EdgeMonitor, honest_motion_curving_at_the_lowest_mode_is_never_isolated_after_any_checked_gap) {
+  const auto p = check_params();
+  const double w = 2 * M_PI * 11.9, a = 1e-3, drift = 0.05;
+  auto vel = [&](std::int64_t s, int d) { return drift + a * w * std::cos(w * static_cast<double>(s) * kT + d); };
+  EdgeMonitor m;
+  std::vector<double> x(6, 0.0), v(6, 0.0), own(6, 0.0);
+  for (int i = 0; i < 6; ++i) v[static_cast<std::size_t>(i)] = vel(0, i % 3);
+  m.init(1, 6, kT, p, x.data(), v.data());
+  std::int64_t next = 1, gap = 1;
+  for (std::int64_t s = 1; s < 20000; ++s) {
+    for (int i = 0; i < 6; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      const double vn = vel(s, i % 3);
+      x[u] += 0.5 * kT * (v[u] + vn);
+      v[u] = vn;
+      own[u] = x[u];
+    }
+    if (s != next) continue;  // lost
+    CHECK_FALSE(m.observe(0, s, s, x.data(), v.data(), 0, own.data()));
+    gap = gap % p.max_checked_gap_ticks + 1;  // 1, 2, ..., 32, 1, ...
+    next = s + gap;
+  }
+  CHECK_TRUE(m.gap_checks(0) > 100);
+  CHECK_EQUAL(0u, m.unchecked_gaps(0));
+  CHECK_TRUE(m.peak_gap_ratio(0) > 0.01);  // the gaps did curve: the check saw something, below its bound
+  std::printf("honest lowest-mode motion: peak gap residual %.3f of its bound over %llu gap checks\n", m.peak_gap_ratio(0),
+              static_cast<unsigned long long>(m.gap_checks(0)));
 }
 
 namespace {

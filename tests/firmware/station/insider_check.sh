@@ -11,10 +11,17 @@
 #  - offset: every leaf isolates the hub at its first lying packet (within 0.1 s: the one-way delay),
 #    so the lie is never applied; that run is the reference of the others (isolation itself ends the
 #    consensus the clean run keeps);
-#  - bound: each leaf's copy (largest node displacement from the lie's start) moved at most BOUND_MM more
-#    than in the offset run: the stated bound (rt/README.md "The neighbour state check": d_K = 0.2 mm for
-#    the oscillation, 1.25 (rho t_d + c_l rho t_d^2 / 2) = 0.48 mm for the 2 mm/s ramp) plus 0.5 mm for
-#    the run-to-run variation of real-time runs.
+#  - bound: the lie's damage to each leaf's copy, the largest node distance between its displacement
+#    from the lie's start and the offset run's (same tick), up to DAMAGE_WINDOW_S after the later of
+#    the two isolations, is below BOUND_MM: the stated bound (rt/README.md "The neighbour state check":
+#    d_K = 0.2 mm for the oscillation, 1.25 (rho t_d + c_l rho t_d^2 / 2) = 0.48 mm for the 2 mm/s ramp)
+#    plus ALLOWANCE_MM = 0.5 mm for what two real-time runs differ in besides the lie: their timing
+#    (~0.06 mm in the window, quiet host) and the hub's honest coupling, which the offset run lost at
+#    1 s and the ramp run keeps until its isolation (~0.1 s later). The window keeps the first small: the
+#    users push on through the hold, and two runs' copies (each leaf alone after the isolation, its
+#    simulated hand on its own clock) drift apart by up to ~6 % of the push's ~10 mm by the release,
+#    which a measure over the whole run would mix into the damage; the lie's
+#    damage itself is done by the isolation and stays (the ramp's shows in full 0.1 s after it).
 # Bounded: run4.sh stops every station after its planned time + 20 s. No root.
 # Usage: insider_check.sh BIN_DIR WORK_DIR   (BIN_DIR holds haptic-station, haptic-insider, haptic-lab's tools)
 set -euo pipefail
@@ -40,23 +47,34 @@ run_case ramp ramp 0.002
 /usr/bin/python3 - "$work" <<'PY'
 import csv, glob, json, sys
 work = sys.argv[1]
-BOUND_MM = {"mode": 0.2 + 0.5, "ramp": 0.48 + 0.5}
-LIE_FROM_S, T = 1.0, 0.002
+ALLOWANCE_MM = 0.5
+BOUND_MM = {"mode": 0.2 + ALLOWANCE_MM, "ramp": 0.48 + ALLOWANCE_MM}
+LIE_FROM_S, T, DAMAGE_WINDOW_S = 1.0, 0.002, 0.25
 fail = []
 
 def station(case, i):
     return json.load(open("%s/%s/station-%d.json" % (work, case, i)))
 
-def moved_mm(case, i):
-    """max over time after the lie's start and nodes of |x(t) - x(lie start)| of station i's copy, mm"""
-    rows = [r for r in list(csv.reader(open("%s/%s/station-%d-state.csv" % (work, case, i))))[1:] if int(r[0]) * T >= LIE_FROM_S]
-    if not rows: return float("nan")
-    x0 = [float(v) for v in rows[0][1:]]
+def states(case, i):
+    """station i's copy by tick: {k: [x0, x1, ...]} (the state CSV's rows)"""
+    return {int(r[0]): [float(v) for v in r[1:]] for r in list(csv.reader(open("%s/%s/station-%d-state.csv" % (work, case, i))))[1:]}
+
+def isolated_at(case, i):
+    return station(case, i)["state_check"]["neighbours"][0].get("last_isolated_run_s")
+
+def damage_mm(case, i):
+    """max over ticks in [lie start, later isolation + DAMAGE_WINDOW_S] and nodes of the distance between
+    station i's displacement from the lie's start in CASE and in the offset run, mm"""
+    a, o = states(case, i), states("offset", i)
+    t_a, t_o = isolated_at(case, i), isolated_at("offset", i)
+    if t_a is None or t_o is None: return float("nan")
+    k0 = min((k for k in a if k * T >= LIE_FROM_S and k in o), default=None)
+    if k0 is None: return float("nan")
     worst = 0.0
-    for r in rows:
-        x = [float(v) for v in r[1:]]
-        for p in range(len(x) // 3):
-            worst = max(worst, sum((x[3 * p + d] - x0[3 * p + d]) ** 2 for d in range(3)) ** 0.5)
+    for k in sorted(a):
+        if k < k0 or k * T > max(t_a, t_o) + DAMAGE_WINDOW_S or k not in o: continue
+        for p in range(len(a[k]) // 3):
+            worst = max(worst, sum(((a[k][3 * p + d] - a[k0][3 * p + d]) - (o[k][3 * p + d] - o[k0][3 * p + d])) ** 2 for d in range(3)) ** 0.5)
     return 1e3 * worst
 
 for i in range(1, 5):
@@ -74,9 +92,9 @@ for case in ("offset", "mode", "ramp"):
         s = station(case, i)
         n = s["state_check"]["neighbours"][0]
         log = open("%s/%s/station-%d.log" % (work, case, i)).read()
-        dmg = moved_mm(case, i) - moved_mm("offset", i)
+        dmg = damage_mm(case, i)
         t_iso = n.get("last_isolated_run_s")
-        print("%s station %d: exit %s, isolated station %s %s time(s) at %s s (%s, %.3f mm at node %s), moved %.3f mm more than the offset run" % (
+        print("%s station %d: exit %s, isolated station %s %s time(s) at %s s (%s, %.3f mm at node %s), damage %.3f mm against the offset run" % (
               case, i, s["exit_code"], n["station"], n["isolations"], t_iso, n.get("reason"), 1e3 * n.get("trip_value_m", 0), n.get("trip_node"), dmg))
         if s["exit_code"] != 13 or "neighbour_isolated" not in s["conditions"]:
             fail.append("%s: station %d exit %s, conditions %s (want 13, neighbour_isolated)" % (case, i, s["exit_code"], s["conditions"]))
@@ -86,8 +104,8 @@ for case in ("offset", "mode", "ramp"):
             fail.append("%s: station %d's json/log do not name station 1 as isolated" % (case, i))
         if case == "offset" and not (t_iso is not None and t_iso - LIE_FROM_S < 0.1):
             fail.append("offset: station %d isolated the hub at %s s, not at its first lying packet" % (i, t_iso))
-        if case in BOUND_MM and not dmg < BOUND_MM[case]:
-            fail.append("%s: station %d's copy moved %.3f mm more than in the offset run (bound %.2f mm)" % (case, i, dmg, BOUND_MM[case]))
+        if case in BOUND_MM and not dmg < BOUND_MM[case]:  # NaN (no isolation, no rows) fails too
+            fail.append("%s: the lie moved station %d's copy %.3f mm from the offset run's (bound %.2f mm)" % (case, i, dmg, BOUND_MM[case]))
 for m in fail: print("FAIL: " + m)
 if not fail: print("ok: the lying hub is isolated and named by every leaf, honest copies within the bound, the clean run isolates no one")
 sys.exit(1 if fail else 0)

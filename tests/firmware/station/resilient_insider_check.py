@@ -58,7 +58,7 @@ def liar_share(s):
 
 def check_isolated(work, case, i, s, fail):
     """the kinematic check isolated station 1; or, when it re-anchored over a packet gap longer than
-    station.state_check_max_gap_ticks (the lie's jump unseen: unchecked_gaps > 0), the resilient rule left
+    station.state_check_max_checked_gap_ticks (the lie's jump unseen: unchecked_gaps > 0), the resilient rule left
     station 1 out on >= 90 % of the ticks from 1.5 s"""
     log = open("%s/%s/station-%d.log" % (work, case, i)).read()
     n = [x for x in s["state_check"]["neighbours"] if x["station"] == 1][0]

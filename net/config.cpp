@@ -134,55 +134,61 @@ void parse_io_options(const toml::node_view<const toml::node>& net, const std::s
   c.envelope_radii = real_of(net, "envelope_radii", P);
 }
 
-// One state packet of this scene (x_hat, v_hat, the proxy) must fit kMaxFragments datagrams of
-// max_datagram_bytes: said when the file is read (--check-config), with the smallest size that fits.
-void check_packet_fits(const NetConfig& c, const std::string& P) {
+// This station's own address, parsed once: the udp bind (len 0 for raw) and the largest datagram
+// the transport sends (udp: what the address family sends unfragmented; raw: the interface's MTU,
+// known when it opens, at most kMaxDatagramBytes).
+struct LocalAddress {
+  sockaddr_storage bind{};
+  socklen_t bind_len = 0;
+  std::size_t most_datagram_bytes = kMaxDatagramBytes;
+};
+
+// Where this station listens: bind (udp; never the wildcard without listen_any) or interface (raw).
+LocalAddress parse_local_address(const toml::node_view<const toml::node>& net, const std::string& P, NetConfig& c) {
+  LocalAddress own;
+  if (c.transport == "raw") {
+    c.interface = text(net["interface"], P + "interface", "");
+    if (c.interface.empty()) bad(P + "interface", "set for transport = \"raw\"");
+    return own;
+  }
+  const std::string bind_key = P + (net["bind"] || !net["listen"] ? "bind" : "listen");
+  c.bind = net["bind"] ? text(net["bind"], P + "bind", "") : text(net["listen"], P + "listen", "");
+  if (c.bind.empty()) bad(P + "bind", "set for transport = \"udp\" (\"a.b.c.d:port\" or \"[v6]:port\")");
+  own.bind = parse_udp_address(c.bind, bind_key, own.bind_len);
+  own.most_datagram_bytes = UdpTransport::max_datagram_bytes_for(own.bind.ss_family);
+  const sockaddr_storage& a = own.bind;
+  const bool any = a.ss_family == AF_INET ? reinterpret_cast<const sockaddr_in*>(&a)->sin_addr.s_addr == htonl(INADDR_ANY)
+                                          : IN6_IS_ADDR_UNSPECIFIED(&reinterpret_cast<const sockaddr_in6*>(&a)->sin6_addr);
+  if (any && !c.listen_any)
+    bad(bind_key, "this station's own address, not the wildcard \"" + c.bind + "\" (listening on every interface needs " + P +
+                      "listen_any = true; neighbours are still accepted only from their configured addresses)");
+  return own;
+}
+
+// net.max_datagram_bytes, said when the file is read (--check-config), not first at start-up: at
+// most what the transport sends (udp: no datagram IP would fragment), and large enough that one
+// state packet of this scene (x_hat, v_hat, the proxy) fits kMaxFragments datagrams (the smallest
+// size that fits is named).
+void check_datagram_size(const NetConfig& c, const std::string& P, const LocalAddress& own) {
   const EndpointConfig& e = c.endpoint;
+  const bool udp = c.transport == "udp";
+  const std::size_t most = own.most_datagram_bytes;
+  const std::string key = P + "max_datagram_bytes = " + std::to_string(e.wire.max_datagram_bytes);
+  if (udp && e.wire.max_datagram_bytes > most)
+    bad(key, "at most " + std::to_string(most) + " for transport = \"udp\" over " + (own.bind.ss_family == AF_INET6 ? "IPv6" : "IPv4") +
+                 " (no datagram is sent that IP would fragment)");
   const Encoder enc(e.wire);
   if (enc.fragment_count(e.value_count) != 0) return;
   const std::size_t payload = enc.payload_bytes(e.value_count), vb = enc.value_bytes();
   const std::size_t stride = (payload + kMaxFragments - 1) / kMaxFragments;
   const std::size_t need = (stride + vb - 1) / vb * vb + kHeaderBytes + kMacBytes;
-  // udp: what the address family sends unfragmented; raw: the interface's MTU, known when it opens
-  socklen_t blen = 0;
-  const bool udp = c.transport == "udp";
-  const std::size_t most = udp ? UdpTransport::max_datagram_bytes_for(parse_udp_address(c.bind, P + "bind", blen).ss_family) : kMaxDatagramBytes;
   const std::string what = "this scene's state packet (" + std::to_string(e.value_count / 3) + " nodes, " +
                            (vb == 4 ? "float32" : "float64") + ": " + std::to_string(payload) + " bytes) in at most " +
                            std::to_string(kMaxFragments) + " datagrams";
   const std::string f32 = vb == 8 ? "; " + P + "encoding = \"float32\" halves the packet" : std::string();
-  const std::string key = P + "max_datagram_bytes = " + std::to_string(e.wire.max_datagram_bytes);
   if (need <= most) bad(key, "at least " + std::to_string(need) + " for " + what + (udp ? "" : " (and at most the interface's MTU)") + f32);
   bad(key, "large enough for " + what + ": no datagram of transport = \"" + c.transport + "\" is (at most " + std::to_string(most) +
                " bytes): the scene has too many nodes for the network" + f32);
-}
-
-// Where this station listens: bind (udp; never the wildcard without listen_any) or interface (raw).
-void parse_local_address(const toml::node_view<const toml::node>& net, const std::string& P, NetConfig& c) {
-  const std::string bind_key = P + (net["bind"] || !net["listen"] ? "bind" : "listen");
-  if (c.transport == "udp")
-    c.bind = net["bind"] ? text(net["bind"], P + "bind", "") : text(net["listen"], P + "listen", "");
-  if (c.transport == "udp" && c.bind.empty()) bad(P + "bind", "set for transport = \"udp\" (\"a.b.c.d:port\" or \"[v6]:port\")");
-  if (c.transport == "udp") {  // said when the file is read, not first at start-up
-    socklen_t blen = 0;
-    const int family = parse_udp_address(c.bind, bind_key, blen).ss_family;
-    const std::size_t most = UdpTransport::max_datagram_bytes_for(family);
-    if (c.endpoint.wire.max_datagram_bytes > most)
-      bad(P + "max_datagram_bytes = " + std::to_string(c.endpoint.wire.max_datagram_bytes),
-          "at most " + std::to_string(most) + " for transport = \"udp\" over " + (family == AF_INET6 ? "IPv6" : "IPv4") +
-              " (no datagram is sent that IP would fragment)");
-  }
-  if (c.transport == "udp" && !c.listen_any) {
-    socklen_t blen = 0;
-    const sockaddr_storage a = parse_udp_address(c.bind, bind_key, blen);
-    const bool any = a.ss_family == AF_INET ? reinterpret_cast<const sockaddr_in*>(&a)->sin_addr.s_addr == htonl(INADDR_ANY)
-                                            : IN6_IS_ADDR_UNSPECIFIED(&reinterpret_cast<const sockaddr_in6*>(&a)->sin6_addr);
-    if (any)
-      bad(bind_key, "this station's own address, not the wildcard \"" + c.bind + "\" (listening on every interface needs " + P +
-                        "listen_any = true; neighbours are still accepted only from their configured addresses)");
-  }
-  if (c.transport == "raw") c.interface = text(net["interface"], P + "interface", "");
-  if (c.transport == "raw" && c.interface.empty()) bad(P + "interface", "set for transport = \"raw\"");
 }
 
 // [net.impairment]: one model for every link this station sends on.
@@ -218,23 +224,22 @@ ImpairmentSection parse_impairment(const toml::node_view<const toml::node>& net,
 }
 
 // A peer's UDP address (key k): parsed, a port other than 0 and not this station's own bind.
-void check_peer_address(const NetConfig& c, const std::string& k, const std::string& P) {
+void check_peer_address(const NetConfig& c, const std::string& k, const std::string& P, const LocalAddress& own) {
   const std::string& text_address = c.udp_peers.back().address;
-  socklen_t len = 0, bind_len = 0;
+  socklen_t len = 0;
   const sockaddr_storage a = parse_udp_address(text_address, k, len);
   const auto port = [](const sockaddr_storage& s) {
     return ntohs(s.ss_family == AF_INET ? reinterpret_cast<const sockaddr_in*>(&s)->sin_port : reinterpret_cast<const sockaddr_in6*>(&s)->sin6_port);
   };
   if (port(a) == 0) bad(k + " = \"" + text_address + "\"", "a neighbour's address with its port (1..65535), not port 0");
-  const sockaddr_storage own = parse_udp_address(c.bind, P + "bind", bind_len);
-  if (len == bind_len && std::memcmp(&a, &own, len) == 0)
+  if (len == own.bind_len && std::memcmp(&a, &own.bind, len) == 0)
     bad(k + " = \"" + text_address + "\"", "another station's address, not this station's own " + P + "bind");
 }
 
 // One entry of net.peers (key k, e.g. "net.peers[2]"): id, impairment of our link to it, its
 // public key, and its address on the configured transport.
 void parse_peer(const toml::node_view<const toml::node>& p, const std::string& k, const std::string& P,
-                const ImpairmentSection& imp, NetConfig& c) {
+                const ImpairmentSection& imp, const LocalAddress& own, NetConfig& c) {
   EndpointConfig& e = c.endpoint;
   const std::uint16_t self = e.wire.station_id;
   PeerLink l;
@@ -275,7 +280,7 @@ void parse_peer(const toml::node_view<const toml::node>& p, const std::string& k
   if (c.transport == "udp") {
     if (!p["address"]) bad(k + ".address", "set for transport = \"udp\"");
     c.udp_peers.push_back({l.station_id, text(p["address"], k + ".address", "")});
-    check_peer_address(c, k + ".address", P);
+    check_peer_address(c, k + ".address", P, own);
   } else {
     if (!p["mac"]) bad(k + ".mac", "set for transport = \"raw\"");
     c.raw_peers.push_back({l.station_id, parse_mac(text(p["mac"], k + ".mac", ""), k + ".mac")});
@@ -301,7 +306,7 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
   c.revoked_keys = parse_revoked_keys(net, P);
   parse_keys(net, P, config_file, e, c.revoked_keys);
   parse_io_options(net, P, c);
-  parse_local_address(net, P, c);
+  const LocalAddress own = parse_local_address(net, P, c);
   const ImpairmentSection imp = parse_impairment(net, P, c);
 
   const auto peers = net["peers"];
@@ -309,10 +314,10 @@ NetConfig parse_net_config(std::string_view toml_text, std::uint32_t value_count
   std::size_t idx = 0;
   for (const auto& node : *peers.as_array()) {
     if (!node.is_table()) bad(P + "peers", "an array of tables");
-    parse_peer(toml::node_view<const toml::node>{node}, P + "peers[" + std::to_string(idx++) + "]", P, imp, c);
+    parse_peer(toml::node_view<const toml::node>{node}, P + "peers[" + std::to_string(idx++) + "]", P, imp, own, c);
   }
   e.wire.validate();
-  check_packet_fits(c, P);
+  check_datagram_size(c, P, own);
   e.rtt.validate();
   return c;
 }

@@ -110,9 +110,9 @@ TEST(NetConfig, AStatePacketTooLargeForTheFragmentsNamesTheSmallestDatagramThatF
   STRCMP_CONTAINS("net.max_datagram_bytes = 1473 must be at most 1472 for transport = \"udp\" over IPv4",
                   error_of(udp_doc("max_datagram_bytes = 1473\n")).c_str());
   CHECK(error_of(udp_doc("max_datagram_bytes = 1472\n")).empty());
-  CHECK(error_of(udp_doc(), 3 * 16703).empty());
+  CHECK(error_of(udp_doc(), 3 * 16703).empty());  // the 16,703-node ball: 306 datagrams of 1400 bytes
   // 40,000 nodes need 1964-byte datagrams: more than UDP sends unfragmented, at any setting
-  STRCMP_CONTAINS("too many nodes for the network", error_of(udp_doc("max_datagram_bytes = 1472\n"), 3 * 40000).c_str());  // the 16,703-node ball: 306 datagrams of 1400 bytes
+  STRCMP_CONTAINS("too many nodes for the network", error_of(udp_doc("max_datagram_bytes = 1472\n"), 3 * 40000).c_str());
 }
 
 TEST(NetConfig, Float32IsTheDefaultAndTickSynchronousTxIsOptIn) {

@@ -24,14 +24,22 @@ ProbeLoss ProbeLossCounter::loss(std::size_t n, std::int64_t late_ticks) const {
   if (n >= seen_.size() || first_[n] < 0) return r;
   const std::int64_t last = newest_[n] - std::max<std::int64_t>(0, late_ticks);
   if (last < first_[n]) return r;
-  r.expected = last - first_[n] + 1;
   const auto& bits = seen_[n];
-  long long gap = 0;
-  for (long long i = 0; i < r.expected; ++i) {
-    gap = bits[static_cast<std::size_t>(i)] ? 0 : gap + 1;
-    r.lost += bits[static_cast<std::size_t>(i)] ? 0 : 1;
-    r.longest_gap = std::max(r.longest_gap, gap);
+  const std::int64_t span = last - first_[n] + 1;
+  long long received = 0;
+  std::int64_t previous = -1;  // offset of the last packet seen
+  auto silence = [&](long long lost) {  // `lost` packets in a row
+    r.lost += lost;
+    r.longest_gap = std::max(r.longest_gap, lost);
+  };
+  for (std::int64_t i = 0; i < span; ++i) {
+    if (!bits[static_cast<std::size_t>(i)]) continue;
+    ++received;
+    if (previous >= 0) silence((i - previous + interval_ - 1) / interval_ - 1);  // ceil(gap / I) - 1
+    previous = i;
   }
+  silence((span - 1 - previous) / interval_);  // after the last one: those due by `last`
+  r.expected = received + r.lost;
   return r;
 }
 

@@ -4,6 +4,7 @@
 // freeze of the round-trip bounds the allowance of Nbar for that incoming direction from the loss
 // measured over the packets that must have arrived by then (model::loss_allowance_from_measured_loss,
 // the scenario's own rule with the probability's upper confidence bound). Non-RT (probing phase).
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -18,7 +19,13 @@ struct ProbeLoss {
 
 class ProbeLossCounter {
  public:
-  explicit ProbeLossCounter(std::size_t neighbours = 0) : seen_(neighbours), first_(neighbours, -1), newest_(neighbours, -1) {}
+  // send_interval_ticks: the neighbours send a state at least every this many ticks (the deadband's
+  // pace, probing included; 1: every tick). A silence of g ticks between two packets that arrived
+  // then holds ceil(g / interval) - 1 lost ones (every one of them, when the sender keeps exactly that
+  // pace as while probing; at least that many when it sends more often on a change, as a running
+  // station does), and packets, gaps and the loss's expected count are in packets.
+  explicit ProbeLossCounter(std::size_t neighbours = 0, std::int64_t send_interval_ticks = 1)
+      : seen_(neighbours), first_(neighbours, -1), newest_(neighbours, -1), interval_(std::max<std::int64_t>(1, send_interval_ticks)) {}
   // One drained packet of neighbour n (n < 0: not a neighbour, ignored). Sequence numbers more than
   // kMaxSpan after the first one seen are ignored (a bounded record). Not RT-safe (may allocate).
   void add(int n, std::uint64_t seq);
@@ -31,6 +38,7 @@ class ProbeLossCounter {
  private:
   std::vector<std::vector<bool>> seen_;           // per neighbour, seq - first
   std::vector<std::int64_t> first_, newest_;      // -1: nothing yet
+  std::int64_t interval_ = 1;
 };
 
 // The round-trip loss allowance (ticks added to R_ij = Nbar_ij + Nbar_ji) from the loss measured on

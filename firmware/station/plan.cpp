@@ -22,6 +22,7 @@
 
 #include "firmware/model/graph.hpp"
 #include "firmware/station/link_impairment.hpp"
+#include "firmware/station/probe.hpp"
 #include "firmware/station/records.hpp"
 #include "firmware/session/recorder.hpp"
 #include "platform/toml_config.hpp"
@@ -174,6 +175,24 @@ void plan_device_file_warnings(StationPlan& p) {
     missing("hd_library_path", d.hd_library_path, p.device.touch.hd_library_path, "a Touch");
 }
 
+namespace {
+
+// Probing sends a state every send_interval_ticks (the deadband's pace): before the round-trip bounds
+// freeze it must send at least net.rtt_min_probe_samples of them, or no link can get its bound.
+void check_probe_samples(const net::NetConfig& nc, const ScenarioSpec& spec, const StationTimes& t) {
+  const std::int64_t pace = send_interval_ticks(spec), freeze = probe_freeze_tick(t.probe_ticks);
+  const std::int64_t sent = freeze > 0 ? (freeze - 1) / pace + 1 : 0;
+  const auto need = static_cast<std::int64_t>(nc.endpoint.rtt.min_probe_samples);
+  if (sent >= need) return;
+  const double probe_s = static_cast<double>((need - 1) * pace + 1) * 1.5 * spec.period_s;  // freeze at 2/3 of probing
+  bad("station.probe_s = " + number_text(static_cast<double>(t.probe_ticks) * spec.period_s) + " s sends " + std::to_string(sent) +
+      " probe states before the round-trip bounds freeze (one every " + std::to_string(pace) +
+      " ticks: station.tx_max_interval_ticks), fewer than the " + std::to_string(need) +
+      " round trips a link needs (net.rtt_min_probe_samples): probe for at least " + number_text(probe_s) + " s");
+}
+
+}  // namespace
+
 // The network side of the plan (a station with neighbours): [net] parsed by net/, the peer table,
 // addresses, the link impairments, the timeline with its probing and set-up gap, the endpoint's epoch.
 void plan_network(StationPlan* p, const ClockReading& now) {
@@ -192,6 +211,7 @@ void plan_network(StationPlan* p, const ClockReading& now) {
   check_tx_spin(f, p->net);
   apply_station_impairments(f, spec, p->net);  // the simulator's link set-up and seed rule
   p->times = plan_times(f, o, spec, now);
+  if (!p->times.rejoin) check_probe_samples(p->net, spec, p->times);
   if (p->times.rejoin)
     p->warnings.push_back("started " + std::to_string(-p->times.epoch_in_s) + " s after the common epoch (" +
                           (o.start_at >= 0 ? std::string("--start-at") : std::string("station.start_at")) +

@@ -65,6 +65,10 @@ std::string counted_causes(const net::EndpointStats& s) {
 
 std::int64_t probe_freeze_tick(std::int64_t probe_ticks) { return probe_ticks - probe_ticks / 3; }
 
+std::int64_t send_interval_ticks(const ScenarioSpec& spec) {
+  return spec.tx_deadband.enabled() ? spec.tx_deadband.max_interval_ticks : 1;
+}
+
 void fix_loss_allowances(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r) {
   const StationSection& S = plan.file.station;
   const BuiltScenario& b = *plan.built;
@@ -125,15 +129,16 @@ void fix_step_bounds(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r,
 
 LoopStage probe_stage(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r, std::int64_t now_ns) {
   r.grid = NeighbourGrid(plan.neighbours().size());
-  r.loss_counter = ProbeLossCounter(plan.neighbours().size());
   const BuiltScenario& b = *plan.built;
+  const std::int64_t pace = send_interval_ticks(b.spec);
+  r.loss_counter = ProbeLossCounter(plan.neighbours().size(), pace);
   const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);
   LoopStage s;
   s.timeline = plan.times;
   s.last_phase = TickPhase::kProbe;
   s.k_first = plan.times.tick_at(now_ns);  // from now: the ticks before the epoch watch for a running session
   const std::int64_t freeze = probe_freeze_tick(plan.times.probe_ticks);
-  s.tick = [&plan, &ep, &r, x0, v0, freeze, frozen = false](std::int64_t k, const platform::TickInfo& info) mutable {
+  s.tick = [&plan, &ep, &r, x0, v0, freeze, pace, frozen = false](std::int64_t k, const platform::TickInfo& info) mutable {
     if (k >= freeze && !frozen) {  // the bounds freeze; the last third exchanges them
       frozen = true;
       r.all_bounds_at_freeze = ep.finish_probing();
@@ -148,7 +153,7 @@ LoopStage probe_stage(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r
     if (r.running_session_from != 0) return false;  // the caller rejoins the running session
     if (k < 0) return true;                         // before the epoch: watching only
     if (r.first_probe_k < 0) r.first_probe_k = k;
-    if (!ep.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data())) ++r.push_failures;
+    if (k % pace == 0 && !ep.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data())) ++r.push_failures;
     return true;
   };
   return s;

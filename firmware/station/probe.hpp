@@ -99,6 +99,11 @@ void end_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<boo
 ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop);
 // The probing tick at which the round-trip bounds freeze: after two thirds of the probing ticks.
 std::int64_t probe_freeze_tick(std::int64_t probe_ticks);
+// The pace at which the neighbours send their states: every tick, or with the transmission deadband
+// at least every tx_max_interval_ticks. Probing sends at that pace (on the ticks k = 0 mod it), so
+// the round trips and the loss it measures are those of the run's traffic (a 16,000-node state every
+// tick would be 200 MB/s per link), and the loss counters count packets at it.
+std::int64_t send_interval_ticks(const ScenarioSpec& spec);
 
 // After probing has been finished on `ep` (`all`: every neighbour has a bound): statistics,
 // bounds, missing neighbours, the fingerprint comparison and the status. `after` names how long

@@ -38,8 +38,8 @@ bool learn_epoch(const StationPlan& plan, RejoinResult& r) {
 
 LoopStage rejoin_stage(const StationPlan& plan, net::Endpoint& ep, RejoinResult& r, std::int64_t now_ns) {
   r.probe.grid = NeighbourGrid(plan.neighbours().size());
-  r.probe.loss_counter = ProbeLossCounter(plan.neighbours().size());
   const BuiltScenario& b = *plan.built;
+  r.probe.loss_counter = ProbeLossCounter(plan.neighbours().size(), send_interval_ticks(b.spec));  // the running neighbours' pace
   const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);  // the rest state
   const double T = b.spec.period_s;
   LoopStage s;
@@ -50,13 +50,15 @@ LoopStage rejoin_stage(const StationPlan& plan, net::Endpoint& ep, RejoinResult&
   s.last_phase = TickPhase::kProbe;
   s.k_first = 0;
   s.new_grid = true;
-  s.tick = [&plan, &ep, &r, x0, v0, T](std::int64_t, const platform::TickInfo&) {
+  const std::int64_t pace = send_interval_ticks(b.spec);
+  s.tick = [&plan, &ep, &r, x0, v0, T, pace](std::int64_t k, const platform::TickInfo&) {
     ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
       r.probe.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, T);
       r.probe.loss_counter.add(plan.peers.sender_to_nbr[sender], seq);
     });
     // Provisional sequence numbers stay below the session's run_k0: the neighbours' ticks ignore them.
-    if (static_cast<std::int64_t>(r.provisional_pushes) < plan.times.run_k0 - 1 &&
+    // At the running session's pace (send_interval_ticks).
+    if (k % pace == 0 && static_cast<std::int64_t>(r.provisional_pushes) < plan.times.run_k0 - 1 &&
         ep.push_state(r.provisional_pushes, net::monotonic_s(), x0.data(), v0.data()))
       ++r.provisional_pushes;
     return true;
@@ -65,7 +67,7 @@ LoopStage rejoin_stage(const StationPlan& plan, net::Endpoint& ep, RejoinResult&
 }
 
 void end_rejoin_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop, const StageOutcome& o, RejoinResult& r) {
-  r.probe.loop_ticks = r.provisional_pushes;
+  r.probe.loop_ticks = o.counts.ticks;
   r.probe.loop_overruns = o.counts.overruns;
   r.probe.loop_missed_cycles = o.counts.missed_cycles;
   if (stop.load(std::memory_order_acquire) || !o.ended) {

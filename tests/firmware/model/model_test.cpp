@@ -141,6 +141,33 @@ TEST(Model, the_probe_loss_counts_packets_missing_or_later_than_the_bound_once_t
   CHECK_EQUAL(2 * model::loss_allowance_from_measured_loss(10, 100, 5000, 6), firmware::round_trip_loss_allowance(all, 5000, 6));
 }
 
+TEST(Model, the_probe_loss_at_the_deadbands_pace_counts_packets_not_silent_ticks) {
+  // neighbours that send every 5th tick (the deadband's pace while probing): 200 packets, 0, 5, .., 995
+  firmware::ProbeLossCounter paced(1, 5);
+  for (std::uint64_t s = 0; s < 1000; s += 5)
+    if (s != 100 && s != 500 && s != 505 && s != 510) paced.add(0, s);  // one lost, then three in a row
+  const firmware::ProbeLoss p = paced.loss(0, 0);
+  CHECK_EQUAL(200, p.expected);
+  CHECK_EQUAL(4, p.lost);
+  CHECK_EQUAL(3, p.longest_gap);
+  // the packets due by (newest - 12): 0 .. 980, 197 of them, the same 4 lost
+  CHECK_EQUAL(197, paced.loss(0, 12).expected);
+  CHECK_EQUAL(4, paced.loss(0, 12).lost);
+  // counted tick by tick, the same silences would be 4/5 lost
+  firmware::ProbeLossCounter per_tick(1);
+  for (std::uint64_t s = 0; s < 1000; s += 5) per_tick.add(0, s);
+  CHECK(per_tick.loss(0, 0).lost > 700);
+  CHECK_EQUAL(0, firmware::ProbeLossCounter(1, 5).loss(0, 0).expected);
+  // a running neighbour sends more often on a change: a gap shorter than the pace loses nothing,
+  // and a silence of g ticks holds at least ceil(g / 5) - 1 lost packets
+  firmware::ProbeLossCounter run(1, 5);
+  for (std::uint64_t s : {0, 1, 2, 7, 12, 13, 20, 31}) run.add(0, s);
+  const firmware::ProbeLoss r = run.loss(0, 0);
+  CHECK_EQUAL(3, r.lost);  // 13 -> 20: ceil(7 / 5) - 1 = 1; 20 -> 31: ceil(11 / 5) - 1 = 2; the gaps of 5 and less: none
+  CHECK_EQUAL(2, r.longest_gap);
+  CHECK_EQUAL(11, r.expected);
+}
+
 TEST(Model, bounds_from_a_measured_round_trip_cover_the_peer_within_the_agreement_margin) {
   CHECK_EQUAL(5, model::index_guard_from_round_trip(9));
   CHECK_EQUAL(5, model::index_guard_from_round_trip(10));

@@ -131,6 +131,21 @@ TEST(CheckConfig, ATxSpinWindowLongerThanThePeriodIsRejected) {
   LONGS_EQUAL(kExitOk, check(s.text()).code);
 }
 
+TEST(CheckConfig, AProbeTooShortForTheRoundTripsAtTheDeadbandsPaceIsRejectedNamingTheKeys) {
+  // probing sends a state every tx_max_interval_ticks: 1.5 s (750 ticks, the bounds freeze at 500)
+  // sends 17 at every 30th tick, fewer than the 20 round trips net.rtt_min_probe_samples asks for
+  test::StationText s = hub();
+  s.station_extra = "probe_s = 1.5\ntx_deadband_mm = 0.01\ntx_max_interval_ticks = 30\n";
+  const Checked c = check(s.text());
+  LONGS_EQUAL(kExitConfigError, c.code);
+  STRCMP_CONTAINS("station.probe_s = 1.5 s sends 17 probe states before the round-trip bounds freeze (one every 30 ticks", c.err.c_str());
+  STRCMP_CONTAINS("fewer than the 20 round trips a link needs (net.rtt_min_probe_samples): probe for at least 1.7", c.err.c_str());
+  s.station_extra = "probe_s = 1.75\ntx_deadband_mm = 0.01\ntx_max_interval_ticks = 30\n";  // 875 ticks, freeze at 584: 20
+  LONGS_EQUAL(kExitOk, check(s.text()).code);
+  s.station_extra = "probe_s = 1.5\ntx_deadband_mm = 0.01\ntx_max_interval_ticks = 25\n";  // 20 at every 25th tick
+  LONGS_EQUAL(kExitOk, check(s.text()).code);
+}
+
 TEST(CheckConfig, TickSynchronousAndDirectTxTogetherAreRejectedNamingBoth) {
   test::StationText s = hub();
   s.net_extra = "tx_spin = true\ntx_direct = true\n";

@@ -196,8 +196,10 @@ TEST(StationPhases, FourStationsWithThePredictiveDeadbandSendAStateAtLeastEveryI
   // station's tick: each trace row marks whether the tick sent its state (kTraceStateSent); no gap
   // between two sends is longer than the interval, and not every tick sends a state.
   const std::string dir = test::fresh_dir("deadband");
-  const std::string db = std::string(kShort) +
-                         "consensus_passivity = \"pspm\"\ntx_deadband_mm = 0.001\ntx_max_interval_ticks = 20\ntx_predict = true\n"
+  // probing sends at the deadband's pace: 20 round trips at every 20th tick need 1.2 s of it
+  std::string db = std::string(kShort);
+  db.replace(db.find("probe_s = 0.3"), 13, "probe_s = 1.2");
+  db += "consensus_passivity = \"pspm\"\ntx_deadband_mm = 0.001\ntx_max_interval_ticks = 20\ntx_predict = true\n"
                          "loss_allowance_max_ticks = 1000\n";  // pspm needs no loss allowance: a loaded machine's late probes must not refuse
   const std::vector<int> codes = run_four(dir, 110, {db, db, db, db});
   for (int i = 1; i <= 4; ++i) {
@@ -382,6 +384,27 @@ TEST(StationPhases, ALossyProbeRaisesTheLossAllowanceAndBothEndsOfTheLinkUseTheS
     CHECK_EQUAL(from_hub["loss_allowance_ticks"].get<int>(), to_hub["loss_allowance_ticks"].get<int>());
     CHECK_EQUAL(from_hub["round_trip_bound_ticks"].get<int>(), to_hub["round_trip_bound_ticks"].get<int>());
     CHECK_EQUAL(from_hub["index_delay_bound_ticks"].get<int>(), to_hub["index_delay_bound_ticks"].get<int>());
+  }
+  LONGS_EQUAL(kExitOk, codes[0]);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StationPhases, WithTheDeadbandProbingSendsAtItsPaceAndCountsLossInPackets) {
+  // tx_max_interval_ticks = 5: probing sends a state on every 5th tick only (a large scene's state
+  // every tick would swamp the links), and each end counts its neighbours' probe packets at that pace:
+  // about 200 / 5 packets to the freeze, none lost on loopback (a stalled sender's skipped ticks
+  // would count; a loaded machine's few), where counting ticks would find 4 in 5 missing.
+  const std::string dir = test::fresh_dir("paced");
+  const std::string paced = kLongerProbe + "tx_deadband_mm = 0.01\ntx_max_interval_ticks = 5\n";
+  const std::vector<int> codes = run_four(dir, 114, {paced, paced, paced, paced});
+  const json hub = station_json(dir, 1);
+  for (int i = 2; i <= 4; ++i) {
+    LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
+    for (const json& link : {hub_link(hub, i), station_json(dir, i)["links"][0]}) {
+      const long long expected = link["probe_loss"]["expected"].get<long long>(), lost = link["probe_loss"]["lost"].get<long long>();
+      CHECK(expected >= 20 && expected <= 45);  // 200 ticks to the freeze (less the round-trip bound's last ones) / 5
+      CHECK(lost * 5 <= expected);              // not the 4 in 5 of a tick count
+    }
   }
   LONGS_EQUAL(kExitOk, codes[0]);
   std::filesystem::remove_all(dir);

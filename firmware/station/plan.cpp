@@ -184,7 +184,9 @@ void check_probe_samples(const net::NetConfig& nc, const ScenarioSpec& spec, con
   const std::int64_t sent = freeze > 0 ? (freeze - 1) / pace + 1 : 0;
   const auto need = static_cast<std::int64_t>(nc.endpoint.rtt.min_probe_samples);
   if (sent >= need) return;
-  const double probe_s = static_cast<double>((need - 1) * pace + 1) * 1.5 * spec.period_s;  // freeze at 2/3 of probing
+  std::int64_t enough = t.probe_ticks;  // the fewest probing ticks whose freeze comes after the need-th state
+  while ((probe_freeze_tick(enough) - 1) / pace + 1 < need) ++enough;
+  const double probe_s = static_cast<double>(enough) * spec.period_s;
   bad("station.probe_s = " + number_text(static_cast<double>(t.probe_ticks) * spec.period_s) + " s sends " + std::to_string(sent) +
       " probe states before the round-trip bounds freeze (one every " + std::to_string(pace) +
       " ticks: station.tx_max_interval_ticks), fewer than the " + std::to_string(need) +

@@ -39,7 +39,8 @@ bool learn_epoch(const StationPlan& plan, RejoinResult& r) {
 LoopStage rejoin_stage(const StationPlan& plan, net::Endpoint& ep, RejoinResult& r, std::int64_t now_ns) {
   r.probe.grid = NeighbourGrid(plan.neighbours().size());
   const BuiltScenario& b = *plan.built;
-  r.probe.loss_counter = ProbeLossCounter(plan.neighbours().size(), send_interval_ticks(b.spec));  // the running neighbours' pace
+  const std::int64_t pace = send_interval_ticks(b.spec);  // the running neighbours' pace, and ours
+  r.probe.loss_counter = ProbeLossCounter(plan.neighbours().size(), pace);
   const std::vector<double> x0(b.scene.x_d.data(), b.scene.x_d.data() + b.scene.dofs), v0(x0.size(), 0.0);  // the rest state
   const double T = b.spec.period_s;
   LoopStage s;
@@ -50,7 +51,6 @@ LoopStage rejoin_stage(const StationPlan& plan, net::Endpoint& ep, RejoinResult&
   s.last_phase = TickPhase::kProbe;
   s.k_first = 0;
   s.new_grid = true;
-  const std::int64_t pace = send_interval_ticks(b.spec);
   s.tick = [&plan, &ep, &r, x0, v0, T, pace](std::int64_t k, const platform::TickInfo&) {
     ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
       r.probe.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, T);

@@ -275,7 +275,7 @@ BuiltScenario build_scenario(const ScenarioSpec& spec) {
   // (firmware/model/passivity_budget.hpp).
   const model::NbarAllowances allow = model::delay_model_allowances(
       spec.loss_allowance_ticks, spec.loss_model(), spec.duration_s, T, 2 * static_cast<int>(spec.topology.size()),
-      spec.tx_deadband.added_index_delay_ticks(), model::ClockModel{spec.timer_jitter_s, spec.step_jitter, spec.clock_drift_ppm});
+      spec.tx_deadband, model::ClockModel{spec.timer_jitter_s, spec.step_jitter, spec.clock_drift_ppm});
   b.loss_allowance_ticks = allow.loss_ticks;
   if (spec.delay_trace) {
     const auto [lo_ms, hi_ms] = spec.delay_trace_range_ms();

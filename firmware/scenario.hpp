@@ -114,7 +114,7 @@ struct ScenarioSpec {
   // Nbar_ij = ceil(max one-way delay / T) + this (firmware/model/delay_model.hpp); -1 (default):
   // from the loss model, model::loss_allowance_from_loss(loss_probability, run ticks, directed links)
   int loss_allowance_ticks = -1;
-  rt::TxDeadbandConfig tx_deadband{};    // transmission deadband (off); Nbar_ij adds its interval - 1
+  rt::TxDeadbandConfig tx_deadband{};    // transmission deadband (off); Nbar_ij adds (L + 1)(interval - 1)
   rt::RxRule receive_rule = rt::RxRule::kNewestBySequence;  // --receive-rule newest|paper (rt/rx_link.hpp)
   rt::StepSolverKind solver = rt::StepSolverKind::kAuto;     // --solver auto|direct|iterative (rt/step_solver.hpp)
   // Variable steps T_k (rt/README.md "Variable steps"). The simulator's station clocks: every wake

@@ -341,7 +341,7 @@ CLI::App* add_sim_options(CLI::App& app, SimArgs& a) {
   auto* band = sim->add_option("--tx-deadband-mm", a.tx_deadband_mm,
                                "Send a state only when some node moved more than this since the last one sent, in mm (default 0: every tick)");
   sim->add_option("--tx-max-interval", a.tx_interval,
-                  "With --tx-deadband-mm: a state at least every this many ticks; Nbar_ij grows by this - 1 (default 1)")
+                  "With --tx-deadband-mm: a state at least every this many ticks; Nbar_ij grows by (L + 1)(this - 1), L the loss allowance (default 1)")
       ->needs(band);
   sim->add_flag("--tx-predict", a.tx_predict,
                 "With --tx-deadband-mm and --consensus-passivity pspm: predictive deadband, the band applies to the error against the last "

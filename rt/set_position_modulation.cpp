@@ -29,19 +29,14 @@ double SetPositionModulator::update(const double* y, const double* x, const Spat
   const int n = static_cast<int>(ybar_.size());
   // d = y - ybar, r = x - ybar; dV(alpha) = a alpha^2 + b alpha with a = d^T P d / 2, b = -d^T P r.
   double* d = scratch;
-  double* Pd = scratch + n;
+  double* r = scratch + n;
   double* yb = ybar_.data();
   for (int i = 0; i < n; ++i) {
     d[i] = y[i] - yb[i];
-    Pd[i] = 0.0;
+    r[i] = x[i] - yb[i];
   }
-  P.multiply_add(1.0, d, Pd);  // one matvec per edge and tick
-  double dPd = 0, dPr = 0;
-  for (int i = 0; i < n; ++i) {
-    dPd += d[i] * Pd[i];
-    dPr += (x[i] - yb[i]) * Pd[i];  // P symmetric: d^T P r = r^T P d
-  }
-  const double a = 0.5 * dPd, b = -dPr;
+  const PairForms f = P.pair_forms(d, r);  // one pass over P's rows per edge and tick; P symmetric: d^T P r = r^T P d
+  const double a = 0.5 * f.dAd, b = -f.rAd;
   const double E = reservoir_J_ > 0 ? reservoir_J_ : 0.0;
   double alpha = 1.0;
   if (a + b > E) {  // the full jump costs more than the reservoir holds: the largest affordable alpha

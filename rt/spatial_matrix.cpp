@@ -5,6 +5,9 @@
 #include <stdexcept>
 #include <vector>
 
+#include "rt/cpu_avx.hpp"
+#include "rt/lanes.hpp"
+
 namespace haptic::rt {
 
 SpatialMatrix SpatialMatrix::isotropic(const SparseRowMajor& node_level) {
@@ -69,6 +72,72 @@ void SpatialMatrix::multiply_add(double alpha, const double* x, double* y) const
       y[r] += alpha * a;
     }
   }
+}
+
+namespace {
+
+struct PairRows {
+  int rows;
+  const int *outer, *inner;
+  const double *val, *d, *r;
+};
+// Per row i: acc = (S d)_i in 4 lanes (lane c: column c), its entries summed in two chains (even
+// and odd positions in the row, then added: half the add latency a row), then d_i . acc and
+// r_i . acc added lane by lane; lane 3 (the next node's first column) never summed.
+[[gnu::always_inline]] inline PairForms pair_rows_body(const PairRows& a) {
+  Lanes4 dd = {}, rd = {};
+  const int lastnode = a.rows - 1;
+  for (int i = 0; i < a.rows; ++i) {
+    Lanes4 even = {}, odd = {};
+    int p = a.outer[i];
+    const int end = a.outer[i + 1];
+    for (; p + 1 < end; p += 2) {
+      const double v0 = a.val[p], v1 = a.val[p + 1];
+      const int j0 = a.inner[p], j1 = a.inner[p + 1];
+      even += Lanes4{v0, v0, v0, v0} * HAPTIC_NODE_LANES(a.d, j0, j0 == lastnode);
+      odd += Lanes4{v1, v1, v1, v1} * HAPTIC_NODE_LANES(a.d, j1, j1 == lastnode);
+    }
+    if (p < end) {
+      const double v = a.val[p];
+      const int j = a.inner[p];
+      even += Lanes4{v, v, v, v} * HAPTIC_NODE_LANES(a.d, j, j == lastnode);
+    }
+    const Lanes4 acc = even + odd;
+    const bool last = i == lastnode;
+    dd += HAPTIC_NODE_LANES(a.d, i, last) * acc;
+    rd += HAPTIC_NODE_LANES(a.r, i, last) * acc;
+  }
+  return {lane_sum<3>(dd), lane_sum<3>(rd)};
+}
+[[gnu::noinline]] PairForms pair_rows(const PairRows& a) { return pair_rows_body(a); }
+#if defined(__x86_64__)
+[[gnu::noinline]] __attribute__((target("avx"))) PairForms pair_rows_avx(const PairRows& a) { return pair_rows_body(a); }
+#endif
+
+}  // namespace
+
+PairForms SpatialMatrix::pair_forms(const double* d, const double* r, bool allow_avx) const {
+  const int* outer = S.outerIndexPtr();
+  const int* inner = S.innerIndexPtr();
+  const double* val = S.valuePtr();
+  const int rows = static_cast<int>(S.rows());
+  if (width == 3) {
+    const PairRows a{rows, outer, inner, val, d, r};
+#if defined(__x86_64__)
+    if (allow_avx && cpu_has_avx()) return pair_rows_avx(a);
+#else
+    (void)allow_avx;
+#endif
+    return pair_rows(a);
+  }
+  PairForms f;
+  for (int i = 0; i < rows; ++i) {
+    double acc = 0;
+    for (int p = outer[i]; p < outer[i + 1]; ++p) acc += val[p] * d[inner[p]];
+    f.dAd += d[i] * acc;
+    f.rAd += r[i] * acc;
+  }
+  return f;
 }
 
 SpatialMatrix linear_combination(std::initializer_list<std::pair<double, const SpatialMatrix*>> terms) {

@@ -14,6 +14,11 @@ namespace haptic::rt {
 using SparseRowMajor = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 using SparseColMajor = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 
+// d^T A d and r^T A d (pair_forms below).
+struct PairForms {
+  double dAd = 0, rAd = 0;
+};
+
 struct SpatialMatrix {
   int width = 3;     // 3: operator is S (x) I3, S n x n;  1: operator is S, 3n x 3n
   SparseRowMajor S;  // compressed
@@ -28,6 +33,12 @@ struct SpatialMatrix {
   SparseRowMajor as_full() const;
   // y += alpha * (this) * x on interleaved 3n vectors. RT-safe: no allocation.
   void multiply_add(double alpha, const double* x, double* y) const;
+  // d^T (this) d and r^T (this) d in one pass over the rows, without forming (this) d (the
+  // set-position modulation's two forms per edge and tick). Isotropic: a node's three columns in 4
+  // lanes (rt/lanes.hpp), its AVX build when the CPU has AVX and allow_avx, the same bits either
+  // way; full: scalar. Sums in another order than multiply_add then dot products: equal to those
+  // up to rounding. RT-safe: no allocation.
+  PairForms pair_forms(const double* d, const double* r, bool allow_avx = true) const;
 };
 
 // sum_k c_k A_k. Isotropic if every term is isotropic. Start-up only (allocates).

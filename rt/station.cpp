@@ -190,7 +190,7 @@ void StationCore::init_edges() {
   if (cfg_.consensus_passivity == ConsensusPassivity::kSetPositionModulation) {
     pspm_.resize(static_cast<std::size_t>(nn));
     for (auto& m : pspm_) m.init(dofs_, x_.data(), cfg_.pspm_reservoir0_J);
-    pspm_scratch_ = Eigen::VectorXd::Zero(2 * dofs_);  // SetPositionModulator::update's d and P d
+    pspm_scratch_ = Eigen::VectorXd::Zero(2 * dofs_);  // SetPositionModulator::update's d and r
     if (cfg_.predict_held_state) {
       predicted_ = Eigen::VectorXd::Zero(dofs_);
       held_since_.assign(static_cast<std::size_t>(nn), 0);

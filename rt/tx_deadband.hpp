@@ -4,9 +4,9 @@
 // the last state it sent -- some node's x_hat moved more than `position_deadband_m` (max norm
 // over coordinates) -- and at least every `max_interval_ticks` ticks. The receiver's packet
 // sustainment treats a skipped packet like a lost one (eq. 17: delta = 0 on the held sample);
-// eq. (18) stays valid when the index-delay bound Nbar_ij includes max_interval_ticks - 1 on top
-// of the delay and loss allowance (the scenario and the station plan add it). A pure object,
-// used by the simulator and the real station alike.
+// eq. (18) stays valid when the index-delay bound Nbar_ij includes added_index_delay_ticks(L) on
+// top of the delay and the loss allowance L (the passivity budget adds it for the scenario and the
+// station plan). A pure object, used by the simulator and the real station alike.
 //
 // Predictive (first-order, as in the IEEE 1918.1.1 kinesthetic codecs): the reference a state is
 // compared with is not the last sent x_hat(s) but its extrapolation with the sent velocity,
@@ -41,8 +41,12 @@ struct TxDeadbandConfig {
   // The largest extrapolation offset per coordinate, m (both ends use it).
   double prediction_limit_m() const { return kPredictionBands * position_deadband_m; }
   bool enabled() const { return position_deadband_m > 0 && max_interval_ticks > 1; }
-  // Ticks the policy can add to a receiver's index delay N_ij^k (add to Nbar_ij).
-  int added_index_delay_ticks() const { return enabled() ? max_interval_ticks - 1 : 0; }
+  // Ticks the policy adds to a receiver's index delay bound Nbar_ij when up to `lost_in_a_row`
+  // consecutive packets may be lost (the loss allowance L). A state goes out at least every
+  // I = max_interval_ticks ticks, so the L + 1 sends after the newest one received leave within
+  // (L + 1) I ticks and N_ij^k <= delay + (L + 1) I - 1, against delay + L at full rate: (L + 1)(I - 1)
+  // more. Affine in L: a round trip's two directions add to added(L_ij + L_ji) + added(0).
+  int added_index_delay_ticks(int lost_in_a_row) const { return enabled() ? (lost_in_a_row + 1) * (max_interval_ticks - 1) : 0; }
   void validate() const;  // throws std::invalid_argument naming the key (tx_deadband.*)
 };
 

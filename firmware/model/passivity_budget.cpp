@@ -15,10 +15,10 @@ int clock_allowance_ticks(const ClockModel& c, double run_s, double period_s) {
 }
 
 NbarAllowances delay_model_allowances(int loss_allowance_ticks, const LossModel& loss, double run_s, double period_s,
-                                      int directed_links, int deadband_ticks, const ClockModel& clock) {
+                                      int directed_links, const rt::TxDeadbandConfig& deadband, const ClockModel& clock) {
   NbarAllowances a;
   a.loss_ticks = loss_allowance_ticks >= 0 ? loss_allowance_ticks : loss_allowance_from_loss(loss, run_s / period_s, directed_links);
-  a.deadband_ticks = deadband_ticks;
+  a.deadband_ticks = deadband.added_index_delay_ticks(a.loss_ticks);
   a.clock_ticks = clock_allowance_ticks(clock, run_s, period_s);
   return a;
 }
@@ -33,11 +33,13 @@ LinkBound link_bound_from_delay_model(const Eigen::MatrixXi& nbar, int i, int j)
 
 double round_trip_bound_s(double max_s, double margin_fraction, double margin_s) { return max_s * (1.0 + margin_fraction) + margin_s; }
 
-LinkBound link_bound_from_round_trip(int measured, int loss_round_trip, int deadband, int agreement, rt::RxRule rule) {
-  // The deadband may hold a state deadband ticks longer in EACH direction: each one-way guard
-  // ceil(R/2) needs that much more, so the round trip grows by twice it.
+LinkBound link_bound_from_round_trip(int measured, int loss_round_trip, const rt::TxDeadbandConfig& deadband, int agreement,
+                                     rt::RxRule rule) {
+  // The deadband may hold a state longer in EACH direction, by its allowance for that direction's
+  // loss allowance: each one-way guard ceil(R/2) needs that much more, so the round trip grows by
+  // the sum (affine in L: added(L_ij + L_ji) + added(0)).
   LinkBound b;
-  b.round_trip_ticks = measured + loss_round_trip + 2 * deadband;
+  b.round_trip_ticks = measured + loss_round_trip + deadband.added_index_delay_ticks(loss_round_trip) + deadband.added_index_delay_ticks(0);
   // each direction's spread is at most its largest one-way delay, the guard ceil(R/2)
   b.round_trip_ticks += 2 * receive_rule_ticks(rule, index_guard_from_round_trip(b.round_trip_ticks));
   b.guard_ticks = index_guard_from_round_trip(b.round_trip_ticks);

@@ -14,7 +14,9 @@
 // The allowances, per direction:
 //   loss:     L with ticks x directed links x p^(L+1) <= 1 % per run (loss_allowance_from_loss), or
 //             from the loss a station measured while probing (round_trip_loss_allowance, x 2: a round trip);
-//   deadband: the sender's transmission deadband may hold a state max_interval - 1 extra ticks;
+//   deadband: the sender's transmission deadband sends at least every max_interval I ticks, so with
+//             up to L packets lost in a row a state may be held (L + 1)(I - 1) ticks more
+//             (rt::TxDeadbandConfig::added_index_delay_ticks);
 //   clock:    late wakes, drift and the wander of free-running tick counts (clock_allowance_ticks).
 #include <optional>
 #include <span>
@@ -26,6 +28,7 @@
 #include "firmware/model/graph.hpp"
 #include "rt/gains.hpp"
 #include "rt/set_position_modulation.hpp"
+#include "rt/tx_deadband.hpp"
 
 namespace haptic::model {
 
@@ -47,14 +50,14 @@ int clock_allowance_ticks(const ClockModel& clock, double run_s, double period_s
 // Nbar's allowances per direction (ticks) above ceil(max one-way delay / T).
 struct NbarAllowances {
   int loss_ticks = 0;      // given, or loss_allowance_from_loss
-  int deadband_ticks = 0;  // rt::TxDeadbandConfig::added_index_delay_ticks()
+  int deadband_ticks = 0;  // rt::TxDeadbandConfig::added_index_delay_ticks(loss_ticks)
   int clock_ticks = 0;     // clock_allowance_ticks
   int total() const { return loss_ticks + deadband_ticks + clock_ticks; }
 };
 // The delay model's allowances: loss_allowance_ticks >= 0 given, -1 from the loss model over the
-// run's ticks and directed links (loss_allowance_from_loss).
+// run's ticks and directed links (loss_allowance_from_loss); the deadband's for that loss allowance.
 NbarAllowances delay_model_allowances(int loss_allowance_ticks, const LossModel& loss, double run_s, double period_s,
-                                      int directed_links, int deadband_ticks, const ClockModel& clock);
+                                      int directed_links, const rt::TxDeadbandConfig& deadband, const ClockModel& clock);
 
 // One link of one station as the budget sees it (ticks).
 struct LinkBound {
@@ -68,11 +71,12 @@ LinkBound link_bound_from_delay_model(const Eigen::MatrixXi& nbar_ticks, int i, 
 // (and from a later sample above it): max x (1 + margin_fraction) + margin_s (net.rtt_margin_fraction,
 // net.rtt_margin_s). The station hands it to net/ (net::RttConfig::bound_policy), which measures.
 double round_trip_bound_s(double max_round_trip_s, double margin_fraction, double margin_s);
-// From a round trip the station measured (ticks, net/'s bound with its margin) and the link's agreed
-// loss allowance (ticks on the round trip) and deadband allowance (ticks per direction).
+// From a round trip the station measured (ticks, net/'s bound with its margin), the link's agreed
+// loss allowance (ticks on the round trip: L_ij + L_ji) and the transmission deadband (its allowance
+// for that loss in both directions).
 // Under the paper's receive rule each direction adds its delay spread (model::receive_rule_ticks):
 // a one-way delay lies in [0, ceil(R/2)] ticks, so the spread is at most the guard: + ceil(R/2) + 1 ticks per direction.
-LinkBound link_bound_from_round_trip(int measured_round_trip_ticks, int loss_allowance_round_trip_ticks, int deadband_ticks,
+LinkBound link_bound_from_round_trip(int measured_round_trip_ticks, int loss_allowance_round_trip_ticks, const rt::TxDeadbandConfig& deadband,
                                      int agreement_ticks, rt::RxRule rule = rt::RxRule::kNewestBySequence);
 
 // B_i and whether the passivity condition holds.

@@ -142,7 +142,7 @@ const std::vector<StationOption> kStation = {
     {R("station", "tx_deadband_mm", 0, 0, 100, "> 0: send a state only when some node moved more than this since the last one sent "
                                                "(rt/tx_deadband); 0 = every tick; same on all stations (in the fingerprint)").open_high(), HAPTIC_FIELD(station, tx_deadband_mm)},
     {I("station", "tx_max_interval_ticks", 1, 1, 1000, "with tx_deadband_mm: a state at least every this many ticks (the index-delay bounds "
-                                                       "grow by this - 1); same on all stations (in the fingerprint)"), HAPTIC_FIELD(station, tx_max_interval_ticks)},
+                                                       "grow by (L + 1)(this - 1), L the loss allowance); same on all stations (in the fingerprint)"), HAPTIC_FIELD(station, tx_max_interval_ticks)},
     {B("station", "tx_predict", false, "with pspm: predictive deadband (extrapolated by velocity); same on all stations (in the fingerprint)"), HAPTIC_FIELD(station, tx_predict)},
     {I("station", "agreement_ticks", 2, 0, 1000, "eq. (18) uses Nbar_ij + Nbar_ji = 2 ceil(R_ij/2) + this"), HAPTIC_FIELD(station, agreement_ticks)},
     {R("station", "damping_Ns_per_m", -1, 0, 1e6, "fixed B_i (experiments below eq. 18)").with_special(-1).with_note(" (-1 = from the measured bound)"),

@@ -304,7 +304,7 @@ MeasuredBounds bounds_from_round_trips(const BuiltScenario& b, int user, const s
   MeasuredBounds m;
   for (std::size_t n = 0; n < nbrs.size(); ++n) {
     const model::LinkBound l = model::link_bound_from_round_trip(static_cast<int>(rtt_ticks[n]), loss_allowance_ticks[n],
-                                                                 b.spec.tx_deadband.added_index_delay_ticks(), agreement, b.spec.receive_rule);
+                                                                 b.spec.tx_deadband, agreement, b.spec.receive_rule);
     m.round_trip_ticks.push_back(l.round_trip_ticks);
     m.index_guard_ticks.push_back(l.guard_ticks);
     m.assumed_sum_ticks.push_back(l.assumed_sum_ticks);

@@ -303,6 +303,35 @@ double worst_pspm_J(double reservoir0_J, int leaves, int n_in, int n_out, double
 
 TEST_GROUP(SetPositionModulation){};
 
+// The modulator's two forms d^T P d and r^T P d in one pass (SpatialMatrix::pair_forms) against P d
+// formed explicitly and two dot products, on the paper's P (isotropic, 33 nodes, and a 1021-node
+// lattice ball, whose rows reach the last node) and the same P as a full 3n x 3n matrix; the AVX
+// build gives the scalar build's bits.
+TEST(SetPositionModulation, the_pair_forms_equal_the_explicit_matvec_and_dot_products_in_every_build) {
+  const Scene lattice = build_scene(make_lattice_ball(1000, 0.05), SceneParams{});
+  for (const Scene* s : {&test::PaperWorld::get().scene, &lattice}) {
+    const EdgeGains g = paper_edge_gains(*s);
+    const int n = g.P.dofs();
+    Eigen::VectorXd d(n), r(n);
+    for (int k = 0; k < n; ++k) {  // deterministic, of mixed signs and sizes
+      d[k] = 1e-3 * std::sin(0.7 * k + 0.3) * (1 + (k % 5));
+      r[k] = 2e-3 * std::cos(1.3 * k) - 1e-4;
+    }
+    const SpatialMatrix full = SpatialMatrix::full(g.P.as_full());
+    for (const SpatialMatrix* M_ptr : {&g.P, &full}) {
+      const SpatialMatrix& M = *M_ptr;
+      Eigen::VectorXd Md = Eigen::VectorXd::Zero(n);
+      M.multiply_add(1.0, d.data(), Md.data());
+      const PairForms f = M.pair_forms(d.data(), r.data());
+      DOUBLES_EQUAL(d.dot(Md), f.dAd, 1e-13 * d.cwiseAbs().dot(Md.cwiseAbs()));
+      DOUBLES_EQUAL(r.dot(Md), f.rAd, 1e-13 * r.cwiseAbs().dot(Md.cwiseAbs()));
+      CHECK_TRUE(d.dot(Md) > 0);  // P is positive definite
+      const PairForms scalar = M.pair_forms(d.data(), r.data(), false);
+      CHECK_TRUE(scalar.dAd == f.dAd && scalar.rAd == f.rAd);
+    }
+  }
+}
+
 TEST(SetPositionModulation, controller_ports_put_in_at_most_the_reservoirs_under_adversarial_drives_with_no_damping) {
   double peak = 0;
   for (double E0 : {0.0, 1e-6}) {

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <random>
 #include <stdexcept>
 #include <vector>
 
@@ -19,14 +21,15 @@ TEST(TxDeadband, off_sends_every_tick) {
   TxDeadband d(TxDeadbandConfig{}, 6);
   std::vector<double> x(6, 0.0);
   for (int k = 0; k < 50; ++k) CHECK_TRUE(d.should_send(k, x.data()));
-  CHECK_EQUAL(0, TxDeadbandConfig{}.added_index_delay_ticks());
+  CHECK_EQUAL(0, TxDeadbandConfig{}.added_index_delay_ticks(0));
+  CHECK_EQUAL(0, TxDeadbandConfig{}.added_index_delay_ticks(5));
 }
 
 TEST(TxDeadband, a_still_state_is_sent_exactly_every_max_interval_ticks) {
   TxDeadbandConfig c;
   c.position_deadband_m = 1e-5;
   c.max_interval_ticks = 7;
-  CHECK_EQUAL(6, c.added_index_delay_ticks());
+  CHECK_EQUAL(6, c.added_index_delay_ticks(0));
   TxDeadband d(c, 6);
   std::vector<double> x(6, 0.01);
   std::int64_t last = -1;
@@ -40,6 +43,39 @@ TEST(TxDeadband, a_still_state_is_sent_exactly_every_max_interval_ticks) {
     }
   }
   CHECK_EQUAL(100, sent);
+}
+
+// Nbar's deadband allowance: with at most L packets lost in a row a receiver's newest state is at
+// most L + added_index_delay_ticks(L) ticks old (above the network delay, 0 here), whatever the band
+// triggers; the worst case (the object still, the L sends after a received one all lost) reaches it.
+TEST(TxDeadband, with_L_packets_lost_in_a_row_the_held_state_stays_within_the_loss_and_deadband_allowances) {
+  for (int interval : {2, 5, 20})
+    for (int L : {0, 1, 3, 8}) {
+      TxDeadbandConfig c;
+      c.position_deadband_m = 1e-5;
+      c.max_interval_ticks = interval;
+      const std::int64_t bound = L + c.added_index_delay_ticks(L);
+      for (int worst_case = 0; worst_case < 2; ++worst_case) {
+        TxDeadband d(c, 6);
+        std::vector<double> x(6, 0.01);
+        std::mt19937 rng(static_cast<unsigned>(17 * interval + L));
+        int lost_in_a_row = 0;
+        std::int64_t newest = 0, oldest_held = 0;
+        for (std::int64_t k = 0; k < 5000; ++k) {
+          if (!worst_case) x[3] = 0.01 + 1.5e-5 * std::sin(0.05 * static_cast<double>(k));  // crosses the band now and then
+          if (!d.should_send(k, x.data())) {
+            oldest_held = std::max(oldest_held, k - newest);
+            continue;
+          }
+          const bool lose = k > 0 && lost_in_a_row < L && (worst_case || rng() % 2 == 0);
+          lost_in_a_row = lose ? lost_in_a_row + 1 : 0;
+          if (!lose) newest = k;
+          oldest_held = std::max(oldest_held, k - newest);
+        }
+        CHECK_TRUE(oldest_held <= bound);
+        if (worst_case) CHECK_EQUAL(bound, oldest_held);
+      }
+    }
 }
 
 TEST(TxDeadband, a_move_beyond_the_band_is_sent_at_once_and_becomes_the_reference) {

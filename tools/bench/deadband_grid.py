@@ -10,7 +10,7 @@ and its differences from its baseline; prints a table.
                                                                           # (tools/run4/run4.sh / haptic-lab)
 
 Families (seed 1 for the grids, every seed of --seeds for the recommended point and its baselines):
-  eq18   full rate; plain deadband, band 0.005-0.05 mm x max interval 2-6 and 8 (Nbar_ij grows by interval - 1)
+  eq18   full rate; plain deadband, band 0.005-0.05 mm x max interval 2-6 and 8 (Nbar_ij grows by (L + 1)(interval - 1))
   pspm   full rate; full rate with receiver prediction only (a control); plain deadband 0.001 mm / 20 and
          0.01 mm / 8; predictive deadband (--tx-predict) band 0.001-0.01 mm x interval 10, 20, 100
   pspm-worst  the same on paper-worst (long jittered delays), first seed: full rate, plain 0.001 mm / 20,

@@ -350,6 +350,39 @@ void BM_TickPspm(benchmark::State& state) {
   station_counters(state, st, w);
 }
 
+// The set-position modulator's two forms d^T P d and r^T P d on the paper's P (one edge, one tick's
+// work): method 0 forms P d (SpatialMatrix::multiply_add) and takes two dot products, as the
+// modulator did before; 1 is SpatialMatrix::pair_forms (one pass, no P d). Args: nodes, method.
+void BM_PspmForms(benchmark::State& state) {
+  const Scene scene = build_scene(state.range(0) == 33 ? make_paper_ball(0.05) : make_lattice_ball(static_cast<int>(state.range(0)), 0.05),
+                                  SceneParams{});
+  const EdgeGains g = paper_edge_gains(scene);
+  const int n = g.P.dofs();
+  std::vector<double> d(static_cast<std::size_t>(n)), r(d.size()), Pd(d.size());
+  for (int k = 0; k < n; ++k) {
+    d[static_cast<std::size_t>(k)] = 1e-4 * std::sin(0.37 * k);
+    r[static_cast<std::size_t>(k)] = 1e-3 * std::cos(0.11 * k);
+  }
+  double sink = 0;
+  for (auto _ : state) {
+    if (state.range(1) == 0) {
+      std::fill(Pd.begin(), Pd.end(), 0.0);
+      g.P.multiply_add(1.0, d.data(), Pd.data());
+      double dPd = 0, rPd = 0;
+      for (int k = 0; k < n; ++k) {
+        dPd += d[static_cast<std::size_t>(k)] * Pd[static_cast<std::size_t>(k)];
+        rPd += r[static_cast<std::size_t>(k)] * Pd[static_cast<std::size_t>(k)];
+      }
+      sink += dPd + rPd;
+    } else {
+      const PairForms f = g.P.pair_forms(d.data(), r.data());
+      sink += f.dAd + f.rAd;
+    }
+    benchmark::DoNotOptimize(sink);
+  }
+  state.counters["nodes"] = static_cast<double>(n / 3);
+}
+
 // The floor of BM_Tick/NODES/0: reading once, in one pass, as many bytes as that tick touches
 // (StationCore::tick_bytes(): each array it reads or writes counted once), from a buffer that stays
 // as warm as the tick's own arrays do between ticks (the same process, the same size). Read with
@@ -640,6 +673,7 @@ BENCHMARK(BM_Tick)->ArgsProduct({{10000}, {kAutoArg}})->Unit(benchmark::kMicrose
 BENCHMARK(BM_Tick)->ArgsProduct({{300, 1000, 16000}, {kAutoArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TickEdgeCopies)->Arg(3000)->Arg(16000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TickPspm)->Arg(3000)->Arg(16000)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PspmForms)->ArgsProduct({{33, 3000, 16000}, {0, 1}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Tick)->ArgsProduct({{1000, 10000, 16000}, {kCholmodArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Tick)->ArgsProduct({{33, 300, 1000, 3000, 10000, 16000}, {kEigenCgArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TickFloor)->Arg(33)->Arg(300)->Arg(1000)->Arg(3000)->Arg(10000)->Arg(16000)->Unit(benchmark::kMicrosecond);

@@ -379,7 +379,7 @@ void score_and_rank(const Options& o, const Delays& d, const Scorer& sc, Ranking
   // The loss allowance covers each graph's own directed links (model::delay_model_allowances).
   for (auto& r : rk.rows) {
     r.loss_allowance = haptic::model::delay_model_allowances(o.loss_allowance, haptic::model::LossModel{o.loss_probability}, o.run_s, o.period_s(),
-                                                             2 * static_cast<int>(r.graph.size()), 0, {}).loss_ticks;
+                                                             2 * static_cast<int>(r.graph.size()), {}, {}).loss_ticks;
     const Eigen::MatrixXi nbar = haptic::model::index_delay_bounds_ticks(d.eq18_delay, d.eq18_factor - 1.0, o.period_s(), r.loss_allowance);
     r.eq18_ms = haptic::model::round_trip_half_sums_ms(r.graph, nbar, o.period_s());
   }

@@ -194,27 +194,39 @@ TEST(Model, delay_matrix_parser_checks_the_shape_and_reads_inf) {
 // the guard, B_i and the condition, used by the scenario and the station alike.
 TEST(Model, the_delay_models_allowances_are_the_loss_models_plus_the_deadbands_plus_the_clocks) {
   // paper-best: 5 % loss over 20 s (10000 ticks) on 6 directed links -> 5 ticks (0.05^6 x 60000 <= 1 %)
-  const model::NbarAllowances a = model::delay_model_allowances(-1, model::LossModel{0.05}, 20.0, 0.002, 6, 0, {});
+  const model::NbarAllowances a = model::delay_model_allowances(-1, model::LossModel{0.05}, 20.0, 0.002, 6, {}, {});
   CHECK_EQUAL(5, a.loss_ticks);
   CHECK_EQUAL(5, a.total());
-  CHECK_EQUAL(2, model::delay_model_allowances(2, model::LossModel{0.05}, 20.0, 0.002, 6, 0, {}).loss_ticks);  // given
-  const model::NbarAllowances d = model::delay_model_allowances(0, model::LossModel{0.0}, 20.0, 0.002, 6, 3, model::ClockModel{0.0005, 0, 0});
+  CHECK_EQUAL(2, model::delay_model_allowances(2, model::LossModel{0.05}, 20.0, 0.002, 6, {}, {}).loss_ticks);  // given
+  rt::TxDeadbandConfig band;
+  band.position_deadband_m = 1e-5;
+  band.max_interval_ticks = 4;
+  const model::NbarAllowances d = model::delay_model_allowances(0, model::LossModel{0.0}, 20.0, 0.002, 6, band, model::ClockModel{0.0005, 0, 0});
   CHECK_EQUAL(3, d.deadband_ticks);
   CHECK_EQUAL(1, d.clock_ticks);  // a late wake: at most one tick more
   CHECK_EQUAL(4, d.total());
+  // with L = 5 lost in a row a forced state can be held (5 + 1) x 3 ticks more
+  const model::NbarAllowances e = model::delay_model_allowances(-1, model::LossModel{0.05}, 20.0, 0.002, 6, band, {});
+  CHECK_EQUAL(18, e.deadband_ticks);
+  CHECK_EQUAL(5 + 18, e.total());
   CHECK_EQUAL(0, model::clock_allowance_ticks({}, 20.0, 0.002));
   // drift: 2 x 75 ppm x 10000 ticks = 1.5 -> 2 ticks
   CHECK_EQUAL(2, model::clock_allowance_ticks(model::ClockModel{0, 0, 75}, 20.0, 0.002));
 }
 
-TEST(Model, a_link_bound_from_a_measured_round_trip_adds_the_loss_and_twice_the_deadband) {
-  const model::LinkBound l = model::link_bound_from_round_trip(10, 4, 2, 2);  // R = 10 + 4 + 2 x 2
-  CHECK_EQUAL(18, l.round_trip_ticks);
-  CHECK_EQUAL(9, l.guard_ticks);
-  CHECK_EQUAL(20, l.assumed_sum_ticks);
-  CHECK_EQUAL(10, model::link_bound_from_round_trip(19, 0, 0, 0).guard_ticks);  // ceil(19 / 2)
+TEST(Model, a_link_bound_from_a_measured_round_trip_adds_the_loss_and_the_deadbands_allowance_for_it_both_ways) {
+  rt::TxDeadbandConfig band;
+  band.position_deadband_m = 1e-5;
+  band.max_interval_ticks = 3;
+  // R = 10 + 4 + the deadband's (L_ij + 1) 2 + (L_ji + 1) 2 with L_ij + L_ji = 4: 10 + 4 + 12
+  const model::LinkBound l = model::link_bound_from_round_trip(10, 4, band, 2);
+  CHECK_EQUAL(26, l.round_trip_ticks);
+  CHECK_EQUAL(13, l.guard_ticks);
+  CHECK_EQUAL(28, l.assumed_sum_ticks);
+  CHECK_EQUAL(10 + 2 * 2, model::link_bound_from_round_trip(10, 0, band, 2).round_trip_ticks);  // no loss: 2 (I - 1)
+  CHECK_EQUAL(10, model::link_bound_from_round_trip(19, 0, {}, 0).guard_ticks);  // ceil(19 / 2)
   // the paper's receive rule: each direction adds its spread, at most the one-way guard ceil(R/2) + 1
-  const model::LinkBound p = model::link_bound_from_round_trip(19, 0, 0, 0, rt::RxRule::kMostRecentlyReceived);
+  const model::LinkBound p = model::link_bound_from_round_trip(19, 0, {}, 0, rt::RxRule::kMostRecentlyReceived);
   CHECK_EQUAL(19 + 2 * (10 + 1), p.round_trip_ticks);
   CHECK_EQUAL(10 + (10 + 1), p.guard_ticks);
   Eigen::MatrixXi nbar(2, 2);

@@ -190,7 +190,8 @@ TEST(DeviceCoupling, StartUpChecksEq26AgainWithTheOpenedDevicesFiguresAndUsesIts
 }
 
 TEST(DeviceCoupling, TheDeadbandsHoldIsInEachOneWayGuardSoAHeldStateStaysWithinItsBound) {
-  // A neighbour's state may be held up to tx_max_interval_ticks - 1 ticks on top of the one-way delay:
+  // A neighbour's state may be held up to tx_max_interval_ticks - 1 ticks on top of the one-way delay
+  // (no loss; with L lost in a row (L + 1)(interval - 1), rt::TxDeadbandConfig::added_index_delay_ticks):
   // with a measured round trip R the guard must be at least ceil(R/2) + interval - 1 (before: the
   // interval was added to R once and halved, so 20-tick holds were over the guard and a leaf counted
   // its only neighbour as absent).
@@ -217,6 +218,12 @@ TEST(DeviceCoupling, TheDeadbandsHoldIsInEachOneWayGuardSoAHeldStateStaysWithinI
   CHECK_TEXT(b1.status == PhaseStatus::kOk, b1.message.c_str());
   LONGS_EQUAL(2 + 19, b1.core->neighbor(0).index_delay_bound_ticks);
   CHECK(b1.bounds.damping_min_Ns_per_m > b0.bounds.damping_min_Ns_per_m);  // eq. (18) pays for both directions' holds
+  // a loss allowance L_ij + L_ji = 2 agreed while probing: a lost forced state holds a whole interval
+  // more, (L + 1)(interval - 1) each way: R = 4 + 2 + (2 + 1) 19 + 19, guard ceil(82 / 2)
+  probe.loss_allowance_ticks = {2};
+  const BuildResult b2 = build_station_core(*db.plan, probe, caps);
+  CHECK_TEXT(b2.status == PhaseStatus::kOk, b2.message.c_str());
+  LONGS_EQUAL(41, b2.core->neighbor(0).index_delay_bound_ticks);
 }
 
 TEST(DeviceCoupling, TheMeasuredStepBoundsNeverGoBeyondWhatEq26AllowsTheDevice) {

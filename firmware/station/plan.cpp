@@ -178,17 +178,23 @@ void plan_device_file_warnings(StationPlan& p) {
 namespace {
 
 // Probing sends a state every send_interval_ticks (the deadband's pace): before the round-trip bounds
-// freeze it must send at least net.rtt_min_probe_samples of them, or no link can get its bound.
-void check_probe_samples(const net::NetConfig& nc, const ScenarioSpec& spec, const StationTimes& t) {
-  const std::int64_t pace = send_interval_ticks(spec), freeze = probe_freeze_tick(t.probe_ticks);
-  const std::int64_t sent = freeze > 0 ? (freeze - 1) / pace + 1 : 0;
+// are taken it must send at least net.rtt_min_probe_samples of them, or no link can get its bound.
+// A fresh start takes them at its freeze (probe_freeze_tick), a rejoin at the end of its probing;
+// `key` names the setting (station.probe_s, station.rejoin_probe_s).
+void check_probe_samples(const net::NetConfig& nc, const ScenarioSpec& spec, const std::string& key, std::int64_t probe_ticks, bool freezes) {
+  const std::int64_t pace = send_interval_ticks(spec);
+  const auto sent_by_bounds = [&](std::int64_t ticks) {
+    const std::int64_t until = freezes ? probe_freeze_tick(ticks) : ticks;
+    return until > 0 ? (until - 1) / pace + 1 : std::int64_t{0};
+  };
+  const std::int64_t sent = sent_by_bounds(probe_ticks);
   const auto need = static_cast<std::int64_t>(nc.endpoint.rtt.min_probe_samples);
   if (sent >= need) return;
-  std::int64_t enough = t.probe_ticks;  // the fewest probing ticks whose freeze comes after the need-th state
-  while ((probe_freeze_tick(enough) - 1) / pace + 1 < need) ++enough;
+  std::int64_t enough = probe_ticks;  // the fewest probing ticks that send the need-th state before the bounds
+  while (sent_by_bounds(enough) < need) ++enough;
   const double probe_s = static_cast<double>(enough) * spec.period_s;
-  bad("station.probe_s = " + number_text(static_cast<double>(t.probe_ticks) * spec.period_s) + " s sends " + std::to_string(sent) +
-      " probe states before the round-trip bounds freeze (one every " + std::to_string(pace) +
+  bad(key + " = " + number_text(static_cast<double>(probe_ticks) * spec.period_s) + " s sends " + std::to_string(sent) +
+      " probe states before the round-trip bounds " + (freezes ? "freeze" : "are taken") + " (one every " + std::to_string(pace) +
       " ticks: station.tx_max_interval_ticks), fewer than the " + std::to_string(need) +
       " round trips a link needs (net.rtt_min_probe_samples): probe for at least " + number_text(probe_s) + " s");
 }
@@ -213,7 +219,10 @@ void plan_network(StationPlan* p, const ClockReading& now) {
   check_tx_spin(f, p->net);
   apply_station_impairments(f, spec, p->net);  // the simulator's link set-up and seed rule
   p->times = plan_times(f, o, spec, now);
-  if (!p->times.rejoin) check_probe_samples(p->net, spec, p->times);
+  if (p->times.rejoin)
+    check_probe_samples(p->net, spec, "station.rejoin_probe_s", rejoin_probe_ticks(f.station.rejoin_probe_s, spec.period_s), false);
+  else
+    check_probe_samples(p->net, spec, "station.probe_s", p->times.probe_ticks, true);
   if (p->times.rejoin)
     p->warnings.push_back("started " + std::to_string(-p->times.epoch_in_s) + " s after the common epoch (" +
                           (o.start_at >= 0 ? std::string("--start-at") : std::string("station.start_at")) +

@@ -65,6 +65,8 @@ std::string counted_causes(const net::EndpointStats& s) {
 
 std::int64_t probe_freeze_tick(std::int64_t probe_ticks) { return probe_ticks - probe_ticks / 3; }
 
+std::int64_t rejoin_probe_ticks(double rejoin_probe_s, double period_s) { return std::llround(rejoin_probe_s / period_s); }
+
 std::int64_t send_interval_ticks(const ScenarioSpec& spec) {
   return spec.tx_deadband.enabled() ? spec.tx_deadband.max_interval_ticks : 1;
 }

@@ -99,6 +99,8 @@ void end_probe(const StationPlan& plan, net::Endpoint& ep, const std::atomic<boo
 ProbeResult probe_neighbours(const StationPlan& plan, net::Endpoint& ep, const std::atomic<bool>& stop);
 // The probing tick at which the round-trip bounds freeze: after two thirds of the probing ticks.
 std::int64_t probe_freeze_tick(std::int64_t probe_ticks);
+// A rejoin's probing ticks (station.rejoin_probe_s); its bounds are taken at the end of them.
+std::int64_t rejoin_probe_ticks(double rejoin_probe_s, double period_s);
 // The pace at which the neighbours send their states: every tick, or with the transmission deadband
 // at least every tx_max_interval_ticks. Probing sends at that pace (on the ticks k = 0 mod it), so
 // the round trips and the loss it measures are those of the run's traffic (a 16,000-node state every

@@ -46,7 +46,7 @@ LoopStage rejoin_stage(const StationPlan& plan, net::Endpoint& ep, RejoinResult&
   LoopStage s;
   s.timeline.period_ns = plan.times.period_ns;
   s.timeline.epoch_ns = now_ns + plan.times.period_ns;
-  s.timeline.probe_ticks = std::llround(plan.file.station.rejoin_probe_s / T);
+  s.timeline.probe_ticks = rejoin_probe_ticks(plan.file.station.rejoin_probe_s, T);
   s.timeline.run_k0 = std::numeric_limits<std::int64_t>::max() / 4;  // no run on this timeline: set-up ticks until the session's stage
   s.last_phase = TickPhase::kProbe;
   s.k_first = 0;

@@ -146,6 +146,23 @@ TEST(CheckConfig, AProbeTooShortForTheRoundTripsAtTheDeadbandsPaceIsRejectedNami
   LONGS_EQUAL(kExitOk, check(s.text()).code);
 }
 
+TEST(CheckConfig, ARejoinProbeTooShortForTheRoundTripsAtTheDeadbandsPaceIsRejectedNamingTheKey) {
+  // started 1 s after the common epoch: a rejoin, which takes its bounds at the end of
+  // station.rejoin_probe_s; 0.4 s (200 ticks) sends 10 states at every 20th tick, fewer than 20
+  RunOverrides o;
+  o.start_at = static_cast<double>(read_clocks().monotonic_ns) * 1e-9 - 1.0;
+  test::StationText s = hub();
+  s.station_extra = "tx_deadband_mm = 0.01\ntx_max_interval_ticks = 20\n";
+  const Checked c = check(s.text(), o);
+  LONGS_EQUAL(kExitConfigError, c.code);
+  STRCMP_CONTAINS("station.rejoin_probe_s = 0.4 s sends 10 probe states before the round-trip bounds are taken (one every 20 ticks", c.err.c_str());
+  STRCMP_CONTAINS("probe for at least 0.762 s", c.err.c_str());
+  s.station_extra += "rejoin_probe_s = 0.762\n";  // 381 ticks: the 20th state at tick 380
+  const Checked ok = check(s.text(), o);
+  LONGS_EQUAL(kExitOk, ok.code);
+  CHECK_TEXT(contains(ok.out, "rejoining the running session"), ok.out.c_str());
+}
+
 TEST(CheckConfig, TickSynchronousAndDirectTxTogetherAreRejectedNamingBoth) {
   test::StationText s = hub();
   s.net_extra = "tx_spin = true\ntx_direct = true\n";

@@ -219,14 +219,14 @@ void plan_network(StationPlan* p, const ClockReading& now) {
   check_tx_spin(f, p->net);
   apply_station_impairments(f, spec, p->net);  // the simulator's link set-up and seed rule
   p->times = plan_times(f, o, spec, now);
-  if (p->times.rejoin)
-    check_probe_samples(p->net, spec, "station.rejoin_probe_s", rejoin_probe_ticks(f.station.rejoin_probe_s, spec.period_s), false);
-  else
+  if (!p->times.rejoin) {
     check_probe_samples(p->net, spec, "station.probe_s", p->times.probe_ticks, true);
-  if (p->times.rejoin)
+  } else {
+    check_probe_samples(p->net, spec, "station.rejoin_probe_s", rejoin_probe_ticks(f.station.rejoin_probe_s, spec.period_s), false);
     p->warnings.push_back("started " + std::to_string(-p->times.epoch_in_s) + " s after the common epoch (" +
                           (o.start_at >= 0 ? std::string("--start-at") : std::string("station.start_at")) +
                           "), past half the probing phase: rejoining the running session");
+  }
   p->net.endpoint.impairment_epoch_s = static_cast<double>(p->times.run_epoch_ns()) * 1e-9;
   p->net.endpoint.impairment_first_run_seq = static_cast<std::uint64_t>(p->times.run_k0);  // run packet k draws the simulator's fate k
   p->net.endpoint.tx_period_s = spec.period_s;  // tick-synchronous TX (net.tx_spin) needs the tick period

@@ -247,7 +247,8 @@ TEST(ClosedLoop, deadband_keeps_every_index_delay_within_its_bound_through_the_p
   for (const auto& l : r.links) {
     CHECK_TRUE(l.lost > 0);
     CHECK_EQUAL(0u, l.bound_violations);
-    const std::int64_t loss_free_bound = b.nbar_ticks(l.to, l.from) - (b.loss_allowance_ticks + 1) * 7 + 7;
+    const std::int64_t loss_free_bound = b.nbar_ticks(l.to, l.from) - s.tx_deadband.added_index_delay_ticks(b.loss_allowance_ticks) +
+                                         s.tx_deadband.added_index_delay_ticks(0);
     past_loss_free_allowance = std::max(past_loss_free_allowance, l.max_index_delay - loss_free_bound);
   }
   CHECK_TRUE(past_loss_free_allowance > 0);

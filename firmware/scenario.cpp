@@ -454,6 +454,8 @@ rt::StationConfig BuiltScenario::station_config(int i) const {
     nc.peer_id = neighbors[static_cast<std::size_t>(i)][n];
     nc.gains = &gains[static_cast<std::size_t>(neighbor_edge[static_cast<std::size_t>(i)][n])];
     nc.index_delay_bound_ticks = nbar_ticks(i, nc.peer_id);
+    nc.step_min_s = t_min_s[static_cast<std::size_t>(nc.peer_id)];
+    nc.step_max_s = t_max_s[static_cast<std::size_t>(nc.peer_id)];
     if (spec.edge_energy_bound_J > 0) {
       nc.energy_bound_J = spec.edge_energy_bound_J;
       nc.energy_release_J = 0.5 * spec.edge_energy_bound_J;

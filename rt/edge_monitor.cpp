@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -27,17 +28,27 @@ void EdgeMonitorParams::validate() const {
   if (max_checked_gap_ticks < max_gap_ticks) bad("the largest checked gap must be >= the largest integrated gap");
 }
 
-void EdgeMonitor::init(int edges, int dofs, double period_s, const EdgeMonitorParams& params, const double* x0, const double* v0) {
+void EdgeMonitor::init(int edges, int dofs, double period_s, const EdgeMonitorParams& params, const double* x0, const double* v0,
+                       std::span<const StepBox> steps) {
   if (edges < 0 || edges > kMaxMonitoredEdges)
     throw std::invalid_argument("neighbour state check: edges must be in [0, " + std::to_string(kMaxMonitoredEdges) + "]");
   if (dofs <= 0 || dofs % 3 != 0 || !(period_s > 0)) throw std::invalid_argument("neighbour state check: bad state size or period");
+  if (!steps.empty() && steps.size() != static_cast<std::size_t>(edges))
+    throw std::invalid_argument("neighbour state check: one step box per edge (or none)");
   params.validate();
   edges_ = edges;
   dofs_ = dofs;
   T_ = period_s;
   p_ = params;
   ed_.assign(static_cast<std::size_t>(edges), Edge{});
-  for (auto& ed : ed_) {
+  for (std::size_t j = 0; j < ed_.size(); ++j) {
+    Edge& ed = ed_[j];
+    const double lo = steps.empty() || steps[j].min_s == 0 ? period_s : steps[j].min_s;
+    const double hi = steps.empty() || steps[j].max_s == 0 ? period_s : steps[j].max_s;
+    if (!(lo > 0 && lo <= hi && std::isfinite(hi)))
+      throw std::invalid_argument("neighbour state check: edge " + std::to_string(j) + "'s step bounds must satisfy 0 < T^min <= T^max");
+    ed.h_lo = 0.5 * lo;
+    ed.h_hi = 0.5 * hi;
     ed.x_prev.assign(x0, x0 + dofs);
     ed.v_prev.assign(v0, v0 + dofs);
     ed.u.assign(static_cast<std::size_t>(dofs), 0.0);
@@ -52,14 +63,21 @@ void EdgeMonitor::kinematic(Edge& ed, std::int64_t gap, const double* x, const d
     return;
   }
   const bool integrate = gap <= p_.max_gap_ticks;  // else this packet alone, against gap_bound_m (U only leaks)
-  const double h = 0.5 * static_cast<double>(gap) * T_;
+  const double g = static_cast<double>(gap), h = 0.5 * g * T_;
   const double decay = std::exp(-2.0 * h / p_.kinematic_window_s);
+  // The weights that explain the packet best, in [T^min/2, g T^max/2]: an honest sender took between
+  // 1 and g steps over a gap of g sequences (its sequence is its loop's tick on the wall-clock grid:
+  // a loaded host that skipped periods took one long step, clamped to T^max, for several sequences).
+  const double lo = ed.h_lo, hi = g * ed.h_hi;
+  const bool fit = hi > lo;  // variable steps, or a gap
+  double a = h, b = h;
+  if (fit) fit_steps(ed, lo, hi, x, v, a, b);
   int r_node = -1;
   for (int n = 0; n < dofs_ / 3; ++n) {
     double uu = 0, rr = 0;
     for (int d = 0; d < 3; ++d) {
       const auto i = static_cast<std::size_t>(3 * n + d);
-      const double r = x[i] - ed.x_prev[i] - h * (v[i] + ed.v_prev[i]);
+      const double r = x[i] - ed.x_prev[i] - (fit ? a * ed.v_prev[i] + b * v[i] : h * (v[i] + ed.v_prev[i]));
       ed.u[i] = decay * ed.u[i] + (integrate ? r : 0.0);
       uu += ed.u[i] * ed.u[i];
       rr += r * r;
@@ -81,6 +99,47 @@ void EdgeMonitor::kinematic(Edge& ed, std::int64_t gap, const double* x, const d
     ed.gap_residual_m = ed.r_max;
     ed.gap_node = r_node;
     ed.r_max = ed.gap_ratio * p_.kinematic_bound_m;  // re-admission's "own step consistent", in the bound's units
+  }
+}
+
+// min over (a, b) in [lo, hi]^2 of |d - a p - b q|^2, d = x - x_prev, p = v_prev, q = v: a convex
+// quadratic, so the unconstrained optimum when it lies in the box, else the best of the four sides'
+// one-dimensional optima (p parallel to q: a line of optima, which meets a side where it meets the box).
+void EdgeMonitor::fit_steps(const Edge& ed, double lo, double hi, const double* x, const double* v, double& a, double& b) const {
+  double pp = 0, pq = 0, qq = 0, pd = 0, qd = 0;
+  for (std::size_t i = 0; i < static_cast<std::size_t>(dofs_); ++i) {
+    const double d = x[i] - ed.x_prev[i], p = ed.v_prev[i], q = v[i];
+    pp += p * p;
+    pq += p * q;
+    qq += q * q;
+    pd += p * d;
+    qd += q * d;
+  }
+  const double det = pp * qq - pq * pq;
+  if (det > 1e-9 * pp * qq) {
+    const double A = (pd * qq - qd * pq) / det, B = (qd * pp - pd * pq) / det;
+    if (A >= lo && A <= hi && B >= lo && B <= hi) {
+      a = A;
+      b = B;
+      return;
+    }
+  }
+  const double mid = 0.5 * (lo + hi);
+  auto best_a = [&](double B) { return pp > 0 ? std::clamp((pd - B * pq) / pp, lo, hi) : mid; };  // the vertex, clamped
+  auto best_b = [&](double A) { return qq > 0 ? std::clamp((qd - A * pq) / qq, lo, hi) : mid; };
+  auto cost = [&](double A, double B) { return A * A * pp + 2 * A * B * pq + B * B * qq - 2 * (A * pd + B * qd); };  // |r|^2 - |d|^2
+  double best = std::numeric_limits<double>::infinity();
+  auto consider = [&](double A, double B) {
+    const double c = cost(A, B);
+    if (c < best) {
+      best = c;
+      a = A;
+      b = B;
+    }
+  };
+  for (const double side : {lo, hi}) {
+    consider(best_a(side), side);
+    consider(side, best_b(side));
   }
 }
 

@@ -6,9 +6,19 @@
 // damping). This monitor isolates such an edge. Two checks on each new packet of edge j:
 //
 //  K (kinematic): the neighbour's x_hat must move as its own reported velocities say. NPMI gives
-//    x_hat(s+1) - x_hat(s) = T/2 (v_hat(s) + v_hat(s+1)) exactly at a fixed step, so per node the
-//    unexplained displacement U += x_hat(s) - x_hat(s0) - g T/2 (v_hat(s0) + v_hat(s)) over a gap of
-//    g = s - s0 <= max_gap_ticks packets, leaking with the time constant kinematic_window_s. Isolate
+//    x_hat(s+1) - x_hat(s) = T_s/2 v_hat(s) + T_{s+1}/2 v_hat(s+1) exactly, T_s the sender's step of
+//    tick s (x_hat = x + T_k/2 v_hat, x += T_k v_hat), so per node the unexplained displacement
+//    U += x_hat(s) - x_hat(s0) - a v_hat(s0) - b v_hat(s) over a gap of g = s - s0 <= max_gap_ticks
+//    packets, leaking with the time constant kinematic_window_s. At a fixed step a = b = g T/2. With
+//    variable steps (the neighbour's StepBox [T^min, T^max], eq. 9) or a gap the steps are not
+//    known: a and b are the one pair in [T^min/2, g T^max/2] that explains the packet best (least
+//    squares over every node: the whole copy steps with one T_k). An honest sender took 1 to g
+//    steps over g sequences: its sequence is its loop's tick on the wall-clock grid, and a loaded
+//    host that skipped periods took one step (clamped to T^max) for several. So its residual is 0
+//    after a gap of 1 whatever its steps, and after a skip (assuming g steps of T left (T_k - T)/2
+//    |v| per tick and T/2 |v_hat(s0) + v_hat(s)| per skip: a loaded host's honest neighbours were
+//    isolated). The fit's freedom is a time warp: a lie along the reported velocities of up to
+//    (T^max - T^min)/2 |v| per packet, (g T^max - T^min)/2 |v| after a gap. Isolate
 //    when some node's |U| > kinematic_bound_m. A packet after a longer gap (lost packets, a stalled
 //    sender or receiver) is compared alone: its residual over the gap, whose honest size grows as the
 //    velocities curve in between (~ (g T)^3 |jerk| / 12), against gap_bound_m(g) = kinematic_bound_m
@@ -34,6 +44,7 @@
 // init() allocates; observe() never allocates, locks or throws: RT-safe.
 #include <cstdint>
 #include <limits>
+#include <span>
 #include <vector>
 
 namespace haptic::rt {
@@ -80,11 +91,18 @@ inline constexpr double kDefaultStateCheckKinematicM = 2e-4;
 inline constexpr double kDefaultStateCheckDisagreementM = 0;
 inline constexpr double kSuggestedStateCheckDisagreementM = 5e-3;
 
+// A neighbour's step bounds T_j^min <= T_k <= T_j^max (check K's fit; 0: the nominal period).
+struct StepBox {
+  double min_s = 0, max_s = 0;
+};
+
 class EdgeMonitor {
  public:
-  // Start-up: edges (<= kMaxMonitoredEdges), dofs per state, the nominal step and the state every
-  // copy starts from (x0, v0: the first packet is checked against it). Throws std::invalid_argument.
-  void init(int edges, int dofs, double period_s, const EdgeMonitorParams& params, const double* x0, const double* v0);
+  // Start-up: edges (<= kMaxMonitoredEdges), dofs per state, the nominal step, the state every copy
+  // starts from (x0, v0: the first packet is checked against it) and each edge's StepBox (empty: every
+  // neighbour steps at period_s). Throws std::invalid_argument.
+  void init(int edges, int dofs, double period_s, const EdgeMonitorParams& params, const double* x0, const double* v0,
+            std::span<const StepBox> steps = {});
   // Tick k, edge j: its held packet (sequence seq, x_hat, v_hat, index delay N = k - seq) and this
   // copy's x(k). A packet seen before changes nothing. Returns true: edge isolated this tick. RT-safe.
   bool observe(int j, std::int64_t k, std::int64_t seq, const double* x_hat, const double* v_hat, std::int64_t index_delay,
@@ -94,6 +112,7 @@ class EdgeMonitor {
   int edges() const { return edges_; }
   bool enabled() const { return p_.enabled(); }
   bool isolated(int j) const { return e(j).isolated; }
+  StepBox step_box(int j) const { return {2 * e(j).h_lo, 2 * e(j).h_hi}; }  // edge j's neighbour step bounds, as used
   std::uint64_t isolations(int j) const { return e(j).isolations; }
   std::uint64_t isolations() const;  // over all edges
   std::uint64_t readmissions(int j) const { return e(j).readmissions; }
@@ -119,6 +138,7 @@ class EdgeMonitor {
     std::vector<double> x_prev, v_prev, u;  // the last packet (dofs each), unexplained displacement (dofs)
     std::vector<double> y;                  // filtered disagreement per node
     std::int64_t seq = -1;
+    double h_lo = 0, h_hi = 0;  // half the neighbour's step bounds (StepBox)
     bool isolated = false;
     EdgeLie reason = EdgeLie::kNone;
     std::int64_t isolated_k = -1, readmitted_k = -1, truthful_since = -1;
@@ -132,6 +152,8 @@ class EdgeMonitor {
   const Edge& e(int j) const { return ed_[static_cast<std::size_t>(j)]; }
   // The new packet's checks: U and one packet's residual (K), the filtered disagreement (P).
   void kinematic(Edge& ed, std::int64_t gap, const double* x, const double* v);
+  // The weights (a, b) of v_hat(s0) and v_hat(s) in [lo, hi] that explain x_hat(s) - x_hat(s0) best.
+  void fit_steps(const Edge& ed, double lo, double hi, const double* x, const double* v, double& a, double& b) const;
   void disagreement(Edge& ed, std::int64_t gap, const double* x, const double* v, std::int64_t delay, const double* own_x);
   void decide(Edge& ed, std::int64_t k);  // latch, re-admission
   int edges_ = 0, dofs_ = 0;

@@ -217,7 +217,9 @@ void StationCore::init_edges() {
   drop_fade_.init(nn, dofs_, pspm_.empty() ? std::llround(cfg_.drop_fade_s / cfg_.period_s) : 0);
   const Eigen::VectorXd x_hat0 = x_;  // every copy starts here, at rest
   const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(dofs_);
-  edge_monitor_.init(nn, dofs_, cfg_.period_s, cfg_.state_check, x_hat0.data(), v0.data());
+  std::vector<StepBox> steps;
+  for (const auto& nb : cfg_.neighbors) steps.push_back({nb.step_min_s, nb.step_max_s});
+  edge_monitor_.init(nn, dofs_, cfg_.period_s, cfg_.state_check, x_hat0.data(), v0.data(), steps);
 }
 
 long StationCore::tick_bytes() const {

@@ -77,6 +77,9 @@ struct NeighborConfig {
   // The account's leak (EdgeEnergyAccount::set_leak): energy that left the copy is taken off this
   // edge's account up to this power, W (0: the account only grows).
   double energy_leak_W = 0;
+  // The neighbour's step bounds T_j^min <= T_k <= T_j^max, for the state check's step fit
+  // (rt/edge_monitor.hpp StepBox; 0: the nominal period, a neighbour with fixed steps).
+  double step_min_s = 0, step_max_s = 0;
 };
 
 struct StationConfig {

@@ -18,4 +18,6 @@ StepBounds measured_step_bounds(double T, double max_wake_latency_s, double cap)
   return b;
 }
 
+double announced_step_min(double T, double t_max) { return std::min(T, std::max(2 * T - t_max, 0.5 * T)); }
+
 }  // namespace haptic::model

@@ -24,4 +24,10 @@ inline constexpr double kWakeHeadroom = 1.5;    // the probe's few hundred wakes
 inline constexpr double kWakeFloor_s = 20e-6;   // an idle PREEMPT_RT host measures a few µs
 StepBounds measured_step_bounds(double period_s, double max_wake_latency_s, double cap_s);
 
+// A neighbour's T^min from the T^max it announced (only T^max travels, in its fingerprints): measured
+// bounds are T -+ J, so 2 T - T^max, at least T / 2 (station.step_margin_max <= 0.5). What the
+// neighbour state check's step fit assumes (rt/edge_monitor.hpp StepBox); a station whose
+// station.period_min_s is set below it has its shorter steps read as unexplained motion.
+double announced_step_min(double period_s, double t_max_s);
+
 }  // namespace haptic::model

@@ -349,7 +349,14 @@ BuildResult build_station_core(const StationPlan& plan, const ProbeResult& probe
       r.proxy_from_device = true;
     }
     r.proxy_start_m = sc.vp_initial_position_m;
-    for (std::size_t n = 0; n < sc.neighbors.size(); ++n) sc.neighbors[n].index_delay_bound_ticks = r.bounds.index_guard_ticks[n];
+    for (std::size_t n = 0; n < sc.neighbors.size(); ++n) {
+      auto& nc = sc.neighbors[n];
+      nc.index_delay_bound_ticks = r.bounds.index_guard_ticks[n];
+      if (probe.steps.fixed && n < probe.steps.t_max_j_s.size()) {  // the state check's step fit: the bounds eq. (18) took
+        nc.step_max_s = probe.steps.t_max_j_s[n];
+        nc.step_min_s = model::announced_step_min(built.spec.period_s, nc.step_max_s);
+      }
+    }
     // "auto": measured on this machine (firmware/station/solver_choice.hpp); "auto-fixed": rt's size rule
     sc.solver.kind = rt::parse_step_solver_kind(S.solver == "auto-fixed" ? "auto" : S.solver);
     if (S.solver == "auto") {

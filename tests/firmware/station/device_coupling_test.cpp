@@ -43,6 +43,15 @@ double proposed_kvc(const std::string& error) {
   if (at == std::string::npos) return -1;
   return std::stod(error.substr(at + tag.size()));
 }
+// A probe that agreed round-trip bound R and loss allowance L with the one neighbour.
+ProbeResult probed(unsigned rtt_ticks, int loss_ticks) {
+  ProbeResult probe;
+  probe.status = PhaseStatus::kOk;
+  probe.rtt_bound_ticks = {rtt_ticks};
+  probe.loss_allowance_ticks = {loss_ticks};
+  return probe;
+}
+
 }  // namespace
 
 TEST_GROUP(DeviceCoupling){};
@@ -168,10 +177,7 @@ TEST(DeviceCoupling, StartUpChecksEq26AgainWithTheOpenedDevicesFiguresAndUsesIts
   const PlanResult r = plan("kind = \"auto\"\nhidraw_path = \"/dev/hidraw-test\"\n");
   CHECK_TEXT(r.status == PhaseStatus::kOk, r.error.c_str());
   CHECK_FALSE(r.plan->coupling.has_value());
-  ProbeResult probe;
-  probe.status = PhaseStatus::kOk;
-  probe.rtt_bound_ticks = {3};
-  probe.loss_allowance_ticks = {1};
+  ProbeResult probe = probed(3, 1);
   drivers::DeviceCapabilities caps = drivers::touch_default_capabilities();
   caps.max_force_N = 2.5;
   caps.min_damping_Ns_per_m = 0.0;  // the opened device publishes no b_d: refused at start-up
@@ -199,10 +205,7 @@ TEST(DeviceCoupling, TheDeadbandsHoldIsInEachOneWayGuardSoAHeldStateStaysWithinI
   t.id = 2;
   t.peers = {1};
   t.out_dir = "/tmp";
-  ProbeResult probe;
-  probe.status = PhaseStatus::kOk;
-  probe.rtt_bound_ticks = {4};
-  probe.loss_allowance_ticks = {0};  // agreed while probing (station.loss_allowance_ticks = 0 below)
+  ProbeResult probe = probed(4, 0);  // agreed while probing (station.loss_allowance_ticks = 0 below)
   drivers::DeviceCapabilities caps = drivers::touch_default_capabilities();
   caps.min_damping_Ns_per_m = 0.5;
   t.station_extra = "loss_allowance_ticks = 0\n";
@@ -224,6 +227,32 @@ TEST(DeviceCoupling, TheDeadbandsHoldIsInEachOneWayGuardSoAHeldStateStaysWithinI
   const BuildResult b2 = build_station_core(*db.plan, probe, caps);
   CHECK_TEXT(b2.status == PhaseStatus::kOk, b2.message.c_str());
   LONGS_EQUAL(41, b2.core->neighbor(0).index_delay_bound_ticks);
+}
+
+TEST(DeviceCoupling, TheStateCheckFitsEachNeighboursStepsWithinTheBoundsItAnnounced) {
+  // Neighbour 1 announced T^max = 2.3 ms while probing: the station's core checks its states with steps
+  // in [2 T - 2.3, 2.3] ms (model::announced_step_min), the bounds eq. (18) took; without announced
+  // bounds (steps not fixed) the nominal period.
+  test::StationText t;
+  t.id = 2;
+  t.peers = {1};
+  t.out_dir = "/tmp";
+  const PlanResult r = plan_station(parse_station_file(t.text()), RunOverrides{}, read_clocks());
+  CHECK_TEXT(r.status == PhaseStatus::kOk, r.error.c_str());
+  ProbeResult probe = probed(4, 1);
+  drivers::DeviceCapabilities caps = drivers::touch_default_capabilities();
+  caps.min_damping_Ns_per_m = 0.5;
+  const BuildResult nominal = build_station_core(*r.plan, probe, caps);
+  CHECK_TEXT(nominal.status == PhaseStatus::kOk, nominal.message.c_str());
+  DOUBLES_EQUAL(0.002, nominal.core->edge_monitor().step_box(0).min_s, 0);
+  DOUBLES_EQUAL(0.002, nominal.core->edge_monitor().step_box(0).max_s, 0);
+  probe.steps.fixed = true;
+  probe.steps.own = {0.0019, 0.0021, false};
+  probe.steps.t_max_j_s = {0.0023};
+  const BuildResult b = build_station_core(*r.plan, probe, caps);
+  CHECK_TEXT(b.status == PhaseStatus::kOk, b.message.c_str());
+  DOUBLES_EQUAL(0.0017, b.core->edge_monitor().step_box(0).min_s, 1e-15);
+  DOUBLES_EQUAL(0.0023, b.core->edge_monitor().step_box(0).max_s, 1e-15);
 }
 
 TEST(DeviceCoupling, TheMeasuredStepBoundsNeverGoBeyondWhatEq26AllowsTheDevice) {

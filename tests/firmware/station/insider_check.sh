@@ -22,6 +22,9 @@
 #    simulated hand on its own clock) drift apart by up to ~6 % of the push's ~10 mm by the release,
 #    which a measure over the whole run would mix into the damage; the lie's
 #    damage itself is done by the isolation and stays (the ramp's shows in full 0.1 s after it).
+#    A run whose stations could not keep their period (station-<id>.json "host": starving; 4-15 % of
+#    the periods skipped on a loaded 2-core host) moves the copies beyond the allowance by itself:
+#    its bound is reported, not binding, and the test exits 77 (skipped in part) if nothing else failed.
 # Bounded: run4.sh stops every station after its planned time + 20 s. No root.
 # Usage: insider_check.sh BIN_DIR WORK_DIR   (BIN_DIR holds haptic-station, haptic-insider, haptic-lab's tools)
 set -euo pipefail
@@ -50,7 +53,7 @@ work = sys.argv[1]
 ALLOWANCE_MM = 0.5
 BOUND_MM = {"mode": 0.2 + ALLOWANCE_MM, "ramp": 0.48 + ALLOWANCE_MM}
 LIE_FROM_S, T, DAMAGE_WINDOW_S = 1.0, 0.002, 0.25
-fail = []
+fail, not_binding = [], []
 
 def station(case, i):
     return json.load(open("%s/%s/station-%d.json" % (work, case, i)))
@@ -58,6 +61,10 @@ def station(case, i):
 def states(case, i):
     """station i's copy by tick: {k: [x0, x1, ...]} (the state CSV's rows)"""
     return {int(r[0]): [float(v) for v in r[1:]] for r in list(csv.reader(open("%s/%s/station-%d-state.csv" % (work, case, i))))[1:]}
+
+def starving(case):
+    """the stations of CASE that could not keep their period (their own "host" verdict)"""
+    return [i for i in range(1, 5) if (station(case, i).get("host") or {}).get("starving")]
 
 def isolated_at(case, i):
     return station(case, i)["state_check"]["neighbours"][0].get("last_isolated_run_s")
@@ -105,8 +112,19 @@ for case in ("offset", "mode", "ramp"):
         if case == "offset" and not (t_iso is not None and t_iso - LIE_FROM_S < 0.1):
             fail.append("offset: station %d isolated the hub at %s s, not at its first lying packet" % (i, t_iso))
         if case in BOUND_MM and not dmg < BOUND_MM[case]:  # NaN (no isolation, no rows) fails too
-            fail.append("%s: the lie moved station %d's copy %.3f mm from the offset run's (bound %.2f mm)" % (case, i, dmg, BOUND_MM[case]))
+            why = "%s: the lie moved station %d's copy %.3f mm from the offset run's (bound %.2f mm)" % (case, i, dmg, BOUND_MM[case])
+            hungry = sorted(set(starving(case) + starving("offset")))
+            if hungry and dmg == dmg:  # a starving run: its skipped periods move the copies beyond ALLOWANCE_MM
+                not_binding.append("%s (stations %s of the two runs could not keep their period)" % (why, hungry))
+            else:
+                fail.append(why)
 for m in fail: print("FAIL: " + m)
-if not fail: print("ok: the lying hub is isolated and named by every leaf, honest copies within the bound, the clean run isolates no one")
-sys.exit(1 if fail else 0)
+for m in not_binding: print("NOT BINDING: " + m)
+if not fail and not not_binding: print("ok: the lying hub is isolated and named by every leaf, honest copies within the bound, the clean run isolates no one")
+if fail: sys.exit(1)
+if not_binding:
+    print("SKIPPED (in part): the damage bound was not checked where a run's host starved; the isolations, names, exit codes "
+          "and the clean run were, and passed")
+    sys.exit(77)
+sys.exit(0)
 PY

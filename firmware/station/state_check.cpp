@@ -91,7 +91,8 @@ nlohmann::json state_check_json(const StationPlan& plan, const rt::StationCore& 
               {"peak_disagreement_m", m.peak_disagreement_m(n)},
               {"gap_checks", m.gap_checks(n)},
               {"peak_gap_ratio", m.peak_gap_ratio(n)},
-              {"unchecked_gaps", m.unchecked_gaps(n)}};
+              {"unchecked_gaps", m.unchecked_gaps(n)},
+              {"step_bounds_s", {m.step_box(n).min_s, m.step_box(n).max_s}}};  // the neighbour's T^min, T^max K fits within
     if (m.isolations(n) > 0) {
       e["reason"] = rt::edge_lie_name(m.last_reason(n));
       e["last_isolated_run_s"] = static_cast<double>(m.last_isolated_k(n)) * T;

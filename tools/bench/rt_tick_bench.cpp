@@ -26,6 +26,7 @@
 #include "firmware/scenario.hpp"
 #include "firmware/sim/simulator.hpp"
 #include "tests/support/dense_reference.hpp"
+#include "rt/edge_monitor.hpp"
 #include "rt/gains.hpp"
 #include "rt/rx_link.hpp"
 #include "rt/scene.hpp"
@@ -658,8 +659,35 @@ void BM_RxLinkReceive(benchmark::State& state) {
   state.counters["payload_bytes"] = 2.0 * dofs * sizeof(double);
 }
 
+// The neighbour state check on one new packet of n nodes (rt/edge_monitor: check K, the tick's cost
+// per packet and edge): mode 0 a fixed-step neighbour, consecutive sequences (the trapezoid at T);
+// mode 1 a variable-step neighbour (T -+ 0.4 ms: the step fit's extra pass); mode 2 a fixed-step
+// neighbour after a gap of 2 (a skipped period or a lost packet: the fit too). Two packets alternate
+// (the values do not change the work).
+void BM_StateCheck(benchmark::State& state) {
+  const int dofs = 3 * static_cast<int>(state.range(0));
+  const int mode = static_cast<int>(state.range(1));
+  const std::size_t n = static_cast<std::size_t>(dofs);
+  std::vector<double> x0(n, 0.0), v0(n, 0.01), own(n, 0.0), xa(n, 2e-5), xb(n, 4e-5), va(n, 0.01), vb(n, 0.011);
+  for (std::size_t i = 0; i < n; ++i) va[i] += 1e-4 * static_cast<double>(i % 7);  // not all parallel: the fit's 2x2 is regular
+  haptic::rt::EdgeMonitorParams p;
+  p.kinematic_bound_m = haptic::rt::kDefaultStateCheckKinematicM;
+  const haptic::rt::StepBox box = mode == 1 ? haptic::rt::StepBox{0.0016, 0.0024} : haptic::rt::StepBox{0.002, 0.002};
+  haptic::rt::EdgeMonitor m;
+  m.init(1, dofs, 0.002, p, x0.data(), v0.data(), std::span<const haptic::rt::StepBox>(&box, 1));
+  const std::int64_t gap = mode == 2 ? 2 : 1;
+  std::int64_t seq = 0;
+  for (auto _ : state) {
+    seq += gap;
+    const bool a = (seq / gap) % 2 == 0;
+    benchmark::DoNotOptimize(m.observe(0, seq, seq, a ? xa.data() : xb.data(), a ? va.data() : vb.data(), 0, own.data()));
+    benchmark::ClobberMemory();
+  }
+}
+
 }  // namespace
 
+BENCHMARK(BM_StateCheck)->ArgsProduct({{33, 3000, 16000}, {0, 1, 2}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_RxLinkReceive)->ArgsProduct({{33, 16000}, {0, 1}})->Unit(benchmark::kNanosecond);
 // 33 nodes: every solver and the strawman
 BENCHMARK(BM_Tick)->ArgsProduct({{33}, {kDirectArg, kIterativeArg, kDenseOnceArg, kCholmodArg, kAutoArg}})->Unit(benchmark::kMicrosecond);

@@ -26,7 +26,8 @@
 //    unchecked (counted): a jump hidden in one is a consistent lie (below). A state offset
 //    that changes (a jump, an oscillation, a ramp faster than kinematic_bound_m / kinematic_window_s)
 //    without the reported velocities to match is caught when it has changed by kinematic_bound_m.
-//  P (disagreement; always filtered, isolates only with a finite bound): the neighbour's state, carried forward to this tick by its own velocity
+//  P (disagreement; isolates only with a finite bound; with P off filtered only while the edge is
+//    isolated, for re-admission): the neighbour's state, carried forward to this tick by its own velocity
 //    (x_hat_j + (N - 1/2) T v_hat_j), against this copy's x(k), per node, filtered by a first-order
 //    lag of time constant disagreement_window_s. Isolate when some node's filtered |difference| >
 //    disagreement_bound_m. Catches a lie that is consistent with its velocities but far from the
@@ -131,7 +132,7 @@ class EdgeMonitor {
   double kinematic_m(int j) const { return e(j).u_max; }
   double disagreement_m(int j) const { return e(j).y_max; }
   double peak_kinematic_m(int j) const { return e(j).u_peak; }
-  double peak_disagreement_m(int j) const { return e(j).y_peak; }
+  double peak_disagreement_m(int j) const { return e(j).y_peak; }  // 0 with P off (not filtered while admitted)
 
  private:
   struct Edge {
@@ -139,6 +140,7 @@ class EdgeMonitor {
     std::vector<double> y;                  // filtered disagreement per node
     std::int64_t seq = -1;
     double h_lo = 0, h_hi = 0;  // half the neighbour's step bounds (StepBox)
+    bool y_live = false;        // P's filter ran on the last packet (else it restarts at the next)
     bool isolated = false;
     EdgeLie reason = EdgeLie::kNone;
     std::int64_t isolated_k = -1, readmitted_k = -1, truthful_since = -1;

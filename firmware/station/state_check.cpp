@@ -80,6 +80,7 @@ nlohmann::json state_check_json(const StationPlan& plan, const rt::StationCore& 
             {"isolations", m.isolations()}};
   const auto& nbrs = plan.neighbours();
   const double T = core.config().period_s;
+  const bool disagreement_on = std::isfinite(p.disagreement_bound_m);
   json per = json::array();
   for (int n = 0; n < m.edges() && n < static_cast<int>(nbrs.size()); ++n) {
     json e = {{"station", nbrs[static_cast<std::size_t>(n)] + 1},
@@ -88,7 +89,7 @@ nlohmann::json state_check_json(const StationPlan& plan, const rt::StationCore& 
               {"isolated_ticks", m.isolated_ticks(n)},
               {"isolated_at_end", m.isolated(n)},
               {"peak_kinematic_m", m.peak_kinematic_m(n)},
-              {"peak_disagreement_m", m.peak_disagreement_m(n)},
+              {"peak_disagreement_m", disagreement_on ? json(m.peak_disagreement_m(n)) : json(nullptr)},  // P off: not filtered while admitted
               {"gap_checks", m.gap_checks(n)},
               {"peak_gap_ratio", m.peak_gap_ratio(n)},
               {"unchecked_gaps", m.unchecked_gaps(n)},

@@ -90,7 +90,7 @@ for i in range(1, 5):
         fail.append("clean run: station %d isolated a neighbour: %s" % (i, s.get("isolation")))
     print("clean station %d: exit %s, peaks kinematic %s mm, disagreement %s mm" % (i, s["exit_code"],
           [round(1e3 * n["peak_kinematic_m"], 3) for n in s["state_check"]["neighbours"]],
-          [round(1e3 * n["peak_disagreement_m"], 3) for n in s["state_check"]["neighbours"]]))
+          [None if n["peak_disagreement_m"] is None else round(1e3 * n["peak_disagreement_m"], 3) for n in s["state_check"]["neighbours"]]))
 for case in ("offset", "mode", "ramp"):
     hub = station(case, 1)
     if hub["state_check"]["isolations"] != 0:

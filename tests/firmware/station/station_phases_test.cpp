@@ -392,8 +392,9 @@ TEST(StationPhases, ALossyProbeRaisesTheLossAllowanceAndBothEndsOfTheLinkUseTheS
 TEST(StationPhases, WithTheDeadbandProbingSendsAtItsPaceAndCountsLossInPackets) {
   // tx_max_interval_ticks = 5: probing sends a state on every 5th tick only (a large scene's state
   // every tick would swamp the links), and each end counts its neighbours' probe packets at that pace:
-  // about 200 / 5 packets to the freeze, none lost on loopback (a stalled sender's skipped ticks
-  // would count; a loaded machine's few), where counting ticks would find 4 in 5 missing.
+  // about 200 / 5 packets to the freeze, none lost on loopback, where counting ticks would find 4 in
+  // 5 missing. A sender's skipped periods do count (its paced send falls on a tick it did not run): a
+  // loaded 2-core host skipped up to 25 % of them here, so the check is at half, far below 4 in 5.
   const std::string dir = test::fresh_dir("paced");
   const std::string paced = kLongerProbe + "tx_deadband_mm = 0.01\ntx_max_interval_ticks = 5\n";
   const std::vector<int> codes = run_four(dir, 114, {paced, paced, paced, paced});
@@ -403,7 +404,7 @@ TEST(StationPhases, WithTheDeadbandProbingSendsAtItsPaceAndCountsLossInPackets) 
     for (const json& link : {hub_link(hub, i), station_json(dir, i)["links"][0]}) {
       const long long expected = link["probe_loss"]["expected"].get<long long>(), lost = link["probe_loss"]["lost"].get<long long>();
       CHECK(expected >= 20 && expected <= 45);  // 200 ticks to the freeze (less the round-trip bound's last ones) / 5
-      CHECK(lost * 5 <= expected);              // not the 4 in 5 of a tick count
+      CHECK(lost * 2 <= expected);              // not the 4 in 5 of a tick count
     }
   }
   LONGS_EQUAL(kExitOk, codes[0]);

@@ -93,12 +93,24 @@ def check_summary(case, summ, fail):
         fail.append("%s: summary.json state_check %s, isolating links %d, flags %s" % (case, summ.get("state_check"), len(isolating), flagged))
 
 
+EXIT_MISSED_CYCLES = 11  # firmware/station/phase.hpp kExitMissedCycles
+
+
 def main():
     work = sys.argv[1]
     fail = []
     clean_d, clean_end = honest_figures(work, "clean")
     print("clean: honest disagreement %.3f mm over the last 0.5 s; stations 2-5 left station 1 out on %s x the ticks from 1.5 s" % (
           clean_d, ["%.2f" % (liar_share(station(work, "clean", i)) or 0) for i in HONEST]))
+    # A clean station that exited 11 (more missed cycles than station.max_missed_cycles) on a host its
+    # own report calls starving is the host's truthful stop, not the code's: every comparison below is
+    # against that run, so the test cannot run here (77, skipped), naming the figures.
+    stalled = [i for i in (1,) + HONEST if station(work, "clean", i)["exit_code"] == EXIT_MISSED_CYCLES
+               and (station(work, "clean", i).get("host") or {}).get("starving")]
+    if stalled:
+        print("SKIPPED: the clean run's stations %s stopped for missed cycles (exit 11) on a starving host: %s" % (
+            stalled, [station(work, "clean", i)["host"].get("missed_cycles") for i in stalled]))
+        return 77
     for i in (1,) + HONEST:
         s = station(work, "clean", i)
         if s["exit_code"] != 0 or s["state_check"]["isolations"] != 0:

@@ -23,7 +23,8 @@ class ProbeLossCounter {
   // pace, probing included; 1: every tick). A silence of g ticks between two packets that arrived
   // then holds ceil(g / interval) - 1 lost ones (every one of them, when the sender keeps exactly that
   // pace as while probing; at least that many when it sends more often on a change, as a running
-  // station does), and packets, gaps and the loss's expected count are in packets.
+  // station does; a send its loaded host delayed past the pace counts as one), and packets, gaps and
+  // the loss's expected count are in packets.
   explicit ProbeLossCounter(std::size_t neighbours = 0, std::int64_t send_interval_ticks = 1)
       : seen_(neighbours), first_(neighbours, -1), newest_(neighbours, -1), interval_(std::max<std::int64_t>(1, send_interval_ticks)) {}
   // One drained packet of neighbour n (n < 0: not a neighbour, ignored). Sequence numbers more than

@@ -117,7 +117,7 @@ void explain_cause(const StationOutcome& o, const RunConditions& c, int code, Ex
     e.lines.push_back(t);
   }
   if (code == kExitBeforeRelease && k)
-    e.lines.push_back("the run ended at " + num(static_cast<double>(k->ticks_run) * period_s(o), 4) + " s, before the scripted release at " +
+    e.lines.push_back("the run ended at " + num(c.ran_s, 4) + " s, before the scripted release at " +
                       num(o.plan->built->spec.script.release_s, 4) + " s");
   if (code == kExitHeldByGate && o.build && o.build->core) {
     std::string t = "the per-edge energy gate (station.edge_energy_bound_J) tripped:";

@@ -150,6 +150,7 @@ RunPhaseResult StationLoop::run_result(int run_index, const RunObserver& observe
   r.loop = o.counts;
   r.whole_loop = loop_.stats();
   r.first_run_k = o.ran ? o.first_k : -1;
+  r.last_run_k = o.ran ? o.last_k : -1;
   r.loop_exception = exception_;
   r.loop_exception_what = what_;
   const Timeline& t = stages_[run_index].timeline;

@@ -41,6 +41,7 @@ struct RunPhaseResult {
   std::string rt_summary;
   std::vector<std::string> rt_warnings;
   std::int64_t first_run_k = -1;     // epoch index of the first run tick (-1: none ran)
+  std::int64_t last_run_k = -1;      // epoch index of the last run tick (-1: none ran; skipped periods are not ticks)
   bool loop_exception = false;       // the loop boundary caught an exception: safe state latched
   std::string loop_exception_what;   // its message (copied on the non-RT side)
   bool stopped_by_signal = false;

@@ -179,8 +179,9 @@ json link_json(const StationOutcome& o, std::size_t n, const net::PeerStats& ps,
   l["one_way_max_ms"] = or_null(rx, 1e3 * ps.one_way_max_s);
   l["tx_packets_run"] = ps.packets_sent - ps0.packets_sent;
   // Per-link rates over the run (the simulator's link_stats have the same two): states sent and UDP
-  // payload bytes of every datagram sent to this peer (state fragments, echoes, fingerprints).
-  const double run_s = o.counters ? static_cast<double>(o.counters->ticks_run) * p.built->spec.period_s : 0.0;
+  // payload bytes of every datagram sent to this peer (state fragments, echoes, fingerprints), per
+  // second of the run's span on the grid (periods a loaded host skipped are seconds that passed).
+  const double run_s = o.run && o.run->last_run_k >= 0 ? static_cast<double>(o.run->last_run_k + 1 - o.run->first_run_k) * p.built->spec.period_s : 0.0;
   l["packets_per_s"] = or_null(run_s > 0, static_cast<double>(ps.packets_sent - ps0.packets_sent) / run_s);
   l["bytes_per_s"] = or_null(run_s > 0, static_cast<double>(ps.bytes_sent - ps0.bytes_sent) / run_s);
   l["tx_impair_lost_run"] = ps.impair_lost - ps0.impair_lost;
@@ -309,12 +310,13 @@ RunConditions run_conditions(const StationOutcome& o) {
   c.failed = !o.failure.empty() && o.failure_status != PhaseStatus::kNoNeighbour && o.failure_status != PhaseStatus::kDeviceMissing &&
              !(o.run && o.run->loop_exception);
   const auto& sc = p.built->spec.script;
-  // Run time reached: a rejoined station's run starts late (first_run_k > run_k0) and ends on time.
-  const std::int64_t first_kr = o.run && o.run->first_run_k >= 0 ? o.run->first_run_k - p.times.run_k0 : 0;
-  const double ran_s = k ? static_cast<double>(first_kr + k->ticks_run) * p.built->spec.period_s : 0.0;
+  // Run time reached: the end of the last run tick on the epoch's grid. A rejoined station's run starts
+  // late (first_run_k > run_k0) and ends on time; a period the loop skipped is time the run covered
+  // (the core ticks the grid's index), not time it lacked.
+  if (o.run && o.run->last_run_k >= 0) c.ran_s = static_cast<double>(o.run->last_run_k + 1 - p.times.run_k0) * p.built->spec.period_s;
   // Named when planned so, or when the run phase started and stopped early (a run that never
   // started is named by its failure).
-  c.ended_before_release = sc.kind == UserScriptSpec::Kind::kPushHoldRelease && (p.ends_before_release || (o.run != nullptr && ran_s <= sc.release_s));
+  c.ended_before_release = sc.kind == UserScriptSpec::Kind::kPushHoldRelease && (p.ends_before_release || (o.run != nullptr && c.ran_s <= sc.release_s));
   const rt::StationCore* core = o.build ? o.build->core.get() : nullptr;
   c.held_by_gate = core && core->edge_gate().trips() > 0;
   if (core) c.isolation_messages = state_check_messages(p, *core);

@@ -54,6 +54,7 @@ struct RunConditions {
   bool held_by_gate = false;            // the per-edge energy gate tripped: bounded by its bound, not by eq. (18) alone (exit 10)
   bool edge_drop_rule_acted = false;    // a packet over its index-delay bound dropped an edge (named; no exit code of its own)
   std::optional<double> no_neighbour_fraction;  // of the run ticks; null when none ran
+  double ran_s = 0;                             // run time reached: the end of its last tick (periods skipped before it count)
   std::uint64_t missed_cycles_total = 0;        // periods the run loop skipped
   std::vector<std::string> key_compromise_messages;  // one per neighbour (firmware/station/neighbours.hpp)
   std::vector<std::string> isolation_messages;       // one per isolated neighbour (firmware/station/state_check.hpp)

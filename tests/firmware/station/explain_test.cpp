@@ -4,6 +4,7 @@
 // (late wake-ups and overruns) in the span without a usable neighbour.
 #include <CppUTest/TestHarness.h>
 
+#include <cmath>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -71,6 +72,8 @@ struct Leaf {
       ++cnt.ticks_run;
       ++info.index;
     }
+    run.first_run_k = pr.plan->times.run_k0;
+    run.last_run_k = pr.plan->times.run_k0 + 199;
     cnt.outages.finish();
   }
 
@@ -142,6 +145,29 @@ TEST(WhyARunFailed, TheStarvingHostRuleIsOnePercentOfThePeriodsSkippedOrAWakeUpP
   CHECK_FALSE(platform::host_starving(1000, 9, 1'999'999, 2'000'000));
   CHECK(platform::host_starving(1000, 11, 0, 2'000'000));  // 11 of 1011 periods skipped
   CHECK(platform::host_starving(1000, 0, 2'000'000, 2'000'000));
+}
+
+// A loaded host skips periods: the core ticks the grid's index, so the run covers them. Whether it
+// reached the scripted release is where its last tick was on the grid, not its tick count times T
+// (a CI host skipped 40 % of a 0.3 s run and read 0.178 s, before a release at 0.2 s).
+TEST(WhyARunFailed, ARunWhoseHostSkippedPeriodsEndedAtItsLastTickNotAtItsTickCount) {
+  Leaf leaf("silent", false);
+  const double T = leaf.pr.plan->built->spec.period_s, release_s = leaf.pr.plan->built->spec.script.release_s;
+  const auto release_k = static_cast<std::int64_t>(std::llround(release_s / T));
+  const std::int64_t k0 = leaf.pr.plan->times.run_k0;
+  leaf.cnt.ticks_run = release_k / 2;  // half the periods to the release skipped ...
+  leaf.run.first_run_k = k0;
+  leaf.run.last_run_k = k0 + release_k + 9;  // ... and the last tick ran after it
+  RunConditions c = run_conditions(leaf.o);
+  DOUBLES_EQUAL(static_cast<double>(release_k + 10) * T, c.ran_s, 1e-12);
+  CHECK_FALSE(c.ended_before_release);
+  leaf.cnt.ticks_run = release_k / 4;
+  leaf.run.last_run_k = k0 + release_k / 2 - 1;  // the last tick half-way to the release: it ended before it
+  c = run_conditions(leaf.o);
+  CHECK(c.ended_before_release);
+  DOUBLES_EQUAL(release_s / 2, c.ran_s, 1e-9);
+  const std::string text = joined(explain_exit(leaf.o, c, kExitBeforeRelease).lines);
+  STRCMP_CONTAINS(("the run ended at " + std::to_string(std::llround(release_s / 2)) + " s, before").c_str(), text.c_str());
 }
 
 TEST(WhyARunFailed, ExitZeroExplainsNothing) {

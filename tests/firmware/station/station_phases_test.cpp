@@ -135,7 +135,11 @@ TEST(StationPhases, FourStationsOnThreadsRunEveryPhaseAndExitZero) {
     CHECK(no_condition_but_edge_drops(j["conditions"]));
     CHECK(j["passivity_condition_met"].get<bool>());
     CHECK_FALSE(j["diverged"].get<bool>());
-    CHECK(number(j["ticks_run"]) > 400);  // 500 planned; an overrun may skip a few
+    // every period of the 500 planned was a tick or a period the loaded host skipped (ticks_run counts
+    // only the ticks; a 2-core CI host skipped up to 30 % of them); a skipped period just before the
+    // first run tick is in the set-up's share
+    CHECK(number(j["ticks_run"]) > 0);
+    CHECK_TEXT(number(j["ticks_run"]) + number(j["host"]["missed_cycles"]) >= number(j["run_ticks_planned"]) - 2, j["host"].dump().c_str());
     CHECK(number(j["rx_offered"]) > 50);  // the neighbours' packets reached the core (about 500 when unloaded)
     // Measured from the tick's counter, not zero by construction. How large it is depends on how the
     // host schedules four stations' threads (it exceeded 0.5 once at nice 19 on a loaded machine),
@@ -196,9 +200,10 @@ TEST(StationPhases, FourStationsWithThePredictiveDeadbandSendAStateAtLeastEveryI
   // station's tick: each trace row marks whether the tick sent its state (kTraceStateSent); no gap
   // between two sends is longer than the interval, and not every tick sends a state.
   const std::string dir = test::fresh_dir("deadband");
-  // probing sends at the deadband's pace: 20 round trips at every 20th tick need 1.2 s of it
+  // probing sends at the deadband's pace: 20 round trips at every 20th tick need 1.2 s of it, and a
+  // loaded host's stalls cost windows (17-19 round trips at 40 % of the periods skipped): 1.5 s
   std::string db = std::string(kShort);
-  db.replace(db.find("probe_s = 0.3"), 13, "probe_s = 1.2");
+  db.replace(db.find("probe_s = 0.3"), 13, "probe_s = 1.5");
   db += "consensus_passivity = \"pspm\"\ntx_deadband_mm = 0.001\ntx_max_interval_ticks = 20\ntx_predict = true\n"
                          "loss_allowance_max_ticks = 1000\n";  // pspm needs no loss allowance: a loaded machine's late probes must not refuse
   const std::vector<int> codes = run_four(dir, 110, {db, db, db, db});
@@ -393,7 +398,7 @@ TEST(StationPhases, WithTheDeadbandProbingSendsAtItsPaceAndCountsLossInPackets) 
   // tx_max_interval_ticks = 5: probing sends a state on every 5th tick only (a large scene's state
   // every tick would swamp the links), and each end counts its neighbours' probe packets at that pace:
   // about 200 / 5 packets to the freeze, none lost on loopback, where counting ticks would find 4 in
-  // 5 missing. A sender's skipped periods do count (its paced send falls on a tick it did not run): a
+  // 5 missing. A sender's skipped periods do count (its paced send was delayed past the pace): a
   // loaded 2-core host skipped up to 25 % of them here, so the check is at half, far below 4 in 5.
   const std::string dir = test::fresh_dir("paced");
   const std::string paced = kLongerProbe + "tx_deadband_mm = 0.01\ntx_max_interval_ticks = 5\n";
@@ -403,8 +408,10 @@ TEST(StationPhases, WithTheDeadbandProbingSendsAtItsPaceAndCountsLossInPackets) 
     LONGS_EQUAL(kExitOk, codes[static_cast<std::size_t>(i - 1)]);
     for (const json& link : {hub_link(hub, i), station_json(dir, i)["links"][0]}) {
       const long long expected = link["probe_loss"]["expected"].get<long long>(), lost = link["probe_loss"]["lost"].get<long long>();
-      CHECK(expected >= 20 && expected <= 45);  // 200 ticks to the freeze (less the round-trip bound's last ones) / 5
-      CHECK(lost * 2 <= expected);              // not the 4 in 5 of a tick count
+      // 200 ticks to the freeze (less the round-trip bound's last ones) / 5, and on a loaded host one
+      // more for each send a skipped period delayed (counted lost: 58 with 27 at 40 % of the periods skipped)
+      CHECK_TEXT(expected >= 20 && expected <= 80, link["probe_loss"].dump().c_str());
+      CHECK_TEXT(lost * 2 <= expected, link["probe_loss"].dump().c_str());  // not the 4 in 5 of a tick count
     }
   }
   LONGS_EQUAL(kExitOk, codes[0]);
@@ -555,6 +562,7 @@ TEST(StationPhases, ALeafStartedAfterTheProbingPhaseRejoinsTheRunningSessionInPr
   CHECK(number(j["ticks_run"]) > 100);                   // it ran coupled until the session's end
   CHECK(codes[1] != kExitNoNeighbour && codes[1] != kExitRunFailed && codes[1] != kExitConfigError);
   // It took over the hub's copy: its first state row is within 1 mm of the hub's row of that tick.
+  // (The hub holds the pushed shape from 0.3 s to the release at 1.5 s: a few ticks apart are alike.)
   const auto rows = [&](int id) {
     std::ifstream in(dir + "/station-" + std::to_string(id) + "-state.csv");
     std::vector<std::vector<double>> out;
@@ -570,13 +578,14 @@ TEST(StationPhases, ALeafStartedAfterTheProbingPhaseRejoinsTheRunningSessionInPr
   };
   const auto hub = rows(1), leaf = rows(2);
   CHECK(!leaf.empty());
-  double largest = NAN;
+  // the hub's row of that tick, or of the nearest tick it ran (a loaded host skips periods)
+  const std::vector<double>* near = nullptr;
   for (const auto& h : hub)
-    if (!leaf.empty() && h[0] == leaf[0][0]) {
-      largest = 0;
-      for (std::size_t c = 1; c + 2 < h.size(); c += 3)
-        largest = std::max(largest, std::hypot(h[c] - leaf[0][c], h[c + 1] - leaf[0][c + 1], h[c + 2] - leaf[0][c + 2]));
-    }
+    if (!leaf.empty() && (near == nullptr || std::abs(h[0] - leaf[0][0]) < std::abs((*near)[0] - leaf[0][0]))) near = &h;
+  CHECK_TEXT(near != nullptr && std::abs((*near)[0] - leaf[0][0]) <= 10, "no hub row within 10 ticks of the leaf's first");
+  double largest = 0;
+  for (std::size_t c = 1; c + 2 < near->size(); c += 3)
+    largest = std::max(largest, std::hypot((*near)[c] - leaf[0][c], (*near)[c + 1] - leaf[0][c + 1], (*near)[c + 2] - leaf[0][c + 2]));
   CHECK_TEXT(largest <= 1e-3, ("first rejoined state row " + std::to_string(largest * 1e3) + " mm from the hub's copy").c_str());
   std::filesystem::remove_all(dir);
 }
@@ -614,15 +623,17 @@ TEST(StationPhases, AHubWhoseNeighboursLeaveEarlyExitsNoNeighbour) {
 }
 
 // A host stall, simulated by the test hook (RunOverrides::test_tick_hook, not an option of the
-// station): the hub's tick sleeps 1.2 s at run tick 150. The hub names the stall (exit 11: how many
-// periods, from when to when) and its leaves name the hub silent over the same span (exit 7) with
-// their own host's figures in it.
+// station): the hub's tick sleeps 1.2 s at its first run tick from 150 on (a loaded host may skip
+// tick 150 itself). The hub names the stall (exit 11: how many periods, from when to when) and its
+// leaves name the hub silent over the same span (exit 7) with their own host's figures in it.
 TEST(StationPhases, AHostStallIsNamedByTheStalledStationAndItsNeighboursSeeItSilentOverTheSameSpan) {
   const std::string dir = test::fresh_dir("stall");
   const std::string keys = "probe_s = 0.3\nsetup_gap_s = 0.1\nduration_s = 2.0\npush_start_s = 0.1\npush_end_s = 0.3\nrelease_s = 0.5\n";
   const std::vector<int> codes = run_four(dir, 112, {keys, keys, keys, keys}, {"", "", "", ""}, [](int id, const std::string&, RunOverrides& o) {
-    if (id == 1) o.test_tick_hook = [](std::int64_t kr) {
-      if (kr == 150) std::this_thread::sleep_for(std::chrono::milliseconds(1200));
+    if (id == 1) o.test_tick_hook = [stalled = false](std::int64_t kr) mutable {
+      if (kr < 150 || stalled) return;
+      stalled = true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1200));
     };
   });
   const json hub = station_json(dir, 1);

@@ -21,6 +21,7 @@ source "$(dirname "$0")/../../support/quiet_host.sh"  # a measured "host too loa
 quiet_host_or_skip "$(dirname "$bin")" "$work"
 rm -rf "$work"; mkdir -p "$work"
 rc=0
+skipped=()
 for case in 2 1 2-fresh; do
   who="${case%%-*}"; extra=(); [ "$case" = 2-fresh ] && extra=(--restart-fresh-epoch)
   out="$work/kill-$case"
@@ -31,10 +32,13 @@ for case in 2 1 2-fresh; do
     # safeguard, not a failed rejoin; it is printed with the gate's figures and the worst port energy.
     # (A restarted station's eq. (13) account starts at 0 with the adopted, deformed state, whose stored
     # energy is not counted as d^2, so its port energy can go below 0 without any energy generated.)
-    # Any other non-zero exit fails.
-    if ! /usr/bin/python3 - "$out" <<'PY'
+    # A station that stopped for missed cycles (exit 11) on a host its own report calls starving is
+    # the host's truthful stop, not the rejoin's: that case is a visible skip (77 at the end, if
+    # nothing failed). Any other non-zero exit fails.
+    judge=0
+    /usr/bin/python3 - "$out" <<'PY' || judge=$?
 import glob, json, sys
-ok = True
+ok, starved = True, False
 for f in sorted(glob.glob(sys.argv[1] + "/station-[0-9]*.json")):
     d = json.load(open(f))
     code, g = d.get("exit_code"), d.get("gate", {})
@@ -44,15 +48,26 @@ for f in sorted(glob.glob(sys.argv[1] + "/station-[0-9]*.json")):
         print("gate acted (reported, exit 10): %s: %d trip(s), %.4f J removed, worst port energy %.3g J"
               % (f.rsplit("/", 1)[1], g["energy_gate_trips"], g["energy_gate_removed_J"], g["port_energy_min_J"]))
         continue
+    if code == 11 and (d.get("host") or {}).get("starving"):
+        print("host starving (exit 11, %d skipped periods): %s" % (d.get("missed_cycles_total", -1), f.rsplit("/", 1)[1]))
+        starved = True
+        continue
     print("%s: exit %s" % (f, code))
     ok = False
-sys.exit(0 if ok else 1)
+sys.exit(1 if not ok else 3 if starved else 0)
 PY
-    then
+    if [ "$judge" -eq 3 ]; then
+      echo "rejoin_check.sh: the run with station $who killed ($case): stations stopped for missed cycles on a starving host: not judged"
+      skipped+=("$case"); continue
+    elif [ "$judge" -ne 0 ]; then
       echo "rejoin_check.sh: the run with station $who killed ($case) failed:" >&2; tail -n 30 "$work/run4-kill-$case.log" >&2; rc=1; continue
     fi
   fi
   echo "--- station $who SIGKILLed at 5 s, restarted at 8 s${extra[*]:+ with a fresh epoch (no --start-at)}"
   /usr/bin/python3 "$repo/tools/run4/rejoin_check.py" --station "$bin" "$out" || rc=1
 done
+if [ "$rc" -eq 0 ] && [ "${#skipped[@]}" -gt 0 ]; then
+  echo "SKIPPED (in part): case(s) ${skipped[*]}: stations stopped for missed cycles (exit 11) on a host they report starving; the other cases passed"
+  exit 77
+fi
 exit $rc

@@ -50,6 +50,32 @@ struct TxDeadbandConfig {
   void validate() const;  // throws std::invalid_argument naming the key (tx_deadband.*)
 };
 
+// At least `interval` ticks between two sends: due at the first tick once `interval` ticks have
+// passed since the last send (always before the first). The deadband's interval rule, and the pace
+// of probing (firmware/station/probe.hpp): a period a loaded host skipped delays the send to the
+// next tick it runs instead of losing a whole interval. RT-safe.
+class SendInterval {
+ public:
+  explicit SendInterval(std::int64_t interval = 1) : interval_(std::max<std::int64_t>(1, interval)) {}
+  bool due(std::int64_t k) const { return !any_sent_ || k - last_k_ >= interval_; }
+  void sent(std::int64_t k) {
+    any_sent_ = true;
+    last_k_ = k;
+  }
+  // due(k), and then sent(k) when it is.
+  bool take(std::int64_t k) {
+    if (!due(k)) return false;
+    sent(k);
+    return true;
+  }
+  std::int64_t last_sent() const { return last_k_; }
+
+ private:
+  std::int64_t interval_ = 1;
+  std::int64_t last_k_ = 0;
+  bool any_sent_ = false;
+};
+
 class TxDeadband {
  public:
   TxDeadband() = default;
@@ -67,8 +93,7 @@ class TxDeadband {
   TxDeadbandConfig cfg_{};
   double period_s_ = 0.002;
   std::vector<double> last_x_, last_v_;
-  std::int64_t last_k_ = 0;
-  bool any_sent_ = false;
+  SendInterval every_;  // the "at least every max_interval_ticks" part
   std::uint64_t sent_ = 0, skipped_ = 0;
 };
 

@@ -140,7 +140,7 @@ LoopStage probe_stage(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r
   s.last_phase = TickPhase::kProbe;
   s.k_first = plan.times.tick_at(now_ns);  // from now: the ticks before the epoch watch for a running session
   const std::int64_t freeze = probe_freeze_tick(plan.times.probe_ticks);
-  s.tick = [&plan, &ep, &r, x0, v0, freeze, pace = SendPace(pace), frozen = false](std::int64_t k, const platform::TickInfo& info) mutable {
+  s.tick = [&plan, &ep, &r, x0, v0, freeze, pace = rt::SendInterval(pace), frozen = false](std::int64_t k, const platform::TickInfo& info) mutable {
     if (k >= freeze && !frozen) {  // the bounds freeze; the last third exchanges them
       frozen = true;
       r.all_bounds_at_freeze = ep.finish_probing();
@@ -155,7 +155,7 @@ LoopStage probe_stage(const StationPlan& plan, net::Endpoint& ep, ProbeResult& r
     if (r.running_session_from != 0) return false;  // the caller rejoins the running session
     if (k < 0) return true;                         // before the epoch: watching only
     if (r.first_probe_k < 0) r.first_probe_k = k;
-    if (pace.due(k) && !ep.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data())) ++r.push_failures;
+    if (pace.take(k) && !ep.push_state(static_cast<std::uint64_t>(k), net::monotonic_s(), x0.data(), v0.data())) ++r.push_failures;
     return true;
   };
   return s;

@@ -5,7 +5,6 @@
 // into B_i (eq. 18), checks eq. (26) with the device's b_d and builds rt::StationCore with its
 // factorizations, on the calling (non-RT) thread, before the run phase starts: the core is handed
 // to the RT thread once, when that thread is created. Neither is RT-safe.
-#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <limits>
@@ -103,33 +102,11 @@ std::int64_t probe_freeze_tick(std::int64_t probe_ticks);
 // A rejoin's probing ticks (station.rejoin_probe_s); its bounds are taken at the end of them.
 std::int64_t rejoin_probe_ticks(double rejoin_probe_s, double period_s);
 // The pace at which the neighbours send their states: every tick, or with the transmission deadband
-// at least every tx_max_interval_ticks. Probing sends at that pace (SendPace), so the round trips
+// at least every tx_max_interval_ticks. Probing sends at that pace (rt::SendInterval), so the round trips
 // and the loss it measures are those of the run's traffic (a 16,000-node state every tick would be
 // 200 MB/s per link), and the loss counters count packets at it.
 std::int64_t send_interval_ticks(const ScenarioSpec& spec);
 
-// At least `interval` ticks between two sends, as the deadband's contract (rt/tx_deadband.hpp):
-// the first tick that runs once `interval` ticks have passed since the last send. A period a loaded
-// host skipped delays the state to the next tick it runs instead of dropping it for a whole interval
-// (probing for 20 round trips at every 20th tick got 17-19 of them at 40 % of the periods skipped),
-// and the neighbours' loss counters (firmware/model/probe_loss.hpp) count the delay as they did the
-// skipped send: one packet.
-class SendPace {
- public:
-  explicit SendPace(std::int64_t interval) : interval_(std::max<std::int64_t>(1, interval)) {}
-  // Whether tick k sends (ticks come in increasing order). RT-safe.
-  bool due(std::int64_t k) {
-    if (sent_ && k - last_ < interval_) return false;
-    sent_ = true;
-    last_ = k;
-    return true;
-  }
-
- private:
-  std::int64_t interval_;
-  std::int64_t last_ = 0;
-  bool sent_ = false;
-};
 
 // After probing has been finished on `ep` (`all`: every neighbour has a bound): statistics,
 // bounds, missing neighbours, the fingerprint comparison and the status. `after` names how long

@@ -51,14 +51,14 @@ LoopStage rejoin_stage(const StationPlan& plan, net::Endpoint& ep, RejoinResult&
   s.last_phase = TickPhase::kProbe;
   s.k_first = 0;
   s.new_grid = true;
-  s.tick = [&plan, &ep, &r, x0, v0, T, pace = SendPace(pace)](std::int64_t k, const platform::TickInfo&) mutable {
+  s.tick = [&plan, &ep, &r, x0, v0, T, pace = rt::SendInterval(pace)](std::int64_t k, const platform::TickInfo&) mutable {
     ep.drain([&](std::uint16_t sender, std::uint64_t seq, double send_time_s, const double*, const double*, std::uint32_t) {
       r.probe.grid.add(plan.peers.sender_to_nbr[sender], seq, send_time_s, T);
       r.probe.loss_counter.add(plan.peers.sender_to_nbr[sender], seq);
     });
     // Provisional sequence numbers stay below the session's run_k0: the neighbours' ticks ignore them.
     // At the running session's pace (send_interval_ticks).
-    if (static_cast<std::int64_t>(r.provisional_pushes) < plan.times.run_k0 - 1 && pace.due(k) &&
+    if (static_cast<std::int64_t>(r.provisional_pushes) < plan.times.run_k0 - 1 && pace.take(k) &&
         ep.push_state(r.provisional_pushes, net::monotonic_s(), x0.data(), v0.data()))
       ++r.provisional_pushes;
     return true;

@@ -10,9 +10,9 @@
 #include <vector>
 
 #include "firmware/station/loop.hpp"
-#include "firmware/station/probe.hpp"
 #include "firmware/station/timeline.hpp"
 #include "platform/clock.hpp"
+#include "rt/tx_deadband.hpp"
 
 using namespace haptic::firmware;
 namespace platform = haptic::platform;
@@ -36,15 +36,15 @@ TEST_GROUP(Timeline){};
 // whole interval), and never two within the pace.
 TEST(Timeline, a_paced_send_whose_period_was_skipped_goes_out_at_the_next_tick_that_runs) {
   const std::int64_t pace = 20;
-  SendPace every(pace), skipping(pace);
+  haptic::rt::SendInterval every(pace), skipping(pace);
   std::vector<std::int64_t> sent;
   long on_the_grid = 0;  // what sending only on k = 0 mod pace would have sent
   for (std::int64_t k = 0; k < 400; ++k) {
-    CHECK_EQUAL(k % pace == 0, every.due(k));  // nothing skipped: every pace-th tick
+    CHECK_EQUAL(k % pace == 0, every.take(k));  // nothing skipped: every pace-th tick
     const bool skipped = (k / 7) % 3 == 0;     // a third of the periods, in runs of 7
     if (skipped) continue;
     on_the_grid += k % pace == 0 ? 1 : 0;
-    if (!skipping.due(k)) continue;
+    if (!skipping.take(k)) continue;
     if (!sent.empty()) {
       CHECK(k - sent.back() >= pace);
       for (std::int64_t j = sent.back() + pace; j < k; ++j) CHECK((j / 7) % 3 == 0);  // the first tick that ran once due
@@ -52,8 +52,8 @@ TEST(Timeline, a_paced_send_whose_period_was_skipped_goes_out_at_the_next_tick_t
     sent.push_back(k);
   }
   CHECK_TEXT(static_cast<long>(sent.size()) > on_the_grid, (std::to_string(sent.size()) + " vs " + std::to_string(on_the_grid)).c_str());
-  SendPace each(1);
-  for (std::int64_t k : {0, 1, 2, 5, 9}) CHECK(each.due(k));  // pace 1: every tick run
+  haptic::rt::SendInterval each(1);
+  for (std::int64_t k : {0, 1, 2, 5, 9}) CHECK(each.take(k));  // pace 1: every tick run
 }
 
 TEST(Timeline, a_deadline_on_the_grid_or_less_than_half_a_period_late_is_its_tick) {

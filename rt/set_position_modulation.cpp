@@ -25,17 +25,28 @@ void SetPositionModulator::init(int dofs, const double* x0, double reservoir0_J)
   injected_J_ = 0;
 }
 
-double SetPositionModulator::update(const double* y, const double* x, const SpatialMatrix& P, double* scratch) {
+void SetPositionModulator::prepare(const double* y, const double* x, double* scratch) const {
   const int n = static_cast<int>(ybar_.size());
   // d = y - ybar, r = x - ybar; dV(alpha) = a alpha^2 + b alpha with a = d^T P d / 2, b = -d^T P r.
   double* d = scratch;
   double* r = scratch + n;
-  double* yb = ybar_.data();
+  const double* yb = ybar_.data();
   for (int i = 0; i < n; ++i) {
     d[i] = y[i] - yb[i];
     r[i] = x[i] - yb[i];
   }
-  const PairForms f = P.pair_forms(d, r);  // one pass over P's rows per edge and tick; P symmetric: d^T P r = r^T P d
+}
+
+double SetPositionModulator::update(const double* y, const double* x, const SpatialMatrix& P, double* scratch) {
+  prepare(y, x, scratch);
+  // one pass over P's rows; P symmetric: d^T P r = r^T P d
+  return finish(P.pair_forms(scratch, scratch + ybar_.size()), scratch);
+}
+
+double SetPositionModulator::finish(const PairForms& f, const double* scratch) {
+  const int n = static_cast<int>(ybar_.size());
+  const double* d = scratch;
+  double* yb = ybar_.data();
   const double a = 0.5 * f.dAd, b = -f.rAd;
   const double E = reservoir_J_ > 0 ? reservoir_J_ : 0.0;
   double alpha = 1.0;

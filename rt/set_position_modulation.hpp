@@ -41,6 +41,11 @@ class SetPositionModulator {
   // One tick: moves ybar from its current value towards y (the newest received x_hat_j) as far as the
   // reservoir allows, given this copy's x(k) and the edge's P. scratch: 2 x dofs doubles. Returns alpha.
   double update(const double* y, const double* x, const SpatialMatrix& P, double* scratch);
+  // update() in its two halves, for edges that share P (SpatialMatrix::pair_forms_many): prepare
+  // writes d = y - ybar and r = x - ybar into scratch, finish takes P's forms on them (pair_forms(d, r))
+  // and moves ybar. The same bits as update().
+  void prepare(const double* y, const double* x, double* scratch) const;
+  double finish(const PairForms& f, const double* scratch);
   // ybar := x (a copy that adopts another state, e.g. on rejoin, starts its springs relaxed); the
   // reservoir is kept. RT-safe (no allocation).
   void reset(const double* x) {

@@ -76,43 +76,77 @@ void SpatialMatrix::multiply_add(double alpha, const double* x, double* y) const
 
 namespace {
 
+// E pairs (d, r) at once: d^T S d and r^T S d of each. Per row i and pair: acc = (S d)_i in 4 lanes
+// (lane c: column c), its entries summed in two chains (even and odd positions in the row, then
+// added: half the add latency a row), then d_i . acc and r_i . acc added lane by lane; lane 3 (the
+// next node's first column) never summed. A row's values and columns are read once for the E pairs,
+// and each pair's sums do not depend on E (the same bits alone or batched).
 struct PairRows {
   int rows;
   const int *outer, *inner;
-  const double *val, *d, *r;
+  const double* val;
+  const double* const* d;
+  const double* const* r;
+  PairForms* out;
 };
-// Per row i: acc = (S d)_i in 4 lanes (lane c: column c), its entries summed in two chains (even
-// and odd positions in the row, then added: half the add latency a row), then d_i . acc and
-// r_i . acc added lane by lane; lane 3 (the next node's first column) never summed.
-[[gnu::always_inline]] inline PairForms pair_rows_body(const PairRows& a) {
-  Lanes4 dd = {}, rd = {};
+template <int E>
+[[gnu::always_inline]] inline void pair_rows_body(const PairRows& a) {
+  Lanes4 dd[E] = {}, rd[E] = {};
+  const double *dp[E], *rp[E];  // in registers, not re-read through a
+  for (int e = 0; e < E; ++e) {
+    dp[e] = a.d[e];
+    rp[e] = a.r[e];
+  }
+  const int* const outer = a.outer;
+  const int* const inner = a.inner;
+  const double* const val = a.val;
   const int lastnode = a.rows - 1;
   for (int i = 0; i < a.rows; ++i) {
-    Lanes4 even = {}, odd = {};
-    int p = a.outer[i];
-    const int end = a.outer[i + 1];
+    Lanes4 even[E] = {}, odd[E] = {};
+    int p = outer[i];
+    const int end = outer[i + 1];
     for (; p + 1 < end; p += 2) {
-      const double v0 = a.val[p], v1 = a.val[p + 1];
-      const int j0 = a.inner[p], j1 = a.inner[p + 1];
-      even += Lanes4{v0, v0, v0, v0} * HAPTIC_NODE_LANES(a.d, j0, j0 == lastnode);
-      odd += Lanes4{v1, v1, v1, v1} * HAPTIC_NODE_LANES(a.d, j1, j1 == lastnode);
+      const double v0 = val[p], v1 = val[p + 1];
+      const int j0 = inner[p], j1 = inner[p + 1];
+      for (int e = 0; e < E; ++e) {
+        even[e] += Lanes4{v0, v0, v0, v0} * HAPTIC_NODE_LANES(dp[e], j0, j0 == lastnode);
+        odd[e] += Lanes4{v1, v1, v1, v1} * HAPTIC_NODE_LANES(dp[e], j1, j1 == lastnode);
+      }
     }
     if (p < end) {
-      const double v = a.val[p];
-      const int j = a.inner[p];
-      even += Lanes4{v, v, v, v} * HAPTIC_NODE_LANES(a.d, j, j == lastnode);
+      const double v = val[p];
+      const int j = inner[p];
+      for (int e = 0; e < E; ++e) even[e] += Lanes4{v, v, v, v} * HAPTIC_NODE_LANES(dp[e], j, j == lastnode);
     }
-    const Lanes4 acc = even + odd;
     const bool last = i == lastnode;
-    dd += HAPTIC_NODE_LANES(a.d, i, last) * acc;
-    rd += HAPTIC_NODE_LANES(a.r, i, last) * acc;
+    for (int e = 0; e < E; ++e) {
+      const Lanes4 acc = even[e] + odd[e];
+      dd[e] += HAPTIC_NODE_LANES(dp[e], i, last) * acc;
+      rd[e] += HAPTIC_NODE_LANES(rp[e], i, last) * acc;
+    }
   }
-  return {lane_sum<3>(dd), lane_sum<3>(rd)};
+  for (int e = 0; e < E; ++e) a.out[e] = {lane_sum<3>(dd[e]), lane_sum<3>(rd[e])};
 }
-[[gnu::noinline]] PairForms pair_rows(const PairRows& a) { return pair_rows_body(a); }
+[[gnu::noinline]] void pair_rows_1(const PairRows& a) { pair_rows_body<1>(a); }
+[[gnu::noinline]] void pair_rows_2(const PairRows& a) { pair_rows_body<2>(a); }
+[[gnu::noinline]] void pair_rows_3(const PairRows& a) { pair_rows_body<3>(a); }
 #if defined(__x86_64__)
-[[gnu::noinline]] __attribute__((target("avx"))) PairForms pair_rows_avx(const PairRows& a) { return pair_rows_body(a); }
+[[gnu::noinline]] __attribute__((target("avx"))) void pair_rows_1_avx(const PairRows& a) { pair_rows_body<1>(a); }
+[[gnu::noinline]] __attribute__((target("avx"))) void pair_rows_2_avx(const PairRows& a) { pair_rows_body<2>(a); }
+[[gnu::noinline]] __attribute__((target("avx"))) void pair_rows_3_avx(const PairRows& a) { pair_rows_body<3>(a); }
 #endif
+// a.d/a.r/a.out's first E (1-3) pairs, in the AVX build when avx.
+void pair_rows(int E, const PairRows& a, bool avx) {
+#if defined(__x86_64__)
+  if (avx) {
+    E == 1 ? pair_rows_1_avx(a) : E == 2 ? pair_rows_2_avx(a) : pair_rows_3_avx(a);
+    return;
+  }
+#else
+  (void)avx;
+#endif
+  E == 1 ? pair_rows_1(a) : E == 2 ? pair_rows_2(a) : pair_rows_3(a);
+}
 
 }  // namespace
 
@@ -122,13 +156,9 @@ PairForms SpatialMatrix::pair_forms(const double* d, const double* r, bool allow
   const double* val = S.valuePtr();
   const int rows = static_cast<int>(S.rows());
   if (width == 3) {
-    const PairRows a{rows, outer, inner, val, d, r};
-#if defined(__x86_64__)
-    if (allow_avx && cpu_has_avx()) return pair_rows_avx(a);
-#else
-    (void)allow_avx;
-#endif
-    return pair_rows(a);
+    PairForms f;
+    pair_rows(1, PairRows{rows, outer, inner, val, &d, &r, &f}, allow_avx && cpu_has_avx());
+    return f;
   }
   PairForms f;
   for (int i = 0; i < rows; ++i) {
@@ -138,6 +168,20 @@ PairForms SpatialMatrix::pair_forms(const double* d, const double* r, bool allow
     f.rAd += r[i] * acc;
   }
   return f;
+}
+
+void SpatialMatrix::pair_forms_many(const double* const* d, const double* const* r, int m, PairForms* out, bool allow_avx) const {
+  if (width != 3) {
+    for (int e = 0; e < m; ++e) out[e] = pair_forms(d[e], r[e], allow_avx);
+    return;
+  }
+  const bool avx = allow_avx && cpu_has_avx();
+  for (int e = 0; e < m;) {
+    const int left = m - e;
+    const int E = left == 1 ? 1 : left == 2 || left == 4 ? 2 : 3;  // three pairs a pass, two when two or four are left
+    pair_rows(E, PairRows{static_cast<int>(S.rows()), S.outerIndexPtr(), S.innerIndexPtr(), S.valuePtr(), d + e, r + e, out + e}, avx);
+    e += E;
+  }
 }
 
 SpatialMatrix linear_combination(std::initializer_list<std::pair<double, const SpatialMatrix*>> terms) {

@@ -39,6 +39,10 @@ struct SpatialMatrix {
   // way; full: scalar. Sums in another order than multiply_add then dot products: equal to those
   // up to rounding. RT-safe: no allocation.
   PairForms pair_forms(const double* d, const double* r, bool allow_avx = true) const;
+  // pair_forms for m pairs (d[e], r[e]) in passes of up to three pairs each, a row's values and
+  // columns read once a pass (the set-position modulators of a gain group's edges, which share P);
+  // out[e] has the same bits as pair_forms(d[e], r[e]). RT-safe: no allocation.
+  void pair_forms_many(const double* const* d, const double* const* r, int m, PairForms* out, bool allow_avx = true) const;
 };
 
 // sum_k c_k A_k. Isotropic if every term is isotropic. Start-up only (allocates).

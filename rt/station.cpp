@@ -190,7 +190,7 @@ void StationCore::init_edges() {
   if (cfg_.consensus_passivity == ConsensusPassivity::kSetPositionModulation) {
     pspm_.resize(static_cast<std::size_t>(nn));
     for (auto& m : pspm_) m.init(dofs_, x_.data(), cfg_.pspm_reservoir0_J);
-    pspm_scratch_ = Eigen::VectorXd::Zero(2 * dofs_);  // SetPositionModulator::update's d and r
+    pspm_scratch_ = Eigen::VectorXd::Zero(2 * dofs_ * nn);  // each edge's d and r (SetPositionModulator::prepare)
     if (cfg_.predict_held_state) {
       predicted_ = Eigen::VectorXd::Zero(dofs_);
       held_since_.assign(static_cast<std::size_t>(nn), 0);
@@ -887,11 +887,40 @@ const double* StationCore::edge_target(int j, std::int64_t k, bool ok, bool dist
     // left out: the set-position relaxes towards this copy (the modulation is passive for any target)
     if (views_[j].index_delay >= 0) {
       const double* target = modulation_target(j, k);  // (keeps the held-since count when left out)
-      m.update(excluded ? x_.data() : target, x_.data(), cfg_.neighbors[j].gains->P, pspm_scratch_.data());
+      m.prepare(excluded ? x_.data() : target, x_.data(), pspm_scratch_.data() + 2L * dofs_ * j);
+      pspm_due_[static_cast<std::size_t>(pspm_due_count_++)] = j;
     }
     views_[j].x_hat = m.ybar();
     views_[j].fresh = false;  // D acts on the local velocity only
     active_[j] = 1;
+  }
+  if (pspm_due_count_ > 0) modulate_due_edges();
+}
+
+void StationCore::modulate_due_edges() {
+  // The due edges that share a P (one gain group) take their forms in one pass over P's rows.
+  std::array<const double*, kMaxNeighbors> d{}, r{};
+  std::array<PairForms, kMaxNeighbors> forms{};
+  std::array<int, kMaxNeighbors> batch{};
+  const int due = pspm_due_count_;
+  pspm_due_count_ = 0;
+  for (int a = 0; a < due; ++a) {
+    const int lead = pspm_due_[static_cast<std::size_t>(a)];
+    if (lead < 0) continue;  // taken with an earlier edge's P
+    const SpatialMatrix& P = cfg_.neighbors[static_cast<std::size_t>(lead)].gains->P;
+    int m = 0;
+    for (int b = a; b < due; ++b) {
+      const int j = pspm_due_[static_cast<std::size_t>(b)];
+      if (j < 0 || &cfg_.neighbors[static_cast<std::size_t>(j)].gains->P != &P) continue;
+      pspm_due_[static_cast<std::size_t>(b)] = -1;
+      const double* s = pspm_scratch_.data() + 2L * dofs_ * j;
+      batch[static_cast<std::size_t>(m)] = j;
+      d[static_cast<std::size_t>(m)] = s;
+      r[static_cast<std::size_t>(m)] = s + dofs_;
+      ++m;
+    }
+    P.pair_forms_many(d.data(), r.data(), m, forms.data());
+    for (int e = 0; e < m; ++e) pspm_[static_cast<std::size_t>(batch[static_cast<std::size_t>(e)])].finish(forms[static_cast<std::size_t>(e)], d[static_cast<std::size_t>(e)]);
   }
 }
 

@@ -12,6 +12,7 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <memory>
+#include <array>
 #include <vector>
 
 #include "rt/gains.hpp"
@@ -330,6 +331,41 @@ TEST(SetPositionModulation, the_pair_forms_equal_the_explicit_matvec_and_dot_pro
       CHECK_TRUE(scalar.dAd == f.dAd && scalar.rAd == f.rAd);
     }
   }
+}
+
+// A gain group's edges take their forms in passes of up to three pairs (pair_forms_many): each pair's
+// forms have pair_forms' bits, for 1-5 pairs (passes of 3, 2 and 1), isotropic (both builds, rows that
+// reach the last node) and full.
+TEST(SetPositionModulation, the_forms_of_several_edges_in_one_pass_have_each_edges_own_bits) {
+  const Scene lattice = build_scene(make_lattice_ball(1000, 0.05), SceneParams{});
+  const EdgeGains g = paper_edge_gains(lattice);
+  const int n = g.P.dofs();
+  constexpr int kPairs = 5;
+  std::vector<Eigen::VectorXd> d(kPairs, Eigen::VectorXd(n)), r(kPairs, Eigen::VectorXd(n));
+  std::array<const double*, kPairs> dp{}, rp{};
+  for (int e = 0; e < kPairs; ++e) {
+    for (int k = 0; k < n; ++k) {  // a different vector pair per edge
+      d[e][k] = 1e-3 * std::sin(0.7 * k + 0.3 + e) * (1 + ((k + e) % 5));
+      r[e][k] = 2e-3 * std::cos(1.3 * k - e) - 1e-4 * e;
+    }
+    dp[e] = d[e].data();
+    rp[e] = r[e].data();
+  }
+  const SpatialMatrix full = SpatialMatrix::full(g.P.as_full());
+  int compared = 0;
+  for (const SpatialMatrix* M : {&g.P, &full})
+    for (bool avx : {true, false})
+      for (int m = 1; m <= kPairs; ++m) {
+        std::array<PairForms, kPairs> many{};
+        M->pair_forms_many(dp.data(), rp.data(), m, many.data(), avx);
+        for (int e = 0; e < m; ++e) {
+          const PairForms one = M->pair_forms(dp[e], rp[e], avx);
+          CHECK_TRUE(many[e].dAd == one.dAd && many[e].rAd == one.rAd);
+          CHECK_TRUE(many[e].dAd > 0);
+          ++compared;
+        }
+      }
+  LONGS_EQUAL(2 * 2 * 15, compared);
 }
 
 TEST(SetPositionModulation, controller_ports_put_in_at_most_the_reservoirs_under_adversarial_drives_with_no_damping) {

@@ -355,6 +355,44 @@ TEST(Station, a_held_neighbour_state_is_extrapolated_with_its_velocity_under_set
   for (int i = 0; i < dofs; ++i) DOUBLES_EQUAL(x[i] + 1e-6, ybar[i], 1e-12);
 }
 
+TEST(Station, each_modulated_edge_of_a_gain_group_moves_its_own_set_position_as_a_lone_modulator_would) {
+  // A hub's edges that share P take their forms in passes of up to three (pair_forms_many): with 1-5
+  // neighbours, each sending its own state, every edge's set-position and reservoir have the bits of
+  // a lone SetPositionModulator fed the same target, this copy's x(k) and the station's reservoir (the
+  // edge's D credits it after the step), the reservoir small enough that the jumps are limited
+  // (alpha < 1, which the forms decide).
+  const auto& w = PaperWorld::get();
+  const int dofs = w.scene.dofs;
+  for (int nn = 1; nn <= 5; ++nn) {
+    std::vector<int> peers;
+    for (int j = 1; j <= nn; ++j) peers.push_back(j);
+    auto c = w.station(0, nn + 1, peers, 0.0, test::tetra_dirs()[0]);
+    c.vp_initial_position_m = Eigen::Vector3d(5, 5, 5);  // far away: no contact
+    c.consensus_passivity = ConsensusPassivity::kSetPositionModulation;
+    c.pspm_reservoir0_J = 1e-9;
+    StationCore s(c);
+    std::vector<SetPositionModulator> lone(static_cast<std::size_t>(nn));
+    for (auto& m : lone) m.init(dofs, w.scene.x_d.data(), c.pspm_reservoir0_J);
+    Eigen::VectorXd scratch(2 * dofs), v = Eigen::VectorXd::Zero(dofs);
+    std::vector<Eigen::VectorXd> y(static_cast<std::size_t>(nn), w.scene.x_d);
+    for (int k = 0; k < 8; ++k) {
+      const Eigen::VectorXd xk = s.x();
+      for (int j = 0; j < nn; ++j) {
+        for (int i = 0; i < dofs; ++i) y[j][i] = w.scene.x_d[i] + 1e-4 * std::sin(0.7 * i + 1.3 * j + 0.4 * k);
+        s.rx(j).offer(k, 0, y[j].data(), v.data(), dofs);
+        lone[j].update(y[j].data(), xk.data(), w.gains.P, scratch.data());
+      }
+      s.tick(k, Eigen::Vector3d(5, 5, 5));
+      for (int j = 0; j < nn; ++j) {
+        const SetPositionModulator& m = *s.set_position_modulator(j);
+        CHECK_TRUE(std::equal(m.ybar(), m.ybar() + dofs, lone[j].ybar()));
+        lone[j].credit(m.reservoir_J() - lone[j].reservoir_J());  // what the edge's D dissipated after the jump
+        if (k == 7) CHECK_TRUE(m.limited_ticks() > 0);
+      }
+    }
+  }
+}
+
 TEST(Station, eq18_damping_for_the_paper_star_is_round_trip_times_lambda_max_P) {
   const auto& w = PaperWorld::get();
   DOUBLES_EQUAL(1000.0, w.gains.lambda_max_P, 1e-6);

@@ -17,6 +17,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/IterativeLinearSolvers>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -384,6 +385,38 @@ void BM_PspmForms(benchmark::State& state) {
   state.counters["nodes"] = static_cast<double>(n / 3);
 }
 
+// A hub's three modulated edges sharing P (one gain group), one tick's forms: method 0 one pass over
+// P per edge (SpatialMatrix::pair_forms three times), 1 one pass for the three
+// (SpatialMatrix::pair_forms_many, what StationCore does). Args: nodes, method.
+void BM_PspmFormsEdges(benchmark::State& state) {
+  const Scene scene = build_scene(state.range(0) == 33 ? make_paper_ball(0.05) : make_lattice_ball(static_cast<int>(state.range(0)), 0.05),
+                                  SceneParams{});
+  const EdgeGains g = paper_edge_gains(scene);
+  const int n = g.P.dofs();
+  constexpr int kEdges = 3;
+  std::vector<std::vector<double>> d(kEdges, std::vector<double>(static_cast<std::size_t>(n))), r = d;
+  std::array<const double*, kEdges> dp{}, rp{};
+  for (int e = 0; e < kEdges; ++e) {
+    for (int k = 0; k < n; ++k) {
+      d[e][static_cast<std::size_t>(k)] = 1e-4 * std::sin(0.37 * k + e);
+      r[e][static_cast<std::size_t>(k)] = 1e-3 * std::cos(0.11 * k - e);
+    }
+    dp[e] = d[e].data();
+    rp[e] = r[e].data();
+  }
+  std::array<PairForms, kEdges> f{};
+  double sink = 0;
+  for (auto _ : state) {
+    if (state.range(1) == 0)
+      for (int e = 0; e < kEdges; ++e) f[e] = g.P.pair_forms(dp[e], rp[e]);
+    else
+      g.P.pair_forms_many(dp.data(), rp.data(), kEdges, f.data());
+    for (const PairForms& x : f) sink += x.dAd + x.rAd;
+    benchmark::DoNotOptimize(sink);
+  }
+  state.counters["nodes"] = static_cast<double>(n / 3);
+}
+
 // The floor of BM_Tick/NODES/0: reading once, in one pass, as many bytes as that tick touches
 // (StationCore::tick_bytes(): each array it reads or writes counted once), from a buffer that stays
 // as warm as the tick's own arrays do between ticks (the same process, the same size). Read with
@@ -702,6 +735,7 @@ BENCHMARK(BM_Tick)->ArgsProduct({{300, 1000, 16000}, {kAutoArg}})->Unit(benchmar
 BENCHMARK(BM_TickEdgeCopies)->Arg(3000)->Arg(16000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TickPspm)->Arg(3000)->Arg(16000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PspmForms)->ArgsProduct({{33, 3000, 16000}, {0, 1}})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PspmFormsEdges)->ArgsProduct({{33, 3000, 16000}, {0, 1}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Tick)->ArgsProduct({{1000, 10000, 16000}, {kCholmodArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Tick)->ArgsProduct({{33, 300, 1000, 3000, 10000, 16000}, {kEigenCgArg}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TickFloor)->Arg(33)->Arg(300)->Arg(1000)->Arg(3000)->Arg(10000)->Arg(16000)->Unit(benchmark::kMicrosecond);

@@ -874,6 +874,7 @@ const double* StationCore::edge_target(int j, std::int64_t k, bool ok, bool dist
     }
   }
   if (cfg_.resilient_f > 0) exclude_resilient(flags);  // among the edges the bounds left in
+  bool any_prepared = false;
   for (int j = 0; j < neighbor_count(); ++j) {
     const bool excluded = excluded_[static_cast<std::size_t>(j)] != 0;
     if (pspm_.empty()) {
@@ -888,39 +889,36 @@ const double* StationCore::edge_target(int j, std::int64_t k, bool ok, bool dist
     if (views_[j].index_delay >= 0) {
       const double* target = modulation_target(j, k);  // (keeps the held-since count when left out)
       m.prepare(excluded ? x_.data() : target, x_.data(), pspm_scratch_.data() + 2L * dofs_ * j);
-      pspm_due_[static_cast<std::size_t>(pspm_due_count_++)] = j;
+      pspm_prepared_[static_cast<std::size_t>(j)] = 1;
+      any_prepared = true;
     }
     views_[j].x_hat = m.ybar();
     views_[j].fresh = false;  // D acts on the local velocity only
     active_[j] = 1;
   }
-  if (pspm_due_count_ > 0) modulate_due_edges();
+  if (any_prepared) modulate_prepared_edges();
 }
 
-void StationCore::modulate_due_edges() {
-  // The due edges that share a P (one gain group) take their forms in one pass over P's rows.
+void StationCore::modulate_prepared_edges() {
+  // Each gain group's prepared edges (their P is the group's) take their forms in one pass over P's rows.
   std::array<const double*, kMaxNeighbors> d{}, r{};
   std::array<PairForms, kMaxNeighbors> forms{};
-  std::array<int, kMaxNeighbors> batch{};
-  const int due = pspm_due_count_;
-  pspm_due_count_ = 0;
-  for (int a = 0; a < due; ++a) {
-    const int lead = pspm_due_[static_cast<std::size_t>(a)];
-    if (lead < 0) continue;  // taken with an earlier edge's P
-    const SpatialMatrix& P = cfg_.neighbors[static_cast<std::size_t>(lead)].gains->P;
+  std::array<int, kMaxNeighbors> edge{};
+  for (const int g : group_leaders_) {
+    const EdgeGains* eg = cfg_.neighbors[static_cast<std::size_t>(g)].gains;
     int m = 0;
-    for (int b = a; b < due; ++b) {
-      const int j = pspm_due_[static_cast<std::size_t>(b)];
-      if (j < 0 || &cfg_.neighbors[static_cast<std::size_t>(j)].gains->P != &P) continue;
-      pspm_due_[static_cast<std::size_t>(b)] = -1;
-      const double* s = pspm_scratch_.data() + 2L * dofs_ * j;
-      batch[static_cast<std::size_t>(m)] = j;
-      d[static_cast<std::size_t>(m)] = s;
-      r[static_cast<std::size_t>(m)] = s + dofs_;
-      ++m;
+    for (int j = g; j < neighbor_count(); ++j) {
+      const auto u = static_cast<std::size_t>(j);
+      if (!pspm_prepared_[u] || cfg_.neighbors[u].gains != eg) continue;
+      pspm_prepared_[u] = 0;
+      const auto e = static_cast<std::size_t>(m++);
+      edge[e] = j;
+      d[e] = pspm_scratch_.data() + 2L * dofs_ * j;
+      r[e] = d[e] + dofs_;
     }
-    P.pair_forms_many(d.data(), r.data(), m, forms.data());
-    for (int e = 0; e < m; ++e) pspm_[static_cast<std::size_t>(batch[static_cast<std::size_t>(e)])].finish(forms[static_cast<std::size_t>(e)], d[static_cast<std::size_t>(e)]);
+    if (m == 0) continue;
+    eg->P.pair_forms_many(d.data(), r.data(), m, forms.data());
+    for (int e = 0; e < m; ++e) pspm_[static_cast<std::size_t>(edge[static_cast<std::size_t>(e)])].finish(forms[static_cast<std::size_t>(e)], d[static_cast<std::size_t>(e)]);
   }
 }
 

@@ -380,9 +380,9 @@ class StationCore {
   // pspm: the set-position target of edge j at tick k: the held packet's x_hat_j, extrapolated by its
   // v_hat_j over the ticks it has been held when predict_held_state (views_[j] from begin_tick). RT-safe.
   const double* modulation_target(int j, std::int64_t k);
-  // pspm: the edges read_neighbours prepared this tick (pspm_due_) take their forms and move their
-  // set-positions, those sharing a P in one pass over it. RT-safe.
-  void modulate_due_edges();
+  // pspm: the edges read_neighbours prepared this tick (pspm_prepared_) take their forms and move
+  // their set-positions, a gain group's in one pass over its P. RT-safe.
+  void modulate_prepared_edges();
   // Gain group g's (neighbours sharing cfg_.neighbors[g].gains) active neighbours' x_hat (na) and
   // fresh ones' v_hat (nf), in neighbour order.
   void group_inputs(int g, const double** xs, int& na, const double** vs, int& nf) const;
@@ -442,8 +442,7 @@ class StationCore {
   std::uint64_t safe_state_ticks_ = 0;
   std::vector<SetPositionModulator> pspm_;  // one per edge when consensus_passivity = pspm
   Eigen::VectorXd pspm_scratch_;                // each edge's d and r (2 x dofs per edge)
-  std::array<int, kMaxNeighbors> pspm_due_{};  // edges prepared this tick, in order
-  int pspm_due_count_ = 0;
+  std::array<unsigned char, kMaxNeighbors> pspm_prepared_{};  // edges prepared this tick
   Eigen::VectorXd predicted_;               // predict_held_state: the extrapolated target (dofs)
   std::vector<std::int64_t> held_since_;    // predict_held_state: tick each held packet was first used
   std::vector<unsigned char> edge_was_dropped_;

@@ -10,9 +10,9 @@
 #include <CppUTest/TestHarness.h>
 
 #include <Eigen/Dense>
+#include <array>
 #include <cmath>
 #include <memory>
-#include <array>
 #include <vector>
 
 #include "rt/gains.hpp"
